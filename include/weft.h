@@ -1,0 +1,264 @@
+/*
+ * weft — learned cloth simulation for game loops.
+ *
+ * This is the whole core API. Concept headers under weft/ (ccd.h, body.h, sim.h, fnopt.h)
+ * add optional pieces; none is needed to step a garment.
+ *
+ * Conventions
+ *   Units      metres, seconds, kilograms. Y is up, gravity is -9.81 m/s^2 along Y.
+ *   Layouts    positions are float xyz triplets, tightly packed: p[3*i+0..2] is vertex i.
+ *              Triangles are uint32_t index triplets, counter-clockwise seen from the front.
+ *   Frames     a step advances one frame of 1/60 s (the rate the models are trained at).
+ *   Errors     every fallible call returns weft_result. On failure nothing the caller owns is
+ *              changed, and weft_last_error() holds a message naming the offending field.
+ *   Memory     all allocation goes through the weft_allocator given at context creation.
+ *              Stepping allocates nothing: every buffer is sized when a garment is created.
+ *   Threads    objects are not internally locked: use one garment from one thread at a time.
+ *              Different garments may be stepped concurrently. Work inside a step is split
+ *              through the host's parallel_for hook when one is given.
+ *
+ * Typical frame:
+ *
+ *   weft_garment_set_collider(garment, body_vertices_next_frame);
+ *   weft_garment_step(garment);
+ *   draw(weft_garment_positions(garment));
+ */
+#ifndef WEFT_H
+#define WEFT_H
+
+#include <stddef.h>
+#include <stdint.h>
+#include <stdbool.h>
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+#define WEFT_VERSION_MAJOR 0
+#define WEFT_VERSION_MINOR 1
+#define WEFT_VERSION_PATCH 0
+
+#if defined(WEFT_BUILDING_LIBRARY)
+#define WEFT_API __attribute__((visibility("default")))
+#else
+#define WEFT_API
+#endif
+
+/* ---------------------------------------------------------------------------------------- */
+/* Results                                                                                   */
+
+typedef enum weft_result {
+    WEFT_OK = 0,
+    WEFT_ERROR_INVALID_ARGUMENT,   /* a NULL pointer, a zero count, an out-of-range enum */
+    WEFT_ERROR_OUT_OF_MEMORY,      /* the allocator returned NULL */
+    WEFT_ERROR_IO,                 /* a file could not be opened, read or written */
+    WEFT_ERROR_NOT_FINITE,         /* NaN or infinity in an input array */
+    WEFT_ERROR_SIZE_MISMATCH,      /* an array's length disagrees with what was declared */
+    WEFT_ERROR_DEGENERATE_MESH,    /* zero-area triangle, out-of-range index, non-manifold edge */
+    WEFT_ERROR_TOPOLOGY_MISMATCH,  /* mesh differs from the one the object was created with */
+    WEFT_ERROR_NO_MODEL,           /* the method needs a model and none was given or loaded */
+    WEFT_ERROR_NO_COLLIDER,        /* a step was asked for before the collider of t+1 was set */
+    WEFT_ERROR_UNSUPPORTED,        /* the method, precision or ISA is not available here */
+    /* Model files (safetensors). Each names the offending tensor or field in weft_last_error(). */
+    WEFT_ERROR_FILE_TRUNCATED,     /* fewer bytes than the header or the offsets need */
+    WEFT_ERROR_HEADER_TOO_LARGE,   /* header length over the cap or beyond the file */
+    WEFT_ERROR_HEADER_JSON,        /* header is not a JSON object of tensor entries */
+    WEFT_ERROR_DUPLICATE_NAME,     /* two tensors (or metadata keys) share a name */
+    WEFT_ERROR_UNKNOWN_DTYPE,      /* dtype outside F32, F16, BF16, I8, I32, U8 */
+    WEFT_ERROR_BAD_SHAPE,          /* shape not a list of non-negative integers, or too many dims */
+    WEFT_ERROR_BAD_OFFSETS,        /* data_offsets malformed, reversed, or outside the data */
+    WEFT_ERROR_SIZE_OVERFLOW,      /* shape x dtype size overflows 64 bits */
+    WEFT_ERROR_OVERLAP,            /* tensors overlap, leave holes, or the file has trailing bytes */
+    WEFT_ERROR_MISSING_TENSOR,     /* a tensor the architecture needs is absent */
+    WEFT_ERROR_TENSOR_SHAPE,       /* a tensor has the wrong shape for the configuration */
+    WEFT_ERROR_TENSOR_DTYPE,       /* a tensor has the wrong dtype for its role */
+    WEFT_ERROR_BAD_METADATA,       /* __metadata__ missing, not strings, or config invalid */
+    WEFT_ERROR_FORMAT,             /* any other malformed input file (npz, npy, BVH, glTF, ...) */
+    WEFT_ERROR_NOT_CONVERGED,      /* an iterative solve hit its limit; the result is still safe */
+    WEFT_RESULT_COUNT
+} weft_result;
+
+/* Short constant description of a result, e.g. "size mismatch". Never NULL. */
+WEFT_API const char *weft_result_string(weft_result result);
+
+/* The detailed message of the last failure on the calling thread (empty if none). */
+WEFT_API const char *weft_last_error(void);
+
+/* ---------------------------------------------------------------------------------------- */
+/* Version and build                                                                          */
+
+/* "MAJOR.MINOR.PATCH". */
+WEFT_API const char *weft_version_string(void);
+
+/* One line describing the build and the machine: version, compiler, kernel ISA in use and
+ * the CPU features detected, e.g. "weft 0.1.0 gcc-12.2 isa=avx512 (avx2 fma f16c avx512f ...)". */
+WEFT_API const char *weft_config_string(void);
+
+/* ---------------------------------------------------------------------------------------- */
+/* Host hooks                                                                                 */
+
+/* Memory. alloc returns memory aligned to at least `alignment` (a power of two <= 4096) or NULL.
+ * free receives the same size that was allocated. NULL functions mean the C library. */
+typedef struct weft_allocator {
+    void *(*alloc)(size_t size, size_t alignment, void *user);
+    void (*free)(void *ptr, size_t size, void *user);
+    void *user;
+} weft_allocator;
+
+/* One chunk of a parallel loop: process items [begin, end). */
+typedef void weft_task_fn(uint32_t begin, uint32_t end, uint32_t worker, void *task_context);
+
+/* The host's job system: run task over [0, count) in chunks of at least min_chunk items and
+ * return when all are done. `worker` must be < max_workers given in weft_context_def. NULL means
+ * weft runs the loop serially on the calling thread. */
+typedef void weft_parallel_for_fn(weft_task_fn *task, uint32_t count, uint32_t min_chunk,
+                                  void *task_context, void *user);
+
+/* ---------------------------------------------------------------------------------------- */
+/* Context: allocator, job hook and the CPU kernel table shared by every object made from it. */
+
+typedef enum weft_isa {
+    WEFT_ISA_AUTO = 0,   /* the best the CPU supports */
+    WEFT_ISA_SCALAR,     /* plain C oracles */
+    WEFT_ISA_AVX2,       /* AVX2 + FMA + F16C */
+    WEFT_ISA_AVX512,     /* AVX-512 F/BW/VL (+ VNNI when present) */
+    WEFT_ISA_NEON,       /* AArch64 Advanced SIMD (+ dot product when present) */
+    WEFT_ISA_COUNT
+} weft_isa;
+
+typedef struct weft_context weft_context;
+
+typedef struct weft_context_def {
+    weft_allocator allocator;
+    weft_parallel_for_fn *parallel_for;
+    void *parallel_for_user;
+    uint32_t max_workers;       /* distinct `worker` values parallel_for may pass; >= 1 */
+    /* Kernel level. AUTO honours the WEFT_ISA environment variable (scalar|avx2|avx512|neon),
+     * which tests and benchmarks use to force a level. Asking for a level the CPU lacks fails
+     * with WEFT_ERROR_UNSUPPORTED. */
+    weft_isa isa;
+    uint32_t internal_cookie;   /* set by weft_default_context_def(); do not touch */
+} weft_context_def;
+
+WEFT_API weft_context_def weft_default_context_def(void);
+WEFT_API weft_result weft_context_create(const weft_context_def *def, weft_context **out_context);
+/* All models and garments made from the context must be destroyed first. */
+WEFT_API void weft_context_destroy(weft_context *context);
+/* The kernel level actually in use (never AUTO). */
+WEFT_API weft_isa weft_context_isa(const weft_context *context);
+WEFT_API const char *weft_isa_name(weft_isa isa);
+
+/* ---------------------------------------------------------------------------------------- */
+/* Models: trained weights in a safetensors file, architecture config in its __metadata__.     */
+
+typedef struct weft_model weft_model;
+
+typedef enum weft_precision {
+    WEFT_PRECISION_FP32 = 0,
+    WEFT_PRECISION_FP16,        /* fp16 weights, fp32 accumulation */
+    WEFT_PRECISION_INT8,        /* int8 weights and activations, int32 accumulation; bit-exact across ISAs */
+    WEFT_PRECISION_COUNT
+} weft_precision;
+
+typedef struct weft_model_info {
+    const char *name;           /* metadata "name", or "" */
+    const char *architecture;   /* metadata "architecture", e.g. "clothtransformer" or "fnopt" */
+    weft_precision precision;   /* the precision the weights are stored in */
+    uint32_t tensor_count;
+    uint64_t parameter_count;
+    uint64_t weight_bytes;
+} weft_model_info;
+
+/* Loads and validates a model. The whole file is checked (header, offsets, dtypes, shapes
+ * against the config) before anything is used; a failure names the tensor or field. */
+WEFT_API weft_result weft_model_load_file(weft_context *context, const char *path, weft_model **out_model);
+/* Same, from memory. The bytes are copied; the caller may free them afterwards. */
+WEFT_API weft_result weft_model_load_memory(weft_context *context, const void *bytes, size_t size,
+                                            weft_model **out_model);
+/* Garments made from the model must be destroyed first. */
+WEFT_API void weft_model_destroy(weft_model *model);
+WEFT_API weft_model_info weft_model_get_info(const weft_model *model);
+
+/* ---------------------------------------------------------------------------------------- */
+/* Garments: one simulated piece of cloth and the collider it responds to.                     */
+
+typedef struct weft_garment weft_garment;
+
+typedef enum weft_method {
+    WEFT_METHOD_MODEL = 0,      /* the learned latent transformer (needs a model) */
+    WEFT_METHOD_XPBD,           /* classical XPBD solver with `substeps` substeps per frame */
+    WEFT_METHOD_LBS,            /* cloth glued to the collider surface (skinning baseline) */
+    WEFT_METHOD_COUNT
+} weft_method;
+
+typedef struct weft_garment_def {
+    weft_method method;
+    const weft_model *model;            /* WEFT_METHOD_MODEL only */
+    weft_precision precision;           /* WEFT_METHOD_MODEL only; the model is converted if needed */
+
+    /* Rest shape (the garment as designed, unstretched). Copied at creation. */
+    const float *rest_positions;        /* vertex_count * 3 */
+    uint32_t vertex_count;
+    const uint32_t *triangles;          /* triangle_count * 3 */
+    uint32_t triangle_count;
+
+    /* Collider topology, fixed for the garment's life; positions arrive every frame through
+     * weft_garment_set_collider(). collider_rest_positions is the collider at the frame where
+     * the garment was placed (used by LBS binding and the initial state). Optional: a garment
+     * may have no collider (count 0). */
+    const float *collider_rest_positions;
+    uint32_t collider_vertex_count;
+    const uint32_t *collider_triangles;
+    uint32_t collider_triangle_count;
+
+    /* Initial state; NULL means the rest shape, at rest. */
+    const float *initial_positions;
+
+    uint32_t substeps;                  /* WEFT_METHOD_XPBD: substeps per frame (default 10) */
+    bool ccd;                           /* run CCD post-processing after each step (default true) */
+    uint32_t internal_cookie;           /* set by weft_default_garment_def(); do not touch */
+} weft_garment_def;
+
+typedef struct weft_step_stats {
+    uint64_t frame;                     /* frames stepped since creation or the last set_state */
+    double step_ms;                     /* wall time of the last step */
+    uint32_t ccd_iterations;            /* CCD post-process passes in the last step */
+    uint32_t ccd_vertices_moved;        /* vertices the CCD post-process moved back */
+    bool ccd_fallback;                  /* CCD did not converge; unresolved vertices were held */
+} weft_step_stats;
+
+WEFT_API weft_garment_def weft_default_garment_def(void);
+
+/* Validates the meshes (indices in range, no zero-area triangles, finite positions) and sizes
+ * every buffer the method needs. */
+WEFT_API weft_result weft_garment_create(weft_context *context, const weft_garment_def *def,
+                                         weft_garment **out_garment);
+WEFT_API void weft_garment_destroy(weft_garment *garment);
+
+/* Replaces the state: positions at t and at t-1 (prev may be NULL: zero velocity). Clears the
+ * model's frame history. */
+WEFT_API weft_result weft_garment_set_state(weft_garment *garment, const float *positions,
+                                            const float *prev_positions);
+
+/* Collider vertex positions at the frame being stepped to (t+1), collider_vertex_count * 3. */
+WEFT_API weft_result weft_garment_set_collider(weft_garment *garment, const float *collider_positions);
+
+/* Pins: vertices that follow given targets this frame (handles, grasps, attachments). Methods
+ * that cannot honour pins return WEFT_ERROR_UNSUPPORTED. count 0 clears the pins. */
+WEFT_API weft_result weft_garment_set_pins(weft_garment *garment, const uint32_t *vertex_indices,
+                                           const float *target_positions, uint32_t count);
+
+/* Advances one frame. Needs set_collider() for this frame when the garment has a collider.
+ * On failure the state is unchanged. */
+WEFT_API weft_result weft_garment_step(weft_garment *garment);
+
+/* Current positions (vertex_count * 3), valid until the next step, set_state or destroy. */
+WEFT_API const float *weft_garment_positions(const weft_garment *garment);
+WEFT_API uint32_t weft_garment_vertex_count(const weft_garment *garment);
+WEFT_API weft_step_stats weft_garment_stats(const weft_garment *garment);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* WEFT_H */

@@ -1,0 +1,296 @@
+#include "garment/garment.h"
+
+#include <math.h>
+#include <string.h>
+
+weft_garment_def weft_default_garment_def(void)
+{
+    weft_garment_def def = {0};
+    def.method = WEFT_METHOD_MODEL;
+    def.precision = WEFT_PRECISION_FP32;
+    def.substeps = 10;
+    def.ccd = true;
+    def.internal_cookie = WEFT_DEF_COOKIE;
+    return def;
+}
+
+/* Indices in range, finite positions, no zero-area triangles. */
+static weft_result check_mesh(const char *what, const float *positions, uint32_t vertex_count,
+                              const uint32_t *triangles, uint32_t triangle_count)
+{
+    if (!weft__all_finite(positions, (size_t)vertex_count * 3)) {
+        return weft__fail(WEFT_ERROR_NOT_FINITE, "%s: positions contain NaN or infinity", what);
+    }
+    for (uint32_t t = 0; t < triangle_count; ++t) {
+        const uint32_t *tri = triangles + 3 * (size_t)t;
+        for (int k = 0; k < 3; ++k) {
+            if (tri[k] >= vertex_count) {
+                return weft__fail(WEFT_ERROR_DEGENERATE_MESH, "%s: triangle %u index %u >= vertex count %u", what, t,
+                                  tri[k], vertex_count);
+            }
+        }
+        if (tri[0] == tri[1] || tri[1] == tri[2] || tri[0] == tri[2]) {
+            return weft__fail(WEFT_ERROR_DEGENERATE_MESH, "%s: triangle %u repeats a vertex", what, t);
+        }
+        const float *a = positions + 3 * (size_t)tri[0];
+        const float *b = positions + 3 * (size_t)tri[1];
+        const float *c = positions + 3 * (size_t)tri[2];
+        float e1[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]};
+        float e2[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+        float n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+        float area2 = sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        float scale = (e1[0] * e1[0] + e1[1] * e1[1] + e1[2] * e1[2]) + (e2[0] * e2[0] + e2[1] * e2[1] + e2[2] * e2[2]);
+        if (!(area2 > 1e-7f * scale)) {
+            return weft__fail(WEFT_ERROR_DEGENERATE_MESH, "%s: triangle %u has (near) zero area", what, t);
+        }
+    }
+    return WEFT_OK;
+}
+
+static void free_buffers(weft_garment *g)
+{
+    const weft_context *ctx = g->ctx;
+    size_t nv3 = (size_t)g->vertex_count * 3 * sizeof(float);
+    size_t nc3 = (size_t)g->collider_vertex_count * 3 * sizeof(float);
+    weft__free(ctx, g->rest, nv3);
+    weft__free(ctx, g->triangles, (size_t)g->triangle_count * 3 * sizeof(uint32_t));
+    weft__free(ctx, g->collider_rest, nc3);
+    weft__free(ctx, g->collider_triangles, (size_t)g->collider_triangle_count * 3 * sizeof(uint32_t));
+    weft__free(ctx, g->collider_prev, nc3);
+    weft__free(ctx, g->collider_next, nc3);
+    weft__free(ctx, g->x, nv3);
+    weft__free(ctx, g->x_prev, nv3);
+    weft__free(ctx, g->x_next, nv3);
+    weft__free(ctx, g->pin_indices, (size_t)g->vertex_count * sizeof(uint32_t));
+    weft__free(ctx, g->pin_targets, nv3);
+    weft__free(ctx, g, sizeof *g);
+}
+
+weft_result weft_garment_create(weft_context *context, const weft_garment_def *def, weft_garment **out_garment)
+{
+    if (!context || !def || !out_garment) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_garment_create: context, def and out_garment are required");
+    }
+    if (def->internal_cookie != WEFT_DEF_COOKIE) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
+                          "weft_garment_create: def was not initialised with weft_default_garment_def()");
+    }
+    if ((unsigned)def->method >= WEFT_METHOD_COUNT || (unsigned)def->precision >= WEFT_PRECISION_COUNT) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_garment_create: method or precision out of range");
+    }
+    if (!def->rest_positions || !def->triangles || def->vertex_count < 3 || def->triangle_count == 0) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
+                          "weft_garment_create: rest_positions and triangles (at least one) are required");
+    }
+    if (def->collider_vertex_count > 0 && (!def->collider_rest_positions || !def->collider_triangles ||
+                                           def->collider_triangle_count == 0)) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
+                          "weft_garment_create: a collider needs rest positions and triangles");
+    }
+    if (def->method == WEFT_METHOD_MODEL && !def->model) {
+        return weft__fail(WEFT_ERROR_NO_MODEL, "weft_garment_create: method 'model' needs def.model (load one with "
+                                               "weft_model_load_file)");
+    }
+    if (def->method == WEFT_METHOD_XPBD && (def->substeps == 0 || def->substeps > 1000)) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_garment_create: substeps %u outside [1, 1000]",
+                          def->substeps);
+    }
+    weft_result r = check_mesh("garment rest mesh", def->rest_positions, def->vertex_count, def->triangles,
+                               def->triangle_count);
+    if (r != WEFT_OK) {
+        return r;
+    }
+    if (def->collider_vertex_count > 0) {
+        r = check_mesh("collider", def->collider_rest_positions, def->collider_vertex_count, def->collider_triangles,
+                       def->collider_triangle_count);
+        if (r != WEFT_OK) {
+            return r;
+        }
+    }
+    if (def->initial_positions && !weft__all_finite(def->initial_positions, (size_t)def->vertex_count * 3)) {
+        return weft__fail(WEFT_ERROR_NOT_FINITE, "weft_garment_create: initial_positions contain NaN or infinity");
+    }
+    const weft_method_ops *ops = weft__method_ops(def->method);
+    if (!ops) {
+        static const char *const names[] = {"model", "xpbd", "lbs"};
+        return weft__fail(WEFT_ERROR_UNSUPPORTED, "weft_garment_create: method '%s' is not available in this build",
+                          names[def->method]);
+    }
+
+    weft_garment *g = weft__alloc(context, sizeof *g);
+    if (!g) {
+        return WEFT_ERROR_OUT_OF_MEMORY;
+    }
+    g->ctx = context;
+    g->ops = ops;
+    g->model = def->model;
+    g->method = def->method;
+    g->precision = def->precision;
+    g->substeps = def->substeps;
+    g->ccd = def->ccd;
+    g->vertex_count = def->vertex_count;
+    g->triangle_count = def->triangle_count;
+    g->collider_vertex_count = def->collider_vertex_count;
+    g->collider_triangle_count = def->collider_triangle_count;
+
+    size_t nv3 = (size_t)def->vertex_count * 3 * sizeof(float);
+    size_t nc3 = (size_t)def->collider_vertex_count * 3 * sizeof(float);
+    g->rest = weft__alloc(context, nv3);
+    g->triangles = weft__alloc(context, (size_t)def->triangle_count * 3 * sizeof(uint32_t));
+    g->x = weft__alloc(context, nv3);
+    g->x_prev = weft__alloc(context, nv3);
+    g->x_next = weft__alloc(context, nv3);
+    g->pin_indices = weft__alloc(context, (size_t)def->vertex_count * sizeof(uint32_t));
+    g->pin_targets = weft__alloc(context, nv3);
+    bool ok = g->rest && g->triangles && g->x && g->x_prev && g->x_next && g->pin_indices && g->pin_targets;
+    if (ok && def->collider_vertex_count > 0) {
+        g->collider_rest = weft__alloc(context, nc3);
+        g->collider_triangles = weft__alloc(context, (size_t)def->collider_triangle_count * 3 * sizeof(uint32_t));
+        g->collider_prev = weft__alloc(context, nc3);
+        g->collider_next = weft__alloc(context, nc3);
+        ok = g->collider_rest && g->collider_triangles && g->collider_prev && g->collider_next;
+    }
+    if (!ok) {
+        free_buffers(g);
+        return WEFT_ERROR_OUT_OF_MEMORY;
+    }
+    memcpy(g->rest, def->rest_positions, nv3);
+    memcpy(g->triangles, def->triangles, (size_t)def->triangle_count * 3 * sizeof(uint32_t));
+    const float *start = def->initial_positions ? def->initial_positions : def->rest_positions;
+    memcpy(g->x, start, nv3);
+    memcpy(g->x_prev, start, nv3);
+    if (def->collider_vertex_count > 0) {
+        memcpy(g->collider_rest, def->collider_rest_positions, nc3);
+        memcpy(g->collider_triangles, def->collider_triangles,
+               (size_t)def->collider_triangle_count * 3 * sizeof(uint32_t));
+        memcpy(g->collider_prev, def->collider_rest_positions, nc3);
+    }
+    r = ops->create(g);
+    if (r != WEFT_OK) {
+        free_buffers(g);
+        return r;
+    }
+    *out_garment = g;
+    return WEFT_OK;
+}
+
+void weft_garment_destroy(weft_garment *garment)
+{
+    if (!garment) {
+        return;
+    }
+    garment->ops->destroy(garment);
+    free_buffers(garment);
+}
+
+weft_result weft_garment_set_state(weft_garment *g, const float *positions, const float *prev_positions)
+{
+    if (!g || !positions) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_garment_set_state: garment and positions are required");
+    }
+    size_t n = (size_t)g->vertex_count * 3;
+    if (!weft__all_finite(positions, n) || (prev_positions && !weft__all_finite(prev_positions, n))) {
+        return weft__fail(WEFT_ERROR_NOT_FINITE, "weft_garment_set_state: positions contain NaN or infinity");
+    }
+    memcpy(g->x, positions, n * sizeof(float));
+    memcpy(g->x_prev, prev_positions ? prev_positions : positions, n * sizeof(float));
+    g->stats = (weft_step_stats){0};
+    if (g->ops->reset) {
+        g->ops->reset(g);
+    }
+    return WEFT_OK;
+}
+
+weft_result weft_garment_set_collider(weft_garment *g, const float *collider_positions)
+{
+    if (!g || !collider_positions) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_garment_set_collider: garment and positions are required");
+    }
+    if (g->collider_vertex_count == 0) {
+        return weft__fail(WEFT_ERROR_NO_COLLIDER, "weft_garment_set_collider: the garment was created without a "
+                                                  "collider (def.collider_vertex_count = 0)");
+    }
+    size_t n = (size_t)g->collider_vertex_count * 3;
+    if (!weft__all_finite(collider_positions, n)) {
+        return weft__fail(WEFT_ERROR_NOT_FINITE, "weft_garment_set_collider: positions contain NaN or infinity");
+    }
+    memcpy(g->collider_next, collider_positions, n * sizeof(float));
+    g->collider_next_set = true;
+    return WEFT_OK;
+}
+
+weft_result weft_garment_set_pins(weft_garment *g, const uint32_t *vertex_indices, const float *target_positions,
+                                  uint32_t count)
+{
+    if (!g || (count > 0 && (!vertex_indices || !target_positions))) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_garment_set_pins: indices and targets are required");
+    }
+    if (count > 0 && !g->ops->supports_pins) {
+        return weft__fail(WEFT_ERROR_UNSUPPORTED, "weft_garment_set_pins: method '%s' does not support pins",
+                          g->ops->name);
+    }
+    if (count > g->vertex_count) {
+        return weft__fail(WEFT_ERROR_SIZE_MISMATCH, "weft_garment_set_pins: %u pins for %u vertices", count,
+                          g->vertex_count);
+    }
+    for (uint32_t i = 0; i < count; ++i) {
+        if (vertex_indices[i] >= g->vertex_count) {
+            return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_garment_set_pins: pin %u index %u >= vertex count %u",
+                              i, vertex_indices[i], g->vertex_count);
+        }
+    }
+    if (!weft__all_finite(target_positions, (size_t)count * 3)) {
+        return weft__fail(WEFT_ERROR_NOT_FINITE, "weft_garment_set_pins: targets contain NaN or infinity");
+    }
+    memcpy(g->pin_indices, vertex_indices, (size_t)count * sizeof(uint32_t));
+    memcpy(g->pin_targets, target_positions, (size_t)count * 3 * sizeof(float));
+    g->pin_count = count;
+    return WEFT_OK;
+}
+
+weft_result weft_garment_step(weft_garment *g)
+{
+    if (!g) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_garment_step: garment is NULL");
+    }
+    if (g->collider_vertex_count > 0 && !g->collider_next_set) {
+        return weft__fail(WEFT_ERROR_NO_COLLIDER,
+                          "weft_garment_step: call weft_garment_set_collider with the collider at t+1 first");
+    }
+    double t0 = weft__now_ms();
+    weft_result r = g->ops->step(g);
+    if (r != WEFT_OK) {
+        return r;
+    }
+    if (!weft__all_finite(g->x_next, (size_t)g->vertex_count * 3)) {
+        return weft__fail(WEFT_ERROR_NOT_FINITE, "weft_garment_step: method '%s' produced NaN or infinity; state kept",
+                          g->ops->name);
+    }
+    /* Rotate: t-1 <- t, t <- t+1 (pointer swaps, no copies). */
+    float *old_prev = g->x_prev;
+    g->x_prev = g->x;
+    g->x = g->x_next;
+    g->x_next = old_prev;
+    if (g->collider_vertex_count > 0) {
+        float *c = g->collider_prev;
+        g->collider_prev = g->collider_next;
+        g->collider_next = c;
+        g->collider_next_set = false;
+    }
+    g->stats.frame++;
+    g->stats.step_ms = weft__now_ms() - t0;
+    return WEFT_OK;
+}
+
+const float *weft_garment_positions(const weft_garment *g) { return g ? g->x : NULL; }
+
+uint32_t weft_garment_vertex_count(const weft_garment *g) { return g ? g->vertex_count : 0; }
+
+weft_step_stats weft_garment_stats(const weft_garment *g)
+{
+    weft_step_stats s = {0};
+    if (g) {
+        s = g->stats;
+    }
+    return s;
+}

@@ -1,0 +1,59 @@
+/* The garment instance shared by every method, and the interface a method implements.
+ * The per-frame path is: set_collider -> step -> method->step writes next positions ->
+ * optional CCD post-process -> rotate state buffers. Nothing here allocates after creation. */
+#ifndef WEFT_GARMENT_H
+#define WEFT_GARMENT_H
+
+#include "core/core.h"
+
+typedef struct weft_method_ops weft_method_ops;
+
+struct weft_garment {
+    weft_context *ctx;
+    const weft_method_ops *ops;
+    void *method_state;                 /* owned by the method */
+    const weft_model *model;
+    weft_method method;
+    weft_precision precision;
+    uint32_t substeps;
+    bool ccd;
+
+    uint32_t vertex_count, triangle_count;
+    float *rest;                        /* vertex_count * 3 */
+    uint32_t *triangles;                /* triangle_count * 3 */
+
+    uint32_t collider_vertex_count, collider_triangle_count;
+    float *collider_rest;               /* collider_vertex_count * 3 */
+    uint32_t *collider_triangles;
+    float *collider_prev;               /* collider at t (the current frame) */
+    float *collider_next;               /* collider at t+1, set by weft_garment_set_collider */
+    bool collider_next_set;
+
+    float *x;                           /* positions at t */
+    float *x_prev;                      /* positions at t-1 */
+    float *x_next;                      /* scratch the method writes t+1 into */
+
+    uint32_t pin_count;
+    uint32_t *pin_indices;              /* capacity vertex_count */
+    float *pin_targets;                 /* capacity vertex_count * 3 */
+
+    weft_step_stats stats;
+};
+
+struct weft_method_ops {
+    const char *name;
+    bool supports_pins;
+    /* Allocate method_state and precompute everything constant for this garment. */
+    weft_result (*create)(weft_garment *g);
+    void (*destroy)(weft_garment *g);
+    /* Clear any frame history (called after weft_garment_set_state). May be NULL. */
+    void (*reset)(weft_garment *g);
+    /* Write positions at t+1 into g->x_next from g->x, g->x_prev, the colliders and the pins.
+     * Must not change g->x or g->x_prev; on failure the garment is left as it was. */
+    weft_result (*step)(weft_garment *g);
+};
+
+/* The implementation of a method, or NULL when this build has none. */
+const weft_method_ops *weft__method_ops(weft_method method);
+
+#endif
