@@ -1,0 +1,44 @@
+#!/usr/bin/env bash
+# The whole test suite, from a fresh Debian 12 machine (as root, or with sudo):
+#   1. installs missing Debian packages (tools/debian-packages.txt);
+#   2. AArch64 cross build of the core + kernels, tests run under qemu-user (NEON twins);
+#   3. clang build with ASan + UBSan, full suite, plus a bounded libFuzzer run per fuzz target;
+#   4. gcc Release build with warnings as errors, full suite (its ctest summary closes the run).
+# Environment: WEFT_TEST_QUICK=1 skips steps 2-3; WEFT_FUZZ_SECONDS (default 30) per target.
+set -euo pipefail
+root="$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)"
+cd "$root"
+bash tools/install-deps.sh
+jobs="$(nproc)"
+
+step() { printf '\n=== %s ===\n' "$*"; }
+
+if [ "${WEFT_TEST_QUICK:-0}" != "1" ]; then
+    step "AArch64 (NEON) core and kernels under qemu-user"
+    cmake --preset arm64 >/dev/null
+    cmake --build build-arm64 -j"$jobs"
+    ctest --test-dir build-arm64 -j"$jobs" --output-on-failure
+
+    step "clang + ASan/UBSan: full suite"
+    cmake --preset asan >/dev/null
+    cmake --build build-asan -j"$jobs"
+    ASAN_OPTIONS=detect_leaks=1:abort_on_error=1 UBSAN_OPTIONS=print_stacktrace=1:halt_on_error=1 \
+        ctest --test-dir build-asan -j"$jobs" --output-on-failure --timeout 1200
+
+    step "libFuzzer: bounded runs"
+    for fuzzer in build-asan/tests/fuzz_*; do
+        [ -x "$fuzzer" ] || continue
+        name="$(basename "$fuzzer")"; name="${name#fuzz_}"
+        corpus="tests/fuzz/corpus/$name"
+        work="$(mktemp -d)"
+        [ -d "$corpus" ] && cp -r "$corpus"/. "$work"/
+        echo "fuzz $name for ${WEFT_FUZZ_SECONDS:-30} s"
+        "$fuzzer" -max_total_time="${WEFT_FUZZ_SECONDS:-30}" -print_final_stats=1 "$work" 2>&1 | tail -n 4
+        rm -rf "$work"
+    done
+fi
+
+step "gcc Release: full suite"
+cmake --preset release >/dev/null
+cmake --build build -j"$jobs"
+ctest --test-dir build -j"$jobs" --output-on-failure
