@@ -1,0 +1,52 @@
+/* AVX-VNNI twin (VEX-encoded vpdpbusd on ymm): 8 channels per instruction, two per block. Same
+ * unsigned-offset form as the AVX-512 twin. */
+#include "kernels/simd_avx2.h"
+
+#include "kernels/qkernels.h"
+
+#include <stdint.h>
+#include <string.h>
+
+static inline V v_load_h(const uint16_t *p) { return _mm256_cvtph_ps(_mm_loadu_si128((const __m128i *)p)); }
+static inline V v_load_h_n(const uint16_t *p, size_t n)
+{
+    uint16_t t[8] = {0};
+    memcpy(t, p, (n < 8 ? n : 8) * sizeof(uint16_t));
+    return v_load_h(t);
+}
+
+static inline void q8_tile(const int8_t *Q, uint32_t ldq, uint32_t rows, const int8_t *block, uint32_t kgroups,
+                           const int32_t *wsum, float out[4][16])
+{
+    const __m256i flip = _mm256_set1_epi8((char)0x80);
+    __m256i acc[4][2];
+    for (uint32_t r = 0; r < 4; ++r) {
+        acc[r][0] = acc[r][1] = _mm256_setzero_si256();
+    }
+    const int8_t *a[4];
+    for (uint32_t r = 0; r < 4; ++r) {
+        a[r] = Q + (size_t)(r < rows ? r : 0) * ldq;
+    }
+    for (uint32_t g = 0; g < kgroups; ++g) {
+        __m256i w0 = _mm256_loadu_si256((const __m256i *)(block + (size_t)g * 64));
+        __m256i w1 = _mm256_loadu_si256((const __m256i *)(block + (size_t)g * 64 + 32));
+        for (uint32_t r = 0; r < 4; ++r) {
+            int32_t x;
+            memcpy(&x, a[r] + 4 * g, 4);
+            __m256i u = _mm256_xor_si256(_mm256_set1_epi32(x), flip);
+            acc[r][0] = _mm256_dpbusd_avx_epi32(acc[r][0], u, w0);
+            acc[r][1] = _mm256_dpbusd_avx_epi32(acc[r][1], u, w1);
+        }
+    }
+    __m256i c0 = _mm256_slli_epi32(_mm256_loadu_si256((const __m256i *)wsum), 7);
+    __m256i c1 = _mm256_slli_epi32(_mm256_loadu_si256((const __m256i *)(wsum + 8)), 7);
+    for (uint32_t r = 0; r < 4; ++r) {
+        _mm256_storeu_ps(out[r], _mm256_cvtepi32_ps(_mm256_sub_epi32(acc[r][0], c0)));
+        _mm256_storeu_ps(out[r] + 8, _mm256_cvtepi32_ps(_mm256_sub_epi32(acc[r][1], c1)));
+    }
+}
+
+#define QK_TABLE weft__qkernels_avxvnni
+#define QK_ISA WEFT_ISA_AVX2
+#define QK_VARIANT "avx-vnni"
+#include "kernels/qkernels_body.h"

@@ -1,0 +1,359 @@
+/* The shared body of the int8 / fp16 / deterministic kernels. Each ISA file includes its
+ * simd_<isa>.h vector layer, defines the few operations that need integer or half-precision
+ * intrinsics, then includes this file:
+ *
+ *   QK_TABLE            name of the weft_qkernels table to define
+ *   QK_ISA, QK_VARIANT  the table's isa and variant string
+ *   q8_tile(Q, ldq, rows, block, kgroups, wsum, out)
+ *                       out[r][c] = (float)(sum_k Q[r][k] * W[c][k]) for r < rows (<= 4) and the
+ *                       16 channels c of one packed block (wsum: the block's 16 weight sums)
+ *   v_load_h(p), v_load_h_n(p, n)   VW fp16 values converted to fp32 (lanes >= n read as 0)
+ *
+ * Everything here uses only lane-wise operations or the canonical 16-lane reduction, so the
+ * result does not depend on VW (see qkernels.h). */
+#include "kernels/qkernels.h"
+
+#include <math.h>
+#include <string.h>
+
+#if 16 % VW != 0
+#error "the canonical reduction needs VW to divide 16"
+#endif
+#define QK_GROUPS (16 / VW)
+
+/* ---- deterministic exp and activations (lane-wise) ---------------------------------------- */
+
+static inline V qk_exp(V x)
+{
+    const V lo = v_set1(-87.0f);
+    VM underflow = m_lt(x, lo);
+    x = v_min(v_max(x, lo), v_set1(88.0f));
+    V n = v_round(v_mul(x, v_set1(1.44269504088896341f)));
+    V r = v_fma(n, v_set1(-0.693359375f), x);
+    r = v_fma(n, v_set1(2.12194440e-4f), r);
+    V p = v_set1(1.0f / 720.0f);
+    p = v_fma(p, r, v_set1(1.0f / 120.0f));
+    p = v_fma(p, r, v_set1(1.0f / 24.0f));
+    p = v_fma(p, r, v_set1(1.0f / 6.0f));
+    p = v_fma(p, r, v_set1(0.5f));
+    p = v_fma(p, r, v_set1(1.0f));
+    p = v_fma(p, r, v_set1(1.0f));
+    V y = v_mul(p, v_pow2i(n));
+    return v_sel(underflow, v_zero(), y);
+}
+
+static inline V qk_act(V x, weft_activation act)
+{
+    switch (act) {
+    case WEFT_ACT_RELU:
+        return v_max(x, v_zero());
+    case WEFT_ACT_GELU: {
+        /* x * sigmoid(2u), u = sqrt(2/pi) (x + 0.044715 x^3): the tanh form of GELU. */
+        V t = v_fma(v_mul(x, x), v_set1(0.044715f), v_set1(1.0f));
+        V u2 = v_mul(v_mul(x, t), v_set1(1.59576912160573071f));
+        return v_div(x, v_add(v_set1(1.0f), qk_exp(v_neg(u2))));
+    }
+    case WEFT_ACT_SILU:
+        return v_div(x, v_add(v_set1(1.0f), qk_exp(v_neg(x))));
+    case WEFT_ACT_NONE:
+    default:
+        return x;
+    }
+}
+
+static void activate_det(float *x, size_t n, weft_activation act)
+{
+    if (act == WEFT_ACT_NONE) {
+        return;
+    }
+    size_t i = 0;
+    for (; i + VW <= n; i += VW) {
+        v_store(x + i, qk_act(v_load(x + i), act));
+    }
+    if (i < n) {
+        v_store_n(x + i, qk_act(v_load_n(x + i, n - i), act), n - i);
+    }
+}
+
+static void swiglu_det(const float *gate, const float *up, float *out, size_t n)
+{
+    size_t i = 0;
+    for (; i + VW <= n; i += VW) {
+        v_store(out + i, v_mul(qk_act(v_load(gate + i), WEFT_ACT_SILU), v_load(up + i)));
+    }
+    if (i < n) {
+        size_t r = n - i;
+        v_store_n(out + i, v_mul(qk_act(v_load_n(gate + i, r), WEFT_ACT_SILU), v_load_n(up + i, r)), r);
+    }
+}
+
+/* ---- canonical 16-lane reductions ------------------------------------------------------------ */
+
+static inline float qk_tree16(const V *acc)
+{
+    float t[16];
+    for (int g = 0; g < QK_GROUPS; ++g) {
+        v_store(t + g * VW, acc[g]);
+    }
+    for (int w = 8; w >= 1; w /= 2) {
+        for (int j = 0; j < w; ++j) {
+            t[j] = t[j] + t[j + w];
+        }
+    }
+    return t[0];
+}
+
+/* Lanes past n are 0 and contribute "+ 0.0f", which the oracle mirrors. */
+static inline V qk_lanes(const float *x, size_t base, int g, size_t n)
+{
+    size_t start = base + (size_t)g * VW;
+    if (start + VW <= n) {
+        return v_load(x + start);
+    }
+    return start < n ? v_load_n(x + start, n - start) : v_zero();
+}
+
+static inline float qk_sum(const float *x, size_t n)
+{
+    V acc[QK_GROUPS];
+    for (int g = 0; g < QK_GROUPS; ++g) {
+        acc[g] = v_zero();
+    }
+    for (size_t k = 0; k < n; k += 16) {
+        for (int g = 0; g < QK_GROUPS; ++g) {
+            acc[g] = v_add(acc[g], qk_lanes(x, k, g, n));
+        }
+    }
+    return qk_tree16(acc);
+}
+
+/* sum of (x - c)^2 (or x^2 when c = 0), fma-accumulated per lane; tail lanes add exact zeros. */
+static inline float qk_sumsq(const float *x, size_t n, float c)
+{
+    V acc[QK_GROUPS];
+    for (int g = 0; g < QK_GROUPS; ++g) {
+        acc[g] = v_zero();
+    }
+    const V vc = v_set1(c);
+    for (size_t k = 0; k < n; k += 16) {
+        for (int g = 0; g < QK_GROUPS; ++g) {
+            size_t start = k + (size_t)g * VW;
+            size_t left = start < n ? n - start : 0;
+            V d = v_sub(qk_lanes(x, k, g, n), vc);
+            d = v_sel(m_first(left), d, v_zero());
+            acc[g] = v_fma(d, d, acc[g]);
+        }
+    }
+    return qk_tree16(acc);
+}
+
+static inline float qk_absmax(const float *x, size_t n)
+{
+    V m = v_zero();
+    size_t i = 0;
+    for (; i + VW <= n; i += VW) {
+        m = v_max(m, v_abs(v_load(x + i)));
+    }
+    if (i < n) {
+        m = v_max(m, v_abs(v_load_n(x + i, n - i)));
+    }
+    return v_hmax(m);
+}
+
+/* ---- row kernels ------------------------------------------------------------------------------ */
+
+/* y = (x - mean) * rstd, then y = fma(y, gamma, beta) / y * gamma / y + beta. */
+static inline V qk_affine(V y, const float *gamma, const float *beta, size_t i, size_t n)
+{
+    if (gamma && beta) {
+        return v_fma(y, v_load_n(gamma + i, n), v_load_n(beta + i, n));
+    }
+    if (gamma) {
+        return v_mul(y, v_load_n(gamma + i, n));
+    }
+    if (beta) {
+        return v_add(y, v_load_n(beta + i, n));
+    }
+    return y;
+}
+
+static void layernorm_det(const float *X, float *Y, uint32_t rows, uint32_t cols, uint32_t ld, const float *gamma,
+                          const float *beta, float eps)
+{
+    for (uint32_t r = 0; r < rows; ++r) {
+        const float *x = X + (size_t)r * ld;
+        float *y = Y + (size_t)r * ld;
+        float mean = qk_sum(x, cols) / (float)cols;
+        float var = qk_sumsq(x, cols, mean) / (float)cols;
+        float rstd = 1.0f / sqrtf(var + eps);
+        const V vm = v_set1(mean), vr = v_set1(rstd);
+        for (size_t i = 0; i < cols; i += VW) {
+            size_t n = cols - i < VW ? cols - i : VW;
+            V v = v_mul(v_sub(v_load_n(x + i, n), vm), vr);
+            v_store_n(y + i, qk_affine(v, gamma, beta, i, n), n);
+        }
+    }
+}
+
+static void rmsnorm_det(const float *X, float *Y, uint32_t rows, uint32_t cols, uint32_t ld, const float *gamma,
+                        float eps)
+{
+    for (uint32_t r = 0; r < rows; ++r) {
+        const float *x = X + (size_t)r * ld;
+        float *y = Y + (size_t)r * ld;
+        float rs = 1.0f / sqrtf(qk_sumsq(x, cols, 0.0f) / (float)cols + eps);
+        const V vr = v_set1(rs);
+        for (size_t i = 0; i < cols; i += VW) {
+            size_t n = cols - i < VW ? cols - i : VW;
+            v_store_n(y + i, qk_affine(v_mul(v_load_n(x + i, n), vr), gamma, NULL, i, n), n);
+        }
+    }
+}
+
+static void softmax_rows_det(float *X, uint32_t rows, uint32_t cols, uint32_t ldx)
+{
+    for (uint32_t r = 0; r < rows; ++r) {
+        float *x = X + (size_t)r * ldx;
+        float m = -INFINITY;
+        for (uint32_t i = 0; i < cols; ++i) {
+            m = x[i] > m ? x[i] : m;
+        }
+        if (m == -INFINITY) { /* fully masked row */
+            memset(x, 0, cols * sizeof(float));
+            continue;
+        }
+        const V vm = v_set1(m);
+        for (size_t i = 0; i < cols; i += VW) {
+            size_t n = cols - i < VW ? cols - i : VW;
+            v_store_n(x + i, qk_exp(v_sub(v_load_n(x + i, n), vm)), n);
+        }
+        const V inv = v_set1(1.0f / qk_sum(x, cols));
+        for (size_t i = 0; i < cols; i += VW) {
+            size_t n = cols - i < VW ? cols - i : VW;
+            v_store_n(x + i, v_mul(v_load_n(x + i, n), inv), n);
+        }
+    }
+}
+
+/* ---- matrix products ---------------------------------------------------------------------- */
+
+/* Shared epilogue order: y = acc (+ bias) (+ old C), then the activation. */
+static inline V qk_epilogue(V acc, const float *bias, const float *c_old, size_t n, weft_activation act)
+{
+    if (bias) {
+        acc = v_add(acc, v_load_n(bias, n));
+    }
+    if (c_old) {
+        acc = v_add(acc, v_load_n(c_old, n));
+    }
+    return qk_act(acc, act);
+}
+
+#define QK_MR 4
+
+/* One template for the fp32 and fp16 B operands: lanes along N, k in order. */
+#define QK_DEFINE_GEMM(NAME, BTYPE, LOADB, LOADB_N)                                                   \
+    static void NAME(uint32_t M, uint32_t N, uint32_t K, const float *A, uint32_t lda, const BTYPE *B,  \
+                     uint32_t ldb, const float *bias, float *C, uint32_t ldc, weft_activation act,      \
+                     bool accumulate)                                                                   \
+    {                                                                                                   \
+        for (uint32_t m0 = 0; m0 < M; m0 += QK_MR) {                                                    \
+            uint32_t rows = M - m0 < QK_MR ? M - m0 : QK_MR;                                            \
+            for (uint32_t n0 = 0; n0 < N; n0 += 2 * VW) {                                               \
+                size_t w0 = N - n0 < VW ? N - n0 : VW;                                                  \
+                size_t w1 = N - n0 > VW ? (N - n0 - VW < VW ? N - n0 - VW : VW) : 0;                    \
+                V acc[QK_MR][2];                                                                        \
+                for (uint32_t r = 0; r < QK_MR; ++r) {                                                  \
+                    acc[r][0] = v_zero();                                                               \
+                    acc[r][1] = v_zero();                                                               \
+                }                                                                                       \
+                for (uint32_t k = 0; k < K; ++k) {                                                      \
+                    const BTYPE *b = B + (size_t)k * ldb + n0;                                          \
+                    V b0 = w0 == VW ? LOADB(b) : LOADB_N(b, w0);                                        \
+                    V b1 = w1 == VW ? LOADB(b + VW) : (w1 ? LOADB_N(b + VW, w1) : v_zero());            \
+                    for (uint32_t r = 0; r < rows; ++r) {                                               \
+                        V a = v_set1(A[(size_t)(m0 + r) * lda + k]);                                    \
+                        acc[r][0] = v_fma(a, b0, acc[r][0]);                                            \
+                        acc[r][1] = v_fma(a, b1, acc[r][1]);                                            \
+                    }                                                                                   \
+                }                                                                                       \
+                for (uint32_t r = 0; r < rows; ++r) {                                                   \
+                    float *c = C + (size_t)(m0 + r) * ldc + n0;                                         \
+                    const float *bb = bias ? bias + n0 : NULL;                                          \
+                    v_store_n(c, qk_epilogue(acc[r][0], bb, accumulate ? c : NULL, w0, act), w0);       \
+                    if (w1) {                                                                           \
+                        v_store_n(c + VW,                                                               \
+                                  qk_epilogue(acc[r][1], bb ? bb + VW : NULL, accumulate ? c + VW : NULL, \
+                                              w1, act),                                                 \
+                                  w1);                                                                  \
+                    }                                                                                   \
+                }                                                                                       \
+            }                                                                                           \
+        }                                                                                               \
+    }
+
+QK_DEFINE_GEMM(gemm_det, float, v_load, v_load_n)
+QK_DEFINE_GEMM(gemm_f16, uint16_t, v_load_h, v_load_h_n)
+
+static void quantize_rows(const float *X, uint32_t M, uint32_t K, uint32_t ldx, int8_t *Q, uint32_t ldq,
+                          float *scales)
+{
+    uint32_t Kp = weft_q8_pad_k(K);
+    for (uint32_t m = 0; m < M; ++m) {
+        const float *x = X + (size_t)m * ldx;
+        int8_t *q = Q + (size_t)m * ldq;
+        float amax = qk_absmax(x, K);
+        float inv = amax > 0.0f ? 127.0f / amax : 0.0f;
+        scales[m] = amax / 127.0f;
+        const V vinv = v_set1(inv), hi = v_set1(127.0f), lo = v_set1(-127.0f);
+        float t[VW];
+        for (uint32_t i = 0; i < K; i += VW) {
+            size_t n = K - i < VW ? K - i : VW;
+            V v = v_min(v_max(v_round(v_mul(v_load_n(x + i, n), vinv)), lo), hi);
+            v_store(t, v);
+            for (size_t j = 0; j < n; ++j) {
+                q[i + j] = (int8_t)(int)t[j];
+            }
+        }
+        memset(q + K, 0, Kp - K);
+    }
+}
+
+static void gemm_q8(uint32_t M, const int8_t *Q, uint32_t ldq, const float *qscale, const weft_q8_weights *W,
+                    const float *bias, float *C, uint32_t ldc, weft_activation act)
+{
+    const uint32_t kgroups = W->Kp / WEFT_Q8_KB;
+    float out[QK_MR][WEFT_Q8_NB];
+    for (uint32_t nb = 0; nb < W->Np; nb += WEFT_Q8_NB) {
+        const int8_t *block = W->packed + (size_t)nb * W->Kp;
+        uint32_t ncols = W->N - nb < WEFT_Q8_NB ? W->N - nb : WEFT_Q8_NB;
+        for (uint32_t m0 = 0; m0 < M; m0 += QK_MR) {
+            uint32_t rows = M - m0 < QK_MR ? M - m0 : QK_MR;
+            q8_tile(Q + (size_t)m0 * ldq, ldq, rows, block, kgroups, W->wsum + nb, out);
+            for (uint32_t r = 0; r < rows; ++r) {
+                const V sr = v_set1(qscale[m0 + r]);
+                float *c = C + (size_t)(m0 + r) * ldc + nb;
+                for (uint32_t j = 0; j < ncols; j += VW) {
+                    size_t n = ncols - j < VW ? ncols - j : VW;
+                    V s = v_mul(sr, v_load(W->scale + nb + j));
+                    V y = v_mul(v_load(out[r] + j), s);
+                    v_store_n(c + j, qk_epilogue(y, bias ? bias + nb + j : NULL, NULL, n, act), n);
+                }
+            }
+        }
+    }
+}
+
+const weft_qkernels QK_TABLE = {
+    .isa = QK_ISA,
+    .variant = QK_VARIANT,
+    .quantize_rows = quantize_rows,
+    .gemm_q8 = gemm_q8,
+    .gemm_det = gemm_det,
+    .gemm_f16 = gemm_f16,
+    .layernorm_det = layernorm_det,
+    .rmsnorm_det = rmsnorm_det,
+    .softmax_rows_det = softmax_rows_det,
+    .activate_det = activate_det,
+    .swiglu_det = swiglu_det,
+};
