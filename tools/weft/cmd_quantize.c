@@ -5,6 +5,8 @@
 #include <stdlib.h>
 #include <string.h>
 
+int weft_cmd_quantize(int argc, char **argv); /* the CLI registry declares it in main.c */
+extern const char weft_cmd_quantize_help[];
 const char weft_cmd_quantize_help[] = "quantise an fp32 model to int8 or fp16 (per-tensor error report)";
 
 static void usage(FILE *out)
