@@ -249,45 +249,58 @@ static inline V qk_epilogue(V acc, const float *bias, const float *c_old, size_t
     return qk_act(acc, act);
 }
 
-#define QK_MR 4
+#define QK_MR 4 /* rows per int8 tile */
 
-/* One template for the fp32 and fp16 B operands: lanes along N, k in order. */
+/* One template for the fp32 and fp16 B operands: lanes along N, k in order. Full row tiles use
+ * the ISA's register tile (WEFT_MR rows x 2 vectors, a compile-time bound so the accumulators
+ * stay in registers); the last rows go through the same code with a run-time bound. Tiling does
+ * not change any result: each output is one in-order fma chain. */
 #define QK_DEFINE_GEMM(NAME, BTYPE, LOADB, LOADB_N)                                                   \
+    static inline void NAME##_tile(uint32_t rows, uint32_t m0, uint32_t n0, uint32_t N, uint32_t K,    \
+                                   const float *A, uint32_t lda, const BTYPE *B, uint32_t ldb,         \
+                                   const float *bias, float *C, uint32_t ldc, weft_activation act,     \
+                                   bool accumulate)                                                    \
+    {                                                                                                   \
+        size_t w0 = N - n0 < VW ? N - n0 : VW;                                                          \
+        size_t w1 = N - n0 > VW ? (N - n0 - VW < VW ? N - n0 - VW : VW) : 0;                            \
+        V acc[WEFT_MR][2];                                                                              \
+        for (uint32_t r = 0; r < rows; ++r) {                                                           \
+            acc[r][0] = v_zero();                                                                       \
+            acc[r][1] = v_zero();                                                                       \
+        }                                                                                               \
+        const float *a0 = A + (size_t)m0 * lda;                                                         \
+        for (uint32_t k = 0; k < K; ++k) {                                                              \
+            const BTYPE *b = B + (size_t)k * ldb + n0;                                                  \
+            V b0 = w0 == VW ? LOADB(b) : LOADB_N(b, w0);                                                \
+            V b1 = w1 == VW ? LOADB(b + VW) : (w1 ? LOADB_N(b + VW, w1) : v_zero());                    \
+            for (uint32_t r = 0; r < rows; ++r) {                                                       \
+                V a = v_set1(a0[(size_t)r * lda + k]);                                                  \
+                acc[r][0] = v_fma(a, b0, acc[r][0]);                                                    \
+                acc[r][1] = v_fma(a, b1, acc[r][1]);                                                    \
+            }                                                                                           \
+        }                                                                                               \
+        for (uint32_t r = 0; r < rows; ++r) {                                                           \
+            float *c = C + (size_t)(m0 + r) * ldc + n0;                                                 \
+            const float *bb = bias ? bias + n0 : NULL;                                                  \
+            v_store_n(c, qk_epilogue(acc[r][0], bb, accumulate ? c : NULL, w0, act), w0);               \
+            if (w1) {                                                                                   \
+                v_store_n(c + VW,                                                                       \
+                          qk_epilogue(acc[r][1], bb ? bb + VW : NULL, accumulate ? c + VW : NULL, w1, act), \
+                          w1);                                                                          \
+            }                                                                                           \
+        }                                                                                               \
+    }                                                                                                   \
     static void NAME(uint32_t M, uint32_t N, uint32_t K, const float *A, uint32_t lda, const BTYPE *B,  \
                      uint32_t ldb, const float *bias, float *C, uint32_t ldc, weft_activation act,      \
                      bool accumulate)                                                                   \
     {                                                                                                   \
-        for (uint32_t m0 = 0; m0 < M; m0 += QK_MR) {                                                    \
-            uint32_t rows = M - m0 < QK_MR ? M - m0 : QK_MR;                                            \
-            for (uint32_t n0 = 0; n0 < N; n0 += 2 * VW) {                                               \
-                size_t w0 = N - n0 < VW ? N - n0 : VW;                                                  \
-                size_t w1 = N - n0 > VW ? (N - n0 - VW < VW ? N - n0 - VW : VW) : 0;                    \
-                V acc[QK_MR][2];                                                                        \
-                for (uint32_t r = 0; r < QK_MR; ++r) {                                                  \
-                    acc[r][0] = v_zero();                                                               \
-                    acc[r][1] = v_zero();                                                               \
-                }                                                                                       \
-                for (uint32_t k = 0; k < K; ++k) {                                                      \
-                    const BTYPE *b = B + (size_t)k * ldb + n0;                                          \
-                    V b0 = w0 == VW ? LOADB(b) : LOADB_N(b, w0);                                        \
-                    V b1 = w1 == VW ? LOADB(b + VW) : (w1 ? LOADB_N(b + VW, w1) : v_zero());            \
-                    for (uint32_t r = 0; r < rows; ++r) {                                               \
-                        V a = v_set1(A[(size_t)(m0 + r) * lda + k]);                                    \
-                        acc[r][0] = v_fma(a, b0, acc[r][0]);                                            \
-                        acc[r][1] = v_fma(a, b1, acc[r][1]);                                            \
-                    }                                                                                   \
-                }                                                                                       \
-                for (uint32_t r = 0; r < rows; ++r) {                                                   \
-                    float *c = C + (size_t)(m0 + r) * ldc + n0;                                         \
-                    const float *bb = bias ? bias + n0 : NULL;                                          \
-                    v_store_n(c, qk_epilogue(acc[r][0], bb, accumulate ? c : NULL, w0, act), w0);       \
-                    if (w1) {                                                                           \
-                        v_store_n(c + VW,                                                               \
-                                  qk_epilogue(acc[r][1], bb ? bb + VW : NULL, accumulate ? c + VW : NULL, \
-                                              w1, act),                                                 \
-                                  w1);                                                                  \
-                    }                                                                                   \
-                }                                                                                       \
+        for (uint32_t n0 = 0; n0 < N; n0 += 2 * VW) {                                                   \
+            uint32_t m0 = 0;                                                                            \
+            for (; m0 + WEFT_MR <= M; m0 += WEFT_MR) {                                                  \
+                NAME##_tile(WEFT_MR, m0, n0, N, K, A, lda, B, ldb, bias, C, ldc, act, accumulate);      \
+            }                                                                                           \
+            if (m0 < M) {                                                                               \
+                NAME##_tile(M - m0, m0, n0, N, K, A, lda, B, ldb, bias, C, ldc, act, accumulate);       \
             }                                                                                           \
         }                                                                                               \
     }

@@ -116,6 +116,7 @@ static void variant_peaks(const weft_qkernels *q, peak_fn **dot, peak_fn **fma)
 {
     *dot = NULL;
     *fma = weft__peak_fma_scalar;
+#if defined(__x86_64__)
     if (strcmp(q->variant, "avx512-vnni") == 0) {
         *dot = weft__peak_dot_avx512;
         *fma = weft__peak_fma_avx512;
@@ -125,10 +126,14 @@ static void variant_peaks(const weft_qkernels *q, peak_fn **dot, peak_fn **fma)
     } else if (strcmp(q->variant, "avx2-maddubs") == 0) {
         *dot = weft__peak_dot_avx2;
         *fma = weft__peak_fma_avx2;
-    } else if (strcmp(q->variant, "neon-sdot") == 0) {
+    }
+#endif
+#if defined(__aarch64__)
+    if (strcmp(q->variant, "neon-sdot") == 0) {
         *dot = weft__peak_dot_neon;
         *fma = weft__peak_fma_neon;
     }
+#endif
 }
 
 int weft_bench_qkernels(int argc, char **argv)
