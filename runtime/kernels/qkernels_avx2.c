@@ -23,8 +23,8 @@ static inline __m256i dot4(__m256i acc, __m256i a_bcast, __m256i w)
     return _mm256_add_epi32(acc, _mm256_madd_epi16(p, ones));
 }
 
-static inline void q8_tile(const int8_t *Q, uint32_t ldq, uint32_t rows, const int8_t *block, uint32_t kgroups,
-                           const int32_t *wsum, float out[4][16])
+static inline void q8_block(const int8_t *Q, uint32_t ldq, uint32_t rows, const int8_t *block, uint32_t kgroups,
+                            const int32_t *wsum, float out[4][32], uint32_t col)
 {
     (void)wsum; /* signed x signed: no offset to correct */
     __m256i acc[4][2];
@@ -47,8 +47,16 @@ static inline void q8_tile(const int8_t *Q, uint32_t ldq, uint32_t rows, const i
         }
     }
     for (uint32_t r = 0; r < 4; ++r) {
-        _mm256_storeu_ps(out[r], _mm256_cvtepi32_ps(acc[r][0]));
-        _mm256_storeu_ps(out[r] + 8, _mm256_cvtepi32_ps(acc[r][1]));
+        _mm256_storeu_ps(out[r] + col, _mm256_cvtepi32_ps(acc[r][0]));
+        _mm256_storeu_ps(out[r] + col + 8, _mm256_cvtepi32_ps(acc[r][1]));
+    }
+}
+
+static inline void q8_tile(const int8_t *Q, uint32_t ldq, uint32_t rows, const int8_t *block, uint32_t nblocks,
+                           uint32_t Kp, uint32_t kgroups, const int32_t *wsum, float out[4][32])
+{
+    for (uint32_t b = 0; b < nblocks; ++b) {
+        q8_block(Q, ldq, rows, block + (size_t)b * Kp * 16, kgroups, wsum + 16 * b, out, 16 * b);
     }
 }
 

@@ -15,8 +15,8 @@ static inline V v_load_h_n(const uint16_t *p, size_t n)
     return v_load_h(t);
 }
 
-static inline void q8_tile(const int8_t *Q, uint32_t ldq, uint32_t rows, const int8_t *block, uint32_t kgroups,
-                           const int32_t *wsum, float out[4][16])
+static inline void q8_block(const int8_t *Q, uint32_t ldq, uint32_t rows, const int8_t *block, uint32_t kgroups,
+                            const int32_t *wsum, float out[4][32], uint32_t col)
 {
     const __m256i flip = _mm256_set1_epi8((char)0x80);
     __m256i acc[4][2];
@@ -41,8 +41,16 @@ static inline void q8_tile(const int8_t *Q, uint32_t ldq, uint32_t rows, const i
     __m256i c0 = _mm256_slli_epi32(_mm256_loadu_si256((const __m256i *)wsum), 7);
     __m256i c1 = _mm256_slli_epi32(_mm256_loadu_si256((const __m256i *)(wsum + 8)), 7);
     for (uint32_t r = 0; r < 4; ++r) {
-        _mm256_storeu_ps(out[r], _mm256_cvtepi32_ps(_mm256_sub_epi32(acc[r][0], c0)));
-        _mm256_storeu_ps(out[r] + 8, _mm256_cvtepi32_ps(_mm256_sub_epi32(acc[r][1], c1)));
+        _mm256_storeu_ps(out[r] + col, _mm256_cvtepi32_ps(_mm256_sub_epi32(acc[r][0], c0)));
+        _mm256_storeu_ps(out[r] + col + 8, _mm256_cvtepi32_ps(_mm256_sub_epi32(acc[r][1], c1)));
+    }
+}
+
+static inline void q8_tile(const int8_t *Q, uint32_t ldq, uint32_t rows, const int8_t *block, uint32_t nblocks,
+                           uint32_t Kp, uint32_t kgroups, const int32_t *wsum, float out[4][32])
+{
+    for (uint32_t b = 0; b < nblocks; ++b) {
+        q8_block(Q, ldq, rows, block + (size_t)b * Kp * 16, kgroups, wsum + 16 * b, out, 16 * b);
     }
 }
 

@@ -4,9 +4,10 @@
  *
  *   QK_TABLE            name of the weft_qkernels table to define
  *   QK_ISA, QK_VARIANT  the table's isa and variant string
- *   q8_tile(Q, ldq, rows, block, kgroups, wsum, out)
+ *   q8_tile(Q, ldq, rows, block, nblocks, Kp, kgroups, wsum, out)
  *                       out[r][c] = (float)(sum_k Q[r][k] * W[c][k]) for r < rows (<= 4) and the
- *                       16 channels c of one packed block (wsum: the block's 16 weight sums)
+ *                       16 * nblocks (1 or 2) channels c of consecutive packed blocks starting at
+ *                       `block` (each Kp * 16 bytes; wsum: their weight sums)
  *   v_load_h(p), v_load_h_n(p, n)   VW fp16 values converted to fp32 (lanes >= n read as 0)
  *
  * Everything here uses only lane-wise operations or the canonical 16-lane reduction, so the
@@ -336,13 +337,14 @@ static void gemm_q8(uint32_t M, const int8_t *Q, uint32_t ldq, const float *qsca
                     const float *bias, float *C, uint32_t ldc, weft_activation act)
 {
     const uint32_t kgroups = W->Kp / WEFT_Q8_KB;
-    float out[QK_MR][WEFT_Q8_NB];
-    for (uint32_t nb = 0; nb < W->Np; nb += WEFT_Q8_NB) {
+    float out[QK_MR][2 * WEFT_Q8_NB];
+    for (uint32_t nb = 0; nb < W->Np; nb += 2 * WEFT_Q8_NB) {
         const int8_t *block = W->packed + (size_t)nb * W->Kp;
-        uint32_t ncols = W->N - nb < WEFT_Q8_NB ? W->N - nb : WEFT_Q8_NB;
+        uint32_t nblocks = W->Np - nb >= 2 * WEFT_Q8_NB ? 2 : 1;
+        uint32_t ncols = W->N - nb < nblocks * WEFT_Q8_NB ? W->N - nb : nblocks * WEFT_Q8_NB;
         for (uint32_t m0 = 0; m0 < M; m0 += QK_MR) {
             uint32_t rows = M - m0 < QK_MR ? M - m0 : QK_MR;
-            q8_tile(Q + (size_t)m0 * ldq, ldq, rows, block, kgroups, W->wsum + nb, out);
+            q8_tile(Q + (size_t)m0 * ldq, ldq, rows, block, nblocks, W->Kp, kgroups, W->wsum + nb, out);
             for (uint32_t r = 0; r < rows; ++r) {
                 const V sr = v_set1(qscale[m0 + r]);
                 float *c = C + (size_t)(m0 + r) * ldc + nb;

@@ -15,8 +15,8 @@ static inline V v_load_h_n(const uint16_t *p, size_t n)
     return v_load_h(t);
 }
 
-static inline void q8_tile(const int8_t *Q, uint32_t ldq, uint32_t rows, const int8_t *block, uint32_t kgroups,
-                           const int32_t *wsum, float out[4][16])
+static inline void q8_block(const int8_t *Q, uint32_t ldq, uint32_t rows, const int8_t *block, uint32_t kgroups,
+                            const int32_t *wsum, float out[4][32], uint32_t col)
 {
     (void)wsum;
     int32x4_t acc[4][4];
@@ -44,8 +44,16 @@ static inline void q8_tile(const int8_t *Q, uint32_t ldq, uint32_t rows, const i
     }
     for (uint32_t r = 0; r < 4; ++r) {
         for (int i = 0; i < 4; ++i) {
-            vst1q_f32(out[r] + 4 * i, vcvtq_f32_s32(acc[r][i]));
+            vst1q_f32(out[r] + col + 4 * i, vcvtq_f32_s32(acc[r][i]));
         }
+    }
+}
+
+static inline void q8_tile(const int8_t *Q, uint32_t ldq, uint32_t rows, const int8_t *block, uint32_t nblocks,
+                           uint32_t Kp, uint32_t kgroups, const int32_t *wsum, float out[4][32])
+{
+    for (uint32_t b = 0; b < nblocks; ++b) {
+        q8_block(Q, ldq, rows, block + (size_t)b * Kp * 16, kgroups, wsum + 16 * b, out, 16 * b);
     }
 }
 
