@@ -58,9 +58,10 @@ typedef struct weft_qkernels {
     void (*quantize_rows)(const float *X, uint32_t M, uint32_t K, uint32_t ldx, int8_t *Q, uint32_t ldq,
                           float *scales);
 
-    /* C[M][N] = act((float)(Q . Wq^T) * (qscale[m] * W.scale[n]) + bias[n]). bias may be NULL. */
+    /* C[M][N] = act((float)(Q . Wq^T) * (qscale[m] * W.scale[n]) + bias[n] (+ C when accumulate)).
+     * bias may be NULL. */
     void (*gemm_q8)(uint32_t M, const int8_t *Q, uint32_t ldq, const float *qscale, const weft_q8_weights *W,
-                    const float *bias, float *C, uint32_t ldc, weft_activation act);
+                    const float *bias, float *C, uint32_t ldc, weft_activation act, bool accumulate);
 
     /* C[M][N] = act(A[M][K] . B[K][N] + bias (+ C when accumulate)), B row-major [K][N]:
      * the deterministic fp32 product (lanes along N, k accumulated in order by fma). */
@@ -81,6 +82,10 @@ typedef struct weft_qkernels {
     void (*activate_det)(float *x, size_t n, weft_activation act);
     /* out[i] = silu(gate[i]) * up[i]. */
     void (*swiglu_det)(const float *gate, const float *up, float *out, size_t n);
+    /* Sinusoidal embedding with the fp32 table's layout (kernels.h: posembed), computed with one
+     * fixed range reduction and polynomial, so it too is identical on every ISA. */
+    void (*posembed_det)(const float *x, uint32_t n, uint32_t dims, const float *freq, uint32_t nfreq, float *out,
+                         uint32_t ldo);
 } weft_qkernels;
 
 /* The table for a level (the best int8 variant the CPU has within it); NULL if unavailable. */

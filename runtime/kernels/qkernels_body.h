@@ -88,6 +88,55 @@ static void swiglu_det(const float *gate, const float *up, float *out, size_t n)
     }
 }
 
+/* sin and cos of x: x = n * pi/2 + r with |r| <= pi/4 (Cody-Waite, two fma steps), minimax-style
+ * Taylor polynomials on r, then the quadrant n mod 4 picks and signs them. */
+static inline void qk_sincos(V x, V *s_out, V *c_out)
+{
+    V n = v_round(v_mul(x, v_set1(0.636619772367581343f)));
+    V r = v_fma(n, v_set1(-1.57079637050628662f), x);
+    r = v_fma(n, v_set1(4.37113900018624283e-8f), r);
+    V r2 = v_mul(r, r);
+    V ps = v_set1(-1.0f / 5040.0f);
+    ps = v_fma(ps, r2, v_set1(1.0f / 120.0f));
+    ps = v_fma(ps, r2, v_set1(-1.0f / 6.0f));
+    V sn = v_fma(v_mul(ps, r2), r, r);
+    V pc = v_set1(1.0f / 40320.0f);
+    pc = v_fma(pc, r2, v_set1(-1.0f / 720.0f));
+    pc = v_fma(pc, r2, v_set1(1.0f / 24.0f));
+    pc = v_fma(pc, r2, v_set1(-0.5f));
+    V cs = v_fma(pc, r2, v_set1(1.0f));
+    V q = v_sub(n, v_mul(v_floor(v_mul(n, v_set1(0.25f))), v_set1(4.0f))); /* n mod 4, exact */
+    VM q1 = m_eq(q, v_set1(1.0f)), q2 = m_eq(q, v_set1(2.0f)), q3 = m_eq(q, v_set1(3.0f));
+    V s = v_sel(q1, cs, v_sel(q2, v_neg(sn), v_sel(q3, v_neg(cs), sn)));
+    V c = v_sel(q1, v_neg(sn), v_sel(q2, v_neg(cs), v_sel(q3, sn, cs)));
+    *s_out = s;
+    *c_out = c;
+}
+
+static void posembed_det(const float *x, uint32_t n, uint32_t dims, const float *freq, uint32_t nfreq, float *out,
+                         uint32_t ldo)
+{
+    /* Lanes run along the frequencies of one coordinate; sin/cos are interleaved on store. */
+    float sbuf[VW], cbuf[VW];
+    for (uint32_t i = 0; i < n; ++i) {
+        for (uint32_t d = 0; d < dims; ++d) {
+            const V xv = v_set1(x[(size_t)i * dims + d]);
+            float *o = out + (size_t)i * ldo + (size_t)d * nfreq * 2;
+            for (uint32_t f = 0; f < nfreq; f += VW) {
+                size_t w = nfreq - f < VW ? nfreq - f : VW;
+                V s, c;
+                qk_sincos(v_mul(xv, v_load_n(freq + f, w)), &s, &c);
+                v_store(sbuf, s);
+                v_store(cbuf, c);
+                for (size_t j = 0; j < w; ++j) {
+                    o[2 * (f + j)] = sbuf[j];
+                    o[2 * (f + j) + 1] = cbuf[j];
+                }
+            }
+        }
+    }
+}
+
 /* ---- canonical 16-lane reductions ------------------------------------------------------------ */
 
 static inline float qk_tree16(const V *acc)
@@ -334,7 +383,7 @@ static void quantize_rows(const float *X, uint32_t M, uint32_t K, uint32_t ldx, 
 }
 
 static void gemm_q8(uint32_t M, const int8_t *Q, uint32_t ldq, const float *qscale, const weft_q8_weights *W,
-                    const float *bias, float *C, uint32_t ldc, weft_activation act)
+                    const float *bias, float *C, uint32_t ldc, weft_activation act, bool accumulate)
 {
     const uint32_t kgroups = W->Kp / WEFT_Q8_KB;
     float out[QK_MR][2 * WEFT_Q8_NB];
@@ -352,7 +401,8 @@ static void gemm_q8(uint32_t M, const int8_t *Q, uint32_t ldq, const float *qsca
                     size_t n = ncols - j < VW ? ncols - j : VW;
                     V s = v_mul(sr, v_load(W->scale + nb + j));
                     V y = v_mul(v_load(out[r] + j), s);
-                    v_store_n(c + j, qk_epilogue(y, bias ? bias + nb + j : NULL, NULL, n, act), n);
+                    v_store_n(c + j, qk_epilogue(y, bias ? bias + nb + j : NULL, accumulate ? c + j : NULL, n, act),
+                              n);
                 }
             }
         }
@@ -371,4 +421,5 @@ const weft_qkernels QK_TABLE = {
     .softmax_rows_det = softmax_rows_det,
     .activate_det = activate_det,
     .swiglu_det = swiglu_det,
+    .posembed_det = posembed_det,
 };

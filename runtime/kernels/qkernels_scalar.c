@@ -27,6 +27,46 @@ static float o_exp(float x)
     return p * ldexpf(1.0f, (int)n);
 }
 
+static void o_sincos(float x, float *s_out, float *c_out)
+{
+    float n = nearbyintf(x * 0.636619772367581343f);
+    float r = fmaf(n, -1.57079637050628662f, x);
+    r = fmaf(n, 4.37113900018624283e-8f, r);
+    float r2 = r * r;
+    float ps = -1.0f / 5040.0f;
+    ps = fmaf(ps, r2, 1.0f / 120.0f);
+    ps = fmaf(ps, r2, -1.0f / 6.0f);
+    float sn = fmaf(ps * r2, r, r);
+    float pc = 1.0f / 40320.0f;
+    pc = fmaf(pc, r2, -1.0f / 720.0f);
+    pc = fmaf(pc, r2, 1.0f / 24.0f);
+    pc = fmaf(pc, r2, -0.5f);
+    float cs = fmaf(pc, r2, 1.0f);
+    float q = n - floorf(n * 0.25f) * 4.0f;
+    if (q == 1.0f) {
+        *s_out = cs, *c_out = -sn;
+    } else if (q == 2.0f) {
+        *s_out = -sn, *c_out = -cs;
+    } else if (q == 3.0f) {
+        *s_out = -cs, *c_out = sn;
+    } else {
+        *s_out = sn, *c_out = cs;
+    }
+}
+
+static void o_posembed(const float *x, uint32_t n, uint32_t dims, const float *freq, uint32_t nfreq, float *out,
+                       uint32_t ldo)
+{
+    for (uint32_t i = 0; i < n; ++i) {
+        for (uint32_t d = 0; d < dims; ++d) {
+            for (uint32_t f = 0; f < nfreq; ++f) {
+                float *o = out + (size_t)i * ldo + ((size_t)d * nfreq + f) * 2;
+                o_sincos(x[(size_t)i * dims + d] * freq[f], &o[0], &o[1]);
+            }
+        }
+    }
+}
+
 static float o_act(float x, weft_activation act)
 {
     switch (act) {
@@ -232,7 +272,7 @@ static int8_t o_weight(const weft_q8_weights *W, uint32_t c, uint32_t k)
 }
 
 static void o_gemm_q8(uint32_t M, const int8_t *Q, uint32_t ldq, const float *qscale, const weft_q8_weights *W,
-                      const float *bias, float *C, uint32_t ldc, weft_activation act)
+                      const float *bias, float *C, uint32_t ldc, weft_activation act, bool accumulate)
 {
     for (uint32_t m = 0; m < M; ++m) {
         for (uint32_t n = 0; n < W->N; ++n) {
@@ -242,7 +282,8 @@ static void o_gemm_q8(uint32_t M, const int8_t *Q, uint32_t ldq, const float *qs
             }
             float s = qscale[m] * W->scale[n];
             float y = (float)acc * s;
-            C[(size_t)m * ldc + n] = o_finish(y, bias, n, NULL, act);
+            float *c = C + (size_t)m * ldc + n;
+            *c = o_finish(y, bias, n, accumulate ? c : NULL, act);
         }
     }
 }
@@ -259,4 +300,5 @@ const weft_qkernels weft__qkernels_scalar = {
     .softmax_rows_det = o_softmax,
     .activate_det = o_activate,
     .swiglu_det = o_swiglu,
+    .posembed_det = o_posembed,
 };

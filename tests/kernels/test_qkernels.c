@@ -171,10 +171,13 @@ static void test_q8_gemm_bit_exact_and_accurate(void)
                 float *s0 = malloc(M * sizeof(float)), *s1 = malloc(M * sizeof(float));
                 float *C0 = malloc((size_t)M * N * sizeof(float)), *C1 = malloc((size_t)M * N * sizeof(float));
                 weft_activation act = (weft_activation)((a + b + c) % 4);
+                bool accumulate = (a + b + c) % 3 == 1;
+                float *init = rand_floats(&rng, (size_t)M * N, -1.0f, 1.0f);
+                memcpy(C0, init, (size_t)M * N * sizeof(float));
                 ref->quantize_rows(X, M, K, K, Q0, Kp, s0);
-                ref->gemm_q8(M, Q0, Kp, s0, &f.w, bias, C0, N, act);
+                ref->gemm_q8(M, Q0, Kp, s0, &f.w, bias, C0, N, act, accumulate);
                 /* accuracy of the scheme (no activation): against the fp32 product */
-                if (act == WEFT_ACT_NONE) {
+                if (act == WEFT_ACT_NONE && !accumulate) {
                     for (uint32_t m = 0; m < M; ++m) {
                         double sx = 0;
                         for (uint32_t k = 0; k < K; ++k) {
@@ -196,9 +199,9 @@ static void test_q8_gemm_bit_exact_and_accurate(void)
                 }
                 for (uint32_t v = 1; v < g_nvariants; ++v) {
                     memset(Q1, 0x55, (size_t)M * Kp);
-                    memset(C1, 0, (size_t)M * N * sizeof(float));
+                    memcpy(C1, init, (size_t)M * N * sizeof(float));
                     g_variants[v]->quantize_rows(X, M, K, K, Q1, Kp, s1);
-                    g_variants[v]->gemm_q8(M, Q1, Kp, s1, &f.w, bias, C1, N, act);
+                    g_variants[v]->gemm_q8(M, Q1, Kp, s1, &f.w, bias, C1, N, act, accumulate);
                     bool same = memcmp(Q0, Q1, (size_t)M * Kp) == 0 && memcmp(s0, s1, M * sizeof(float)) == 0 &&
                                 memcmp(C0, C1, (size_t)M * N * sizeof(float)) == 0;
                     if (!same) {
@@ -208,7 +211,7 @@ static void test_q8_gemm_bit_exact_and_accurate(void)
                     }
                 }
                 cases++;
-                free(Q0); free(Q1); free(s0); free(s1); free(C0); free(C1); free(X); free(bias); free(W);
+                free(Q0); free(Q1); free(s0); free(s1); free(C0); free(C1); free(X); free(bias); free(W); free(init);
                 free_weights(&f);
             }
         }
@@ -425,7 +428,7 @@ static uint64_t run_block(const weft_qkernels *q)
     int8_t Q[M * 48];
     float s[M], Y[M * N], Z[M * N2], Z2[M * N2];
     q->quantize_rows(X, M, K, K, Q, 48, s);
-    q->gemm_q8(M, Q, 48, s, &f.w, bias, Y, N, WEFT_ACT_GELU);
+    q->gemm_q8(M, Q, 48, s, &f.w, bias, Y, N, WEFT_ACT_GELU, false);
     q->layernorm_det(Y, Y, M, N, N, g, bias, 1e-5f);
     q->softmax_rows_det(Y, M, N, N);
     q->gemm_det(M, N2, N, Y, N, B, N2, NULL, Z, N2, WEFT_ACT_SILU, false);
@@ -451,7 +454,42 @@ static void test_block_hash_across_variants_and_architectures(void)
               (unsigned long long)recorded);
 }
 
+static void test_posembed_det(void)
+{
+    load_variants();
+    test_rng rng = {31};
+    const uint32_t n = 37, dims = 3, nfreq = 19, ld = dims * nfreq * 2 + 3;
+    float *x = rand_floats(&rng, (size_t)n * dims, -2.0f, 2.0f);
+    float freq[19];
+    for (uint32_t f = 0; f < nfreq; ++f) {
+        freq[f] = powf(2.0f, (float)f * 0.35f) * 3.14159265f; /* up to ~100 rad per metre */
+    }
+    float *ref = calloc((size_t)n * ld, sizeof(float)), *out = calloc((size_t)n * ld, sizeof(float));
+    g_variants[0]->posembed_det(x, n, dims, freq, nfreq, ref, ld);
+    double worst = 0;
+    for (uint32_t i = 0; i < n; ++i) {
+        for (uint32_t d = 0; d < dims; ++d) {
+            for (uint32_t f = 0; f < nfreq; ++f) {
+                float arg = x[i * dims + d] * freq[f];
+                const float *o = ref + (size_t)i * ld + (d * nfreq + f) * 2;
+                worst = fmax(worst, fabs(o[0] - sin((double)arg)));
+                worst = fmax(worst, fabs(o[1] - cos((double)arg)));
+            }
+        }
+    }
+    printf("posembed_det worst abs error vs libm double: %.3g\n", worst);
+    CHECK(worst < 2e-6);
+    for (uint32_t v = 1; v < g_nvariants; ++v) {
+        memset(out, 0, (size_t)n * ld * sizeof(float));
+        g_variants[v]->posembed_det(x, n, dims, freq, nfreq, out, ld);
+        CHECK_MSG(memcmp(out, ref, (size_t)n * ld * sizeof(float)) == 0, "variant %s", g_variants[v]->variant);
+    }
+    free(x);
+    free(ref);
+    free(out);
+}
+
 TEST_MAIN(TEST_CASE(test_variants_present), TEST_CASE(test_f16_conversion), TEST_CASE(test_weight_quantisation),
           TEST_CASE(test_q8_gemm_bit_exact_and_accurate), TEST_CASE(test_quantize_rows_edge_cases),
           TEST_CASE(test_det_gemm_and_f16_bit_exact), TEST_CASE(test_row_kernels_bit_exact_and_accurate),
-          TEST_CASE(test_block_hash_across_variants_and_architectures))
+          TEST_CASE(test_block_hash_across_variants_and_architectures), TEST_CASE(test_posembed_det))

@@ -59,7 +59,7 @@ static void run_q8(const op *o)
 {
     uint32_t Kp = weft_q8_pad_k(o->s->K);
     o->q->quantize_rows(o->X, o->s->M, o->s->K, o->s->K, o->Q, Kp, o->qs);
-    o->q->gemm_q8(o->s->M, o->Q, Kp, o->qs, &o->w8, o->bias, o->C, o->s->N, WEFT_ACT_NONE);
+    o->q->gemm_q8(o->s->M, o->Q, Kp, o->qs, &o->w8, o->bias, o->C, o->s->N, WEFT_ACT_NONE, false);
 }
 static void run_f16(const op *o)
 {
