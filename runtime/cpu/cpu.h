@@ -7,7 +7,7 @@
 typedef struct weft_cpu_features {
     /* x86: each flag is set only when the OS also saves the registers (xgetbv). */
     bool sse41, avx2, fma, f16c;
-    bool avx512f, avx512bw, avx512vl, avx512vnni, avxvnni, avx512bf16;
+    bool avx512f, avx512dq, avx512bw, avx512vl, avx512vnni, avxvnni, avx512bf16;
     /* AArch64 */
     bool neon, asimddp, fp16;
 } weft_cpu_features;

@@ -19,7 +19,8 @@ typedef struct weft_kernels {
     weft_isa isa;
 
     /* C[M][N] = act(A[M][K] . W[N][K]^T + bias[N]) (+ C when accumulate; act applies after the
-     * add). bias may be NULL. M == 1 is the GEMV case and must be fast too. */
+     * add). bias may be NULL. M == 1 is the GEMV case and must be fast too. C must not overlap
+     * A or W. Uses up to 32 KiB of stack (one packed panel of W) and allocates nothing. */
     void (*gemm)(uint32_t M, uint32_t N, uint32_t K, const float *A, uint32_t lda, const float *W,
                  uint32_t ldw, const float *bias, float *C, uint32_t ldc, weft_activation act,
                  bool accumulate);
@@ -62,7 +63,8 @@ typedef struct weft_kernels {
                       const uint8_t *mask, float *out, uint32_t ldo, float *scratch);
 } weft_kernels;
 
-/* Floats of scratch the attention kernel needs. */
+/* Floats of scratch the attention kernel needs (the same for every level). Non-decreasing in
+ * nq and in nk, so a buffer sized for the largest shape serves every smaller one. */
 size_t weft_attention_scratch(uint32_t nq, uint32_t nk);
 
 /* The table for a level; NULL if this build or CPU lacks it. */
