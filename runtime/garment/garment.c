@@ -1,4 +1,5 @@
 #include "garment/garment.h"
+#include "ccd/ccd_internal.h"
 
 #include <math.h>
 #include <string.h>
@@ -165,8 +166,14 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
                (size_t)def->collider_triangle_count * 3 * sizeof(uint32_t));
         memcpy(g->collider_prev, def->collider_rest_positions, nc3);
     }
+    r = weft__ccd_garment_create(g);
+    if (r != WEFT_OK) {
+        free_buffers(g);
+        return r;
+    }
     r = ops->create(g);
     if (r != WEFT_OK) {
+        weft__ccd_garment_destroy(g);
         free_buffers(g);
         return r;
     }
@@ -180,6 +187,7 @@ void weft_garment_destroy(weft_garment *garment)
         return;
     }
     garment->ops->destroy(garment);
+    weft__ccd_garment_destroy(garment);
     free_buffers(garment);
 }
 
@@ -262,6 +270,7 @@ weft_result weft_garment_step(weft_garment *g)
     if (r != WEFT_OK) {
         return r;
     }
+    weft__ccd_postprocess_garment(g); /* sweeps x -> x_next against the collider and itself */
     if (!weft__all_finite(g->x_next, (size_t)g->vertex_count * 3)) {
         return weft__fail(WEFT_ERROR_NOT_FINITE, "weft_garment_step: method '%s' produced NaN or infinity; state kept",
                           g->ops->name);

@@ -17,6 +17,7 @@ struct weft_garment {
     weft_precision precision;
     uint32_t substeps;
     bool ccd;
+    void *ccd_state;                    /* runtime/ccd world when ccd is set (weft__ccd_garment_create) */
 
     uint32_t vertex_count, triangle_count;
     float *rest;                        /* vertex_count * 3 */

@@ -1,0 +1,48 @@
+/* Internal pieces of the CCD concept shared by its files: the double-precision narrow phase, exact
+ * predicates, the bounding-volume hierarchy and the garment hook. */
+#ifndef WEFT_CCD_INTERNAL_H
+#define WEFT_CCD_INTERNAL_H
+
+#include "core/core.h"
+#include "weft/ccd.h"
+
+/* ---- narrow phase (narrow.c) ------------------------------------------------------------ */
+
+/* Per-query counters, for the benchmark and the false-positive accounting. */
+typedef struct ccd_narrow_stats {
+    uint64_t queries;
+    uint64_t bands;          /* time intervals where the coplanarity cubic may vanish */
+    uint64_t distance_evals; /* conservative-advancement distance evaluations */
+    uint64_t capped;         /* queries reported after the advancement cap (conservative hits) */
+} ccd_narrow_stats;
+
+/* points: 8 xyz (t = 0 then t = 1). Returns true on a (possibly conservative) hit, *toi set. */
+bool ccd_vf(const double points[24], double eta, double *toi, ccd_narrow_stats *stats);
+bool ccd_ee(const double points[24], double eta, double *toi, ccd_narrow_stats *stats);
+
+/* ---- exact predicates (predicates.c) ---------------------------------------------------- */
+
+/* Sign (-1, 0, 1) of det(b - a, c - a, d - a), exact for any finite doubles. */
+int ccd_orient3d(const double a[3], const double b[3], const double c[3], const double d[3]);
+/* Sign of the 2D orientation of (a, b, c) using coordinates i and j, exact. */
+int ccd_orient2d(const double a[3], const double b[3], const double c[3], int i, int j);
+/* Exact intersection of two closed triangles (9 doubles each; collinear triangles act as segments). */
+bool ccd_tri_tri(const double *a0, const double *a1, const double *a2, const double *b0, const double *b1,
+                 const double *b2);
+/* Exact: does the closed segment pq cross the closed triangle abc (non-degenerate)? Returns 1 yes,
+ * 0 no, -1 undecided because the configuration is degenerate for ray casting (touches an edge,
+ * a vertex, or lies in the plane). */
+int ccd_segment_crosses_triangle_strict(const double p[3], const double q[3], const double a[3], const double b[3],
+                                        const double c[3]);
+
+/* ---- garment hook (world.c) ------------------------------------------------------------- */
+
+struct weft_garment;
+/* Allocates the garment's CCD state when g->ccd is set (called from weft_garment_create). */
+weft_result weft__ccd_garment_create(struct weft_garment *g);
+void weft__ccd_garment_destroy(struct weft_garment *g);
+/* Post-processes g->x_next against g->x (cloth) and g->collider_prev -> g->collider_next, filling
+ * g->stats.ccd_*. Leaves non-finite output alone (the step's NaN check rejects it). */
+void weft__ccd_postprocess_garment(struct weft_garment *g);
+
+#endif
