@@ -1,0 +1,757 @@
+/* ClothTransformer fp32 forward pass: encoder (cloth GNN + collider triangle tokens + learned-query
+ * cross-attention), block-causal temporal transformer over a latent history, decoder (rest-shape
+ * queries cross-attending to the predicted latents, GNN refinement, displacement head).
+ * Mirrors tools/train/model.py operation for operation; see docs/MODEL.md. */
+#include "model/transformer.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+/* ------------------------------------------------------------------------------------------ */
+/* Binding tensors                                                                              */
+
+static weft_result get_u32(const weft_model *m, const char *key, uint32_t lo, uint32_t hi, uint32_t *out)
+{
+    return weft__model_config_u32(m, key, lo, hi, out);
+}
+
+static weft_result get_pos(const weft_model *m, const char *key, float *out)
+{
+    double v;
+    weft_result r = weft__model_config_number(m, key, &v);
+    if (r != WEFT_OK) {
+        return r;
+    }
+    if (!(v > 0.0) || !isfinite(v) || v > 1e9) {
+        return weft__fail(WEFT_ERROR_BAD_METADATA, "model config '%s' = %g must be a positive finite number", key,
+                          v);
+    }
+    *out = (float)v;
+    return WEFT_OK;
+}
+
+static weft_result read_config(const weft_model *m, weft_ct_config *c)
+{
+    weft_ct_config t = {0};
+    weft_result r;
+    if ((r = get_u32(m, "K", 1, 65536, &t.K)) || (r = get_u32(m, "D", 1, 8192, &t.D)) ||
+        (r = get_u32(m, "L", 1, WEFT_CT_MAX_LAYERS, &t.L)) || (r = get_u32(m, "H", 1, 1024, &t.H)) ||
+        (r = get_u32(m, "history", 1, 64, &t.history)) || (r = get_u32(m, "ffn", 1, 65536, &t.ffn)) ||
+        (r = get_u32(m, "nfreq", 1, 64, &t.nfreq)) || (r = get_u32(m, "gnn_layers", 0, WEFT_CT_MAX_GNN, &t.gnn_layers)) ||
+        (r = get_pos(m, "vel_scale", &t.vel_scale)) || (r = get_pos(m, "area_scale", &t.area_scale)) ||
+        (r = get_pos(m, "out_scale", &t.out_scale)) || (r = get_pos(m, "crop_margin", &t.crop_margin)) ||
+        (r = get_pos(m, "ln_eps", &t.ln_eps)) || (r = weft__model_config_bool(m, "dec_skip", &t.dec_skip))) {
+        return r;
+    }
+    if (t.D % t.H != 0) {
+        return weft__fail(WEFT_ERROR_BAD_METADATA, "model config: D = %u is not a multiple of H = %u", t.D, t.H);
+    }
+    if ((uint64_t)t.history * t.K > 65536u) {
+        return weft__fail(WEFT_ERROR_BAD_METADATA, "model config: history x K = %u x %u is too large", t.history,
+                          t.K);
+    }
+    const char *prior = NULL;
+    if ((r = weft__model_config_string(m, "prior", &prior)) != WEFT_OK) {
+        return r;
+    }
+    if (strcmp(prior, "inertial") == 0) {
+        t.inertial_prior = true;
+    } else if (strcmp(prior, "previous") != 0) {
+        return weft__fail(WEFT_ERROR_BAD_METADATA, "model config 'prior' = '%s': expected 'inertial' or 'previous'",
+                          prior);
+    }
+    /* Optional keys. */
+    if (weft__model_config_find(m, "requires_collider") &&
+        (r = weft__model_config_bool(m, "requires_collider", &t.requires_collider)) != WEFT_OK) {
+        return r;
+    }
+    if (weft__model_config_find(m, "vertex_count") &&
+        (r = get_u32(m, "vertex_count", 0, UINT32_MAX, &t.vertex_count)) != WEFT_OK) {
+        return r;
+    }
+    *c = t;
+    return WEFT_OK;
+}
+
+/* Tensor names "a.b.c" built without printf (names are short; overlong parts are cut). */
+#define CT_NAME 160
+
+static void name_join(char *out, const char *a, const char *b)
+{
+    size_t la = strlen(a), lb = strlen(b);
+    if (la > CT_NAME / 2 - 1) {
+        la = CT_NAME / 2 - 1;
+    }
+    if (lb > CT_NAME / 2 - 2) {
+        lb = CT_NAME / 2 - 2;
+    }
+    memmove(out, a, la);
+    out[la] = '.';
+    memcpy(out + la + 1, b, lb);
+    out[la + 1 + lb] = '\0';
+}
+
+static void name_index(char *out, const char *a, uint32_t i, const char *b)
+{
+    char num[16];
+    int n = 0;
+    char rev[16];
+    do {
+        rev[n++] = (char)('0' + i % 10);
+        i /= 10;
+    } while (i && n < 15);
+    for (int j = 0; j < n; ++j) {
+        num[j] = rev[n - 1 - j];
+    }
+    num[n] = '\0';
+    char tmp[CT_NAME];
+    name_join(tmp, a, num);
+    name_join(out, tmp, b);
+}
+
+/* Requires a float32 tensor of the given shape and checks that it is finite. */
+static weft_result need(const weft_model *m, const char *name, uint32_t rank, const uint64_t *dims, const float **out)
+{
+    const weft_tensor *t = NULL;
+    weft_result r = weft__model_require(m, name, WEFT_DTYPE_F32, rank, dims, &t);
+    if (r != WEFT_OK) {
+        return r;
+    }
+    if (!weft__all_finite((const float *)t->data, (size_t)t->count)) {
+        return weft__fail(WEFT_ERROR_NOT_FINITE, "tensor '%s' contains NaN or infinity", name);
+    }
+    *out = (const float *)t->data;
+    return WEFT_OK;
+}
+
+static weft_result need_linear(const weft_model *m, const char *prefix, uint32_t out, uint32_t in, weft_ct_linear *l)
+{
+    char name[CT_NAME];
+    weft_result r;
+    name_join(name, prefix, "weight");
+    if ((r = need(m, name, 2, (const uint64_t[]){out, in}, &l->w)) != WEFT_OK) {
+        return r;
+    }
+    name_join(name, prefix, "bias");
+    if ((r = need(m, name, 1, (const uint64_t[]){out}, &l->b)) != WEFT_OK) {
+        return r;
+    }
+    l->out = out;
+    l->in = in;
+    return WEFT_OK;
+}
+
+static weft_result need_norm(const weft_model *m, const char *prefix, uint32_t d, weft_ct_norm *n)
+{
+    char name[CT_NAME];
+    weft_result r;
+    name_join(name, prefix, "weight");
+    if ((r = need(m, name, 1, (const uint64_t[]){d}, &n->g)) != WEFT_OK) {
+        return r;
+    }
+    name_join(name, prefix, "bias");
+    return need(m, name, 1, (const uint64_t[]){d}, &n->b);
+}
+
+static weft_result need_mlp(const weft_model *m, const char *prefix, uint32_t in, uint32_t hidden, uint32_t out,
+                            weft_ct_mlp *p)
+{
+    char name[CT_NAME];
+    weft_result r;
+    name_join(name, prefix, "fc1");
+    if ((r = need_linear(m, name, hidden, in, &p->fc1)) != WEFT_OK) {
+        return r;
+    }
+    name_join(name, prefix, "fc2");
+    return need_linear(m, name, out, hidden, &p->fc2);
+}
+
+static weft_result need_xattn(const weft_model *m, const char *prefix, uint32_t d, weft_ct_xattn *x)
+{
+    static const char *const lin[4] = {"q", "k", "v", "o"};
+    weft_ct_linear *dst[4] = {&x->q, &x->k, &x->v, &x->o};
+    char name[CT_NAME];
+    weft_result r;
+    for (int i = 0; i < 4; ++i) {
+        name_join(name, prefix, lin[i]);
+        if ((r = need_linear(m, name, d, d, dst[i])) != WEFT_OK) {
+            return r;
+        }
+    }
+    name_join(name, prefix, "ln_q");
+    if ((r = need_norm(m, name, d, &x->ln_q)) != WEFT_OK) {
+        return r;
+    }
+    name_join(name, prefix, "ln_kv");
+    if ((r = need_norm(m, name, d, &x->ln_kv)) != WEFT_OK) {
+        return r;
+    }
+    name_join(name, prefix, "ln_ff");
+    if ((r = need_norm(m, name, d, &x->ln_ff)) != WEFT_OK) {
+        return r;
+    }
+    name_join(name, prefix, "ff");
+    return need_mlp(m, name, d, 2 * d, d, &x->ff);
+}
+
+weft_result weft__ct_bind(const weft_model *model, weft_ct_config *out_config, weft_ct_weights *out_weights)
+{
+    if (!model) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "clothtransformer: model is NULL");
+    }
+    const char *arch = weft__model_metadata(model, "architecture");
+    if (!arch || strcmp(arch, WEFT_CT_ARCHITECTURE) != 0) {
+        return weft__fail(WEFT_ERROR_UNSUPPORTED, "model architecture '%s' is not '%s'", arch ? arch : "",
+                          WEFT_CT_ARCHITECTURE);
+    }
+    weft_ct_config c;
+    weft_result r = read_config(model, &c);
+    if (r != WEFT_OK) {
+        return r;
+    }
+    weft_ct_weights wb;
+    memset(&wb, 0, sizeof wb);
+    weft_ct_weights *w = &wb;
+    const uint32_t D = c.D, F = c.nfreq;
+    char name[CT_NAME];
+    if ((r = need(model, "freqs", 1, (const uint64_t[]){F}, &w->freqs)) ||
+        (r = need_mlp(model, "enc_cloth", 6 * F + 3, D, D, &w->enc_cloth)) ||
+        (r = need_mlp(model, "enc_coll", 18 * F + 13, D, D, &w->enc_coll)) ||
+        (r = need(model, "queries", 2, (const uint64_t[]){c.K, D}, &w->queries)) ||
+        (r = need_xattn(model, "enc_xattn", D, &w->enc_xattn)) ||
+        (r = need(model, "time_embed", 2, (const uint64_t[]){c.history, D}, &w->time_embed)) ||
+        (r = need_mlp(model, "dec_rest", 6 * F, D, D, &w->dec_rest)) ||
+        (r = need_xattn(model, "dec_xattn", D, &w->dec_xattn)) || (r = need_norm(model, "dec_ln", D, &w->dec_ln)) ||
+        (r = need_linear(model, "dec_head", 3, D, &w->dec_head))) {
+        goto done;
+    }
+    for (uint32_t i = 0; i < c.gnn_layers; ++i) {
+        name_index(name, "enc_gnn", i, "mlp");
+        if ((r = need_mlp(model, name, 2 * D, D, D, &w->enc_gnn[i])) != WEFT_OK) {
+            goto done;
+        }
+        name_index(name, "dec_gnn", i, "mlp");
+        if ((r = need_mlp(model, name, 2 * D, D, D, &w->dec_gnn[i])) != WEFT_OK) {
+            goto done;
+        }
+    }
+    for (uint32_t l = 0; l < c.L; ++l) {
+        weft_ct_layer *ly = &w->layers[l];
+        static const char *const sq[4] = {"q", "k", "v", "o"};
+        weft_ct_linear *dst[4] = {&ly->q, &ly->k, &ly->v, &ly->o};
+        for (int i = 0; i < 4 && r == WEFT_OK; ++i) {
+            name_index(name, "tmp", l, sq[i]);
+            r = need_linear(model, name, D, D, dst[i]);
+        }
+        if (r != WEFT_OK) {
+            goto done;
+        }
+        char n2[CT_NAME], n3[CT_NAME], n4[CT_NAME], n5[CT_NAME];
+        name_index(name, "tmp", l, "ln1");
+        name_index(n2, "tmp", l, "ln2");
+        name_index(n3, "tmp", l, "gate");
+        name_index(n4, "tmp", l, "up");
+        name_index(n5, "tmp", l, "down");
+        if ((r = need_norm(model, name, D, &ly->ln1)) || (r = need_norm(model, n2, D, &ly->ln2)) ||
+            (r = need_linear(model, n3, c.ffn, D, &ly->gate)) || (r = need_linear(model, n4, c.ffn, D, &ly->up)) ||
+            (r = need_linear(model, n5, D, c.ffn, &ly->down))) {
+            goto done;
+        }
+    }
+    for (uint32_t f = 0; f < F; ++f) {
+        if (!(fabsf(w->freqs[f]) < 1e6f)) {
+            r = weft__fail(WEFT_ERROR_BAD_METADATA, "tensor 'freqs'[%u] = %g is out of range", f, (double)w->freqs[f]);
+            goto done;
+        }
+    }
+    if (out_config) {
+        *out_config = c;
+    }
+    if (out_weights) {
+        *out_weights = *w;
+    }
+done:
+    return r;
+}
+
+weft_result weft__ct_validate(const weft_model *model) { return weft__ct_bind(model, NULL, NULL); }
+
+/* ------------------------------------------------------------------------------------------ */
+/* Garment state                                                                               */
+
+typedef struct ct_buf {
+    float **ptr;
+    size_t floats;
+} ct_buf;
+
+typedef struct ct_state {
+    weft_ct_config c;
+    weft_ct_weights w;
+    const weft_kernels *k;
+    uint32_t N, M;                      /* cloth vertices, collider triangles */
+    uint32_t *rowptr, *col;             /* CSR mesh adjacency (both directions) */
+    size_t col_count;
+    uint8_t *tmask;                     /* (history K)^2 block-causal mask, NULL when history = 1 */
+
+    /* constant per garment */
+    float *rest_tok;                    /* N x D  decoder rest tokens (residual stream start) */
+    float *dec_q;                       /* N x D  their query projection */
+    float *enc_q;                       /* K x D  query projection of the learned queries */
+
+    /* latent history (history x K x D) and the window being built */
+    float *hist, *hist_new;
+    bool hist_empty;
+
+    /* scratch */
+    float *xc;                          /* max(N, 3) x 3 centred points */
+    float *feat;                        /* N x (6F + 3) */
+    float *cfeat;                       /* M x (18F + 13) */
+    float *tok;                         /* (N + M) x D: cloth tokens, then kept collider tokens */
+    float *tln, *tk, *tv;               /* (N + M) x D */
+    float *wide;                        /* max(N + M, hK) x max(2D, ffn) */
+    float *wide2;                       /* hK x ffn */
+    float *gcat;                        /* N x 2D */
+    float *z, *za;                      /* K x D latent, attention out */
+    float *x, *xln, *xq, *xk, *xv, *xa; /* hK x D temporal stream */
+    float *dh, *da, *dln;               /* N x D decoder stream, attention out, normed */
+    float *out3;                        /* N x 3 */
+    float *attn_scratch;
+    size_t attn_scratch_floats;
+    ct_buf bufs[40];
+    uint32_t buf_count;
+} ct_state;
+
+static ct_state *state_of(weft_garment *g) { return (ct_state *)g->method_state; }
+
+static void linear(const weft_kernels *k, uint32_t rows, const weft_ct_linear *l, const float *A, uint32_t lda,
+                   float *C, uint32_t ldc, weft_activation act, bool accumulate)
+{
+    k->gemm(rows, l->out, l->in, A, lda, l->w, l->in, l->b, C, ldc, act, accumulate);
+}
+
+static void norm(const weft_kernels *k, const weft_ct_norm *n, const float *X, float *Y, uint32_t rows, uint32_t d,
+                 float eps)
+{
+    k->layernorm(X, Y, rows, d, d, n->g, n->b, eps);
+}
+
+static int cmp_u64(const void *a, const void *b)
+{
+    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
+    return x < y ? -1 : x > y;
+}
+
+/* Unique undirected mesh edges as a CSR adjacency in both directions. */
+static weft_result build_csr(weft_garment *g, ct_state *s)
+{
+    size_t n = (size_t)g->triangle_count * 6;
+    uint64_t *pairs = weft__alloc(g->ctx, n * sizeof(uint64_t));
+    if (!pairs) {
+        return WEFT_ERROR_OUT_OF_MEMORY;
+    }
+    for (uint32_t t = 0; t < g->triangle_count; ++t) {
+        const uint32_t *tri = g->triangles + 3 * (size_t)t;
+        for (int e = 0; e < 3; ++e) {
+            uint64_t a = tri[e], b = tri[(e + 1) % 3];
+            pairs[6 * (size_t)t + 2 * e] = a << 32 | b;
+            pairs[6 * (size_t)t + 2 * e + 1] = b << 32 | a;
+        }
+    }
+    qsort(pairs, n, sizeof(uint64_t), cmp_u64);
+    size_t u = 0;
+    for (size_t i = 0; i < n; ++i) {
+        if (u == 0 || pairs[i] != pairs[u - 1]) {
+            pairs[u++] = pairs[i];
+        }
+    }
+    s->rowptr = weft__alloc(g->ctx, ((size_t)s->N + 1) * sizeof(uint32_t));
+    s->col = weft__alloc(g->ctx, (u ? u : 1) * sizeof(uint32_t));
+    s->col_count = u ? u : 1;
+    if (!s->rowptr || !s->col) {
+        weft__free(g->ctx, pairs, n * sizeof(uint64_t));
+        return WEFT_ERROR_OUT_OF_MEMORY;
+    }
+    for (size_t i = 0; i < u; ++i) {
+        s->rowptr[(pairs[i] >> 32) + 1]++;
+        s->col[i] = (uint32_t)(pairs[i] & 0xffffffffu);
+    }
+    for (uint32_t v = 0; v < s->N; ++v) {
+        s->rowptr[v + 1] += s->rowptr[v];
+    }
+    weft__free(g->ctx, pairs, n * sizeof(uint64_t));
+    return WEFT_OK;
+}
+
+static bool add_buf(weft_garment *g, ct_state *s, float **ptr, size_t floats)
+{
+    if (floats == 0) {
+        floats = 1;
+    }
+    *ptr = weft__alloc(g->ctx, floats * sizeof(float));
+    s->bufs[s->buf_count++] = (ct_buf){ptr, floats};
+    return *ptr != NULL;
+}
+
+static void ct_destroy(weft_garment *g)
+{
+    ct_state *s = state_of(g);
+    if (!s) {
+        return;
+    }
+    for (uint32_t i = 0; i < s->buf_count; ++i) {
+        weft__free(g->ctx, *s->bufs[i].ptr, s->bufs[i].floats * sizeof(float));
+    }
+    size_t hk = (size_t)s->c.history * s->c.K;
+    weft__free(g->ctx, s->tmask, hk * hk);
+    weft__free(g->ctx, s->rowptr, ((size_t)s->N + 1) * sizeof(uint32_t));
+    weft__free(g->ctx, s->col, s->col_count * sizeof(uint32_t));
+    weft__free(g->ctx, s, sizeof *s);
+    g->method_state = NULL;
+}
+
+static size_t max_sz(size_t a, size_t b) { return a > b ? a : b; }
+
+/* Decoder rest tokens and query projections, and the encoder's learned-query projection: all
+ * constant for the garment's life. */
+static void precompute(weft_garment *g, ct_state *s)
+{
+    const weft_kernels *k = s->k;
+    const weft_ct_config *c = &s->c;
+    const uint32_t N = s->N, D = c->D, F = c->nfreq;
+    double m[3] = {0, 0, 0};
+    for (uint32_t i = 0; i < N; ++i) {
+        for (int d = 0; d < 3; ++d) {
+            m[d] += g->rest[3 * (size_t)i + d];
+        }
+    }
+    float mf[3];
+    for (int d = 0; d < 3; ++d) {
+        mf[d] = (float)(m[d] / N);
+    }
+    for (uint32_t i = 0; i < N; ++i) {
+        for (int d = 0; d < 3; ++d) {
+            s->xc[3 * (size_t)i + d] = g->rest[3 * (size_t)i + d] - mf[d];
+        }
+    }
+    k->posembed(s->xc, N, 3, s->w.freqs, F, s->feat, 6 * F);
+    linear(k, N, &s->w.dec_rest.fc1, s->feat, 6 * F, s->dh, D, WEFT_ACT_GELU, false);
+    linear(k, N, &s->w.dec_rest.fc2, s->dh, D, s->rest_tok, D, WEFT_ACT_NONE, false);
+    norm(k, &s->w.dec_xattn.ln_q, s->rest_tok, s->dln, N, D, c->ln_eps);
+    linear(k, N, &s->w.dec_xattn.q, s->dln, D, s->dec_q, D, WEFT_ACT_NONE, false);
+    norm(k, &s->w.enc_xattn.ln_q, s->w.queries, s->z, c->K, D, c->ln_eps);
+    linear(k, c->K, &s->w.enc_xattn.q, s->z, D, s->enc_q, D, WEFT_ACT_NONE, false);
+}
+
+static weft_result ct_create(weft_garment *g)
+{
+    if (g->precision != WEFT_PRECISION_FP32) {
+        return weft__fail(WEFT_ERROR_UNSUPPORTED, "method 'model': precision %d is not available for the "
+                                                  "clothtransformer runtime in this build (fp32 only)",
+                          (int)g->precision);
+    }
+    weft_ct_config c;
+    weft_ct_weights wb;
+    weft_ct_weights *w = &wb;
+    weft_result r = weft__ct_bind(g->model, &c, w);
+    if (r != WEFT_OK) {
+        return r;
+    }
+    if (c.vertex_count != 0 && c.vertex_count != g->vertex_count) {
+        return weft__fail(WEFT_ERROR_TOPOLOGY_MISMATCH,
+                          "method 'model': the model was trained for a %u-vertex garment, this one has %u",
+                          c.vertex_count, g->vertex_count);
+    }
+    if (c.requires_collider && g->collider_vertex_count == 0) {
+        return weft__fail(WEFT_ERROR_NO_COLLIDER, "method 'model': the model needs a collider "
+                                                  "(def.collider_vertex_count is 0)");
+    }
+    ct_state *s = weft__alloc(g->ctx, sizeof *s);
+    if (!s) {
+        return WEFT_ERROR_OUT_OF_MEMORY;
+    }
+    s->c = c;
+    s->w = *w;
+    s->k = g->ctx->kernels;
+    s->N = g->vertex_count;
+    s->M = g->collider_triangle_count;
+    g->method_state = s;
+
+    const size_t N = s->N, M = s->M, D = c.D, K = c.K, F = c.nfreq, hk = (size_t)c.history * c.K;
+    const size_t ntok = N + M;
+    const size_t wide_cols = max_sz(2 * D, c.ffn);
+    bool ok = add_buf(g, s, &s->rest_tok, N * D) && add_buf(g, s, &s->dec_q, N * D) &&
+              add_buf(g, s, &s->enc_q, K * D) && add_buf(g, s, &s->hist, hk * D) &&
+              add_buf(g, s, &s->hist_new, hk * D) && add_buf(g, s, &s->xc, max_sz(N, 3) * 3) &&
+              add_buf(g, s, &s->feat, N * (6 * F + 3)) && add_buf(g, s, &s->cfeat, M * (18 * F + 13)) &&
+              add_buf(g, s, &s->tok, ntok * D) && add_buf(g, s, &s->tln, ntok * D) &&
+              add_buf(g, s, &s->tk, ntok * D) && add_buf(g, s, &s->tv, ntok * D) &&
+              add_buf(g, s, &s->wide, max_sz(ntok, hk) * wide_cols) && add_buf(g, s, &s->wide2, hk * c.ffn) &&
+              add_buf(g, s, &s->gcat, N * 2 * D) && add_buf(g, s, &s->z, K * D) && add_buf(g, s, &s->za, K * D) &&
+              add_buf(g, s, &s->x, hk * D) && add_buf(g, s, &s->xln, hk * D) && add_buf(g, s, &s->xq, hk * D) &&
+              add_buf(g, s, &s->xk, hk * D) && add_buf(g, s, &s->xv, hk * D) && add_buf(g, s, &s->xa, hk * D) &&
+              add_buf(g, s, &s->dh, N * D) && add_buf(g, s, &s->da, N * D) && add_buf(g, s, &s->dln, N * D) &&
+              add_buf(g, s, &s->out3, N * 3);
+    if (ok) {
+        size_t a = weft_attention_scratch((uint32_t)K, (uint32_t)ntok);
+        a = max_sz(a, weft_attention_scratch((uint32_t)hk, (uint32_t)hk));
+        a = max_sz(a, weft_attention_scratch((uint32_t)N, (uint32_t)K));
+        s->attn_scratch_floats = a;
+        ok = add_buf(g, s, &s->attn_scratch, a);
+    }
+    if (ok && c.history > 1) {
+        s->tmask = weft__alloc(g->ctx, hk * hk);
+        ok = s->tmask != NULL;
+        for (size_t i = 0; ok && i < hk; ++i) {
+            for (size_t j = 0; j < hk; ++j) {
+                s->tmask[i * hk + j] = (uint8_t)(j / K <= i / K);
+            }
+        }
+    }
+    if (!ok) {
+        ct_destroy(g);
+        return WEFT_ERROR_OUT_OF_MEMORY;
+    }
+    if ((r = build_csr(g, s)) != WEFT_OK) {
+        ct_destroy(g);
+        return r;
+    }
+    precompute(g, s);
+    s->hist_empty = true;
+    return WEFT_OK;
+}
+
+static void ct_reset(weft_garment *g) { state_of(g)->hist_empty = true; }
+
+/* h <- h + MLP([h, mean of neighbours]) for each layer. */
+static void gnn(ct_state *s, const weft_ct_mlp *layers, uint32_t count, float *h)
+{
+    const weft_kernels *k = s->k;
+    const uint32_t N = s->N, D = s->c.D;
+    for (uint32_t l = 0; l < count; ++l) {
+        for (uint32_t i = 0; i < N; ++i) {
+            memcpy(s->gcat + (size_t)i * 2 * D, h + (size_t)i * D, D * sizeof(float));
+        }
+        k->csr_aggregate(s->rowptr, s->col, N, h, D, D, s->gcat + D, 2 * D, true);
+        linear(k, N, &layers[l].fc1, s->gcat, 2 * D, s->wide, D, WEFT_ACT_GELU, false);
+        linear(k, N, &layers[l].fc2, s->wide, D, h, D, WEFT_ACT_NONE, true);
+    }
+}
+
+/* x <- x + O(attn(Qp, K(LN y), V(LN y))); x <- x + FF(LN x). Qp is the precomputed or current
+ * query projection (nq x D); y holds ny rows. */
+static void cross_block(ct_state *s, const weft_ct_xattn *a, const float *qp, uint32_t nq, float *x, const float *y,
+                        uint32_t ny, float *yln, float *yk, float *yv, float *att, float *xln)
+{
+    const weft_kernels *k = s->k;
+    const uint32_t D = s->c.D, H = s->c.H, dh = D / H;
+    norm(k, &a->ln_kv, y, yln, ny, D, s->c.ln_eps);
+    linear(k, ny, &a->k, yln, D, yk, D, WEFT_ACT_NONE, false);
+    linear(k, ny, &a->v, yln, D, yv, D, WEFT_ACT_NONE, false);
+    k->attention(qp, D, yk, D, yv, D, nq, ny, H, dh, 1.0f / sqrtf((float)dh), NULL, att, D, s->attn_scratch);
+    linear(k, nq, &a->o, att, D, x, D, WEFT_ACT_NONE, true);
+    norm(k, &a->ln_ff, x, xln, nq, D, s->c.ln_eps);
+    linear(k, nq, &a->ff.fc1, xln, D, s->wide, 2 * D, WEFT_ACT_GELU, false);
+    linear(k, nq, &a->ff.fc2, s->wide, 2 * D, x, D, WEFT_ACT_NONE, true);
+}
+
+static void centroid(const float *p, uint32_t n, float out[3])
+{
+    double m[3] = {0, 0, 0};
+    for (uint32_t i = 0; i < n; ++i) {
+        for (int d = 0; d < 3; ++d) {
+            m[d] += p[3 * (size_t)i + d];
+        }
+    }
+    for (int d = 0; d < 3; ++d) {
+        out[d] = (float)(m[d] / n);
+    }
+}
+
+/* Collider triangle features for triangles overlapping the grown garment box; returns the count. */
+static uint32_t collider_features(weft_garment *g, ct_state *s, const float centre[3])
+{
+    const weft_ct_config *c = &s->c;
+    const uint32_t F = c->nfreq, ld = 18 * F + 13;
+    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (uint32_t i = 0; i < s->N; ++i) {
+        for (int d = 0; d < 3; ++d) {
+            float v = g->x[3 * (size_t)i + d];
+            lo[d] = v < lo[d] ? v : lo[d];
+            hi[d] = v > hi[d] ? v : hi[d];
+        }
+    }
+    for (int d = 0; d < 3; ++d) {
+        lo[d] -= c->crop_margin;
+        hi[d] += c->crop_margin;
+    }
+    const float *cn = g->collider_next, *cp = g->collider_prev;
+    uint32_t kept = 0;
+    for (uint32_t t = 0; t < s->M; ++t) {
+        const uint32_t *tri = g->collider_triangles + 3 * (size_t)t;
+        const float *p[3] = {cn + 3 * (size_t)tri[0], cn + 3 * (size_t)tri[1], cn + 3 * (size_t)tri[2]};
+        bool overlap = true;
+        for (int d = 0; d < 3 && overlap; ++d) {
+            float tl = fminf(fminf(p[0][d], p[1][d]), p[2][d]);
+            float th = fmaxf(fmaxf(p[0][d], p[1][d]), p[2][d]);
+            overlap = tl <= hi[d] && th >= lo[d];
+        }
+        if (!overlap) {
+            continue;
+        }
+        float *row = s->cfeat + (size_t)kept * ld;
+        float corners[9];
+        for (int j = 0; j < 3; ++j) {
+            for (int d = 0; d < 3; ++d) {
+                corners[3 * j + d] = p[j][d] - centre[d];
+            }
+        }
+        s->k->posembed(corners, 3, 3, s->w.freqs, F, row, 6 * F);
+        float *v = row + 18 * F;
+        for (int j = 0; j < 3; ++j) {
+            const float *q = cp + 3 * (size_t)tri[j];
+            for (int d = 0; d < 3; ++d) {
+                v[3 * j + d] = (p[j][d] - q[d]) * c->vel_scale;
+            }
+        }
+        float e1[3], e2[3];
+        for (int d = 0; d < 3; ++d) {
+            e1[d] = p[1][d] - p[0][d];
+            e2[d] = p[2][d] - p[0][d];
+        }
+        float n[3] = {e1[1] * e2[2] - e1[2] * e2[1], e1[2] * e2[0] - e1[0] * e2[2], e1[0] * e2[1] - e1[1] * e2[0]};
+        float a2 = sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2] + 1e-20f);
+        for (int d = 0; d < 3; ++d) {
+            v[9 + d] = n[d] / a2;
+        }
+        v[12] = sqrtf(0.5f * a2) * c->area_scale;
+        kept++;
+    }
+    return kept;
+}
+
+static weft_result ct_step(weft_garment *g)
+{
+    ct_state *s = state_of(g);
+    const weft_kernels *k = s->k;
+    const weft_ct_config *c = &s->c;
+    const uint32_t N = s->N, D = c->D, K = c->K, F = c->nfreq, H = c->H, dh = D / H;
+    const uint32_t hk = c->history * K;
+    const float eps = c->ln_eps;
+    const weft_ct_weights *w = &s->w;
+
+    /* ---- encoder: cloth vertex tokens ---- */
+    float centre[3];
+    centroid(g->x, N, centre);
+    const uint32_t ldf = 6 * F + 3;
+    for (uint32_t i = 0; i < N; ++i) {
+        for (int d = 0; d < 3; ++d) {
+            s->xc[3 * (size_t)i + d] = g->x[3 * (size_t)i + d] - centre[d];
+        }
+    }
+    k->posembed(s->xc, N, 3, w->freqs, F, s->feat, ldf);
+    for (uint32_t i = 0; i < N; ++i) {
+        float *v = s->feat + (size_t)i * ldf + 6 * F;
+        for (int d = 0; d < 3; ++d) {
+            v[d] = (g->x[3 * (size_t)i + d] - g->x_prev[3 * (size_t)i + d]) * c->vel_scale;
+        }
+    }
+    linear(k, N, &w->enc_cloth.fc1, s->feat, ldf, s->wide, D, WEFT_ACT_GELU, false);
+    linear(k, N, &w->enc_cloth.fc2, s->wide, D, s->tok, D, WEFT_ACT_NONE, false);
+    gnn(s, w->enc_gnn, c->gnn_layers, s->tok);
+
+    /* ---- encoder: collider triangle tokens (cropped to the garment's neighbourhood) ---- */
+    uint32_t kept = 0;
+    if (s->M > 0) {
+        kept = collider_features(g, s, centre);
+        if (kept > 0) {
+            linear(k, kept, &w->enc_coll.fc1, s->cfeat, 18 * F + 13, s->wide, D, WEFT_ACT_GELU, false);
+            linear(k, kept, &w->enc_coll.fc2, s->wide, D, s->tok + (size_t)N * D, D, WEFT_ACT_NONE, false);
+        }
+    }
+
+    /* ---- encoder: learned queries compress every token into Z_t ---- */
+    memcpy(s->z, w->queries, (size_t)K * D * sizeof(float));
+    cross_block(s, &w->enc_xattn, s->enc_q, K, s->z, s->tok, N + kept, s->tln, s->tk, s->tv, s->za, s->xln);
+
+    /* ---- temporal transformer over the latent window (oldest first) ---- */
+    const size_t frame = (size_t)K * D;
+    if (s->hist_empty) {
+        for (uint32_t h = 0; h < c->history; ++h) {
+            memcpy(s->hist_new + h * frame, s->z, frame * sizeof(float));
+        }
+    } else {
+        memcpy(s->hist_new, s->hist + frame, (c->history - 1) * frame * sizeof(float));
+        memcpy(s->hist_new + (c->history - 1) * frame, s->z, frame * sizeof(float));
+    }
+    for (uint32_t h = 0; h < c->history; ++h) {
+        for (uint32_t i = 0; i < K; ++i) {
+            const float *src = s->hist_new + h * frame + (size_t)i * D;
+            float *dst = s->x + h * frame + (size_t)i * D;
+            const float *te = w->time_embed + (size_t)h * D;
+            for (uint32_t d = 0; d < D; ++d) {
+                dst[d] = src[d] + te[d];
+            }
+        }
+    }
+    const float scale = 1.0f / sqrtf((float)dh);
+    for (uint32_t l = 0; l < c->L; ++l) {
+        const weft_ct_layer *ly = &w->layers[l];
+        /* Only the newest frame's tokens are read after the last layer: its queries suffice. */
+        const bool last = l + 1 == c->L;
+        const uint32_t r0 = last ? hk - K : 0, nq = last ? K : hk;
+        norm(k, &ly->ln1, s->x, s->xln, hk, D, eps);
+        linear(k, nq, &ly->q, s->xln + (size_t)r0 * D, D, s->xq, D, WEFT_ACT_NONE, false);
+        linear(k, hk, &ly->k, s->xln, D, s->xk, D, WEFT_ACT_NONE, false);
+        linear(k, hk, &ly->v, s->xln, D, s->xv, D, WEFT_ACT_NONE, false);
+        k->attention(s->xq, D, s->xk, D, s->xv, D, nq, hk, H, dh, scale, last ? NULL : s->tmask, s->xa, D,
+                     s->attn_scratch);
+        float *xr = s->x + (size_t)r0 * D;
+        linear(k, nq, &ly->o, s->xa, D, xr, D, WEFT_ACT_NONE, true);
+        norm(k, &ly->ln2, xr, s->xln, nq, D, eps);
+        linear(k, nq, &ly->gate, s->xln, D, s->wide, c->ffn, WEFT_ACT_NONE, false);
+        linear(k, nq, &ly->up, s->xln, D, s->wide2, c->ffn, WEFT_ACT_NONE, false);
+        k->swiglu(s->wide, s->wide2, s->wide, (size_t)nq * c->ffn);
+        linear(k, nq, &ly->down, s->wide, c->ffn, xr, D, WEFT_ACT_NONE, true);
+    }
+    const float *z_next = s->x + (size_t)(hk - K) * D;
+
+    /* ---- decoder: rest-shape queries read the predicted latents ---- */
+    memcpy(s->dh, s->rest_tok, (size_t)N * D * sizeof(float));
+    cross_block(s, &w->dec_xattn, s->dec_q, N, s->dh, z_next, K, s->xln, s->xk, s->xv, s->da, s->dln);
+    if (c->dec_skip) {
+        const size_t n = (size_t)N * D;
+        for (size_t i = 0; i < n; ++i) {
+            s->dh[i] += s->tok[i];
+        }
+    }
+    gnn(s, w->dec_gnn, c->gnn_layers, s->dh);
+    norm(k, &w->dec_ln, s->dh, s->dln, N, D, eps);
+    linear(k, N, &w->dec_head, s->dln, D, s->out3, 3, WEFT_ACT_NONE, false);
+
+    /* ---- X_{t+1} = prior + out_scale * displacement ---- */
+    for (size_t i = 0; i < (size_t)N * 3; ++i) {
+        float prior = c->inertial_prior ? 2.0f * g->x[i] - g->x_prev[i] : g->x[i];
+        g->x_next[i] = prior + c->out_scale * s->out3[i];
+    }
+    if (!weft__all_finite(g->x_next, (size_t)N * 3)) {
+        return weft__fail(WEFT_ERROR_NOT_FINITE, "method 'model': the forward pass produced NaN or infinity; "
+                                                 "state kept");
+    }
+    /* Commit the latent history only once the step has succeeded. */
+    float *t = s->hist;
+    s->hist = s->hist_new;
+    s->hist_new = t;
+    s->hist_empty = false;
+    return WEFT_OK;
+}
+
+const weft_method_ops weft__method_model = {
+    .name = "model",
+    .supports_pins = false,
+    .create = ct_create,
+    .destroy = ct_destroy,
+    .reset = ct_reset,
+    .step = ct_step,
+};

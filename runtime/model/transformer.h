@@ -1,0 +1,73 @@
+/* The ClothTransformer forward pass (fp32) and the WEFT_METHOD_MODEL garment method.
+ *
+ * The architecture and tensor names are defined by tools/train/model.py; docs/MODEL.md describes
+ * the data flow. A model file is checked once against its config (every tensor, shape and value)
+ * by weft__ct_validate; a garment then precomputes everything that depends only on the model and
+ * its rest shape, and sizes all scratch, so that a step allocates nothing. */
+#ifndef WEFT_MODEL_TRANSFORMER_H
+#define WEFT_MODEL_TRANSFORMER_H
+
+#include "garment/garment.h"
+#include "model/model.h"
+
+#define WEFT_CT_ARCHITECTURE "clothtransformer"
+#define WEFT_CT_MAX_GNN 8u
+#define WEFT_CT_MAX_LAYERS 64u
+
+typedef struct weft_ct_config {
+    uint32_t K, D, L, H, history, ffn, nfreq, gnn_layers;
+    float vel_scale, area_scale, out_scale, crop_margin, ln_eps;
+    bool inertial_prior;                /* prior "inertial" (2 X_t - X_{t-1}) or "previous" (X_t) */
+    bool dec_skip;
+    bool requires_collider;             /* trained only with colliders */
+    uint32_t vertex_count;              /* 0: any garment; else the one mesh it was trained for */
+} weft_ct_config;
+
+typedef struct weft_ct_linear {
+    const float *w, *b;                 /* w[out][in], b[out] */
+    uint32_t out, in;
+} weft_ct_linear;
+
+typedef struct weft_ct_norm {
+    const float *g, *b;
+} weft_ct_norm;
+
+typedef struct weft_ct_mlp {
+    weft_ct_linear fc1, fc2;
+} weft_ct_mlp;
+
+typedef struct weft_ct_xattn {
+    weft_ct_norm ln_q, ln_kv, ln_ff;
+    weft_ct_linear q, k, v, o;
+    weft_ct_mlp ff;
+} weft_ct_xattn;
+
+typedef struct weft_ct_layer {
+    weft_ct_norm ln1, ln2;
+    weft_ct_linear q, k, v, o, gate, up, down;
+} weft_ct_layer;
+
+typedef struct weft_ct_weights {
+    const float *freqs;                 /* nfreq */
+    weft_ct_mlp enc_cloth, enc_coll, dec_rest;
+    weft_ct_mlp enc_gnn[WEFT_CT_MAX_GNN], dec_gnn[WEFT_CT_MAX_GNN];
+    const float *queries;               /* K x D */
+    const float *time_embed;            /* history x D */
+    weft_ct_xattn enc_xattn, dec_xattn;
+    weft_ct_layer layers[WEFT_CT_MAX_LAYERS];
+    weft_ct_norm dec_ln;
+    weft_ct_linear dec_head;
+} weft_ct_weights;
+
+/* Reads the config and binds every tensor, checking names, dtypes, shapes and finiteness.
+ * Fails with BAD_METADATA, MISSING_TENSOR, TENSOR_SHAPE, TENSOR_DTYPE or NOT_FINITE, naming the
+ * key or tensor. Either output may be NULL. */
+weft_result weft__ct_bind(const weft_model *model, weft_ct_config *out_config, weft_ct_weights *out_weights);
+
+/* Load-time hook for the architecture table: weft__ct_bind without outputs. */
+weft_result weft__ct_validate(const weft_model *model);
+
+/* The garment method (registered in runtime/garment/methods.c). */
+extern const weft_method_ops weft__method_model;
+
+#endif

@@ -1,0 +1,476 @@
+/* C forward pass of the ClothTransformer against PyTorch golden tensors
+ * (tools/train/export.py --golden), plus the method's bad-input behaviour. */
+#include "test.h"
+#include "weft.h"
+
+#include <stdbool.h>
+#include <stdint.h>
+
+#define DATA WEFT_SOURCE_DIR "/tests/model/data/"
+
+/* ---- minimal .npy reader (little-endian <f4 / <u4, C order) ---------------------------- */
+
+typedef struct npy {
+    void *data;
+    size_t count;
+    uint32_t rank;
+    size_t shape[4];
+} npy;
+
+static int npy_load(const char *name, const char *descr, npy *out)
+{
+    char path[512];
+    snprintf(path, sizeof path, "%s%s.npy", DATA, name);
+    FILE *f = fopen(path, "rb");
+    if (!f) {
+        fprintf(stderr, "cannot open %s\n", path);
+        return 0;
+    }
+    unsigned char pre[10];
+    int ok = fread(pre, 1, 10, f) == 10 && memcmp(pre, "\x93NUMPY", 6) == 0 && pre[6] == 1;
+    size_t hlen = ok ? (size_t)pre[8] | (size_t)pre[9] << 8 : 0;
+    char header[1024] = {0};
+    ok = ok && hlen < sizeof header && fread(header, 1, hlen, f) == hlen;
+    ok = ok && strstr(header, descr) && strstr(header, "'fortran_order': False");
+    const char *sh = ok ? strstr(header, "'shape': (") : NULL;
+    *out = (npy){0};
+    out->count = 1;
+    if (sh) {
+        sh += 10;
+        while (*sh && *sh != ')' && out->rank < 4) {
+            char *end;
+            size_t v = (size_t)strtoull(sh, &end, 10);
+            if (end == sh) {
+                break;
+            }
+            out->shape[out->rank++] = v;
+            out->count *= v;
+            sh = end;
+            while (*sh == ',' || *sh == ' ') {
+                sh++;
+            }
+        }
+    }
+    ok = ok && sh && out->rank > 0;
+    if (ok) {
+        out->data = malloc(out->count * 4 + 1);
+        ok = out->data && fread(out->data, 4, out->count, f) == out->count;
+    }
+    fclose(f);
+    if (!ok) {
+        fprintf(stderr, "malformed %s\n", path);
+        free(out->data);
+        out->data = NULL;
+    }
+    return ok;
+}
+
+static void *read_file(const char *path, size_t *size)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f) {
+        return NULL;
+    }
+    fseek(f, 0, SEEK_END);
+    long n = ftell(f);
+    fseek(f, 0, SEEK_SET);
+    void *p = malloc((size_t)n + 1);
+    if (p && fread(p, 1, (size_t)n, f) != (size_t)n) {
+        free(p);
+        p = NULL;
+    }
+    fclose(f);
+    *size = (size_t)n;
+    return p;
+}
+
+/* ---- fixture --------------------------------------------------------------------------- */
+
+typedef struct golden {
+    npy rest, faces, cfaces, gt, cpos, tf_frames, tf_pred, rollout;
+    uint32_t V, F, Vc, Fc;
+} golden;
+
+static int golden_load(golden *g)
+{
+    int ok = npy_load("rest", "<f4", &g->rest) && npy_load("faces", "<u4", &g->faces) &&
+             npy_load("cfaces", "<u4", &g->cfaces) && npy_load("gt_pos", "<f4", &g->gt) &&
+             npy_load("c_pos", "<f4", &g->cpos) && npy_load("tf_frames", "<u4", &g->tf_frames) &&
+             npy_load("tf_pred", "<f4", &g->tf_pred) && npy_load("rollout", "<f4", &g->rollout);
+    if (ok) {
+        g->V = (uint32_t)g->rest.shape[0];
+        g->F = (uint32_t)g->faces.shape[0];
+        g->Vc = (uint32_t)g->cpos.shape[1];
+        g->Fc = (uint32_t)g->cfaces.shape[0];
+    }
+    return ok;
+}
+
+static void golden_free(golden *g)
+{
+    npy *all[] = {&g->rest, &g->faces, &g->cfaces, &g->gt, &g->cpos, &g->tf_frames, &g->tf_pred, &g->rollout};
+    for (size_t i = 0; i < sizeof all / sizeof all[0]; ++i) {
+        free(all[i]->data);
+    }
+}
+
+static const float *frame(const npy *a, size_t t)
+{
+    size_t per = a->count / a->shape[0];
+    return (const float *)a->data + t * per;
+}
+
+/* Counting allocator: a step must not allocate. */
+static size_t g_allocs;
+static void *count_alloc(size_t size, size_t alignment, void *user)
+{
+    (void)user;
+    g_allocs++;
+    return aligned_alloc(alignment, (size + alignment - 1) / alignment * alignment);
+}
+static void count_free(void *p, size_t size, void *user)
+{
+    (void)size;
+    (void)user;
+    free(p);
+}
+
+static weft_context *make_ctx(void)
+{
+    weft_context_def cd = weft_default_context_def();
+    cd.allocator.alloc = count_alloc;
+    cd.allocator.free = count_free;
+    weft_context *ctx = NULL;
+    CHECK_RESULT(weft_context_create(&cd, &ctx), WEFT_OK);
+    return ctx;
+}
+
+static weft_garment_def garment_def(const golden *g, const weft_model *m, size_t t)
+{
+    weft_garment_def d = weft_default_garment_def();
+    d.method = WEFT_METHOD_MODEL;
+    d.model = m;
+    d.ccd = false;
+    d.rest_positions = g->rest.data;
+    d.vertex_count = g->V;
+    d.triangles = g->faces.data;
+    d.triangle_count = g->F;
+    d.collider_rest_positions = frame(&g->cpos, t);
+    d.collider_vertex_count = g->Vc;
+    d.collider_triangles = g->cfaces.data;
+    d.collider_triangle_count = g->Fc;
+    d.initial_positions = frame(&g->gt, t);
+    return d;
+}
+
+/* max |a - b| relative to max |b| (the parity measure) and to the frame's largest motion. */
+static void compare(const float *c, const float *p, const float *x_t, size_t n, double *rel, double *rel_motion)
+{
+    double e = 0, mag = 0, mot = 0;
+    for (size_t i = 0; i < n; ++i) {
+        e = fmax(e, fabs((double)c[i] - p[i]));
+        mag = fmax(mag, fabs((double)p[i]));
+        mot = fmax(mot, fabs((double)p[i] - x_t[i]));
+    }
+    *rel = e / fmax(mag, 1e-12);
+    *rel_motion = e / fmax(mot, 1e-12);
+}
+
+/* ---- cases ----------------------------------------------------------------------------- */
+
+static void teacher_forced_parity(void)
+{
+    golden g;
+    if (!golden_load(&g)) {
+        CHECK(!"golden tensors missing");
+        return;
+    }
+    weft_context *ctx = make_ctx();
+    weft_model *m = NULL;
+    CHECK_RESULT(weft_model_load_file(ctx, DATA "golden_model.safetensors", &m), WEFT_OK);
+    double worst = 0, worst_motion = 0;
+    for (size_t i = 0; m && i < g.tf_frames.shape[0]; ++i) {
+        uint32_t t = ((const uint32_t *)g.tf_frames.data)[i];
+        weft_garment_def d = garment_def(&g, m, t);
+        weft_garment *gar = NULL;
+        CHECK_RESULT(weft_garment_create(ctx, &d, &gar), WEFT_OK);
+        if (!gar) {
+            break;
+        }
+        CHECK_RESULT(weft_garment_set_state(gar, frame(&g.gt, t), frame(&g.gt, t - 1)), WEFT_OK);
+        CHECK_RESULT(weft_garment_set_collider(gar, frame(&g.cpos, t + 1)), WEFT_OK);
+        CHECK_RESULT(weft_garment_step(gar), WEFT_OK);
+        double rel, relm;
+        compare(weft_garment_positions(gar), frame(&g.tf_pred, i), frame(&g.gt, t), (size_t)g.V * 3, &rel, &relm);
+        CHECK_MSG(rel <= 1e-4, "frame %u: relative error %.3g > 1e-4", t, rel);
+        CHECK_MSG(relm <= 1e-3, "frame %u: error %.3g of the frame's motion > 1e-3", t, relm);
+        worst = fmax(worst, rel);
+        worst_motion = fmax(worst_motion, relm);
+        weft_garment_destroy(gar);
+    }
+    printf("teacher-forced: %zu frames, max relative error %.3g (%.3g of the per-frame motion)\n",
+           g.tf_frames.shape[0], worst, worst_motion);
+    weft_model_destroy(m);
+    weft_context_destroy(ctx);
+    golden_free(&g);
+}
+
+static void rollout_parity(void)
+{
+    golden g;
+    if (!golden_load(&g)) {
+        CHECK(!"golden tensors missing");
+        return;
+    }
+    weft_context *ctx = make_ctx();
+    weft_model *m = NULL;
+    CHECK_RESULT(weft_model_load_file(ctx, DATA "golden_model.safetensors", &m), WEFT_OK);
+    weft_garment *gar = NULL;
+    weft_garment_def d = garment_def(&g, m, 1);
+    if (m) {
+        CHECK_RESULT(weft_garment_create(ctx, &d, &gar), WEFT_OK);
+    }
+    if (!gar) {
+        weft_model_destroy(m);
+        weft_context_destroy(ctx);
+        golden_free(&g);
+        return;
+    }
+    CHECK_RESULT(weft_garment_set_state(gar, frame(&g.gt, 1), frame(&g.gt, 0)), WEFT_OK);
+    size_t allocs_before = g_allocs;
+    size_t R = g.rollout.shape[0];
+    double worst = 0, first5 = 0;
+    float *prev = malloc((size_t)g.V * 3 * sizeof(float));
+    for (size_t i = 0; i < R; ++i) {
+        memcpy(prev, weft_garment_positions(gar), (size_t)g.V * 3 * sizeof(float));
+        CHECK_RESULT(weft_garment_set_collider(gar, frame(&g.cpos, i + 2)), WEFT_OK);
+        weft_result r = weft_garment_step(gar);
+        CHECK_RESULT(r, WEFT_OK);
+        if (r != WEFT_OK) {
+            break;
+        }
+        double rel, relm;
+        compare(weft_garment_positions(gar), frame(&g.rollout, i), prev, (size_t)g.V * 3, &rel, &relm);
+        worst = fmax(worst, rel);
+        if (i < 5) {
+            first5 = fmax(first5, rel);
+        }
+    }
+    CHECK_EQ_INT(g_allocs, allocs_before);
+    /* Per-frame parity for the first frames; the documented rollout tolerance (docs/MODEL.md)
+     * for all of them, since float rounding differences compound through the feedback. */
+    CHECK_MSG(first5 <= 1e-4, "first 5 rollout frames: relative error %.3g > 1e-4", first5);
+    CHECK_MSG(worst <= 1e-3, "%zu-frame rollout: relative error %.3g > 1e-3", R, worst);
+    printf("rollout: %zu frames, max relative error %.3g (first 5: %.3g)\n", R, worst, first5);
+    free(prev);
+    weft_garment_destroy(gar);
+    weft_model_destroy(m);
+    weft_context_destroy(ctx);
+    golden_free(&g);
+}
+
+/* The model file, with `from` replaced by `to` in its header (the length is fixed up). */
+static void *patched_model(const char *from, const char *to, size_t *size)
+{
+    size_t n = 0;
+    unsigned char *src = read_file(DATA "golden_model.safetensors", &n);
+    if (!src || n < 8) {
+        free(src);
+        return NULL;
+    }
+    uint64_t hlen = 0;
+    for (int i = 7; i >= 0; --i) {
+        hlen = hlen << 8 | src[i];
+    }
+    char *hdr = malloc(hlen + 1);
+    memcpy(hdr, src + 8, hlen);
+    hdr[hlen] = '\0';
+    char *at = strstr(hdr, from);
+    if (!at) {
+        free(hdr);
+        free(src);
+        return NULL;
+    }
+    size_t lf = strlen(from), lt = strlen(to);
+    uint64_t nh = hlen - lf + lt;
+    unsigned char *out = malloc(n - hlen + nh);
+    for (int i = 0; i < 8; ++i) {
+        out[i] = (unsigned char)(nh >> (8 * i));
+    }
+    size_t pre = (size_t)(at - hdr);
+    memcpy(out + 8, hdr, pre);
+    memcpy(out + 8 + pre, to, lt);
+    memcpy(out + 8 + pre + lt, at + lf, hlen - pre - lf);
+    memcpy(out + 8 + nh, src + 8 + hlen, n - 8 - hlen);
+    *size = n - hlen + nh;
+    free(hdr);
+    free(src);
+    return out;
+}
+
+/* Load must succeed; garment creation must then fail with `expected` (or the load itself may
+ * already reject the file with `expected`). */
+static void expect_create_fails(const char *from, const char *to, bool with_collider, weft_result expected)
+{
+    golden g;
+    if (!golden_load(&g)) {
+        CHECK(!"golden tensors missing");
+        return;
+    }
+    size_t size = 0;
+    void *bytes = patched_model(from, to, &size);
+    CHECK_MSG(bytes != NULL, "could not patch '%s'", from);
+    weft_context *ctx = make_ctx();
+    weft_model *m = NULL;
+    weft_result r = bytes ? weft_model_load_memory(ctx, bytes, size, &m) : WEFT_ERROR_IO;
+    if (r == WEFT_OK) {
+        weft_garment_def d = garment_def(&g, m, 1);
+        if (!with_collider) {
+            d.collider_vertex_count = 0;
+            d.collider_rest_positions = NULL;
+            d.collider_triangles = NULL;
+            d.collider_triangle_count = 0;
+        }
+        weft_garment *gar = NULL;
+        r = weft_garment_create(ctx, &d, &gar);
+        CHECK(gar == NULL);
+        weft_garment_destroy(gar);
+    }
+    CHECK_MSG(r == expected, "patch '%s' -> '%s': got %s (%s), expected %s", from, to, weft_result_string(r),
+              weft_last_error(), weft_result_string(expected));
+    CHECK(strlen(weft_last_error()) > 0);
+    weft_model_destroy(m);
+    weft_context_destroy(ctx);
+    free(bytes);
+    golden_free(&g);
+}
+
+static void bad_model_files(void)
+{
+    expect_create_fails("\"dec_head.bias\"", "\"dec_head.bixs\"", true, WEFT_ERROR_MISSING_TENSOR);
+    expect_create_fails("\\\"dec_skip\\\"", "\\\"vertex_count\\\": 7, \\\"dec_skip\\\"", true,
+                        WEFT_ERROR_TOPOLOGY_MISMATCH);
+    expect_create_fails("\\\"dec_skip\\\"", "\\\"requires_collider\\\": true, \\\"dec_skip\\\"", false,
+                        WEFT_ERROR_NO_COLLIDER);
+    expect_create_fails("\\\"prior\\\": \\\"", "\\\"prior\\\": \\\"x", true, WEFT_ERROR_BAD_METADATA);
+    expect_create_fails("\\\"D\\\": ", "\\\"D\\\": 1", true, WEFT_ERROR_TENSOR_SHAPE);
+}
+
+static void bad_state_and_collider(void)
+{
+    golden g;
+    if (!golden_load(&g)) {
+        CHECK(!"golden tensors missing");
+        return;
+    }
+    weft_context *ctx = make_ctx();
+    weft_model *m = NULL;
+    CHECK_RESULT(weft_model_load_file(ctx, DATA "golden_model.safetensors", &m), WEFT_OK);
+    weft_garment_def d = garment_def(&g, m, 1);
+    weft_garment *gar = NULL;
+    CHECK_RESULT(weft_garment_create(ctx, &d, &gar), WEFT_OK);
+    if (!gar) {
+        weft_model_destroy(m);
+        weft_context_destroy(ctx);
+        golden_free(&g);
+        return;
+    }
+    size_t n = (size_t)g.V * 3;
+    float *before = malloc(n * sizeof(float));
+    memcpy(before, weft_garment_positions(gar), n * sizeof(float));
+    /* step without the collider of t+1 */
+    CHECK_RESULT(weft_garment_step(gar), WEFT_ERROR_NO_COLLIDER);
+    /* NaN state is refused and leaves the state as it was */
+    float *bad = malloc(n * sizeof(float));
+    memcpy(bad, frame(&g.gt, 2), n * sizeof(float));
+    bad[7] = NAN;
+    CHECK_RESULT(weft_garment_set_state(gar, bad, NULL), WEFT_ERROR_NOT_FINITE);
+    CHECK(memcmp(before, weft_garment_positions(gar), n * sizeof(float)) == 0);
+    /* NaN collider */
+    float *badc = malloc((size_t)g.Vc * 3 * sizeof(float));
+    memcpy(badc, frame(&g.cpos, 2), (size_t)g.Vc * 3 * sizeof(float));
+    badc[0] = INFINITY;
+    CHECK_RESULT(weft_garment_set_collider(gar, badc), WEFT_ERROR_NOT_FINITE);
+    CHECK_RESULT(weft_garment_step(gar), WEFT_ERROR_NO_COLLIDER);
+    CHECK(memcmp(before, weft_garment_positions(gar), n * sizeof(float)) == 0);
+    /* pins are not supported by the learned method */
+    uint32_t idx = 0;
+    CHECK_RESULT(weft_garment_set_pins(gar, &idx, frame(&g.gt, 1), 1), WEFT_ERROR_UNSUPPORTED);
+    /* a valid step still works afterwards */
+    CHECK_RESULT(weft_garment_set_collider(gar, frame(&g.cpos, 2)), WEFT_OK);
+    CHECK_RESULT(weft_garment_step(gar), WEFT_OK);
+    weft_garment_destroy(gar);
+
+    /* unsupported precision */
+    d.precision = WEFT_PRECISION_INT8;
+    gar = NULL;
+    weft_result r = weft_garment_create(ctx, &d, &gar);
+    CHECK(r != WEFT_OK && gar == NULL);
+    weft_garment_destroy(gar);
+
+    /* no model */
+    d = garment_def(&g, NULL, 1);
+    CHECK_RESULT(weft_garment_create(ctx, &d, &gar), WEFT_ERROR_NO_MODEL);
+
+    /* garment without a collider runs on cloth tokens alone */
+    d = garment_def(&g, m, 1);
+    d.collider_vertex_count = 0;
+    d.collider_rest_positions = NULL;
+    d.collider_triangles = NULL;
+    d.collider_triangle_count = 0;
+    gar = NULL;
+    CHECK_RESULT(weft_garment_create(ctx, &d, &gar), WEFT_OK);
+    if (gar) {
+        CHECK_RESULT(weft_garment_step(gar), WEFT_OK);
+        CHECK_RESULT(weft_garment_set_collider(gar, frame(&g.cpos, 2)), WEFT_ERROR_NO_COLLIDER);
+    }
+    weft_garment_destroy(gar);
+    free(before);
+    free(bad);
+    free(badc);
+    weft_model_destroy(m);
+    weft_context_destroy(ctx);
+    golden_free(&g);
+}
+
+/* The shipped models bind (every tensor and config key checked) and step the golden garment. */
+static void shipped_models_step(void)
+{
+    golden g;
+    if (!golden_load(&g)) {
+        CHECK(!"golden tensors missing");
+        return;
+    }
+    static const char *const files[] = {WEFT_SOURCE_DIR "/tools/train/models/game.safetensors",
+                                        WEFT_SOURCE_DIR "/tools/train/models/unified.safetensors"};
+    weft_context *ctx = make_ctx();
+    for (size_t f = 0; f < 2; ++f) {
+        weft_model *m = NULL;
+        CHECK_RESULT(weft_model_load_file(ctx, files[f], &m), WEFT_OK);
+        weft_garment *gar = NULL;
+        weft_garment_def d = garment_def(&g, m, 1);
+        if (m) {
+            CHECK_RESULT(weft_garment_create(ctx, &d, &gar), WEFT_OK);
+        }
+        if (gar) {
+            CHECK_RESULT(weft_garment_set_state(gar, frame(&g.gt, 1), frame(&g.gt, 0)), WEFT_OK);
+            for (size_t t = 1; t < 6; ++t) {
+                CHECK_RESULT(weft_garment_set_collider(gar, frame(&g.cpos, t + 1)), WEFT_OK);
+                CHECK_RESULT(weft_garment_step(gar), WEFT_OK);
+            }
+            const float *x = weft_garment_positions(gar);
+            int finite = 1;
+            for (size_t i = 0; i < (size_t)g.V * 3; ++i) {
+                finite &= isfinite(x[i]) != 0;
+            }
+            CHECK(finite);
+        }
+        weft_garment_destroy(gar);
+        weft_model_destroy(m);
+    }
+    weft_context_destroy(ctx);
+    golden_free(&g);
+}
+
+TEST_MAIN(TEST_CASE(teacher_forced_parity), TEST_CASE(shipped_models_step), TEST_CASE(rollout_parity), TEST_CASE(bad_model_files),
+          TEST_CASE(bad_state_and_collider))

@@ -1,0 +1,149 @@
+"""Sequences in the `weft simgen` layout: one folder per sequence with meta.json and .npy arrays.
+
+Array names accepted (the first present wins):
+  cloth positions   cloth_pos.npy          [T, V, 3] float32
+  rest shape        rest_pos.npy           [V, 3]
+  cloth triangles   faces.npy / cloth_faces.npy   [F, 3] int
+  collider          collider_pos.npy / obst_pos.npy / body_pos.npy   [T, Vc, 3] (optional)
+  collider tris     collider_faces.npy / obst_faces.npy / body_faces.npy [Fc, 3] (optional)
+A `topology.npz` with rest_pos / faces is read as well. meta.json may carry "scenario" and "split";
+otherwise the split comes from the root's manifest.json / splits/*.txt (weft simgen), else from a
+hash of the folder name (default_split, the rule weft simgen uses).
+"""
+import glob
+import json
+import os
+
+import numpy as np
+
+_CLOTH = ["cloth_pos.npy"]
+_REST = ["rest_pos.npy", "cloth_rest.npy"]
+_FACES = ["faces.npy", "cloth_faces.npy"]
+_CPOS = ["collider_pos.npy", "obst_pos.npy", "body_pos.npy"]
+_CFACES = ["collider_faces.npy", "obst_faces.npy", "body_faces.npy"]
+
+
+def _first(folder, names, required=True, mmap=True):
+    for n in names:
+        p = os.path.join(folder, n)
+        if os.path.exists(p):
+            return np.load(p, mmap_mode="r" if mmap else None)
+    if required:
+        raise FileNotFoundError(f"{folder}: none of {names}")
+    return None
+
+
+class Sequence:
+    def __init__(self, folder):
+        self.folder = folder
+        self.name = os.path.basename(os.path.normpath(folder))
+        with open(os.path.join(folder, "meta.json")) as f:
+            self.meta = json.load(f)
+        topo = None
+        tp = os.path.join(folder, "topology.npz")
+        if os.path.exists(tp):
+            topo = np.load(tp)
+        self.pos = _first(folder, _CLOTH)
+        rest = _first(folder, _REST, required=topo is None, mmap=False)
+        faces = _first(folder, _FACES, required=topo is None, mmap=False)
+        if rest is None:
+            rest = topo["rest_pos"]
+        if faces is None:
+            faces = topo["faces"]
+        self.rest = np.ascontiguousarray(rest, dtype=np.float32)
+        self.faces = np.ascontiguousarray(faces, dtype=np.int64)
+        cpos = _first(folder, _CPOS, required=False)
+        cfaces = _first(folder, _CFACES, required=False, mmap=False)
+        if cpos is not None and cfaces is not None and len(cfaces) > 0:
+            self.cpos = cpos
+            self.cfaces = np.ascontiguousarray(cfaces, dtype=np.int64)
+        else:
+            self.cpos, self.cfaces = None, None
+        T, V = self.pos.shape[:2]
+        if self.pos.ndim != 3 or self.pos.shape[2] != 3 or self.rest.shape != (V, 3):
+            raise ValueError(f"{folder}: cloth_pos {self.pos.shape} and rest {self.rest.shape} disagree")
+        if self.faces.ndim != 2 or self.faces.shape[1] != 3 or self.faces.min() < 0 or self.faces.max() >= V:
+            raise ValueError(f"{folder}: faces out of range")
+        if self.cpos is not None:
+            if self.cpos.shape[0] != T or self.cfaces.max() >= self.cpos.shape[1]:
+                raise ValueError(f"{folder}: collider arrays disagree with the cloth")
+        self.frames = T
+        self.scenario = self.meta.get("scenario", "unknown")
+        self.split = self.meta.get("split") or default_split(self.name)
+
+    def window(self, start, length):
+        """Frames [start, start+length) as float32 arrays (cloth, collider or None)."""
+        x = np.array(self.pos[start:start + length], dtype=np.float32)
+        c = None if self.cpos is None else np.array(self.cpos[start:start + length], dtype=np.float32)
+        return x, c
+
+
+_M64 = (1 << 64) - 1
+
+
+def _simgen_hash(name, seed0=0x5B11):
+    """The name hash `weft simgen` splits by (FNV-1a then a splitmix64 finaliser)."""
+    h = 1469598103934665603 ^ seed0
+    for c in name.encode():
+        h = ((h ^ c) * 1099511628211) & _M64
+    h = ((h ^ (h >> 30)) * 0xBF58476D1CE4E5B9) & _M64
+    h = ((h ^ (h >> 27)) * 0x94D049BB133111EB) & _M64
+    return h ^ (h >> 31)
+
+
+def default_split(name):
+    """8:1:1 train/val/test by the same name hash as `weft simgen`, for sequences whose meta.json
+    and manifest name no split (stable as the set grows)."""
+    h = _simgen_hash(name) % 10
+    return "train" if h < 8 else ("val" if h == 8 else "test")
+
+
+def find_sequences(roots):
+    """All sequence folders (those holding meta.json and cloth_pos.npy) below the given roots."""
+    out = []
+    for r in roots:
+        for meta in sorted(glob.glob(os.path.join(r, "**", "meta.json"), recursive=True)):
+            d = os.path.dirname(meta)
+            if os.path.exists(os.path.join(d, "cloth_pos.npy")):
+                out.append(d)
+    return out
+
+
+def manifest_splits(roots):
+    """name -> split from `weft simgen`'s manifest.json (and splits/*.txt) under each root."""
+    out = {}
+    for r in roots:
+        for sp in glob.glob(os.path.join(r, "splits", "*_*.txt")):
+            split = os.path.basename(sp)[:-4].rsplit("_", 1)[1]
+            with open(sp) as f:
+                for line in f:
+                    if line.strip():
+                        out[line.strip()] = split
+        mp = os.path.join(r, "manifest.json")
+        if os.path.exists(mp):
+            try:
+                with open(mp) as f:
+                    for e in json.load(f).get("sequences", []):
+                        if "name" in e and "split" in e:
+                            out[e["name"]] = e["split"]
+            except (ValueError, OSError):
+                pass
+    return out
+
+
+def load_sequences(roots, split=None, min_frames=8):
+    seqs = []
+    named = manifest_splits(roots)
+    for d in find_sequences(roots):
+        try:
+            s = Sequence(d)
+        except (ValueError, FileNotFoundError, KeyError) as e:
+            print(f"skipping {d}: {e}")
+            continue
+        if s.frames < min_frames:
+            continue
+        if "split" not in s.meta and s.name in named:
+            s.split = named[s.name]
+        if split is None or s.split == split:
+            seqs.append(s)
+    return seqs

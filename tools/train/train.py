@@ -1,0 +1,344 @@
+"""Train the ClothTransformer on simgen sequences.
+
+Resumable: checkpoints go to OUT/ckpt.pt every --ckpt-every steps and when --max-minutes is reached;
+rerun the same command with --resume to continue. Losses are appended to OUT/log.csv.
+
+  /usr/bin/python3 tools/train/train.py --data data/simgen --preset game --out tools/train/runs/game \
+      --steps 4000 --max-minutes 30 --resume
+  torchrun --nproc_per_node 2 tools/train/train.py ...       # DDP (gloo), one process per core/GPU
+
+Stages: `--stage pretrain` (MSE + cubic contact penalty, rollout curriculum 1 -> --rollout-max),
+`--stage ccd` adds the differentiable CCD loss (needs tools/train/weft_ccd.py and libweft).
+"""
+import argparse
+import csv
+import json
+import math
+import os
+import random
+import sys
+import time
+
+import numpy as np
+import torch
+import torch.distributed as dist
+
+sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
+import data as weft_data  # noqa: E402
+from model import ClothTransformer, full_config, mean_adjacency  # noqa: E402
+
+PRESETS = {
+    # small and fast: the in-game model
+    "game": {"K": 32, "D": 48, "L": 2, "H": 4, "history": 1, "ffn": 96, "nfreq": 6},
+    # the larger model trained over every scenario
+    "unified": {"K": 64, "D": 96, "L": 3, "H": 4, "history": 2, "ffn": 192, "nfreq": 8},
+    # tiny model for C parity tests (exercises history > 1 and every code path)
+    "golden": {"K": 16, "D": 32, "L": 2, "H": 2, "history": 2, "ffn": 64, "nfreq": 4},
+}
+
+
+class MeshCache:
+    """Per-sequence tensors that do not change over time (adjacency, rest shape, triangles)."""
+
+    def __init__(self, device):
+        self.device = device
+        self.cache = {}
+
+    def get(self, seq):
+        c = self.cache.get(seq.folder)
+        if c is None:
+            c = {
+                "adj": mean_adjacency(seq.faces, seq.rest.shape[0]).to(self.device),
+                "rest": torch.from_numpy(seq.rest).to(self.device).unsqueeze(0),
+                "ctri": None if seq.cfaces is None else torch.from_numpy(seq.cfaces).to(self.device),
+            }
+            self.cache[seq.folder] = c
+        return c
+
+
+def data_stats(seqs, prior):
+    """Scales that bring inputs and outputs to unit order (stored in the model config)."""
+    vel, res, area = [], [], []
+    for s in seqs[:64]:
+        x = np.asarray(s.pos, dtype=np.float64)
+        v = x[1:] - x[:-1]
+        vel.append(v.reshape(-1))
+        p = 2 * x[1:-1] - x[:-2] if prior == "inertial" else x[1:-1]
+        res.append((x[2:] - p).reshape(-1))
+        if s.cfaces is not None:
+            c = np.asarray(s.cpos[0], dtype=np.float64)
+            t = c[s.cfaces]
+            cr = np.cross(t[:, 1] - t[:, 0], t[:, 2] - t[:, 0])
+            area.append(np.sqrt(0.5 * np.linalg.norm(cr, axis=1)))
+    vs = float(np.sqrt(np.mean(np.concatenate(vel) ** 2)) + 1e-6)
+    rs = float(np.sqrt(np.mean(np.concatenate(res) ** 2)) + 1e-6)
+    a = float(np.mean(np.concatenate(area))) if area else 0.01
+    return {"vel_scale": round(1.0 / vs, 4), "out_scale": float(f"{rs:.4g}"), "area_scale": round(1.0 / a, 4)}
+
+
+def contact_penalty(x, c_next, ctri, max_depth=0.05):
+    """Cubic penalty (cm^3) on penetration along the normal of the nearest collider triangle."""
+    if ctri is None:
+        return x.new_zeros(())
+    p = c_next[:, ctri, :]                                   # (B, M, 3, 3)
+    cen = p.mean(dim=2)
+    n = torch.cross(p[:, :, 1] - p[:, :, 0], p[:, :, 2] - p[:, :, 0], dim=-1)
+    n = n / (n.norm(dim=-1, keepdim=True) + 1e-12)
+    idx = torch.cdist(x, cen).argmin(dim=-1)                 # (B, N)
+    g = lambda t: torch.gather(t, 1, idx.unsqueeze(-1).expand(-1, -1, 3))  # noqa: E731
+    s = ((x - g(cen)) * g(n)).sum(-1)
+    d = torch.clamp(s, max=0.0) * (s > -max_depth)
+    return (d.abs() * 100.0).pow(3).mean()
+
+
+class Rollout(torch.nn.Module):
+    """The whole autoregressive rollout as one forward() (DDP needs one forward per backward).
+
+    x_all/c_all: (B, T, V, 3) windows. With prefill, the latent history is first filled from
+    ground-truth frames; without, it starts empty (the state after weft_garment_set_state).
+    Returns the predictions (B, steps, V, 3) of frames base+2 .. base+1+steps."""
+
+    def __init__(self, m):
+        super().__init__()
+        self.m = m
+        self.cfg = m.cfg
+
+    def forward(self, x_all, c_all, rest, adj, ctri, steps: int, prefill: bool):
+        m = self.m
+        base = self.cfg["history"] - 1 if prefill else 0
+        hist = []
+        with torch.no_grad():
+            for k in range(1, base + 1):
+                cn = None if c_all is None else c_all[:, k + 1]
+                cc = None if c_all is None else c_all[:, k]
+                z, _ = m.encode(x_all[:, k], x_all[:, k - 1], adj, cn, cc, ctri)
+                hist.append(z)
+        xp, x = x_all[:, base], x_all[:, base + 1]
+        preds = []
+        for r in range(steps):
+            t = base + 1 + r
+            cn = None if c_all is None else c_all[:, t + 1]
+            cc = None if c_all is None else c_all[:, t]
+            xn, hist = m.step(hist, x, xp, rest, adj, cn, cc, ctri)
+            preds.append(xn)
+            xp, x = x, xn
+        return torch.stack(preds, dim=1)
+
+
+def rollout_base(cfg, prefill):
+    return cfg["history"] - 1 if prefill else 0
+
+
+def evaluate(model, seqs, mc, device, frames=60):
+    """Mean vertex error (cm) of an autoregressive rollout from the first two GT frames."""
+    ro = Rollout(model)
+    errs = []
+    for s in seqs:
+        T = min(s.frames, frames + 2)
+        x, c = s.window(0, T)
+        xa = torch.from_numpy(x).to(device).unsqueeze(0)
+        ca = None if c is None else torch.from_numpy(c).to(device).unsqueeze(0)
+        mesh = mc.get(s)
+        with torch.no_grad():
+            preds = ro(xa, ca, mesh["rest"], mesh["adj"], mesh["ctri"], T - 2, False)
+        errs.append(float((preds - xa[:, 2:T]).norm(dim=-1).mean()) * 100.0)
+    return float(np.mean(errs)) if errs else float("nan")
+
+
+def ccd_loss(world, x0, x1, out_scale, eps=0.05):
+    """ClothTransformer Eq. 3 on self vertex-face / edge-edge hits found by weft's CCD while the
+    cloth moves x0 -> x1 (detect, then regress x1 toward the safe positions; in out_scale units)."""
+    import weft_ccd
+    total = x1.new_zeros(())
+    for b in range(x1.shape[0]):
+        a0 = x0[b].detach().cpu().numpy()
+        a1 = x1[b].detach().cpu().numpy()
+        hits = world.detect(a0, a1, types="self")
+        if len(hits["toi"]) == 0:
+            continue
+        safe = torch.from_numpy(weft_ccd.safe_positions(a0, a1, hits["vertices"], hits["toi"], eps)).to(x1)
+        v = torch.from_numpy(hits["vertices"]).to(x1.device)
+        d = (x1[b][v] - safe) / out_scale                       # (K, 4, 3)
+        total = total + (d * d).sum(-1).mean(-1).mean()
+    return total / x1.shape[0]
+
+
+def save_ckpt(path, state):
+    tmp = path + ".tmp"
+    torch.save(state, tmp)
+    os.replace(tmp, path)
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--data", nargs="+", required=True, help="folders searched for sequences")
+    ap.add_argument("--preset", choices=sorted(PRESETS), default="game")
+    ap.add_argument("--config", default="{}", help="JSON overriding preset entries")
+    ap.add_argument("--name", default=None)
+    ap.add_argument("--out", required=True)
+    ap.add_argument("--steps", type=int, default=3000)
+    ap.add_argument("--batch", type=int, default=4, help="windows per step (same sequence)")
+    ap.add_argument("--lr", type=float, default=1e-3)
+    ap.add_argument("--rollout-max", type=int, default=5)
+    ap.add_argument("--lambda-contact", type=float, default=0.05)
+    ap.add_argument("--lambda-ccd", type=float, default=1.0)
+    ap.add_argument("--stage", choices=["pretrain", "ccd"], default="pretrain")
+    ap.add_argument("--max-minutes", type=float, default=0.0, help="stop (with a checkpoint) after this")
+    ap.add_argument("--ckpt-every", type=int, default=200)
+    ap.add_argument("--eval-every", type=int, default=500)
+    ap.add_argument("--eval-frames", type=int, default=60)
+    ap.add_argument("--resume", action="store_true")
+    ap.add_argument("--threads", type=int, default=1)
+    ap.add_argument("--cuda", action="store_true", help="use a CUDA GPU when present")
+    ap.add_argument("--seed", type=int, default=0)
+    a = ap.parse_args()
+
+    ddp = int(os.environ.get("WORLD_SIZE", "1")) > 1
+    rank = 0
+    if ddp:
+        dist.init_process_group("gloo")
+        rank = dist.get_rank()
+    torch.set_num_threads(a.threads)
+    device = torch.device("cuda" if a.cuda and torch.cuda.is_available() else "cpu")
+    os.makedirs(a.out, exist_ok=True)
+    ckpt_path = os.path.join(a.out, "ckpt.pt")
+
+    train = weft_data.load_sequences(a.data, "train")
+    val = weft_data.load_sequences(a.data, "val") or weft_data.load_sequences(a.data, "test")
+    if not train:
+        sys.exit(f"no training sequences under {a.data}")
+
+    state = None
+    if a.resume and os.path.exists(ckpt_path):
+        state = torch.load(ckpt_path, map_location="cpu")
+        cfg = state["config"]
+    else:
+        cfg = dict(PRESETS[a.preset])
+        cfg.update(json.loads(a.config))
+        cfg.update(data_stats(train, full_config(cfg)["prior"]))
+        # trained only with colliders: the runtime refuses a garment without one
+        cfg["requires_collider"] = all(s.cfaces is not None for s in train)
+        cfg.update(json.loads(a.config))   # explicit overrides win over measured scales
+    cfg = full_config(cfg)
+    random.seed(a.seed + rank)
+    torch.manual_seed(a.seed)              # identical initial weights on every rank
+    net = ClothTransformer(cfg).to(device)
+    opt = torch.optim.AdamW(net.parameters(), lr=a.lr, weight_decay=0.01)
+    step = 0
+    elapsed_before = 0.0
+    if state is not None:
+        net.load_state_dict(state["model"])
+        step = state["step"]
+        elapsed_before = state.get("elapsed", 0.0)
+        if "opt" in state:  # slim checkpoints (tools/train/models/*.ckpt.pt) carry weights only
+            opt.load_state_dict(state["opt"])
+            random.setstate(state["py_rng"])
+            torch.set_rng_state(state["torch_rng"])
+    model = Rollout(net)
+    if ddp:
+        # freqs is a constant buffer: nothing to broadcast; collider weights go unused on
+        # sequences without a collider
+        model = torch.nn.parallel.DistributedDataParallel(model, find_unused_parameters=True,
+                                                          broadcast_buffers=False)
+    mc = MeshCache(device)
+    ccd = None
+    ccd_worlds = {}
+    if a.stage == "ccd":
+        try:
+            import weft_ccd  # noqa: F401
+            ccd = weft_ccd
+        except Exception as e:  # the CCD module is optional: say so and stop
+            sys.exit(f"--stage ccd needs tools/train/weft_ccd.py and libweft: {e}")
+
+    log_path = os.path.join(a.out, "log.csv")
+    new_log = not os.path.exists(log_path) or state is None
+    logf = open(log_path, "w" if new_log else "a", newline="") if rank == 0 else None
+    log = csv.writer(logf) if logf else None
+    if log and new_log:
+        log.writerow(["step", "loss", "mse_cm", "contact", "ccd", "rollout", "lr", "elapsed_s", "val_mve_cm"])
+    if rank == 0:
+        with open(os.path.join(a.out, "config.json"), "w") as f:
+            json.dump({"config": cfg, "args": vars(a), "train_sequences": len(train)}, f, indent=1)
+
+    t_start = time.time()
+    warm = 100
+    tty = sys.stderr.isatty()
+    out_scale = cfg["out_scale"]
+    run_avg = None
+    while step < a.steps:
+        lr = a.lr * min(1.0, (step + 1) / warm) * (0.1 + 0.9 * 0.5 * (1 + math.cos(math.pi * step / a.steps)))
+        for gparam in opt.param_groups:
+            gparam["lr"] = lr
+        R = 1 + min(a.rollout_max - 1, int((a.rollout_max) * step / max(1, 0.7 * a.steps)))
+        seq = random.choice(train)
+        h = cfg["history"]
+        need = (h - 1) + R + 2
+        if seq.frames < need:
+            continue
+        starts = [random.randrange(0, seq.frames - need + 1) for _ in range(a.batch)]
+        xs, cs = zip(*[seq.window(s0, need) for s0 in starts])
+        xa = torch.from_numpy(np.stack(xs)).to(device)
+        ca = None if cs[0] is None else torch.from_numpy(np.stack(cs)).to(device)
+        mesh = mc.get(seq)
+        predt = model(xa, ca, mesh["rest"], mesh["adj"], mesh["ctri"], R, True)
+        preds = predt.unbind(1)
+        base = rollout_base(cfg, True)
+        mse = 0.0
+        contact = 0.0
+        ccd_l = torch.zeros(())
+        ctri = mc.get(seq)["ctri"]
+        for i, p in enumerate(preds):
+            gt = xa[:, base + 2 + i]
+            mse = mse + (((p - gt) / out_scale) ** 2).sum(-1).mean()
+            if ca is not None:
+                contact = contact + contact_penalty(p, ca[:, base + 2 + i], ctri)
+            if ccd is not None:
+                world = ccd_worlds.get(seq.folder)
+                if world is None:
+                    world = ccd.CCDWorld(seq.faces, seq.rest.shape[0])
+                    ccd_worlds[seq.folder] = world
+                prev = xa[:, base + 1 + i] if i == 0 else preds[i - 1]
+                ccd_l = ccd_l + ccd_loss(world, prev, p, out_scale)
+        loss = (mse + a.lambda_contact * contact + a.lambda_ccd * ccd_l) / len(preds)
+        opt.zero_grad(set_to_none=True)
+        loss.backward()
+        torch.nn.utils.clip_grad_norm_(net.parameters(), 1.0)
+        opt.step()
+        step += 1
+        mse_cm = math.sqrt(float(mse) / len(preds)) * out_scale * 100.0
+        run_avg = mse_cm if run_avg is None else 0.98 * run_avg + 0.02 * mse_cm
+        elapsed = elapsed_before + time.time() - t_start
+        val_mve = ""
+        if rank == 0 and a.eval_every > 0 and (step % a.eval_every == 0 or step == a.steps) and val:
+            val_mve = f"{evaluate(net, val, mc, device, a.eval_frames):.4f}"
+        if log:
+            log.writerow([step, f"{float(loss):.6g}", f"{mse_cm:.5f}", f"{float(contact) / len(preds):.5g}",
+                          f"{float(ccd_l):.5g}", R, f"{lr:.3g}", f"{elapsed:.1f}", val_mve])
+        if rank == 0 and (tty or step % 50 == 0 or val_mve):
+            frac = step / a.steps
+            bar = "#" * int(30 * frac) + "-" * (30 - int(30 * frac))
+            msg = (f"[{bar}] {step}/{a.steps} rms {run_avg:.3f} cm R={R} lr {lr:.2g} "
+                   f"{elapsed / 60:.1f} min" + (f" val MVE {val_mve} cm" if val_mve else ""))
+            print(("\r" + msg) if tty else msg, end="" if tty and not val_mve else "\n", file=sys.stderr, flush=True)
+        out_of_time = a.max_minutes > 0 and (time.time() - t_start) > 60 * a.max_minutes
+        if rank == 0 and (step % a.ckpt_every == 0 or step == a.steps or out_of_time):
+            save_ckpt(ckpt_path, {"model": net.state_dict(), "opt": opt.state_dict(), "step": step,
+                                  "config": cfg, "elapsed": elapsed, "py_rng": random.getstate(),
+                                  "torch_rng": torch.get_rng_state()})
+            logf.flush()
+        if ddp:
+            flag = torch.tensor([1 if out_of_time else 0])
+            dist.all_reduce(flag)
+            out_of_time = bool(flag.item())
+        if out_of_time:
+            if rank == 0:
+                print(f"\nstopped at step {step} (--max-minutes); rerun with --resume", file=sys.stderr)
+            break
+    if rank == 0:
+        print(f"\ndone: step {step}, checkpoint {ckpt_path}", file=sys.stderr)
+    if ddp:
+        dist.destroy_process_group()
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,649 @@
+/* weft eval: autoregressive rollout of a method over simgen sequences, scored against the
+ * ground truth. The rollout starts from the first two ground-truth frames (positions at frames 0
+ * and 1) and then only sees the collider; every later frame is the method's own output.
+ *
+ *   mve_cm               mean Euclidean vertex error over all vertices and predicted frames (cm)
+ *   collision_rate       % cloth vertices inside or crossing the collider per frame (mean)
+ *   self_collision_rate  % cloth vertices in self vertex-face / edge-edge CCD hits per frame (mean)
+ *   ms_per_frame         wall time of weft_garment_step (includes CCD post-processing when on)
+ *   frames               predicted frames scored
+ *   nan                  the method produced a non-finite state (the rollout stops there)
+ *   max_edge_strain      max over edges and frames of |length / rest length - 1| */
+#define _POSIX_C_SOURCE 200809L /* opendir, stat */
+#include "weft.h"
+#include "weft/ccd.h"
+#include "assets/npz.h"
+
+#include <cjson/cJSON.h>
+#include <dirent.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+
+int weft_cmd_eval(int argc, char **argv); /* the CLI registry declares it in main.c */
+
+const char weft_cmd_eval_help[] = "score a method's rollout against simgen sequences (MVE, collisions, timing)";
+
+typedef struct eval_opts {
+    const char *model_path, *seq, *split;
+    weft_method method;
+    uint32_t substeps;
+    weft_precision precision;
+    bool ccd, json;
+    uint32_t max_frames;
+} eval_opts;
+
+typedef struct eval_acc {
+    double err_sum;          /* sum of per-vertex errors (m) */
+    double vert_frames;      /* vertices x frames scored */
+    double coll_sum, self_sum;
+    uint32_t metric_frames;
+    double ms_sum;
+    uint32_t frames;
+    bool nan;
+    double max_strain;
+    uint32_t sequences;
+    bool metrics_ok;
+} eval_acc;
+
+typedef struct seq_data {
+    float *rest, *pos, *cpos;
+    float *pinned;                      /* [T, V] 0/1, optional: vertices attached to a gripper */
+    uint32_t *faces, *cfaces;
+    uint32_t V, F, T, Vc, Fc;
+} seq_data;
+
+static double now_ms(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec * 1e-6;
+}
+
+/* dir/name into out; false (and nothing usable) when it does not fit. */
+static bool path_join(char *out, size_t cap, const char *dir, const char *name)
+{
+    int n = snprintf(out, cap, "%s/%s", dir, name);
+    return n >= 0 && (size_t)n < cap;
+}
+
+static void *slurp(const char *path, size_t *size)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f) {
+        return NULL;
+    }
+    void *p = NULL;
+    if (fseek(f, 0, SEEK_END) == 0) {
+        long n = ftell(f);
+        if (n >= 0 && fseek(f, 0, SEEK_SET) == 0) {
+            p = malloc((size_t)n + 1);
+            if (p && fread(p, 1, (size_t)n, f) != (size_t)n) {
+                free(p);
+                p = NULL;
+            }
+            *size = (size_t)n;
+            if (p) {
+                ((char *)p)[n] = '\0';
+            }
+        }
+    }
+    fclose(f);
+    return p;
+}
+
+/* Loads dir/name.npy as float32 (want_int: as uint32 indices) with the given rank. */
+static weft_result load_npy(const char *dir, const char *name, uint32_t rank, bool want_int, void **out,
+                            uint64_t shape[3], bool optional)
+{
+    char path[1024], file[160];
+    size_t size = 0;
+    int fl = snprintf(file, sizeof file, "%s.npy", name);
+    void *bytes = fl > 0 && (size_t)fl < sizeof file && path_join(path, sizeof path, dir, file) ? slurp(path, &size)
+                                                                                              : NULL;
+    if (!bytes) {
+        if (optional) {
+            *out = NULL;
+            return WEFT_OK;
+        }
+        fprintf(stderr, "weft eval: cannot read %s\n", path);
+        return WEFT_ERROR_IO;
+    }
+    weft_npy_array a;
+    weft_result r = weft_npy_parse(bytes, size, name, &a);
+    if (r == WEFT_OK && a.ndim != rank) {
+        fprintf(stderr, "weft eval: %s has %u dimensions, expected %u\n", path, a.ndim, rank);
+        r = WEFT_ERROR_SIZE_MISMATCH;
+    }
+    if (r == WEFT_OK && (a.shape[rank - 1] != 3 || a.count == 0 || a.count > (1ull << 31))) {
+        fprintf(stderr, "weft eval: %s: last dimension must be 3 and the array non-empty\n", path);
+        r = WEFT_ERROR_SIZE_MISMATCH;
+    }
+    if (r == WEFT_OK) {
+        for (uint32_t i = 0; i < rank; ++i) {
+            shape[i] = a.shape[i];
+        }
+        if (want_int) {
+            int64_t *tmp = malloc(a.count * sizeof(int64_t));
+            uint32_t *idx = malloc(a.count * sizeof(uint32_t));
+            r = tmp && idx ? weft_npy_to_i64(&a, tmp, a.count) : WEFT_ERROR_OUT_OF_MEMORY;
+            for (uint64_t i = 0; r == WEFT_OK && i < a.count; ++i) {
+                if (tmp[i] < 0 || tmp[i] > (int64_t)UINT32_MAX) {
+                    fprintf(stderr, "weft eval: %s: index %lld out of range\n", path, (long long)tmp[i]);
+                    r = WEFT_ERROR_FORMAT;
+                }
+                idx[i] = (uint32_t)tmp[i];
+            }
+            free(tmp);
+            if (r == WEFT_OK) {
+                *out = idx;
+            } else {
+                free(idx);
+            }
+        } else {
+            float *f = malloc(a.count * sizeof(float));
+            r = f ? weft_npy_to_f32(&a, f, a.count) : WEFT_ERROR_OUT_OF_MEMORY;
+            if (r == WEFT_OK) {
+                *out = f;
+            } else {
+                free(f);
+            }
+        }
+        if (r != WEFT_OK && r != WEFT_ERROR_FORMAT && r != WEFT_ERROR_OUT_OF_MEMORY) {
+            fprintf(stderr, "weft eval: %s: %s\n", path, weft_last_error());
+        }
+    } else if (r != WEFT_ERROR_SIZE_MISMATCH) {
+        fprintf(stderr, "weft eval: %s: %s\n", path, weft_last_error());
+    }
+    free(bytes);
+    return r;
+}
+
+/* Optional pinned.npy [T, V] (any numeric dtype, non-zero = pinned) as floats. */
+static float *load_pinned(const char *dir, uint32_t T, uint32_t V)
+{
+    char path[1024];
+    size_t size = 0;
+    void *bytes = path_join(path, sizeof path, dir, "pinned.npy") ? slurp(path, &size) : NULL;
+    if (!bytes) {
+        return NULL;
+    }
+    weft_npy_array a;
+    float *out = NULL;
+    if (weft_npy_parse(bytes, size, "pinned", &a) == WEFT_OK && a.ndim == 2 && a.shape[0] == T && a.shape[1] == V) {
+        out = malloc(a.count * sizeof(float));
+        if (out && weft_npy_to_f32(&a, out, a.count) != WEFT_OK) {
+            free(out);
+            out = NULL;
+        }
+    } else {
+        fprintf(stderr, "weft eval: %s: expected [%u, %u] pins, ignored\n", path, T, V);
+    }
+    free(bytes);
+    return out;
+}
+
+static void seq_free(seq_data *s)
+{
+    free(s->pinned);
+    free(s->rest);
+    free(s->pos);
+    free(s->cpos);
+    free(s->faces);
+    free(s->cfaces);
+    memset(s, 0, sizeof *s);
+}
+
+static weft_result seq_load(const char *dir, seq_data *s)
+{
+    memset(s, 0, sizeof *s);
+    uint64_t sr[3] = {0}, sf[3] = {0}, sp[3] = {0}, sc[3] = {0}, scf[3] = {0};
+    weft_result r;
+    if ((r = load_npy(dir, "rest_pos", 2, false, (void **)&s->rest, sr, false)) ||
+        (r = load_npy(dir, "faces", 2, true, (void **)&s->faces, sf, false)) ||
+        (r = load_npy(dir, "cloth_pos", 3, false, (void **)&s->pos, sp, false)) ||
+        (r = load_npy(dir, "collider_pos", 3, false, (void **)&s->cpos, sc, true)) ||
+        (r = load_npy(dir, "collider_faces", 2, true, (void **)&s->cfaces, scf, true))) {
+        seq_free(s);
+        return r;
+    }
+    s->V = (uint32_t)sr[0];
+    s->F = (uint32_t)sf[0];
+    s->T = (uint32_t)sp[0];
+    if (sp[1] != sr[0] || s->T < 3) {
+        fprintf(stderr, "weft eval: %s: cloth_pos is [%llu, %llu, 3] but rest_pos has %u vertices (need >= 3 frames)\n",
+                dir, (unsigned long long)sp[0], (unsigned long long)sp[1], s->V);
+        seq_free(s);
+        return WEFT_ERROR_SIZE_MISMATCH;
+    }
+    s->pinned = load_pinned(dir, s->T, s->V);
+    if (s->cpos && s->cfaces) {
+        s->Vc = (uint32_t)sc[1];
+        s->Fc = (uint32_t)scf[0];
+        if (sc[0] != sp[0]) {
+            fprintf(stderr, "weft eval: %s: collider_pos has %llu frames, cloth_pos %u\n", dir,
+                    (unsigned long long)sc[0], s->T);
+            seq_free(s);
+            return WEFT_ERROR_SIZE_MISMATCH;
+        }
+    } else {
+        free(s->cpos);
+        free(s->cfaces);
+        s->cpos = NULL;
+        s->cfaces = NULL;
+    }
+    return WEFT_OK;
+}
+
+/* Every triangle edge as a pair (interior edges appear twice, harmless for a maximum). */
+static uint32_t *edges_of(const seq_data *s, uint32_t *count)
+{
+    uint32_t *e = malloc((size_t)s->F * 6 * sizeof(uint32_t));
+    if (!e) {
+        return NULL;
+    }
+    uint32_t n = 0;
+    for (uint32_t t = 0; t < s->F; ++t) {
+        for (int k = 0; k < 3; ++k) {
+            uint32_t a = s->faces[3 * (size_t)t + k], b = s->faces[3 * (size_t)t + (k + 1) % 3];
+            e[2 * n] = a < b ? a : b;
+            e[2 * n + 1] = a < b ? b : a;
+            n++;
+        }
+    }
+    *count = n;
+    return e;
+}
+
+static double max_strain(const float *x, const float *rest, const uint32_t *e, uint32_t ne)
+{
+    double m = 0;
+    for (uint32_t i = 0; i < ne; ++i) {
+        const float *a = x + 3 * (size_t)e[2 * i], *b = x + 3 * (size_t)e[2 * i + 1];
+        const float *ra = rest + 3 * (size_t)e[2 * i], *rb = rest + 3 * (size_t)e[2 * i + 1];
+        double l = sqrt((double)(a[0] - b[0]) * (a[0] - b[0]) + (double)(a[1] - b[1]) * (a[1] - b[1]) +
+                        (double)(a[2] - b[2]) * (a[2] - b[2]));
+        double r = sqrt((double)(ra[0] - rb[0]) * (ra[0] - rb[0]) + (double)(ra[1] - rb[1]) * (ra[1] - rb[1]) +
+                        (double)(ra[2] - rb[2]) * (ra[2] - rb[2]));
+        if (r > 0) {
+            m = fmax(m, fabs(l / r - 1.0));
+        }
+    }
+    return m;
+}
+
+static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_opts *o, const char *dir,
+                         eval_acc *total, bool print)
+{
+    seq_data s;
+    if (seq_load(dir, &s) != WEFT_OK) {
+        return 1;
+    }
+    weft_garment_def d = weft_default_garment_def();
+    d.method = o->method;
+    d.model = model;
+    d.precision = o->precision;
+    d.substeps = o->substeps;
+    d.ccd = o->ccd;
+    d.rest_positions = s.rest;
+    d.vertex_count = s.V;
+    d.triangles = s.faces;
+    d.triangle_count = s.F;
+    const size_t nv = (size_t)s.V * 3, nc = (size_t)s.Vc * 3;
+    if (s.cpos) {
+        d.collider_rest_positions = s.cpos + nc; /* the collider at frame 1, where the rollout starts */
+        d.collider_vertex_count = s.Vc;
+        d.collider_triangles = s.cfaces;
+        d.collider_triangle_count = s.Fc;
+    }
+    d.initial_positions = s.pos + nv;
+    weft_garment *g = NULL;
+    weft_result r = weft_garment_create(ctx, &d, &g);
+    if (r == WEFT_OK) {
+        r = weft_garment_set_state(g, s.pos + nv, s.pos);
+    }
+    if (r != WEFT_OK) {
+        fprintf(stderr, "weft eval: %s: %s: %s\n", dir, weft_result_string(r), weft_last_error());
+        weft_garment_destroy(g);
+        seq_free(&s);
+        return 1;
+    }
+    weft_ccd_world *world = NULL;
+    weft_ccd_world_def wd = weft_default_ccd_world_def();
+    wd.cloth_triangles = s.faces;
+    wd.cloth_triangle_count = s.F;
+    wd.cloth_vertex_count = s.V;
+    wd.cloth_layout_positions = s.rest;
+    if (s.cpos) {
+        wd.collider_triangles = s.cfaces;
+        wd.collider_triangle_count = s.Fc;
+        wd.collider_vertex_count = s.Vc;
+        wd.collider_layout_positions = s.cpos;
+    }
+    bool metrics = weft_ccd_world_create(ctx, &wd, &world) == WEFT_OK;
+    if (!metrics) {
+        fprintf(stderr, "weft eval: %s: collision metrics unavailable: %s\n", dir, weft_last_error());
+    }
+    uint32_t ne = 0;
+    uint32_t *edges = edges_of(&s, &ne);
+    float *prev = malloc(nv * sizeof(float));
+    /* Gripper attachments: pinned vertices follow their ground-truth positions (the scenario's
+     * boundary condition) for methods that take pins; the learned method sees only the gripper. */
+    uint32_t *pin_idx = s.pinned ? malloc((size_t)s.V * sizeof(uint32_t)) : NULL;
+    float *pin_pos = s.pinned ? malloc(nv * sizeof(float)) : NULL;
+    bool pins = pin_idx && pin_pos;
+    eval_acc a = {0};
+    a.metrics_ok = metrics;
+    uint32_t last = s.T - 1;
+    if (o->max_frames && o->max_frames + 1 < last) {
+        last = o->max_frames + 1;
+    }
+    for (uint32_t t = 1; t < last && edges && prev; ++t) {
+        memcpy(prev, weft_garment_positions(g), nv * sizeof(float));
+        if (s.cpos && (r = weft_garment_set_collider(g, s.cpos + (size_t)(t + 1) * nc)) != WEFT_OK) {
+            break;
+        }
+        if (pins) {
+            const float *pm = s.pinned + (size_t)(t + 1) * s.V;
+            const float *gtp = s.pos + (size_t)(t + 1) * nv;
+            uint32_t np = 0;
+            for (uint32_t i = 0; i < s.V; ++i) {
+                if (pm[i] != 0.0f) {
+                    pin_idx[np] = i;
+                    memcpy(pin_pos + 3 * (size_t)np, gtp + 3 * (size_t)i, 3 * sizeof(float));
+                    np++;
+                }
+            }
+            if (weft_garment_set_pins(g, pin_idx, pin_pos, np) == WEFT_ERROR_UNSUPPORTED) {
+                pins = false;
+            }
+        }
+        double t0 = now_ms();
+        r = weft_garment_step(g);
+        a.ms_sum += now_ms() - t0;
+        if (r == WEFT_ERROR_NOT_FINITE) {
+            a.nan = true;
+            break;
+        }
+        if (r != WEFT_OK) {
+            fprintf(stderr, "weft eval: %s: frame %u: %s: %s\n", dir, t + 1, weft_result_string(r), weft_last_error());
+            break;
+        }
+        const float *x = weft_garment_positions(g);
+        const float *gt = s.pos + (size_t)(t + 1) * nv;
+        for (uint32_t i = 0; i < s.V; ++i) {
+            double dx = (double)x[3 * i] - gt[3 * i], dy = (double)x[3 * i + 1] - gt[3 * i + 1],
+                   dz = (double)x[3 * i + 2] - gt[3 * i + 2];
+            a.err_sum += sqrt(dx * dx + dy * dy + dz * dz);
+        }
+        a.vert_frames += s.V;
+        a.frames++;
+        a.max_strain = fmax(a.max_strain, max_strain(x, s.rest, edges, ne));
+        if (metrics) {
+            weft_ccd_metrics m;
+            const float *c0 = s.cpos ? s.cpos + (size_t)t * nc : NULL;
+            const float *c1 = s.cpos ? s.cpos + (size_t)(t + 1) * nc : NULL;
+            if (weft_ccd_compute_metrics(world, prev, x, c0, c1, &m) == WEFT_OK) {
+                a.coll_sum += m.collision_rate;
+                a.self_sum += m.self_collision_rate;
+                a.metric_frames++;
+            }
+        }
+    }
+    int rc = (r == WEFT_OK || a.nan) ? 0 : 1;
+    if (print) {
+        printf("%-40s frames %4u  MVE %8.3f cm  coll %6.2f%%  self %6.2f%%  %8.3f ms/frame  strain %.3f%s\n", dir,
+               a.frames, a.vert_frames > 0 ? a.err_sum / a.vert_frames * 100.0 : 0.0,
+               a.metric_frames ? a.coll_sum / a.metric_frames : 0.0,
+               a.metric_frames ? a.self_sum / a.metric_frames : 0.0, a.frames ? a.ms_sum / a.frames : 0.0,
+               a.max_strain, a.nan ? "  NaN" : "");
+    }
+    total->err_sum += a.err_sum;
+    total->vert_frames += a.vert_frames;
+    total->coll_sum += a.coll_sum;
+    total->self_sum += a.self_sum;
+    total->metric_frames += a.metric_frames;
+    total->ms_sum += a.ms_sum;
+    total->frames += a.frames;
+    total->nan = total->nan || a.nan;
+    total->max_strain = fmax(total->max_strain, a.max_strain);
+    total->metrics_ok = total->metrics_ok && metrics;
+    total->sequences++;
+    free(pin_idx);
+    free(pin_pos);
+    free(prev);
+    free(edges);
+    weft_ccd_world_destroy(world);
+    weft_garment_destroy(g);
+    seq_free(&s);
+    return rc;
+}
+
+static bool is_file(const char *dir, const char *name)
+{
+    char p[1024];
+    struct stat st;
+    return path_join(p, sizeof p, dir, name) && stat(p, &st) == 0 && S_ISREG(st.st_mode);
+}
+
+/* The name hash `weft simgen` splits by (FNV-1a, then a splitmix64 finaliser); also in
+ * tools/train/data.py. */
+static uint64_t split_hash(const char *name)
+{
+    uint64_t h = 1469598103934665603ull ^ 0x5b11u;
+    for (const char *c = name; *c; ++c) {
+        h = (h ^ (unsigned char)*c) * 1099511628211ull;
+    }
+    h = (h ^ (h >> 30)) * 0xBF58476D1CE4E5B9ull;
+    h = (h ^ (h >> 27)) * 0x94D049BB133111EBull;
+    return h ^ (h >> 31);
+}
+
+/* The sequence's split: meta.json "split", else `weft simgen`'s manifest.json in the root folder
+ * (its "sequences" list), else the simgen name hash mod 10 (< 8 train, 8 val, 9 test). */
+static bool in_split(const char *dir, const char *name, const cJSON *manifest, const char *split)
+{
+    if (!split) {
+        return true;
+    }
+    char p[1024];
+    size_t n = 0;
+    char *text = path_join(p, sizeof p, dir, "meta.json") ? slurp(p, &n) : NULL;
+    const char *s = NULL;
+    cJSON *j = text ? cJSON_Parse(text) : NULL;
+    const cJSON *v = j ? cJSON_GetObjectItemCaseSensitive(j, "split") : NULL;
+    if (cJSON_IsString(v)) {
+        s = v->valuestring;
+    }
+    const cJSON *seqs = manifest ? cJSON_GetObjectItemCaseSensitive(manifest, "sequences") : NULL;
+    const cJSON *e;
+    cJSON_ArrayForEach(e, seqs)
+    {
+        const cJSON *en = cJSON_GetObjectItemCaseSensitive(e, "name");
+        const cJSON *es = cJSON_GetObjectItemCaseSensitive(e, "split");
+        if (!s && cJSON_IsString(en) && cJSON_IsString(es) && strcmp(en->valuestring, name) == 0) {
+            s = es->valuestring;
+        }
+    }
+    bool match;
+    if (s) {
+        match = strcmp(s, split) == 0;
+    } else {
+        uint64_t h = split_hash(name) % 10;
+        match = strcmp(split, h < 8 ? "train" : (h == 8 ? "val" : "test")) == 0;
+    }
+    cJSON_Delete(j);
+    free(text);
+    return match;
+}
+
+static int cmp_str(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }
+
+static void usage(FILE *f)
+{
+    fprintf(f, "usage: weft eval --seq DIR [--model M] [--method model|lbs|xpbd:S] [--precision fp32|fp16|int8]\n"
+               "                 [--ccd on|off] [--split train|val|test] [--frames N] [--json]\n"
+               "  DIR is one sequence folder (meta.json + .npy) or a folder of them.\n");
+}
+
+int weft_cmd_eval(int argc, char **argv)
+{
+    eval_opts o = {.method = WEFT_METHOD_MODEL, .substeps = 10, .precision = WEFT_PRECISION_FP32, .ccd = true};
+    for (int i = 1; i < argc; ++i) {
+        const char *a = argv[i];
+        const char *v = i + 1 < argc ? argv[i + 1] : NULL;
+        if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
+            usage(stdout);
+            return 0;
+        } else if (strcmp(a, "--json") == 0) {
+            o.json = true;
+        } else if (!v) {
+            fprintf(stderr, "weft eval: %s needs a value\n", a);
+            usage(stderr);
+            return 2;
+        } else if (strcmp(a, "--model") == 0) {
+            o.model_path = v, ++i;
+        } else if (strcmp(a, "--seq") == 0) {
+            o.seq = v, ++i;
+        } else if (strcmp(a, "--split") == 0) {
+            o.split = v, ++i;
+        } else if (strcmp(a, "--frames") == 0) {
+            o.max_frames = (uint32_t)strtoul(v, NULL, 10), ++i;
+        } else if (strcmp(a, "--method") == 0) {
+            ++i;
+            if (strcmp(v, "model") == 0) {
+                o.method = WEFT_METHOD_MODEL;
+            } else if (strcmp(v, "lbs") == 0) {
+                o.method = WEFT_METHOD_LBS;
+            } else if (strncmp(v, "xpbd", 4) == 0) {
+                o.method = WEFT_METHOD_XPBD;
+                if (v[4] == ':') {
+                    char *end;
+                    unsigned long s = strtoul(v + 5, &end, 10);
+                    if (*end || s == 0 || s > 1000) {
+                        fprintf(stderr, "weft eval: bad substep count in '%s'\n", v);
+                        return 2;
+                    }
+                    o.substeps = (uint32_t)s;
+                } else if (v[4] != '\0') {
+                    fprintf(stderr, "weft eval: unknown method '%s'\n", v);
+                    return 2;
+                }
+            } else {
+                fprintf(stderr, "weft eval: unknown method '%s'\n", v);
+                return 2;
+            }
+        } else if (strcmp(a, "--precision") == 0) {
+            ++i;
+            if (strcmp(v, "fp32") == 0) {
+                o.precision = WEFT_PRECISION_FP32;
+            } else if (strcmp(v, "fp16") == 0) {
+                o.precision = WEFT_PRECISION_FP16;
+            } else if (strcmp(v, "int8") == 0) {
+                o.precision = WEFT_PRECISION_INT8;
+            } else {
+                fprintf(stderr, "weft eval: unknown precision '%s'\n", v);
+                return 2;
+            }
+        } else if (strcmp(a, "--ccd") == 0) {
+            ++i;
+            if (strcmp(v, "on") != 0 && strcmp(v, "off") != 0) {
+                fprintf(stderr, "weft eval: --ccd takes on or off\n");
+                return 2;
+            }
+            o.ccd = strcmp(v, "on") == 0;
+        } else {
+            fprintf(stderr, "weft eval: unknown option '%s'\n", a);
+            usage(stderr);
+            return 2;
+        }
+    }
+    if (!o.seq || (o.method == WEFT_METHOD_MODEL && !o.model_path)) {
+        fprintf(stderr, "weft eval: --seq is required, and --model for method 'model'\n");
+        usage(stderr);
+        return 2;
+    }
+    weft_context_def cd = weft_default_context_def();
+    weft_context *ctx = NULL;
+    weft_result r = weft_context_create(&cd, &ctx);
+    if (r != WEFT_OK) {
+        fprintf(stderr, "weft eval: %s\n", weft_last_error());
+        return 1;
+    }
+    weft_model *model = NULL;
+    if (o.model_path && (r = weft_model_load_file(ctx, o.model_path, &model)) != WEFT_OK) {
+        fprintf(stderr, "weft eval: %s: %s: %s\n", o.model_path, weft_result_string(r), weft_last_error());
+        weft_context_destroy(ctx);
+        return 1;
+    }
+    eval_acc total = {.metrics_ok = true};
+    int rc = 0;
+    if (is_file(o.seq, "meta.json") && is_file(o.seq, "cloth_pos.npy")) {
+        rc = eval_sequence(ctx, model, &o, o.seq, &total, !o.json);
+    } else {
+        DIR *dh = opendir(o.seq);
+        if (!dh) {
+            fprintf(stderr, "weft eval: cannot open %s\n", o.seq);
+            rc = 1;
+        } else {
+            char **names = NULL;
+            size_t count = 0, cap = 0;
+            struct dirent *de;
+            while ((de = readdir(dh)) != NULL) {
+                if (de->d_name[0] == '.') {
+                    continue;
+                }
+                if (count == cap) {
+                    cap = cap ? 2 * cap : 64;
+                    char **nn = realloc(names, cap * sizeof *names);
+                    if (!nn) {
+                        break;
+                    }
+                    names = nn;
+                }
+                names[count++] = strdup(de->d_name);
+            }
+            closedir(dh);
+            if (count) {
+                qsort(names, count, sizeof *names, cmp_str);
+            }
+            char mpath[1024];
+            size_t msize = 0;
+            char *mtext = path_join(mpath, sizeof mpath, o.seq, "manifest.json") ? slurp(mpath, &msize) : NULL;
+            cJSON *manifest = mtext ? cJSON_Parse(mtext) : NULL;
+            for (size_t i = 0; i < count; ++i) {
+                char path[1024];
+                if (path_join(path, sizeof path, o.seq, names[i]) && is_file(path, "meta.json") && is_file(path, "cloth_pos.npy") && in_split(path, names[i], manifest, o.split)) {
+                    rc |= eval_sequence(ctx, model, &o, path, &total, !o.json);
+                }
+                free(names[i]);
+            }
+            free(names);
+            cJSON_Delete(manifest);
+            free(mtext);
+        }
+    }
+    if (total.sequences == 0 && rc == 0) {
+        fprintf(stderr, "weft eval: no sequences (meta.json + cloth_pos.npy) under %s\n", o.seq);
+        rc = 1;
+    }
+    double mve = total.vert_frames > 0 ? total.err_sum / total.vert_frames * 100.0 : 0.0;
+    double coll = total.metric_frames ? total.coll_sum / total.metric_frames : 0.0;
+    double self = total.metric_frames ? total.self_sum / total.metric_frames : 0.0;
+    double ms = total.frames ? total.ms_sum / total.frames : 0.0;
+    if (o.json) {
+        printf("{\"mve_cm\": %.6g, \"collision_rate\": %.6g, \"self_collision_rate\": %.6g, \"ms_per_frame\": %.6g, "
+               "\"frames\": %u, \"nan\": %s, \"max_edge_strain\": %.6g}\n",
+               mve, coll, self, ms, total.frames, total.nan ? "true" : "false", total.max_strain);
+    } else if (total.sequences > 0) {
+        printf("total: %u sequences, %u frames, MVE %.3f cm, collision %.2f%%, self-collision %.2f%%, %.3f ms/frame, "
+               "max edge strain %.3f, nan %s\n",
+               total.sequences, total.frames, mve, coll, self, ms, total.max_strain, total.nan ? "yes" : "no");
+    }
+    weft_model_destroy(model);
+    weft_context_destroy(ctx);
+    return rc;
+}
