@@ -290,6 +290,16 @@ typedef struct ct_state {
     weft_ct_config c;
     weft_ct_weights w;
     const weft_kernels *k;
+    /* Reduced precision: the table, int8 activation scratch, deterministic attention scratch,
+     * and one arena holding every layer's packed / transposed weights. */
+    weft_precision prec;
+    const weft_qkernels *qk;
+    int8_t *qa;                         /* max rows x max padded K (in qa_store) */
+    float *qa_store;
+    float *qa_scale;                    /* max rows */
+    float *att_s, *att_kt;              /* scores (nq x nk) and one head's keys transposed */
+    void *arena;
+    size_t arena_bytes;
     uint32_t N, M;                      /* cloth vertices, collider triangles */
     uint32_t *rowptr, *col;             /* CSR mesh adjacency (both directions) */
     size_t col_count;
@@ -325,16 +335,84 @@ typedef struct ct_state {
 
 static ct_state *state_of(weft_garment *g) { return (ct_state *)g->method_state; }
 
-static void linear(const weft_kernels *k, uint32_t rows, const weft_ct_linear *l, const float *A, uint32_t lda,
+/* C = act(A W^T + b (+ C)) at the garment's precision. */
+static void linear(const ct_state *s, uint32_t rows, const weft_ct_linear *l, const float *A, uint32_t lda,
                    float *C, uint32_t ldc, weft_activation act, bool accumulate)
 {
-    k->gemm(rows, l->out, l->in, A, lda, l->w, l->in, l->b, C, ldc, act, accumulate);
+    if (rows == 0) {
+        return;
+    }
+    if (s->prec == WEFT_PRECISION_INT8) {
+        if (l->q8.packed) {
+            s->qk->quantize_rows(A, rows, l->in, lda, s->qa, l->q8.Kp, s->qa_scale);
+            s->qk->gemm_q8(rows, s->qa, l->q8.Kp, s->qa_scale, &l->q8, l->b, C, ldc, act, accumulate);
+        } else {
+            s->qk->gemm_det(rows, l->out, l->in, A, lda, l->wt, l->out, l->b, C, ldc, act, accumulate);
+        }
+        return;
+    }
+    if (s->prec == WEFT_PRECISION_FP16 && l->ht) {
+        s->qk->gemm_f16(rows, l->out, l->in, A, lda, l->ht, l->out, l->b, C, ldc, act, accumulate);
+        return;
+    }
+    s->k->gemm(rows, l->out, l->in, A, lda, l->w, l->in, l->b, C, ldc, act, accumulate);
 }
 
-static void norm(const weft_kernels *k, const weft_ct_norm *n, const float *X, float *Y, uint32_t rows, uint32_t d,
+static void norm(const ct_state *s, const weft_ct_norm *n, const float *X, float *Y, uint32_t rows, uint32_t d,
                  float eps)
 {
-    k->layernorm(X, Y, rows, d, d, n->g, n->b, eps);
+    if (s->prec == WEFT_PRECISION_INT8) {
+        s->qk->layernorm_det(X, Y, rows, d, d, n->g, n->b, eps);
+    } else {
+        s->k->layernorm(X, Y, rows, d, d, n->g, n->b, eps);
+    }
+}
+
+static void ct_posembed(const ct_state *s, const float *x, uint32_t n, const float *freq, uint32_t nfreq, float *out,
+                        uint32_t ldo)
+{
+    if (s->prec == WEFT_PRECISION_INT8) {
+        s->qk->posembed_det(x, n, 3, freq, nfreq, out, ldo);
+    } else {
+        s->k->posembed(x, n, 3, freq, nfreq, out, ldo);
+    }
+}
+
+static void ct_swiglu(const ct_state *s, const float *gate, const float *up, float *out, size_t n)
+{
+    if (s->prec == WEFT_PRECISION_INT8) {
+        s->qk->swiglu_det(gate, up, out, n);
+    } else {
+        s->k->swiglu(gate, up, out, n);
+    }
+}
+
+/* Multi-head attention. The int8 path composes it from deterministic pieces (per head: scores
+ * = Q K^T by the in-order fma product on transposed keys, scale and mask, canonical softmax,
+ * P V), so it is bit-identical on every ISA; the others use the fused fp32 kernel. */
+static void ct_attention(ct_state *s, const float *Q, const float *K, const float *V, uint32_t nq, uint32_t nk,
+                         float scale, const uint8_t *mask, float *out)
+{
+    const uint32_t D = s->c.D, H = s->c.H, dh = D / H;
+    if (s->prec != WEFT_PRECISION_INT8) {
+        s->k->attention(Q, D, K, D, V, D, nq, nk, H, dh, scale, mask, out, D, s->attn_scratch);
+        return;
+    }
+    const weft_qkernels *q = s->qk;
+    for (uint32_t h = 0; h < H; ++h) {
+        for (uint32_t j = 0; j < nk; ++j) {
+            for (uint32_t d = 0; d < dh; ++d) {
+                s->att_kt[(size_t)d * nk + j] = K[(size_t)j * D + h * dh + d];
+            }
+        }
+        q->gemm_det(nq, nk, dh, Q + h * dh, D, s->att_kt, nk, NULL, s->att_s, nk, WEFT_ACT_NONE, false);
+        const size_t n = (size_t)nq * nk;
+        for (size_t i = 0; i < n; ++i) {
+            s->att_s[i] = mask && !mask[i] ? -INFINITY : s->att_s[i] * scale;
+        }
+        q->softmax_rows_det(s->att_s, nq, nk, nk);
+        q->gemm_det(nq, dh, nk, s->att_s, nk, V + h * dh, D, NULL, out + h * dh, D, WEFT_ACT_NONE, false);
+    }
 }
 
 static int cmp_u64(const void *a, const void *b)
@@ -407,6 +485,7 @@ static void ct_destroy(weft_garment *g)
     weft__free(g->ctx, s->tmask, hk * hk);
     weft__free(g->ctx, s->rowptr, ((size_t)s->N + 1) * sizeof(uint32_t));
     weft__free(g->ctx, s->col, s->col_count * sizeof(uint32_t));
+    weft__free(g->ctx, s->arena, s->arena_bytes);
     weft__free(g->ctx, s, sizeof *s);
     g->method_state = NULL;
 }
@@ -417,7 +496,6 @@ static size_t max_sz(size_t a, size_t b) { return a > b ? a : b; }
  * constant for the garment's life. */
 static void precompute(weft_garment *g, ct_state *s)
 {
-    const weft_kernels *k = s->k;
     const weft_ct_config *c = &s->c;
     const uint32_t N = s->N, D = c->D, F = c->nfreq;
     double m[3] = {0, 0, 0};
@@ -435,21 +513,141 @@ static void precompute(weft_garment *g, ct_state *s)
             s->xc[3 * (size_t)i + d] = g->rest[3 * (size_t)i + d] - mf[d];
         }
     }
-    k->posembed(s->xc, N, 3, s->w.freqs, F, s->feat, 6 * F);
-    linear(k, N, &s->w.dec_rest.fc1, s->feat, 6 * F, s->dh, D, WEFT_ACT_GELU, false);
-    linear(k, N, &s->w.dec_rest.fc2, s->dh, D, s->rest_tok, D, WEFT_ACT_NONE, false);
-    norm(k, &s->w.dec_xattn.ln_q, s->rest_tok, s->dln, N, D, c->ln_eps);
-    linear(k, N, &s->w.dec_xattn.q, s->dln, D, s->dec_q, D, WEFT_ACT_NONE, false);
-    norm(k, &s->w.enc_xattn.ln_q, s->w.queries, s->z, c->K, D, c->ln_eps);
-    linear(k, c->K, &s->w.enc_xattn.q, s->z, D, s->enc_q, D, WEFT_ACT_NONE, false);
+    ct_posembed(s, s->xc, N, s->w.freqs, F, s->feat, 6 * F);
+    linear(s, N, &s->w.dec_rest.fc1, s->feat, 6 * F, s->dh, D, WEFT_ACT_GELU, false);
+    linear(s, N, &s->w.dec_rest.fc2, s->dh, D, s->rest_tok, D, WEFT_ACT_NONE, false);
+    norm(s, &s->w.dec_xattn.ln_q, s->rest_tok, s->dln, N, D, c->ln_eps);
+    linear(s, N, &s->w.dec_xattn.q, s->dln, D, s->dec_q, D, WEFT_ACT_NONE, false);
+    norm(s, &s->w.enc_xattn.ln_q, s->w.queries, s->z, c->K, D, c->ln_eps);
+    linear(s, c->K, &s->w.enc_xattn.q, s->z, D, s->enc_q, D, WEFT_ACT_NONE, false);
+}
+
+/* Every linear layer of the bound weights (for building their reduced-precision forms). */
+static uint32_t all_linears(weft_ct_weights *w, const weft_ct_config *c, weft_ct_linear **out)
+{
+    uint32_t n = 0;
+    weft_ct_mlp *mlps[3] = {&w->enc_cloth, &w->enc_coll, &w->dec_rest};
+    for (int i = 0; i < 3; ++i) {
+        out[n++] = &mlps[i]->fc1;
+        out[n++] = &mlps[i]->fc2;
+    }
+    for (uint32_t i = 0; i < c->gnn_layers; ++i) {
+        out[n++] = &w->enc_gnn[i].fc1;
+        out[n++] = &w->enc_gnn[i].fc2;
+        out[n++] = &w->dec_gnn[i].fc1;
+        out[n++] = &w->dec_gnn[i].fc2;
+    }
+    weft_ct_xattn *xs[2] = {&w->enc_xattn, &w->dec_xattn};
+    for (int i = 0; i < 2; ++i) {
+        out[n++] = &xs[i]->q;
+        out[n++] = &xs[i]->k;
+        out[n++] = &xs[i]->v;
+        out[n++] = &xs[i]->o;
+        out[n++] = &xs[i]->ff.fc1;
+        out[n++] = &xs[i]->ff.fc2;
+    }
+    for (uint32_t l = 0; l < c->L; ++l) {
+        weft_ct_layer *ly = &w->layers[l];
+        weft_ct_linear *ll[7] = {&ly->q, &ly->k, &ly->v, &ly->o, &ly->gate, &ly->up, &ly->down};
+        for (int i = 0; i < 7; ++i) {
+            out[n++] = ll[i];
+        }
+    }
+    out[n++] = &w->dec_head;
+    return n;
+}
+
+#define CT_MAX_LINEARS (6u + 4u * WEFT_CT_MAX_GNN + 12u + 7u * WEFT_CT_MAX_LAYERS + 1u)
+
+static size_t align64(size_t n) { return (n + 63u) & ~(size_t)63u; }
+
+static bool q8_eligible(const weft_ct_linear *l) { return l->in >= WEFT_CT_Q8_MIN_DIM && l->out >= WEFT_CT_Q8_MIN_DIM; }
+
+/* Bytes of the reduced forms of one layer at a precision (0 for fp32). */
+static size_t reduced_bytes(const weft_ct_linear *l, weft_precision prec)
+{
+    if (prec == WEFT_PRECISION_INT8 && q8_eligible(l)) {
+        size_t Np = weft_q8_pad_n(l->out), Kp = weft_q8_pad_k(l->in);
+        return align64(Np * Kp) + align64(Np * sizeof(float)) + align64(Np * sizeof(int32_t));
+    }
+    if (prec == WEFT_PRECISION_INT8) {
+        return align64((size_t)l->in * l->out * sizeof(float));
+    }
+    if (prec == WEFT_PRECISION_FP16 && q8_eligible(l)) {
+        return align64((size_t)l->in * l->out * sizeof(uint16_t));
+    }
+    return 0;
+}
+
+/* Builds every layer's int8 or fp16 form in one arena: weights are quantised exactly as the
+ * offline quantiser does (per output channel, round half to even), so a garment created at
+ * int8 from an fp32 file runs the same numbers as one from a `weft quantize` file would. */
+static weft_result build_reduced(weft_garment *g, ct_state *s)
+{
+    if (s->prec == WEFT_PRECISION_FP32) {
+        return WEFT_OK;
+    }
+    weft_ct_linear *lin[CT_MAX_LINEARS];
+    uint32_t n = all_linears(&s->w, &s->c, lin);
+    size_t bytes = 0, max_wq = 0;
+    for (uint32_t i = 0; i < n; ++i) {
+        bytes += reduced_bytes(lin[i], s->prec);
+        max_wq = max_sz(max_wq, (size_t)lin[i]->in * lin[i]->out);
+    }
+    s->arena = weft__alloc(g->ctx, bytes);
+    s->arena_bytes = bytes;
+    int8_t *wq = s->prec == WEFT_PRECISION_INT8 ? weft__alloc(g->ctx, max_wq) : NULL;
+    float *scale = s->prec == WEFT_PRECISION_INT8 ? weft__alloc(g->ctx, max_wq ? max_wq : 1) : NULL;
+    if (!s->arena || (s->prec == WEFT_PRECISION_INT8 && (!wq || !scale))) {
+        weft__free(g->ctx, wq, max_wq);
+        weft__free(g->ctx, scale, max_wq ? max_wq : 1);
+        return WEFT_ERROR_OUT_OF_MEMORY;
+    }
+    uint8_t *p = s->arena;
+    for (uint32_t i = 0; i < n; ++i) {
+        weft_ct_linear *l = lin[i];
+        const uint32_t O = l->out, I = l->in;
+        if (s->prec == WEFT_PRECISION_INT8 && q8_eligible(l)) {
+            uint32_t Np = weft_q8_pad_n(O), Kp = weft_q8_pad_k(I);
+            int8_t *packed = (int8_t *)p;
+            float *sc = (float *)(p + align64((size_t)Np * Kp));
+            int32_t *ws = (int32_t *)(p + align64((size_t)Np * Kp) + align64(Np * sizeof(float)));
+            weft_q8_quantize_weights(l->w, O, I, wq, scale); /* finite: checked at bind */
+            weft_q8_pack(wq, scale, O, I, packed, sc, ws);
+            l->q8 = (weft_q8_weights){O, I, Np, Kp, packed, sc, ws};
+        } else if (s->prec == WEFT_PRECISION_INT8) {
+            float *wt = (float *)p;
+            for (uint32_t o = 0; o < O; ++o) {
+                for (uint32_t k = 0; k < I; ++k) {
+                    wt[(size_t)k * O + o] = l->w[(size_t)o * I + k];
+                }
+            }
+            l->wt = wt;
+        } else if (q8_eligible(l)) {
+            uint16_t *ht = (uint16_t *)p;
+            for (uint32_t o = 0; o < O; ++o) {
+                for (uint32_t k = 0; k < I; ++k) {
+                    ht[(size_t)k * O + o] = weft_f32_to_f16(l->w[(size_t)o * I + k]);
+                }
+            }
+            l->ht = ht;
+        }
+        p += reduced_bytes(l, s->prec);
+    }
+    weft__free(g->ctx, wq, max_wq);
+    weft__free(g->ctx, scale, max_wq ? max_wq : 1);
+    return WEFT_OK;
 }
 
 static weft_result ct_create(weft_garment *g)
 {
+    const weft_qkernels *qk = NULL;
     if (g->precision != WEFT_PRECISION_FP32) {
-        return weft__fail(WEFT_ERROR_UNSUPPORTED, "method 'model': precision %d is not available for the "
-                                                  "clothtransformer runtime in this build (fp32 only)",
-                          (int)g->precision);
+        qk = weft_qkernels_for_isa(g->ctx->isa);
+        if (!qk) {
+            return weft__fail(WEFT_ERROR_UNSUPPORTED, "method 'model': no %s kernels for isa '%s'",
+                              g->precision == WEFT_PRECISION_INT8 ? "int8" : "fp16", weft_isa_name(g->ctx->isa));
+        }
     }
     weft_ct_config c;
     weft_ct_weights wb;
@@ -474,6 +672,8 @@ static weft_result ct_create(weft_garment *g)
     s->c = c;
     s->w = *w;
     s->k = g->ctx->kernels;
+    s->prec = g->precision;
+    s->qk = qk;
     s->N = g->vertex_count;
     s->M = g->collider_triangle_count;
     g->method_state = s;
@@ -499,6 +699,20 @@ static weft_result ct_create(weft_garment *g)
         a = max_sz(a, weft_attention_scratch((uint32_t)N, (uint32_t)K));
         s->attn_scratch_floats = a;
         ok = add_buf(g, s, &s->attn_scratch, a);
+    }
+    if (ok && s->prec == WEFT_PRECISION_INT8) {
+        /* int8 activations: the widest input of any layer, for the most rows any layer sees */
+        const size_t rows = max_sz(max_sz(ntok, hk), N);
+        const size_t kp = weft_q8_pad_k((uint32_t)max_sz(max_sz(6 * F + 3, 18 * F + 13), max_sz(2 * D, c.ffn)));
+        const size_t dh = D / c.H;
+        const size_t scores = max_sz(max_sz(K * ntok, hk * hk), N * K);
+        ok = add_buf(g, s, &s->qa_store, (rows * kp + 3) / 4) && add_buf(g, s, &s->qa_scale, rows) &&
+             add_buf(g, s, &s->att_s, scores) && add_buf(g, s, &s->att_kt, dh * max_sz(ntok, max_sz(hk, K)));
+    }
+    s->qa = (int8_t *)s->qa_store;
+    if (ok) {
+        r = build_reduced(g, s);
+        ok = r == WEFT_OK;
     }
     if (ok && c.history > 1) {
         s->tmask = weft__alloc(g->ctx, hk * hk);
@@ -534,8 +748,8 @@ static void gnn(ct_state *s, const weft_ct_mlp *layers, uint32_t count, float *h
             memcpy(s->gcat + (size_t)i * 2 * D, h + (size_t)i * D, D * sizeof(float));
         }
         k->csr_aggregate(s->rowptr, s->col, N, h, D, D, s->gcat + D, 2 * D, true);
-        linear(k, N, &layers[l].fc1, s->gcat, 2 * D, s->wide, D, WEFT_ACT_GELU, false);
-        linear(k, N, &layers[l].fc2, s->wide, D, h, D, WEFT_ACT_NONE, true);
+        linear(s, N, &layers[l].fc1, s->gcat, 2 * D, s->wide, D, WEFT_ACT_GELU, false);
+        linear(s, N, &layers[l].fc2, s->wide, D, h, D, WEFT_ACT_NONE, true);
     }
 }
 
@@ -544,16 +758,15 @@ static void gnn(ct_state *s, const weft_ct_mlp *layers, uint32_t count, float *h
 static void cross_block(ct_state *s, const weft_ct_xattn *a, const float *qp, uint32_t nq, float *x, const float *y,
                         uint32_t ny, float *yln, float *yk, float *yv, float *att, float *xln)
 {
-    const weft_kernels *k = s->k;
     const uint32_t D = s->c.D, H = s->c.H, dh = D / H;
-    norm(k, &a->ln_kv, y, yln, ny, D, s->c.ln_eps);
-    linear(k, ny, &a->k, yln, D, yk, D, WEFT_ACT_NONE, false);
-    linear(k, ny, &a->v, yln, D, yv, D, WEFT_ACT_NONE, false);
-    k->attention(qp, D, yk, D, yv, D, nq, ny, H, dh, 1.0f / sqrtf((float)dh), NULL, att, D, s->attn_scratch);
-    linear(k, nq, &a->o, att, D, x, D, WEFT_ACT_NONE, true);
-    norm(k, &a->ln_ff, x, xln, nq, D, s->c.ln_eps);
-    linear(k, nq, &a->ff.fc1, xln, D, s->wide, 2 * D, WEFT_ACT_GELU, false);
-    linear(k, nq, &a->ff.fc2, s->wide, 2 * D, x, D, WEFT_ACT_NONE, true);
+    norm(s, &a->ln_kv, y, yln, ny, D, s->c.ln_eps);
+    linear(s, ny, &a->k, yln, D, yk, D, WEFT_ACT_NONE, false);
+    linear(s, ny, &a->v, yln, D, yv, D, WEFT_ACT_NONE, false);
+    ct_attention(s, qp, yk, yv, nq, ny, 1.0f / sqrtf((float)dh), NULL, att);
+    linear(s, nq, &a->o, att, D, x, D, WEFT_ACT_NONE, true);
+    norm(s, &a->ln_ff, x, xln, nq, D, s->c.ln_eps);
+    linear(s, nq, &a->ff.fc1, xln, D, s->wide, 2 * D, WEFT_ACT_GELU, false);
+    linear(s, nq, &a->ff.fc2, s->wide, 2 * D, x, D, WEFT_ACT_NONE, true);
 }
 
 static void centroid(const float *p, uint32_t n, float out[3])
@@ -607,7 +820,7 @@ static uint32_t collider_features(weft_garment *g, ct_state *s, const float cent
                 corners[3 * j + d] = p[j][d] - centre[d];
             }
         }
-        s->k->posembed(corners, 3, 3, s->w.freqs, F, row, 6 * F);
+        ct_posembed(s, corners, 3, s->w.freqs, F, row, 6 * F);
         float *v = row + 18 * F;
         for (int j = 0; j < 3; ++j) {
             const float *q = cp + 3 * (size_t)tri[j];
@@ -634,7 +847,6 @@ static uint32_t collider_features(weft_garment *g, ct_state *s, const float cent
 static weft_result ct_step(weft_garment *g)
 {
     ct_state *s = state_of(g);
-    const weft_kernels *k = s->k;
     const weft_ct_config *c = &s->c;
     const uint32_t N = s->N, D = c->D, K = c->K, F = c->nfreq, H = c->H, dh = D / H;
     const uint32_t hk = c->history * K;
@@ -650,15 +862,15 @@ static weft_result ct_step(weft_garment *g)
             s->xc[3 * (size_t)i + d] = g->x[3 * (size_t)i + d] - centre[d];
         }
     }
-    k->posembed(s->xc, N, 3, w->freqs, F, s->feat, ldf);
+    ct_posembed(s, s->xc, N, w->freqs, F, s->feat, ldf);
     for (uint32_t i = 0; i < N; ++i) {
         float *v = s->feat + (size_t)i * ldf + 6 * F;
         for (int d = 0; d < 3; ++d) {
             v[d] = (g->x[3 * (size_t)i + d] - g->x_prev[3 * (size_t)i + d]) * c->vel_scale;
         }
     }
-    linear(k, N, &w->enc_cloth.fc1, s->feat, ldf, s->wide, D, WEFT_ACT_GELU, false);
-    linear(k, N, &w->enc_cloth.fc2, s->wide, D, s->tok, D, WEFT_ACT_NONE, false);
+    linear(s, N, &w->enc_cloth.fc1, s->feat, ldf, s->wide, D, WEFT_ACT_GELU, false);
+    linear(s, N, &w->enc_cloth.fc2, s->wide, D, s->tok, D, WEFT_ACT_NONE, false);
     gnn(s, w->enc_gnn, c->gnn_layers, s->tok);
 
     /* ---- encoder: collider triangle tokens (cropped to the garment's neighbourhood) ---- */
@@ -666,8 +878,8 @@ static weft_result ct_step(weft_garment *g)
     if (s->M > 0) {
         kept = collider_features(g, s, centre);
         if (kept > 0) {
-            linear(k, kept, &w->enc_coll.fc1, s->cfeat, 18 * F + 13, s->wide, D, WEFT_ACT_GELU, false);
-            linear(k, kept, &w->enc_coll.fc2, s->wide, D, s->tok + (size_t)N * D, D, WEFT_ACT_NONE, false);
+            linear(s, kept, &w->enc_coll.fc1, s->cfeat, 18 * F + 13, s->wide, D, WEFT_ACT_GELU, false);
+            linear(s, kept, &w->enc_coll.fc2, s->wide, D, s->tok + (size_t)N * D, D, WEFT_ACT_NONE, false);
         }
     }
 
@@ -701,19 +913,18 @@ static weft_result ct_step(weft_garment *g)
         /* Only the newest frame's tokens are read after the last layer: its queries suffice. */
         const bool last = l + 1 == c->L;
         const uint32_t r0 = last ? hk - K : 0, nq = last ? K : hk;
-        norm(k, &ly->ln1, s->x, s->xln, hk, D, eps);
-        linear(k, nq, &ly->q, s->xln + (size_t)r0 * D, D, s->xq, D, WEFT_ACT_NONE, false);
-        linear(k, hk, &ly->k, s->xln, D, s->xk, D, WEFT_ACT_NONE, false);
-        linear(k, hk, &ly->v, s->xln, D, s->xv, D, WEFT_ACT_NONE, false);
-        k->attention(s->xq, D, s->xk, D, s->xv, D, nq, hk, H, dh, scale, last ? NULL : s->tmask, s->xa, D,
-                     s->attn_scratch);
+        norm(s, &ly->ln1, s->x, s->xln, hk, D, eps);
+        linear(s, nq, &ly->q, s->xln + (size_t)r0 * D, D, s->xq, D, WEFT_ACT_NONE, false);
+        linear(s, hk, &ly->k, s->xln, D, s->xk, D, WEFT_ACT_NONE, false);
+        linear(s, hk, &ly->v, s->xln, D, s->xv, D, WEFT_ACT_NONE, false);
+        ct_attention(s, s->xq, s->xk, s->xv, nq, hk, scale, last ? NULL : s->tmask, s->xa);
         float *xr = s->x + (size_t)r0 * D;
-        linear(k, nq, &ly->o, s->xa, D, xr, D, WEFT_ACT_NONE, true);
-        norm(k, &ly->ln2, xr, s->xln, nq, D, eps);
-        linear(k, nq, &ly->gate, s->xln, D, s->wide, c->ffn, WEFT_ACT_NONE, false);
-        linear(k, nq, &ly->up, s->xln, D, s->wide2, c->ffn, WEFT_ACT_NONE, false);
-        k->swiglu(s->wide, s->wide2, s->wide, (size_t)nq * c->ffn);
-        linear(k, nq, &ly->down, s->wide, c->ffn, xr, D, WEFT_ACT_NONE, true);
+        linear(s, nq, &ly->o, s->xa, D, xr, D, WEFT_ACT_NONE, true);
+        norm(s, &ly->ln2, xr, s->xln, nq, D, eps);
+        linear(s, nq, &ly->gate, s->xln, D, s->wide, c->ffn, WEFT_ACT_NONE, false);
+        linear(s, nq, &ly->up, s->xln, D, s->wide2, c->ffn, WEFT_ACT_NONE, false);
+        ct_swiglu(s, s->wide, s->wide2, s->wide, (size_t)nq * c->ffn);
+        linear(s, nq, &ly->down, s->wide, c->ffn, xr, D, WEFT_ACT_NONE, true);
     }
     const float *z_next = s->x + (size_t)(hk - K) * D;
 
@@ -727,8 +938,8 @@ static weft_result ct_step(weft_garment *g)
         }
     }
     gnn(s, w->dec_gnn, c->gnn_layers, s->dh);
-    norm(k, &w->dec_ln, s->dh, s->dln, N, D, eps);
-    linear(k, N, &w->dec_head, s->dln, D, s->out3, 3, WEFT_ACT_NONE, false);
+    norm(s, &w->dec_ln, s->dh, s->dln, N, D, eps);
+    linear(s, N, &w->dec_head, s->dln, D, s->out3, 3, WEFT_ACT_NONE, false);
 
     /* ---- X_{t+1} = prior + out_scale * displacement ---- */
     for (size_t i = 0; i < (size_t)N * 3; ++i) {

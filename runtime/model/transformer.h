@@ -1,4 +1,5 @@
-/* The ClothTransformer forward pass (fp32) and the WEFT_METHOD_MODEL garment method.
+/* The ClothTransformer forward pass (fp32, fp16 weights, int8) and the WEFT_METHOD_MODEL garment
+ * method.
  *
  * The architecture and tensor names are defined by tools/train/model.py; docs/MODEL.md describes
  * the data flow. A model file is checked once against its config (every tensor, shape and value)
@@ -9,6 +10,7 @@
 
 #include "garment/garment.h"
 #include "model/model.h"
+#include "kernels/qkernels.h"
 
 #define WEFT_CT_ARCHITECTURE "clothtransformer"
 #define WEFT_CT_MAX_GNN 8u
@@ -26,7 +28,17 @@ typedef struct weft_ct_config {
 typedef struct weft_ct_linear {
     const float *w, *b;                 /* w[out][in], b[out] */
     uint32_t out, in;
+    /* Reduced-precision forms, built per garment at creation (empty when unused):
+     * int8 layers with both sizes >= WEFT_CT_Q8_MIN_DIM use q8; smaller int8 layers use the
+     * deterministic fp32 product on wt = W^T; fp16 layers use ht = W^T in binary16. */
+    weft_q8_weights q8;
+    const float *wt;                    /* in x out */
+    const uint16_t *ht;                 /* in x out */
 } weft_ct_linear;
+
+/* Layers narrower than this stay in (deterministic) fp32 on the int8 path, and in fp32 on the
+ * fp16 path: the 3-wide output head gains nothing from int8 and loses the most accuracy. */
+#define WEFT_CT_Q8_MIN_DIM 16u
 
 typedef struct weft_ct_norm {
     const float *g, *b;

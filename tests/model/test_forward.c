@@ -401,12 +401,11 @@ static void bad_state_and_collider(void)
     CHECK_RESULT(weft_garment_step(gar), WEFT_OK);
     weft_garment_destroy(gar);
 
-    /* unsupported precision */
-    d.precision = WEFT_PRECISION_INT8;
+    /* out-of-range precision */
+    d.precision = WEFT_PRECISION_COUNT;
     gar = NULL;
-    weft_result r = weft_garment_create(ctx, &d, &gar);
-    CHECK(r != WEFT_OK && gar == NULL);
-    weft_garment_destroy(gar);
+    CHECK_RESULT(weft_garment_create(ctx, &d, &gar), WEFT_ERROR_INVALID_ARGUMENT);
+    CHECK(gar == NULL);
 
     /* no model */
     d = garment_def(&g, NULL, 1);
@@ -472,5 +471,80 @@ static void shipped_models_step(void)
     golden_free(&g);
 }
 
+/* fp16 and int8 against fp32 on the teacher-forced frames and a 20-frame rollout, and the int8
+ * path bit-identical on every ISA level this CPU runs (scalar oracle included). */
+static void reduced_precision(void)
+{
+    golden g;
+    if (!golden_load(&g)) {
+        CHECK(!"golden tensors missing");
+        return;
+    }
+    static const weft_isa isas[] = {WEFT_ISA_SCALAR, WEFT_ISA_AVX2, WEFT_ISA_AVX512, WEFT_ISA_NEON};
+    weft_context *ctxs[4] = {NULL};
+    weft_model *models[4] = {NULL};
+    uint32_t nctx = 0;
+    for (int i = 0; i < 4; ++i) {
+        weft_context_def cd = weft_default_context_def();
+        cd.isa = isas[i];
+        if (weft_context_create(&cd, &ctxs[nctx]) != WEFT_OK) {
+            continue;
+        }
+        CHECK_RESULT(weft_model_load_file(ctxs[nctx], DATA "golden_model.safetensors", &models[nctx]), WEFT_OK);
+        if (!models[nctx]) {
+            weft_context_destroy(ctxs[nctx]);
+            continue;
+        }
+        nctx++;
+    }
+    CHECK(nctx >= 1);
+    const size_t n = (size_t)g.V * 3;
+    const uint32_t T = 20;
+    float *ref = malloc(n * sizeof(float) * T), *out = malloc(n * sizeof(float) * T);
+    double worst[3] = {0, 0, 0};
+    for (int prec = 0; prec < 3 && nctx > 0; ++prec) {
+        for (uint32_t c = 0; c < nctx; ++c) {
+            weft_garment_def d = garment_def(&g, models[c], 1);
+            d.precision = (weft_precision)prec;
+            weft_garment *gar = NULL;
+            CHECK_RESULT(weft_garment_create(ctxs[c], &d, &gar), WEFT_OK);
+            if (!gar) {
+                continue;
+            }
+            CHECK_RESULT(weft_garment_set_state(gar, frame(&g.gt, 1), frame(&g.gt, 0)), WEFT_OK);
+            float *dst = c == 0 ? ref : out;
+            for (uint32_t t = 0; t < T; ++t) {
+                CHECK_RESULT(weft_garment_set_collider(gar, frame(&g.cpos, 2 + t)), WEFT_OK);
+                CHECK_RESULT(weft_garment_step(gar), WEFT_OK);
+                memcpy(dst + t * n, weft_garment_positions(gar), n * sizeof(float));
+            }
+            weft_garment_destroy(gar);
+            if (c > 0 && prec == WEFT_PRECISION_INT8) {
+                CHECK_MSG(memcmp(ref, out, n * T * sizeof(float)) == 0, "int8 rollout differs on isa %s",
+                          weft_isa_name(weft_context_isa(ctxs[c])));
+            }
+        }
+        /* accuracy against the PyTorch fp32 rollout (rollout.npy: frames 2..) */
+        for (uint32_t t = 0; t < T && t < g.rollout.shape[0]; ++t) {
+            double rel, relm;
+            compare(ref + t * n, frame(&g.rollout, t), frame(&g.gt, 1), n, &rel, &relm);
+            worst[prec] = fmax(worst[prec], rel);
+        }
+    }
+    printf("20-frame rollout vs PyTorch fp32, max relative error: fp32 %.3g, fp16 %.3g, int8 %.3g (%u ISA levels "
+           "bit-identical at int8)\n",
+           worst[0], worst[1], worst[2], nctx);
+    CHECK(worst[0] <= 1e-3);
+    CHECK(worst[1] <= 2e-3);
+    CHECK(worst[2] <= 2.5e-2);
+    free(ref);
+    free(out);
+    for (uint32_t c = 0; c < nctx; ++c) {
+        weft_model_destroy(models[c]);
+        weft_context_destroy(ctxs[c]);
+    }
+    golden_free(&g);
+}
+
 TEST_MAIN(TEST_CASE(teacher_forced_parity), TEST_CASE(shipped_models_step), TEST_CASE(rollout_parity), TEST_CASE(bad_model_files),
-          TEST_CASE(bad_state_and_collider))
+          TEST_CASE(bad_state_and_collider), TEST_CASE(reduced_precision))
