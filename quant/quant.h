@@ -1,6 +1,7 @@
 /* The offline quantiser: fp32 safetensors in, int8 or fp16 safetensors out, with a per-tensor
  * decision (quantised or kept in fp32, and why) written into the file and an error report.
  *
+ * Eligible: rank-2 tensors named "*.weight" (layer weights, PyTorch's [out][in] layout).
  * int8: each eligible weight W[N][K] becomes "<name>.q8" (I8, per-output-channel symmetric in
  * [-127, 127], round to nearest even) plus "<name>.scale" (F32 [N]). fp16: the same weights are
  * stored as F16 under their own name (range-checked: |w| <= 65504). Everything else stays F32:

@@ -57,6 +57,12 @@ static bool meta_keeps(const char *list, const char *name)
     return false;
 }
 
+static bool ends_with(const char *s, const char *suffix)
+{
+    size_t n = strlen(s), k = strlen(suffix);
+    return n >= k && memcmp(s + n - k, suffix, k) == 0;
+}
+
 static bool def_keeps(const weft_quant_def *def, const char *name)
 {
     for (const char *const *k = def->keep; k && *k; ++k) {
@@ -100,6 +106,8 @@ static weft_result plan_tensor(const weft_quant_def *def, const char *keep, plan
         snprintf(p->reason, sizeof p->reason, "fp32 (rank %u)", e->rank);
     } else if (meta_keeps(keep, e->name) || def_keeps(def, e->name)) {
         snprintf(p->reason, sizeof p->reason, "fp32 (kept by request)");
+    } else if (!ends_with(e->name, ".weight")) {
+        snprintf(p->reason, sizeof p->reason, "fp32 (not a layer weight)");
     } else if (e->shape[0] < def->min_dim || e->shape[1] < def->min_dim) {
         snprintf(p->reason, sizeof p->reason, "fp32 (small: %llux%llu)", (unsigned long long)e->shape[0],
                  (unsigned long long)e->shape[1]);

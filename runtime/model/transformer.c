@@ -126,12 +126,43 @@ static weft_result need(const weft_model *m, const char *name, uint32_t rank, co
     return WEFT_OK;
 }
 
+/* A layer weight in any stored form: F32, F16 (fp16 file) or "<name>.q8" + "<name>.scale" (int8
+ * file). The loader has already checked finiteness, the int8 range and the scales. */
+static weft_result need_weight(const weft_model *m, const char *name, uint32_t out, uint32_t in, weft_ct_linear *l)
+{
+    const uint64_t dims[2] = {out, in};
+    const weft_tensor *t = weft__model_find(m, name);
+    if (t && t->dtype == WEFT_DTYPE_F16) {
+        weft_result r = weft__model_require(m, name, WEFT_DTYPE_F16, 2, dims, &t);
+        l->src_f16 = r == WEFT_OK ? t->data : NULL;
+        return r;
+    }
+    if (!t) {
+        char qname[CT_NAME], sname[CT_NAME];
+        name_join(qname, name, "q8");
+        name_join(sname, name, "scale");
+        if (weft__model_find(m, qname)) {
+            const weft_tensor *q = NULL, *sc = NULL;
+            weft_result r = weft__model_require(m, qname, WEFT_DTYPE_I8, 2, dims, &q);
+            if (r == WEFT_OK) {
+                r = weft__model_require(m, sname, WEFT_DTYPE_F32, 1, dims, &sc);
+            }
+            if (r == WEFT_OK) {
+                l->src_q8 = q->data;
+                l->src_scale = sc->data;
+            }
+            return r;
+        }
+    }
+    return need(m, name, 2, dims, &l->w);
+}
+
 static weft_result need_linear(const weft_model *m, const char *prefix, uint32_t out, uint32_t in, weft_ct_linear *l)
 {
     char name[CT_NAME];
     weft_result r;
     name_join(name, prefix, "weight");
-    if ((r = need(m, name, 2, (const uint64_t[]){out, in}, &l->w)) != WEFT_OK) {
+    if ((r = need_weight(m, name, out, in, l)) != WEFT_OK) {
         return r;
     }
     name_join(name, prefix, "bias");
@@ -563,30 +594,44 @@ static size_t align64(size_t n) { return (n + 63u) & ~(size_t)63u; }
 
 static bool q8_eligible(const weft_ct_linear *l) { return l->in >= WEFT_CT_Q8_MIN_DIM && l->out >= WEFT_CT_Q8_MIN_DIM; }
 
-/* Bytes of the reduced forms of one layer at a precision (0 for fp32). */
-static size_t reduced_bytes(const weft_ct_linear *l, weft_precision prec)
+/* Whether a layer needs an fp32 copy of its weight built: its file form is int8 or fp16 and
+ * the garment's precision reads fp32 (fp32 itself, the fp16 path's small layers, the int8
+ * path's quantiser input when the file is fp16, or its small layers). */
+static bool needs_f32(const weft_ct_linear *l, weft_precision prec)
 {
-    if (prec == WEFT_PRECISION_INT8 && q8_eligible(l)) {
-        size_t Np = weft_q8_pad_n(l->out), Kp = weft_q8_pad_k(l->in);
-        return align64(Np * Kp) + align64(Np * sizeof(float)) + align64(Np * sizeof(int32_t));
+    if (l->w) {
+        return false;
     }
     if (prec == WEFT_PRECISION_INT8) {
-        return align64((size_t)l->in * l->out * sizeof(float));
+        return !(l->src_q8 && q8_eligible(l));
     }
-    if (prec == WEFT_PRECISION_FP16 && q8_eligible(l)) {
-        return align64((size_t)l->in * l->out * sizeof(uint16_t));
+    if (prec == WEFT_PRECISION_FP16) {
+        return !(l->src_f16 && q8_eligible(l));
     }
-    return 0;
+    return true;
 }
 
-/* Builds every layer's int8 or fp16 form in one arena: weights are quantised exactly as the
- * offline quantiser does (per output channel, round half to even), so a garment created at
- * int8 from an fp32 file runs the same numbers as one from a `weft quantize` file would. */
+/* Bytes of the built forms of one layer at a precision. */
+static size_t reduced_bytes(const weft_ct_linear *l, weft_precision prec)
+{
+    size_t bytes = needs_f32(l, prec) ? align64((size_t)l->in * l->out * sizeof(float)) : 0;
+    if (prec == WEFT_PRECISION_INT8 && q8_eligible(l)) {
+        size_t Np = weft_q8_pad_n(l->out), Kp = weft_q8_pad_k(l->in);
+        bytes += align64(Np * Kp) + align64(Np * sizeof(float)) + align64(Np * sizeof(int32_t));
+    } else if (prec == WEFT_PRECISION_INT8) {
+        bytes += align64((size_t)l->in * l->out * sizeof(float));
+    } else if (prec == WEFT_PRECISION_FP16 && q8_eligible(l)) {
+        bytes += align64((size_t)l->in * l->out * sizeof(uint16_t));
+    }
+    return bytes;
+}
+
+/* Builds every layer's working forms in one arena. Weights are quantised exactly as the offline
+ * quantiser does (per output channel, round half to even), and int8 files are packed as stored,
+ * so an int8 garment gives the same bits whether its model file is fp32 or `weft quantize` int8;
+ * likewise for fp16. Layers stored quantised are expanded to fp32 where the precision needs it. */
 static weft_result build_reduced(weft_garment *g, ct_state *s)
 {
-    if (s->prec == WEFT_PRECISION_FP32) {
-        return WEFT_OK;
-    }
     weft_ct_linear *lin[CT_MAX_LINEARS];
     uint32_t n = all_linears(&s->w, &s->c, lin);
     size_t bytes = 0, max_wq = 0;
@@ -594,26 +639,44 @@ static weft_result build_reduced(weft_garment *g, ct_state *s)
         bytes += reduced_bytes(lin[i], s->prec);
         max_wq = max_sz(max_wq, (size_t)lin[i]->in * lin[i]->out);
     }
+    if (bytes == 0) {
+        return WEFT_OK;
+    }
     s->arena = weft__alloc(g->ctx, bytes);
     s->arena_bytes = bytes;
     int8_t *wq = s->prec == WEFT_PRECISION_INT8 ? weft__alloc(g->ctx, max_wq) : NULL;
-    float *scale = s->prec == WEFT_PRECISION_INT8 ? weft__alloc(g->ctx, max_wq ? max_wq : 1) : NULL;
+    float *scale = s->prec == WEFT_PRECISION_INT8 ? weft__alloc(g->ctx, max_wq * sizeof(float)) : NULL;
     if (!s->arena || (s->prec == WEFT_PRECISION_INT8 && (!wq || !scale))) {
         weft__free(g->ctx, wq, max_wq);
-        weft__free(g->ctx, scale, max_wq ? max_wq : 1);
+        weft__free(g->ctx, scale, max_wq * sizeof(float));
         return WEFT_ERROR_OUT_OF_MEMORY;
     }
     uint8_t *p = s->arena;
     for (uint32_t i = 0; i < n; ++i) {
         weft_ct_linear *l = lin[i];
         const uint32_t O = l->out, I = l->in;
+        const size_t count = (size_t)O * I;
+        const size_t layer_bytes = reduced_bytes(l, s->prec); /* before l changes */
+        uint8_t *start = p;
+        if (needs_f32(l, s->prec)) {
+            float *w = (float *)p;
+            for (size_t k = 0; k < count; ++k) {
+                w[k] = l->src_q8 ? (float)l->src_q8[k] * l->src_scale[k / I] : weft_f16_to_f32(l->src_f16[k]);
+            }
+            l->w = w;
+            p += align64(count * sizeof(float));
+        }
         if (s->prec == WEFT_PRECISION_INT8 && q8_eligible(l)) {
             uint32_t Np = weft_q8_pad_n(O), Kp = weft_q8_pad_k(I);
             int8_t *packed = (int8_t *)p;
             float *sc = (float *)(p + align64((size_t)Np * Kp));
             int32_t *ws = (int32_t *)(p + align64((size_t)Np * Kp) + align64(Np * sizeof(float)));
-            weft_q8_quantize_weights(l->w, O, I, wq, scale); /* finite: checked at bind */
-            weft_q8_pack(wq, scale, O, I, packed, sc, ws);
+            if (l->src_q8) {
+                weft_q8_pack(l->src_q8, l->src_scale, O, I, packed, sc, ws);
+            } else {
+                weft_q8_quantize_weights(l->w, O, I, wq, scale); /* finite: checked at load */
+                weft_q8_pack(wq, scale, O, I, packed, sc, ws);
+            }
             l->q8 = (weft_q8_weights){O, I, Np, Kp, packed, sc, ws};
         } else if (s->prec == WEFT_PRECISION_INT8) {
             float *wt = (float *)p;
@@ -623,19 +686,20 @@ static weft_result build_reduced(weft_garment *g, ct_state *s)
                 }
             }
             l->wt = wt;
-        } else if (q8_eligible(l)) {
+        } else if (s->prec == WEFT_PRECISION_FP16 && q8_eligible(l)) {
             uint16_t *ht = (uint16_t *)p;
             for (uint32_t o = 0; o < O; ++o) {
                 for (uint32_t k = 0; k < I; ++k) {
-                    ht[(size_t)k * O + o] = weft_f32_to_f16(l->w[(size_t)o * I + k]);
+                    ht[(size_t)k * O + o] =
+                        l->src_f16 ? l->src_f16[(size_t)o * I + k] : weft_f32_to_f16(l->w[(size_t)o * I + k]);
                 }
             }
             l->ht = ht;
         }
-        p += reduced_bytes(l, s->prec);
+        p = start + layer_bytes;
     }
     weft__free(g->ctx, wq, max_wq);
-    weft__free(g->ctx, scale, max_wq ? max_wq : 1);
+    weft__free(g->ctx, scale, max_wq * sizeof(float));
     return WEFT_OK;
 }
 

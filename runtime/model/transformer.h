@@ -26,8 +26,14 @@ typedef struct weft_ct_config {
 } weft_ct_config;
 
 typedef struct weft_ct_linear {
-    const float *w, *b;                 /* w[out][in], b[out] */
+    const float *w, *b;                 /* w[out][in], b[out]; w is NULL until built when the file
+                                           stores the weight in int8 or fp16 */
     uint32_t out, in;
+    /* The weight as stored in a quantised file (`weft quantize`): int8 "<name>.q8" + "<name>.scale",
+     * or fp16 "<name>" (at most one is set; neither for fp32 files). */
+    const int8_t *src_q8;
+    const float *src_scale;
+    const uint16_t *src_f16;
     /* Reduced-precision forms, built per garment at creation (empty when unused):
      * int8 layers with both sizes >= WEFT_CT_Q8_MIN_DIM use q8; smaller int8 layers use the
      * deterministic fp32 product on wt = W^T; fp16 layers use ht = W^T in binary16. */

@@ -1,6 +1,7 @@
 /* C forward pass of the ClothTransformer against PyTorch golden tensors
  * (tools/train/export.py --golden), plus the method's bad-input behaviour. */
 #include "test.h"
+#include "quant.h"
 #include "weft.h"
 
 #include <stdbool.h>
@@ -546,5 +547,77 @@ static void reduced_precision(void)
     golden_free(&g);
 }
 
+/* Files written by `weft quantize` run exactly like the fp32 file at the same precision: the
+ * runtime quantises with the same function, so int8 (and fp16) rollouts are bit-identical. */
+static void quantized_files(void)
+{
+    golden g;
+    if (!golden_load(&g)) {
+        CHECK(!"golden tensors missing");
+        return;
+    }
+    weft_context *ctx = make_ctx();
+    size_t size = 0;
+    void *bytes = read_file(DATA "golden_model.safetensors", &size);
+    CHECK(bytes != NULL);
+    weft_model *fp32 = NULL;
+    CHECK_RESULT(weft_model_load_memory(ctx, bytes, size, &fp32), WEFT_OK);
+    const size_t n = (size_t)g.V * 3;
+    float *a = malloc(n * sizeof(float) * 10), *b = malloc(n * sizeof(float) * 10);
+    for (int fmt = 0; fmt < 2 && bytes && fp32; ++fmt) {
+        weft_quant_def qd = weft_default_quant_def();
+        qd.format = fmt == 0 ? WEFT_QUANT_INT8 : WEFT_QUANT_FP16;
+        void *qbytes = NULL;
+        size_t qsize = 0;
+        CHECK_RESULT(weft_quantize_memory(ctx, &qd, bytes, size, &qbytes, &qsize, NULL), WEFT_OK);
+        weft_model *qm = NULL;
+        CHECK_RESULT(weft_model_load_memory(ctx, qbytes, qsize, &qm), WEFT_OK);
+        if (!qm) {
+            weft_quant_buffer_free(ctx, qbytes, qsize);
+            continue;
+        }
+        CHECK(weft_model_get_info(qm).precision == (fmt == 0 ? WEFT_PRECISION_INT8 : WEFT_PRECISION_FP16));
+        /* every precision runs from the quantised file; the matching one equals the fp32 file's */
+        for (int prec = 0; prec < 3; ++prec) {
+            for (int which = 0; which < 2; ++which) {
+                weft_garment_def d = garment_def(&g, which == 0 ? fp32 : qm, 1);
+                d.precision = (weft_precision)prec;
+                weft_garment *gar = NULL;
+                CHECK_RESULT(weft_garment_create(ctx, &d, &gar), WEFT_OK);
+                if (!gar) {
+                    continue;
+                }
+                CHECK_RESULT(weft_garment_set_state(gar, frame(&g.gt, 1), frame(&g.gt, 0)), WEFT_OK);
+                float *dst = which == 0 ? a : b;
+                for (uint32_t t = 0; t < 10; ++t) {
+                    CHECK_RESULT(weft_garment_set_collider(gar, frame(&g.cpos, 2 + t)), WEFT_OK);
+                    CHECK_RESULT(weft_garment_step(gar), WEFT_OK);
+                    memcpy(dst + t * n, weft_garment_positions(gar), n * sizeof(float));
+                }
+                weft_garment_destroy(gar);
+            }
+            bool matching = (fmt == 0 && prec == WEFT_PRECISION_INT8) || (fmt == 1 && prec == WEFT_PRECISION_FP16);
+            if (matching) {
+                CHECK_MSG(memcmp(a, b, n * 10 * sizeof(float)) == 0, "%s file at its own precision differs from "
+                          "the fp32 file", fmt == 0 ? "int8" : "fp16");
+            } else {
+                double rel, relm;
+                compare(b + 9 * n, a + 9 * n, frame(&g.gt, 1), n, &rel, &relm);
+                CHECK_MSG(rel < 3e-2, "%s file at precision %d: relative difference %.3g", fmt == 0 ? "int8" : "fp16",
+                          prec, rel);
+            }
+        }
+        weft_model_destroy(qm);
+        weft_quant_buffer_free(ctx, qbytes, qsize);
+    }
+    free(a);
+    free(b);
+    free(bytes);
+    weft_model_destroy(fp32);
+    weft_context_destroy(ctx);
+    golden_free(&g);
+}
+
 TEST_MAIN(TEST_CASE(teacher_forced_parity), TEST_CASE(shipped_models_step), TEST_CASE(rollout_parity), TEST_CASE(bad_model_files),
-          TEST_CASE(bad_state_and_collider), TEST_CASE(reduced_precision))
+          TEST_CASE(bad_state_and_collider), TEST_CASE(reduced_precision),
+          TEST_CASE(quantized_files))
