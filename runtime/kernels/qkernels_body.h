@@ -301,35 +301,52 @@ static inline V qk_epilogue(V acc, const float *bias, const float *c_old, size_t
 
 #define QK_MR 4 /* rows per int8 tile */
 
-/* One template for the fp32 and fp16 B operands: lanes along N, k in order. Full row tiles use
- * the ISA's register tile (WEFT_MR rows x 2 vectors, a compile-time bound so the accumulators
- * stay in registers); the last rows go through the same code with a run-time bound. Tiling does
- * not change any result: each output is one in-order fma chain. */
-#define QK_DEFINE_GEMM(NAME, BTYPE, LOADB, LOADB_N)                                                   \
-    static inline void NAME##_tile(uint32_t rows, uint32_t m0, uint32_t n0, uint32_t N, uint32_t K,    \
-                                   const float *A, uint32_t lda, const BTYPE *B, uint32_t ldb,         \
-                                   const float *bias, float *C, uint32_t ldc, weft_activation act,     \
-                                   bool accumulate)                                                    \
+#if defined(__clang__)
+#define QK_UNROLL _Pragma("clang loop unroll(full)")
+#else
+#define QK_UNROLL _Pragma("GCC unroll 16")
+#endif
+
+/* One template for the fp32 and fp16 B operands: lanes along N, k in order. The tile body is
+ * instantiated twice, with the ISA's register-tile height (WEFT_MR rows x 2 vectors) as a
+ * compile-time constant so the accumulators live in registers, and with a run-time height for
+ * the last rows. Tiling does not change any result: each output is one in-order fma chain. */
+#define QK_GEMM_TILE(NAME, BTYPE, LOADB, LOADB_N, ROWS)                                                 \
     {                                                                                                   \
         size_t w0 = N - n0 < VW ? N - n0 : VW;                                                          \
         size_t w1 = N - n0 > VW ? (N - n0 - VW < VW ? N - n0 - VW : VW) : 0;                            \
         V acc[WEFT_MR][2];                                                                              \
-        for (uint32_t r = 0; r < rows; ++r) {                                                           \
+        QK_UNROLL for (uint32_t r = 0; r < (ROWS); ++r)                                                 \
+        {                                                                                               \
             acc[r][0] = v_zero();                                                                       \
             acc[r][1] = v_zero();                                                                       \
         }                                                                                               \
         const float *a0 = A + (size_t)m0 * lda;                                                         \
-        for (uint32_t k = 0; k < K; ++k) {                                                              \
-            const BTYPE *b = B + (size_t)k * ldb + n0;                                                  \
-            V b0 = w0 == VW ? LOADB(b) : LOADB_N(b, w0);                                                \
-            V b1 = w1 == VW ? LOADB(b + VW) : (w1 ? LOADB_N(b + VW, w1) : v_zero());                    \
-            for (uint32_t r = 0; r < rows; ++r) {                                                       \
-                V a = v_set1(a0[(size_t)r * lda + k]);                                                  \
-                acc[r][0] = v_fma(a, b0, acc[r][0]);                                                    \
-                acc[r][1] = v_fma(a, b1, acc[r][1]);                                                    \
+        if (w1 == VW) { /* full-width tile: plain loads, no per-k branch */                             \
+            for (uint32_t k = 0; k < K; ++k) {                                                          \
+                const BTYPE *b = B + (size_t)k * ldb + n0;                                              \
+                const V b0 = LOADB(b), b1 = LOADB(b + VW);                                              \
+                QK_UNROLL for (uint32_t r = 0; r < (ROWS); ++r)                                         \
+                {                                                                                       \
+                    const V a = v_set1(a0[(size_t)r * lda + k]);                                        \
+                    acc[r][0] = v_fma(a, b0, acc[r][0]);                                                \
+                    acc[r][1] = v_fma(a, b1, acc[r][1]);                                                \
+                }                                                                                       \
+            }                                                                                           \
+        } else {                                                                                        \
+            for (uint32_t k = 0; k < K; ++k) {                                                          \
+                const BTYPE *b = B + (size_t)k * ldb + n0;                                              \
+                V b0 = w0 == VW ? LOADB(b) : LOADB_N(b, w0);                                            \
+                V b1 = w1 ? LOADB_N(b + VW, w1) : v_zero();                                             \
+                QK_UNROLL for (uint32_t r = 0; r < (ROWS); ++r)                                         \
+                {                                                                                       \
+                    V a = v_set1(a0[(size_t)r * lda + k]);                                              \
+                    acc[r][0] = v_fma(a, b0, acc[r][0]);                                                \
+                    acc[r][1] = v_fma(a, b1, acc[r][1]);                                                \
+                }                                                                                       \
             }                                                                                           \
         }                                                                                               \
-        for (uint32_t r = 0; r < rows; ++r) {                                                           \
+        for (uint32_t r = 0; r < (ROWS); ++r) {                                                         \
             float *c = C + (size_t)(m0 + r) * ldc + n0;                                                 \
             const float *bb = bias ? bias + n0 : NULL;                                                  \
             v_store_n(c, qk_epilogue(acc[r][0], bb, accumulate ? c : NULL, w0, act), w0);               \
@@ -339,7 +356,17 @@ static inline V qk_epilogue(V acc, const float *bias, const float *c_old, size_t
                           w1);                                                                          \
             }                                                                                           \
         }                                                                                               \
-    }                                                                                                   \
+    }
+
+#define QK_DEFINE_GEMM(NAME, BTYPE, LOADB, LOADB_N)                                                   \
+    static void NAME##_full(uint32_t m0, uint32_t n0, uint32_t N, uint32_t K, const float *A, uint32_t lda, \
+                            const BTYPE *B, uint32_t ldb, const float *bias, float *C, uint32_t ldc,    \
+                            weft_activation act, bool accumulate)                                       \
+        QK_GEMM_TILE(NAME, BTYPE, LOADB, LOADB_N, WEFT_MR)                                              \
+    static void NAME##_rest(uint32_t rows, uint32_t m0, uint32_t n0, uint32_t N, uint32_t K,            \
+                            const float *A, uint32_t lda, const BTYPE *B, uint32_t ldb, const float *bias, \
+                            float *C, uint32_t ldc, weft_activation act, bool accumulate)               \
+        QK_GEMM_TILE(NAME, BTYPE, LOADB, LOADB_N, rows)                                                 \
     static void NAME(uint32_t M, uint32_t N, uint32_t K, const float *A, uint32_t lda, const BTYPE *B,  \
                      uint32_t ldb, const float *bias, float *C, uint32_t ldc, weft_activation act,      \
                      bool accumulate)                                                                   \
@@ -347,10 +374,10 @@ static inline V qk_epilogue(V acc, const float *bias, const float *c_old, size_t
         for (uint32_t n0 = 0; n0 < N; n0 += 2 * VW) {                                                   \
             uint32_t m0 = 0;                                                                            \
             for (; m0 + WEFT_MR <= M; m0 += WEFT_MR) {                                                  \
-                NAME##_tile(WEFT_MR, m0, n0, N, K, A, lda, B, ldb, bias, C, ldc, act, accumulate);      \
+                NAME##_full(m0, n0, N, K, A, lda, B, ldb, bias, C, ldc, act, accumulate);               \
             }                                                                                           \
             if (m0 < M) {                                                                               \
-                NAME##_tile(M - m0, m0, n0, N, K, A, lda, B, ldb, bias, C, ldc, act, accumulate);       \
+                NAME##_rest(M - m0, m0, n0, N, K, A, lda, B, ldb, bias, C, ldc, act, accumulate);       \
             }                                                                                           \
         }                                                                                               \
     }
