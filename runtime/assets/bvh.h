@@ -1,0 +1,70 @@
+/*
+ * BVH motion import (weft_assets), through assimp, retargeted onto the SMPL-24 skeleton.
+ *
+ *   weft_bvh_def def = weft_default_bvh_def();
+ *   def.rest_joints = weft_body_rest_joints(avatar);     // scale translation to this body
+ *   weft_clip *clip;
+ *   weft_bvh_load_file(ctx, "/usr/share/assimp/models/BVH/01_01.bvh", &def, &clip);
+ *   ... weft_clip_sample(clip, t, &pose); weft_body_pose(avatar, &pose, verts, NULL);
+ *   weft_clip_destroy(clip);
+ *
+ * Skeletons recognised by joint names: CMU/MotionBuilder (Hips, LeftUpLeg, LowerBack, Spine,
+ * Spine1, LeftShoulder = collar, LeftArm, LeftForeArm, LeftHand, ...), the "collar" naming of
+ * many mocap exports (Hips, Ab, Chest, LeftCollar, LeftShoulder = upper arm, LeftElbow,
+ * LeftWrist, LeftHip, LeftKnee, LeftAnkle, LeftToes), and SMPL's own names (pelvis, left_hip,
+ * ... or Pelvis, L_Hip, ...). Source joints with no SMPL counterpart (CMU's LHipJoint, Neck1,
+ * fingers) fold into their parents; SMPL joints with no source joint keep a zero local rotation.
+ *
+ * Retargeting (world-space delta): for every mapped joint the source's world rotation relative
+ * to its rest, D = G(t) G(rest)^-1, is applied to the SMPL joint, whose rest is the zero-pose
+ * T-pose (identity world rotations). A per-bone rest correction C (the smallest rotation taking
+ * the SMPL rest bone direction onto the source rest bone direction) absorbs differences between
+ * the two rest poses, so sources whose rest is not a T-pose work too. SMPL local rotations are
+ * then G_parent^-1 G. The root translation is the source hips' path scaled by the ratio of leg
+ * lengths (target / source, which also converts units), placed so that a source floor at y = 0
+ * lands on the target's floor, and started above the origin in X and Z. Frames are resampled to
+ * def.fps with quaternion slerp.
+ *
+ * Bad input (not BVH, truncated, NaN values, a value count that disagrees with Frames x
+ * CHANNELS, an unknown skeleton) returns WEFT_ERROR_FORMAT, _NOT_FINITE or _SIZE_MISMATCH with
+ * a message in weft_last_error(); *out_clip is untouched.
+ */
+#ifndef WEFT_ASSETS_BVH_H
+#define WEFT_ASSETS_BVH_H
+
+#include "weft.h"
+#include "weft/body.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+typedef struct weft_bvh_def {
+    float fps;                  /* output rate (default 60) */
+    /* Rest joints (zero pose, 24 * 3, feet on y = 0) of the body the clip will drive, e.g.
+     * weft_body_rest_joints(avatar). NULL: SMPL-neutral proportions of a 1.7 m body. */
+    const float *rest_joints;
+    /* Metres per BVH unit for the root path. 0 (default): the leg-length ratio. */
+    float unit_scale;
+    uint32_t first_frame;       /* first source frame to import (default 0) */
+    uint32_t max_frames;        /* at most this many source frames; 0 = all */
+    bool keep_horizontal_origin;/* keep the source's X/Z position instead of starting at 0 */
+    uint32_t internal_cookie;
+} weft_bvh_def;
+
+weft_bvh_def weft_default_bvh_def(void);
+
+/* Reads and retargets a BVH file (at most 256 MiB). */
+weft_result weft_bvh_load_file(weft_context *context, const char *path, const weft_bvh_def *def, weft_clip **out_clip);
+/* Same from memory. */
+weft_result weft_bvh_load_memory(weft_context *context, const void *data, size_t size, const weft_bvh_def *def,
+                                 weft_clip **out_clip);
+
+/* SMPL-neutral rest joints (zero pose, feet on y = 0, 24 * 3), the default target. */
+const float *weft_bvh_default_rest_joints(void);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif

@@ -1,0 +1,722 @@
+/* The avatar render sample: the default avatar performs a motion wearing a garment; the cloth
+ * is stepped through the public garment API with the best method this build has (the learned
+ * model when a model file is given, else XPBD, else LBS). Only when no method can be created
+ * is the garment skinned rigidly with the body, and the output says so. Frames are written as
+ * PNGs with a contact sheet, and every frame's timing is printed. */
+#define _POSIX_C_SOURCE 200809L
+
+#include "weft_sample.h"
+#include "weft_scenes.h"
+#include "core/core.h"
+
+#include <errno.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+#if WEFT_RENDER_HAVE_SAMPLE
+#include "weft/body.h"
+#if WEFT_RENDER_HAVE_ASSETS
+#include "bvh.h"
+#include "gltf.h"
+#endif
+#endif
+
+void weft_avatar_sample_default_options(weft_avatar_sample_options *o)
+{
+    memset(o, 0, sizeof *o);
+    o->motion = "walk";
+    o->garment = "tshirt";
+    o->resolution = "4k";
+    o->method = "auto";
+    o->out_dir = "avatar_frames";
+    o->frames = 120;
+    o->settle_frames = 30;
+    o->width = 320;
+    o->height = 320;
+    o->sheet_tiles = 8;
+    o->yaw = 25.0f;
+    o->pitch = 8.0f;
+    o->speed = 1.0f;
+    o->write_frames = true;
+}
+
+void weft_avatar_sample_usage(FILE *out, const char *program)
+{
+    fprintf(out,
+            "usage: %s [options]\n"
+            "  --motion NAME|bvh:PATH|gltf:PATH\n"
+            "                          idle walk run jump dance arm_raise flip, a BVH file, or a skinned glTF/FBX\n"
+            "                          with SMPL joint names (default walk)\n"
+            "  --garment KIND          tshirt | skirt | dress | none (default tshirt)\n"
+            "  --resolution RES        garment mesh 1k | 4k | 16k | 40k (default 4k)\n"
+            "  --method M              auto | model | xpbd | lbs | skin (default auto: model if --model, then xpbd, lbs)\n"
+            "  --model FILE            safetensors model for the model method\n"
+            "  --frames N              frames to render at 60 Hz (default 120)\n"
+            "  --settle N              simulated frames blending from the bind pose into the motion (default 30)\n"
+            "  --out DIR               output folder for frame_NNNN.png and contact_sheet.png (default avatar_frames)\n"
+            "  --size WxH              image size (default 320x320)\n"
+            "  --sheet N               frames on the contact sheet (default 8)\n"
+            "  --yaw DEG --pitch DEG   camera direction (default 25, 8)\n"
+            "  --speed S               procedural motion speed (default 1)\n"
+            "  --start SECONDS         start this far into the motion (default 0)\n"
+            "  --deterministic         render with softpipe (reproducible bytes, slower) instead of llvmpipe\n"
+            "  --no-frames             write only the contact sheet\n",
+            program);
+}
+
+static bool parse_u32(const char *s, uint32_t lo, uint32_t hi, uint32_t *out)
+{
+    char *end = NULL;
+    errno = 0;
+    unsigned long v = strtoul(s, &end, 10);
+    if (errno || !end || *end || end == s || v < lo || v > hi) {
+        return false;
+    }
+    *out = (uint32_t)v;
+    return true;
+}
+
+static bool parse_float(const char *s, float lo, float hi, float *out)
+{
+    char *end = NULL;
+    float v = strtof(s, &end);
+    if (!end || *end || end == s || !(v >= lo && v <= hi)) {
+        return false;
+    }
+    *out = v;
+    return true;
+}
+
+int weft_avatar_sample_parse(int argc, char **argv, int first, weft_avatar_sample_options *o)
+{
+    for (int i = first; i < argc; ++i) {
+        const char *a = argv[i];
+        const char *v = i + 1 < argc ? argv[i + 1] : NULL;
+        bool ok = true, takes = true;
+        if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
+            return 1;
+        } else if (strcmp(a, "--no-frames") == 0) {
+            o->write_frames = false;
+            takes = false;
+        } else if (strcmp(a, "--deterministic") == 0) {
+            o->deterministic = true;
+            takes = false;
+        } else if (!v) {
+            static const char *const valued[] = {"--motion", "--garment", "--resolution", "--method", "--model",
+                                                 "--frames", "--settle",  "--out",        "--size",   "--sheet",
+                                                 "--yaw",    "--pitch",   "--start",      "--speed"};
+            bool known = false;
+            for (size_t k = 0; k < sizeof valued / sizeof valued[0]; ++k) {
+                known |= strcmp(a, valued[k]) == 0;
+            }
+            fprintf(stderr, known ? "option %s needs a value\n" : "unknown option '%s'\n", a);
+            return 2;
+        } else if (strcmp(a, "--motion") == 0) {
+            o->motion = v;
+        } else if (strcmp(a, "--garment") == 0) {
+            o->garment = v;
+        } else if (strcmp(a, "--resolution") == 0) {
+            o->resolution = v;
+        } else if (strcmp(a, "--method") == 0) {
+            o->method = v;
+            ok = !strcmp(v, "auto") || !strcmp(v, "model") || !strcmp(v, "xpbd") || !strcmp(v, "lbs") || !strcmp(v, "skin");
+        } else if (strcmp(a, "--model") == 0) {
+            o->model_path = v;
+        } else if (strcmp(a, "--frames") == 0) {
+            ok = parse_u32(v, 1, 100000, &o->frames);
+        } else if (strcmp(a, "--settle") == 0) {
+            ok = parse_u32(v, 0, 10000, &o->settle_frames);
+        } else if (strcmp(a, "--out") == 0) {
+            o->out_dir = v;
+        } else if (strcmp(a, "--size") == 0) {
+            unsigned w = 0, h = 0;
+            char tail = 0;
+            ok = sscanf(v, "%ux%u%c", &w, &h, &tail) == 2 && w >= 16 && h >= 16 && w <= 4096 && h <= 4096;
+            o->width = w;
+            o->height = h;
+        } else if (strcmp(a, "--sheet") == 0) {
+            ok = parse_u32(v, 1, 64, &o->sheet_tiles);
+        } else if (strcmp(a, "--yaw") == 0) {
+            ok = parse_float(v, -360.0f, 360.0f, &o->yaw);
+        } else if (strcmp(a, "--pitch") == 0) {
+            ok = parse_float(v, -80.0f, 80.0f, &o->pitch);
+        } else if (strcmp(a, "--start") == 0) {
+            ok = parse_float(v, 0.0f, 100000.0f, &o->start);
+        } else if (strcmp(a, "--speed") == 0) {
+            ok = parse_float(v, 0.05f, 8.0f, &o->speed);
+        } else {
+            fprintf(stderr, "unknown option '%s'\n", a);
+            return 2;
+        }
+        if (!ok) {
+            fprintf(stderr, "bad value '%s' for %s\n", v, a);
+            return 2;
+        }
+        i += takes;
+    }
+    return 0;
+}
+
+/* mkdir -p */
+static bool make_dirs(const char *path)
+{
+    char buf[1024];
+    size_t n = strlen(path);
+    if (n == 0 || n >= sizeof buf) {
+        return false;
+    }
+    memcpy(buf, path, n + 1);
+    for (size_t i = 1; i <= n; ++i) {
+        if (buf[i] == '/' || buf[i] == '\0') {
+            char c = buf[i];
+            buf[i] = '\0';
+            if (mkdir(buf, 0755) != 0 && errno != EEXIST) {
+                return false;
+            }
+            buf[i] = c;
+        }
+    }
+    struct stat st;
+    return stat(path, &st) == 0 && S_ISDIR(st.st_mode);
+}
+
+#if WEFT_RENDER_HAVE_SAMPLE
+
+/* ---------------------------------------------------------------------------------------- */
+/* Pose blending for the settle phase: per-joint quaternion slerp, linear translation.        */
+
+static void aa_to_quat(const float *aa, double q[4])
+{
+    double th = sqrt((double)aa[0] * aa[0] + (double)aa[1] * aa[1] + (double)aa[2] * aa[2]);
+    if (th < 1e-12) {
+        q[0] = 1.0;
+        q[1] = aa[0] * 0.5;
+        q[2] = aa[1] * 0.5;
+        q[3] = aa[2] * 0.5;
+        return;
+    }
+    double s = sin(0.5 * th) / th;
+    q[0] = cos(0.5 * th);
+    q[1] = aa[0] * s;
+    q[2] = aa[1] * s;
+    q[3] = aa[2] * s;
+}
+
+static void quat_to_aa(double q[4], float *aa)
+{
+    if (q[0] < 0) {
+        for (int k = 0; k < 4; ++k) {
+            q[k] = -q[k];
+        }
+    }
+    double v = sqrt(q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+    if (v < 1e-12) {
+        aa[0] = (float)(2 * q[1]);
+        aa[1] = (float)(2 * q[2]);
+        aa[2] = (float)(2 * q[3]);
+        return;
+    }
+    double angle = 2.0 * atan2(v, q[0]);
+    for (int k = 0; k < 3; ++k) {
+        aa[k] = (float)(q[k + 1] / v * angle);
+    }
+}
+
+static void blend_pose(const weft_pose *a, const weft_pose *b, double u, weft_pose *out)
+{
+    for (int j = 0; j < WEFT_BODY_JOINTS; ++j) {
+        double qa[4], qb[4], q[4];
+        aa_to_quat(a->rotations + 3 * j, qa);
+        aa_to_quat(b->rotations + 3 * j, qb);
+        double d = qa[0] * qb[0] + qa[1] * qb[1] + qa[2] * qb[2] + qa[3] * qb[3];
+        if (d < 0) {
+            d = -d;
+            for (int k = 0; k < 4; ++k) {
+                qb[k] = -qb[k];
+            }
+        }
+        double wa = 1.0 - u, wb = u;
+        if (d < 0.9995) {
+            double th = acos(d);
+            wa = sin((1.0 - u) * th) / sin(th);
+            wb = sin(u * th) / sin(th);
+        }
+        double n = 0;
+        for (int k = 0; k < 4; ++k) {
+            q[k] = wa * qa[k] + wb * qb[k];
+            n += q[k] * q[k];
+        }
+        n = sqrt(n);
+        for (int k = 0; k < 4; ++k) {
+            q[k] /= n;
+        }
+        quat_to_aa(q, out->rotations + 3 * j);
+    }
+    for (int k = 0; k < 3; ++k) {
+        out->translation[k] = (float)((1.0 - u) * a->translation[k] + u * b->translation[k]);
+    }
+}
+
+/* ---------------------------------------------------------------------------------------- */
+
+typedef struct sample_motion {
+    bool procedural;
+    weft_motion_def def;
+    weft_clip *clip;
+} sample_motion;
+
+static weft_result motion_pose(const sample_motion *m, double t, weft_pose *out)
+{
+    return m->procedural ? weft_motion_sample(&m->def, t, out) : weft_clip_sample(m->clip, t, out);
+}
+
+typedef struct sample_state {
+    weft_context *ctx;
+    weft_body *body;
+    weft_cloth_mesh *cloth;
+    weft_model *model;
+    weft_garment *garment;
+    weft_renderer *renderer;
+    sample_motion motion;
+    float *body_verts, *cloth_verts;
+    uint8_t *tiles;
+} sample_state;
+
+static void sample_free(sample_state *s)
+{
+    weft_garment_destroy(s->garment);
+    weft_model_destroy(s->model);
+    weft_cloth_destroy(s->cloth);
+    if (s->motion.clip) {
+        weft_clip_destroy(s->motion.clip);
+    }
+    weft_body_destroy(s->body);
+    weft_renderer_destroy(s->renderer);
+    free(s->body_verts);
+    free(s->cloth_verts);
+    free(s->tiles);
+    if (s->ctx) {
+        weft_context_destroy(s->ctx);
+    }
+}
+
+static int fail_msg(sample_state *s, const char *what)
+{
+    fprintf(stderr, "avatar_render: %s: %s\n", what, weft_last_error());
+    sample_free(s);
+    return 1;
+}
+
+static weft_result load_motion(const weft_avatar_sample_options *o, sample_state *s)
+{
+    if (strncmp(o->motion, "bvh:", 4) == 0) {
+#if WEFT_RENDER_HAVE_ASSETS
+        weft_bvh_def def = weft_default_bvh_def();
+        def.rest_joints = weft_body_rest_joints(s->body);
+        s->motion.procedural = false;
+        return weft_bvh_load_file(s->ctx, o->motion + 4, &def, &s->motion.clip);
+#else
+        return weft__fail(WEFT_ERROR_UNSUPPORTED, "this build has no weft_assets (BVH import)");
+#endif
+    }
+    if (strncmp(o->motion, "gltf:", 5) == 0) {
+#if WEFT_RENDER_HAVE_ASSETS
+        /* a skinned glTF/FBX whose 24 joints carry SMPL names, e.g. one weft_gltf_write_body wrote */
+        weft_skinned_asset *asset = NULL;
+        weft_result r = weft_skinned_load_file(s->ctx, o->motion + 5, 60.0f, &asset);
+        if (r == WEFT_OK) {
+            r = weft_skinned_to_clip(s->ctx, asset, &s->motion.clip);
+            weft_skinned_asset_destroy(asset);
+        }
+        s->motion.procedural = false;
+        return r;
+#else
+        return weft__fail(WEFT_ERROR_UNSUPPORTED, "this build has no weft_assets (glTF import)");
+#endif
+    }
+    weft_motion m;
+    weft_result res = weft_motion_from_name(o->motion, &m);
+    if (res != WEFT_OK) {
+        return res;
+    }
+    s->motion.procedural = true;
+    s->motion.def = weft_default_motion_def(m);
+    s->motion.def.speed = o->speed;
+    return WEFT_OK;
+}
+
+/* The camera box: the bind-pose bounds (arms out, head, feet) following the pelvis over the
+ * floor, so the framing is steady while the avatar moves. */
+static void camera_box(const weft_body *body, const weft_pose *pose, float lo[3], float hi[3])
+{
+    const float *v = weft_body_rest_vertices(body);
+    uint32_t n = weft_body_vertex_count(body);
+    float a[3] = {INFINITY, INFINITY, INFINITY}, b[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (uint32_t i = 0; i < n; ++i) {
+        for (int k = 0; k < 3; ++k) {
+            a[k] = fminf(a[k], v[3 * i + k]);
+            b[k] = fmaxf(b[k], v[3 * i + k]);
+        }
+    }
+    lo[0] = a[0] + pose->translation[0];
+    hi[0] = b[0] + pose->translation[0];
+    lo[1] = 0.0f;
+    hi[1] = b[1] + 0.1f;
+    lo[2] = a[2] + pose->translation[2];
+    hi[2] = b[2] + pose->translation[2];
+}
+
+int weft_avatar_sample_run(const weft_avatar_sample_options *o)
+{
+    sample_state s;
+    memset(&s, 0, sizeof s);
+    weft_context_def cdef = weft_default_context_def();
+    if (weft_context_create(&cdef, &s.ctx) != WEFT_OK) {
+        return fail_msg(&s, "weft_context_create");
+    }
+    weft_avatar_def adef = weft_default_avatar_def();
+    if (weft_avatar_create(s.ctx, &adef, &s.body) != WEFT_OK) {
+        return fail_msg(&s, "weft_avatar_create");
+    }
+    if (load_motion(o, &s) != WEFT_OK) {
+        fprintf(stderr, "avatar_render: motion '%s': %s\n", o->motion, weft_last_error());
+        sample_free(&s);
+        return 2;
+    }
+    uint32_t nv = weft_body_vertex_count(s.body);
+    s.body_verts = malloc((size_t)nv * 3 * sizeof(float));
+    if (!s.body_verts) {
+        return fail_msg(&s, "out of memory");
+    }
+
+    bool dressed = strcmp(o->garment, "none") != 0;
+    const char *method_used = "none";
+    bool simulated = false;
+    if (dressed) {
+        weft_cloth_kind kind;
+        weft_cloth_resolution res;
+        if (weft_cloth_kind_from_name(o->garment, &kind) != WEFT_OK || kind >= WEFT_CLOTH_SHEET) {
+            fprintf(stderr, "avatar_render: --garment must be tshirt, skirt, dress or none\n");
+            sample_free(&s);
+            return 2;
+        }
+        if (weft_cloth_resolution_from_name(o->resolution, &res) != WEFT_OK) {
+            fprintf(stderr, "avatar_render: --resolution must be 1k, 4k, 16k or 40k\n");
+            sample_free(&s);
+            return 2;
+        }
+        weft_cloth_def cdef2 = weft_default_cloth_def(kind);
+        cdef2.resolution = res;
+        if (weft_cloth_create(s.ctx, &cdef2, s.body, &s.cloth) != WEFT_OK) {
+            return fail_msg(&s, "weft_cloth_create");
+        }
+        s.cloth_verts = malloc((size_t)s.cloth->vertex_count * 3 * sizeof(float));
+        if (!s.cloth_verts) {
+            return fail_msg(&s, "out of memory");
+        }
+        if (o->model_path && weft_model_load_file(s.ctx, o->model_path, &s.model) != WEFT_OK) {
+            return fail_msg(&s, "loading the model");
+        }
+        /* The best method first; each failure is reported, never hidden. */
+        static const struct {
+            const char *name;
+            weft_method method;
+        } order[] = {{"model", WEFT_METHOD_MODEL}, {"xpbd", WEFT_METHOD_XPBD}, {"lbs", WEFT_METHOD_LBS}};
+        bool want_auto = strcmp(o->method, "auto") == 0;
+        for (size_t m = 0; m < sizeof order / sizeof order[0] && !s.garment; ++m) {
+            if (want_auto ? (order[m].method == WEFT_METHOD_MODEL && !s.model) : strcmp(o->method, order[m].name) != 0) {
+                continue;
+            }
+            weft_garment_def gdef = weft_default_garment_def();
+            gdef.method = order[m].method;
+            gdef.model = s.model;
+            gdef.rest_positions = s.cloth->positions;
+            gdef.vertex_count = s.cloth->vertex_count;
+            gdef.triangles = s.cloth->triangles;
+            gdef.triangle_count = s.cloth->triangle_count;
+            gdef.collider_rest_positions = weft_body_rest_vertices(s.body);
+            gdef.collider_vertex_count = nv;
+            gdef.collider_triangles = weft_body_triangles(s.body);
+            gdef.collider_triangle_count = weft_body_triangle_count(s.body);
+            weft_result r = weft_garment_create(s.ctx, &gdef, &s.garment);
+            if (r == WEFT_OK) {
+                method_used = order[m].name;
+                simulated = true;
+            } else {
+                fprintf(stderr, "avatar_render: method %s unavailable: %s\n", order[m].name, weft_last_error());
+            }
+        }
+        if (!simulated) {
+            if (!want_auto && strcmp(o->method, "skin") != 0) {
+                fprintf(stderr, "avatar_render: the requested method '%s' could not be created\n", o->method);
+                sample_free(&s);
+                return 1;
+            }
+            method_used = "skin";
+            printf("NOTE: the garment is skinned rigidly with the body (linear blend skinning of its rest mesh); "
+                   "no cloth is simulated in this run.\n");
+        }
+    }
+
+    weft_render_def rdef = weft_default_render_def();
+    rdef.width = o->width;
+    rdef.height = o->height;
+    rdef.deterministic = o->deterministic;
+    if (weft_renderer_create(&rdef, &s.renderer) != WEFT_OK) {
+        return fail_msg(&s, "weft_renderer_create");
+    }
+    uint32_t body_mesh = 0, cloth_mesh = 0;
+    if (weft_renderer_add_mesh(s.renderer, weft_body_rest_vertices(s.body), nv, weft_body_triangles(s.body),
+                               weft_body_triangle_count(s.body), WEFT_RENDER_SKIN, &body_mesh) != WEFT_OK) {
+        return fail_msg(&s, "adding the body mesh");
+    }
+    if (dressed && weft_renderer_add_mesh(s.renderer, s.cloth->positions, s.cloth->vertex_count, s.cloth->triangles,
+                                          s.cloth->triangle_count, WEFT_RENDER_CLOTH, &cloth_mesh) != WEFT_OK) {
+        return fail_msg(&s, "adding the garment mesh");
+    }
+    weft_renderer_set_ground(s.renderer, true, 0.0f);
+    if (!make_dirs(o->out_dir)) {
+        fprintf(stderr, "avatar_render: cannot create the output folder '%s': %s\n", o->out_dir, strerror(errno));
+        sample_free(&s);
+        return 1;
+    }
+    uint32_t tiles = o->sheet_tiles < o->frames ? o->sheet_tiles : o->frames;
+    size_t image_bytes = (size_t)o->width * o->height * 4;
+    s.tiles = malloc(image_bytes * tiles);
+    if (!s.tiles) {
+        return fail_msg(&s, "out of memory for the contact sheet");
+    }
+
+    printf("avatar %u vertices; garment %s (%u vertices); motion %s; cloth method %s; %u frames at 60 Hz, %ux%u\n", nv,
+           dressed ? o->garment : "none", dressed ? s.cloth->vertex_count : 0, o->motion, method_used, o->frames, o->width,
+           o->height);
+    weft_pose bind, first, pose;
+    weft_body_bind_pose(s.body, &bind);
+    if (motion_pose(&s.motion, o->start, &first) != WEFT_OK) {
+        return fail_msg(&s, "sampling the motion");
+    }
+    uint32_t settle = simulated ? o->settle_frames : 0;
+    double sums[4] = {0, 0, 0, 0};
+    char path[1200];
+    uint32_t tile_next = 0;
+    char labels[64][48];
+    for (uint32_t k = 0; k < settle + o->frames; ++k) {
+        double t0 = weft__now_ms();
+        if (k < settle) {
+            double u = (double)(k + 1) / (double)settle;
+            blend_pose(&bind, &first, u * u * (3.0 - 2.0 * u), &pose);
+        } else if (motion_pose(&s.motion, o->start + (double)(k - settle) / 60.0, &pose) != WEFT_OK) {
+            return fail_msg(&s, "sampling the motion");
+        }
+        if (weft_body_pose(s.body, &pose, s.body_verts, NULL) != WEFT_OK) {
+            return fail_msg(&s, "posing the body");
+        }
+        double t1 = weft__now_ms();
+        const float *cloth = NULL;
+        if (dressed && simulated) {
+            if (weft_garment_set_collider(s.garment, s.body_verts) != WEFT_OK || weft_garment_step(s.garment) != WEFT_OK) {
+                char what[64];
+                snprintf(what, sizeof what, "cloth step at frame %u", k);
+                return fail_msg(&s, what);
+            }
+            cloth = weft_garment_positions(s.garment);
+        } else if (dressed) {
+            if (weft_body_skin_points(s.body, &pose, s.cloth->positions, s.cloth->weights, s.cloth->vertex_count,
+                                      s.cloth_verts) != WEFT_OK) {
+                return fail_msg(&s, "skinning the garment");
+            }
+            cloth = s.cloth_verts;
+        }
+        double t2 = weft__now_ms();
+        if (k < settle) {
+            continue;
+        }
+        uint32_t frame = k - settle;
+        if (weft_renderer_update_mesh(s.renderer, body_mesh, s.body_verts) != WEFT_OK ||
+            (cloth && weft_renderer_update_mesh(s.renderer, cloth_mesh, cloth) != WEFT_OK)) {
+            return fail_msg(&s, "updating the render meshes");
+        }
+        float lo[3], hi[3];
+        camera_box(s.body, &pose, lo, hi);
+        if (weft_renderer_frame_box(s.renderer, lo, hi, o->yaw, o->pitch) != WEFT_OK ||
+            weft_renderer_render(s.renderer) != WEFT_OK) {
+            return fail_msg(&s, "rendering");
+        }
+        double t3 = weft__now_ms();
+        if (o->write_frames) {
+            snprintf(path, sizeof path, "%s/frame_%04u.png", o->out_dir, frame);
+            if (weft_render_write_png(path, weft_renderer_pixels(s.renderer), o->width, o->height) != WEFT_OK) {
+                return fail_msg(&s, "writing a frame");
+            }
+        }
+        double t4 = weft__now_ms();
+        /* tiles evenly spaced over the clip, first and last frames included */
+        if (tile_next < tiles && (tiles == 1 ? frame == 0 : frame == (uint64_t)tile_next * (o->frames - 1) / (tiles - 1))) {
+            memcpy(s.tiles + image_bytes * tile_next, weft_renderer_pixels(s.renderer), image_bytes);
+            const char *motion_label = strchr(o->motion, ':') ? strrchr(o->motion, '/') : NULL;
+            snprintf(labels[tile_next], sizeof labels[tile_next], "%s %s t=%.2fs", motion_label ? motion_label + 1 : o->motion,
+                     method_used, o->start + frame / 60.0);
+            tile_next++;
+        }
+        sums[0] += t1 - t0;
+        sums[1] += t2 - t1;
+        sums[2] += t3 - t2;
+        sums[3] += t4 - t3;
+        printf("frame %4u  pose %6.2f ms  cloth(%s) %7.2f ms  render %7.2f ms  png %6.2f ms\n", frame, t1 - t0,
+               method_used, t2 - t1, t3 - t2, t4 - t3);
+    }
+    const uint8_t *tile_ptrs[64];
+    const char *label_ptrs[64];
+    for (uint32_t i = 0; i < tile_next; ++i) {
+        tile_ptrs[i] = s.tiles + image_bytes * i;
+        label_ptrs[i] = labels[i];
+    }
+    uint8_t *sheet = NULL;
+    uint32_t sw = 0, sh = 0;
+    if (weft_render_contact_sheet(tile_ptrs, label_ptrs, tile_next, o->width, o->height, tile_next > 4 ? 4 : tile_next,
+                                  &sheet, &sw, &sh) != WEFT_OK) {
+        return fail_msg(&s, "building the contact sheet");
+    }
+    snprintf(path, sizeof path, "%s/contact_sheet.png", o->out_dir);
+    weft_result wr = weft_render_write_png(path, sheet, sw, sh);
+    weft_render_free_image(sheet);
+    if (wr != WEFT_OK) {
+        return fail_msg(&s, "writing the contact sheet");
+    }
+    double n = o->frames;
+    printf("mean per frame: pose %.2f ms, cloth(%s) %.2f ms, render %.2f ms, png %.2f ms\n", sums[0] / n, method_used,
+           sums[1] / n, sums[2] / n, sums[3] / n);
+    printf("wrote %s%s\n", o->write_frames ? "frames and " : "", path);
+    sample_free(&s);
+    return 0;
+}
+
+int weft_avatar_sample_docs_sheet(const char *path, uint32_t tile)
+{
+    if (!path || tile < 64 || tile > 1024) {
+        fprintf(stderr, "docs sheet: a path and a tile size in 64..1024 are required\n");
+        return 2;
+    }
+    static const int garments[] = {-1, WEFT_CLOTH_TSHIRT, WEFT_CLOTH_SKIRT, WEFT_CLOTH_DRESS};
+    static const struct {
+        const char *label;
+        int motion; /* -1: bind pose */
+        double phase; /* fraction of the motion's period */
+    } poses[] = {{"bind pose", -1, 0.0},
+                 {"walk", WEFT_MOTION_WALK, 0.25},
+                 {"run", WEFT_MOTION_RUN, 0.3},
+                 {"arm raise", WEFT_MOTION_ARM_RAISE, 0.5},
+                 {"dance", WEFT_MOTION_DANCE, 0.35}};
+    enum { ROWS = 4, COLS = 5 };
+    sample_state s;
+    memset(&s, 0, sizeof s);
+    weft_context_def cdef = weft_default_context_def();
+    weft_avatar_def adef = weft_default_avatar_def();
+    weft_render_def rdef = weft_default_render_def();
+    rdef.width = rdef.height = tile;
+    if (weft_context_create(&cdef, &s.ctx) != WEFT_OK || weft_avatar_create(s.ctx, &adef, &s.body) != WEFT_OK ||
+        weft_renderer_create(&rdef, &s.renderer) != WEFT_OK) {
+        return fail_msg(&s, "docs sheet setup");
+    }
+    uint32_t nv = weft_body_vertex_count(s.body);
+    size_t image_bytes = (size_t)tile * tile * 4;
+    s.body_verts = malloc((size_t)nv * 3 * sizeof(float));
+    s.tiles = malloc(image_bytes * ROWS * COLS);
+    if (!s.body_verts || !s.tiles) {
+        return fail_msg(&s, "out of memory");
+    }
+    char labels[ROWS * COLS][48];
+    const uint8_t *tile_ptrs[ROWS * COLS];
+    const char *label_ptrs[ROWS * COLS];
+    for (int row = 0; row < ROWS; ++row) {
+        weft_cloth_destroy(s.cloth);
+        s.cloth = NULL;
+        free(s.cloth_verts);
+        s.cloth_verts = NULL;
+        if (garments[row] >= 0) {
+            weft_cloth_def cd = weft_default_cloth_def((weft_cloth_kind)garments[row]);
+            cd.resolution = WEFT_CLOTH_RES_4K;
+            if (weft_cloth_create(s.ctx, &cd, s.body, &s.cloth) != WEFT_OK) {
+                return fail_msg(&s, "weft_cloth_create");
+            }
+            s.cloth_verts = malloc((size_t)s.cloth->vertex_count * 3 * sizeof(float));
+            if (!s.cloth_verts) {
+                return fail_msg(&s, "out of memory");
+            }
+        }
+        for (int col = 0; col < COLS; ++col) {
+            weft_pose pose;
+            if (poses[col].motion < 0) {
+                weft_body_bind_pose(s.body, &pose);
+            } else {
+                weft_motion_def md = weft_default_motion_def((weft_motion)poses[col].motion);
+                if (weft_motion_sample(&md, poses[col].phase * weft_motion_period(&md), &pose) != WEFT_OK) {
+                    return fail_msg(&s, "weft_motion_sample");
+                }
+            }
+            weft_renderer_clear_meshes(s.renderer);
+            if (weft_body_pose(s.body, &pose, s.body_verts, NULL) != WEFT_OK ||
+                weft_renderer_add_mesh(s.renderer, s.body_verts, nv, weft_body_triangles(s.body),
+                                       weft_body_triangle_count(s.body), WEFT_RENDER_SKIN, NULL) != WEFT_OK) {
+                return fail_msg(&s, "posing the body");
+            }
+            if (s.cloth) {
+                if (weft_body_skin_points(s.body, &pose, s.cloth->positions, s.cloth->weights, s.cloth->vertex_count,
+                                          s.cloth_verts) != WEFT_OK ||
+                    weft_renderer_add_mesh(s.renderer, s.cloth_verts, s.cloth->vertex_count, s.cloth->triangles,
+                                           s.cloth->triangle_count, WEFT_RENDER_CLOTH, NULL) != WEFT_OK) {
+                    return fail_msg(&s, "skinning the garment");
+                }
+            }
+            float lo[3], hi[3];
+            camera_box(s.body, &pose, lo, hi);
+            weft_renderer_set_ground(s.renderer, true, 0.0f);
+            if (weft_renderer_frame_box(s.renderer, lo, hi, 25.0f, 8.0f) != WEFT_OK ||
+                weft_renderer_render(s.renderer) != WEFT_OK) {
+                return fail_msg(&s, "rendering");
+            }
+            int i = row * COLS + col;
+            memcpy(s.tiles + image_bytes * (size_t)i, weft_renderer_pixels(s.renderer), image_bytes);
+            snprintf(labels[i], sizeof labels[i], "%s, %s", garments[row] >= 0 ? weft_cloth_kind_name((weft_cloth_kind)garments[row]) : "no garment",
+                     poses[col].label);
+            tile_ptrs[i] = s.tiles + image_bytes * (size_t)i;
+            label_ptrs[i] = labels[i];
+        }
+    }
+    uint8_t *sheet = NULL;
+    uint32_t sw = 0, sh = 0;
+    if (weft_render_contact_sheet(tile_ptrs, label_ptrs, ROWS * COLS, tile, tile, COLS, &sheet, &sw, &sh) != WEFT_OK) {
+        return fail_msg(&s, "building the sheet");
+    }
+    weft_result wr = weft_render_write_png(path, sheet, sw, sh);
+    weft_render_free_image(sheet);
+    if (wr != WEFT_OK) {
+        return fail_msg(&s, "writing the sheet");
+    }
+    printf("wrote %s (%ux%u): rows no garment, tshirt, skirt, dress; garments skinned to each pose\n", path, sw, sh);
+    sample_free(&s);
+    return 0;
+}
+
+#else
+
+int weft_avatar_sample_run(const weft_avatar_sample_options *o)
+{
+    (void)o;
+    (void)make_dirs;
+    fprintf(stderr, "avatar_render: this build has no body/wardrobe/motion runtime (include/weft/body.h)\n");
+    return 1;
+}
+
+int weft_avatar_sample_docs_sheet(const char *path, uint32_t tile_size)
+{
+    (void)path;
+    (void)tile_size;
+    fprintf(stderr, "docs sheet: this build has no body/wardrobe/motion runtime\n");
+    return 1;
+}
+
+#endif

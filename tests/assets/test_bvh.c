@@ -1,0 +1,648 @@
+/* BVH import and retargeting: synthetic clips with known answers, the CMU clips Debian's
+ * assimp-testmodels installs, malformed files, and a mutation fuzz loop. */
+#define _POSIX_C_SOURCE 200809L
+
+#include "test.h"
+#include "bvh.h"
+
+#include <stdarg.h>
+#include <stdint.h>
+
+#define CMU_DIR "/usr/share/assimp/models/BVH/"
+#define PI_D 3.14159265358979323846
+
+static weft_context *g_ctx;
+
+static bool all_finite(const float *x, size_t n)
+{
+    for (size_t i = 0; i < n; ++i) {
+        if (!isfinite(x[i])) {
+            return false;
+        }
+    }
+    return true;
+}
+
+/* ---------------------------------------------------------------------------------------- */
+/* Independent forward kinematics: Rodrigues + chain walk, double precision.                  */
+
+static void rodrigues(const float *aa, double r[3][3])
+{
+    double x = aa[0], y = aa[1], z = aa[2];
+    double th = sqrt(x * x + y * y + z * z);
+    double c = cos(th), s = sin(th), t = 1 - c;
+    if (th < 1e-12) {
+        double id[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+        memcpy(r, id, sizeof id);
+        return;
+    }
+    x /= th;
+    y /= th;
+    z /= th;
+    r[0][0] = c + x * x * t;
+    r[0][1] = x * y * t - z * s;
+    r[0][2] = x * z * t + y * s;
+    r[1][0] = y * x * t + z * s;
+    r[1][1] = c + y * y * t;
+    r[1][2] = y * z * t - x * s;
+    r[2][0] = z * x * t - y * s;
+    r[2][1] = z * y * t + x * s;
+    r[2][2] = c + z * z * t;
+}
+
+static void fk(const weft_pose *pose, const float *rest, double out_pos[24][3])
+{
+    double world[24][3][3];
+    for (int j = 0; j < 24; ++j) {
+        double local[3][3];
+        rodrigues(pose->rotations + 3 * j, local);
+        int p = weft_joint_parent((uint32_t)j);
+        if (p < 0) {
+            memcpy(world[j], local, sizeof local);
+            for (int k = 0; k < 3; ++k) {
+                out_pos[j][k] = rest[k] + pose->translation[k];
+            }
+            continue;
+        }
+        for (int a = 0; a < 3; ++a) {
+            for (int b = 0; b < 3; ++b) {
+                world[j][a][b] = world[p][a][0] * local[0][b] + world[p][a][1] * local[1][b] + world[p][a][2] * local[2][b];
+            }
+        }
+        double off[3] = {rest[3 * j] - rest[3 * p], rest[3 * j + 1] - rest[3 * p + 1], rest[3 * j + 2] - rest[3 * p + 2]};
+        for (int k = 0; k < 3; ++k) {
+            out_pos[j][k] = out_pos[p][k] + world[p][k][0] * off[0] + world[p][k][1] * off[1] + world[p][k][2] * off[2];
+        }
+    }
+}
+
+/* ---------------------------------------------------------------------------------------- */
+/* A BVH written in SMPL joint names whose offsets are the default rest joints, so retargeting
+ * has no rest correction and local rotations must come back as written.                     */
+
+typedef struct text_buf {
+    char *data;
+    size_t len, cap;
+} text_buf;
+
+static void tb_printf(text_buf *b, const char *fmt, ...) __attribute__((format(printf, 2, 3)));
+static void tb_printf(text_buf *b, const char *fmt, ...)
+{
+    va_list ap;
+    for (;;) {
+        va_start(ap, fmt);
+        int n = vsnprintf(b->data ? b->data + b->len : NULL, b->data ? b->cap - b->len : 0, fmt, ap);
+        va_end(ap);
+        if (b->data && b->len + (size_t)n < b->cap) {
+            b->len += (size_t)n;
+            return;
+        }
+        size_t cap = b->cap ? b->cap * 2 : 4096;
+        while (cap < b->len + (size_t)n + 1) {
+            cap *= 2;
+        }
+        b->data = realloc(b->data, cap);
+        b->cap = cap;
+    }
+}
+
+static void write_joint(text_buf *b, const float *rest, int j, int depth)
+{
+    int p = weft_joint_parent((uint32_t)j);
+    double off[3] = {0, 0, 0};
+    if (p >= 0) {
+        for (int k = 0; k < 3; ++k) {
+            off[k] = rest[3 * j + k] - rest[3 * p + k];
+        }
+    } else {
+        for (int k = 0; k < 3; ++k) {
+            off[k] = rest[k];
+        }
+    }
+    tb_printf(b, "%*s%s %s\n%*s{\n%*sOFFSET %.6f %.6f %.6f\n", 2 * depth, "", p < 0 ? "ROOT" : "JOINT",
+              weft_joint_name((uint32_t)j), 2 * depth, "", 2 * depth + 2, "", off[0], off[1], off[2]);
+    tb_printf(b, "%*sCHANNELS %s\n", 2 * depth + 2, "",
+              p < 0 ? "6 Xposition Yposition Zposition Zrotation Yrotation Xrotation" : "3 Zrotation Yrotation Xrotation");
+    bool child = false;
+    for (int c = 0; c < 24; ++c) {
+        if (weft_joint_parent((uint32_t)c) == j) {
+            write_joint(b, rest, c, depth + 1);
+            child = true;
+        }
+    }
+    if (!child) {
+        tb_printf(b, "%*sEnd Site\n%*s{\n%*sOFFSET 0.0 0.05 0.0\n%*s}\n", 2 * depth + 2, "", 2 * depth + 2, "",
+                  2 * depth + 4, "", 2 * depth + 2, "");
+    }
+    tb_printf(b, "%*s}\n", 2 * depth, "");
+}
+
+/* frames: rows of 3 + 72 values (root position, then Z Y X degrees per joint in tree order). */
+static text_buf smpl_bvh(const float *rest, const double *values, int frames, double frame_time)
+{
+    text_buf b = {0};
+    tb_printf(&b, "HIERARCHY\n");
+    write_joint(&b, rest, 0, 0);
+    tb_printf(&b, "MOTION\nFrames: %d\nFrame Time: %.6f\n", frames, frame_time);
+    for (int f = 0; f < frames; ++f) {
+        for (int i = 0; i < 75; ++i) {
+            tb_printf(&b, "%.6f%c", values[75 * f + i], i == 74 ? '\n' : ' ');
+        }
+    }
+    return b;
+}
+
+/* Joint order in the file: depth-first from the pelvis, children in index order. */
+static int tree_order(int out[24])
+{
+    int n = 0, stack[24], sp = 0;
+    stack[sp++] = 0;
+    while (sp) {
+        int j = stack[--sp];
+        out[n++] = j;
+        for (int c = 23; c >= 0; --c) {
+            if (weft_joint_parent((uint32_t)c) == j) {
+                stack[sp++] = c;
+            }
+        }
+    }
+    return n;
+}
+
+static void set_zyx(double *frame, int joint, double z, double y, double x)
+{
+    int order[24];
+    tree_order(order);
+    for (int i = 0; i < 24; ++i) {
+        if (order[i] == joint) {
+            frame[3 + 3 * i + 0] = z;
+            frame[3 + 3 * i + 1] = y;
+            frame[3 + 3 * i + 2] = x;
+        }
+    }
+}
+
+static double *synthetic_frames(const float *rest, int frames)
+{
+    double *v = calloc((size_t)frames * 75, sizeof(double));
+    for (int f = 0; f < frames; ++f) {
+        double *row = v + 75 * f;
+        double a = (double)f / (double)(frames > 1 ? frames - 1 : 1);
+        row[0] = 0.3 * a + 0.1; /* drifts in x from 0.1 */
+        row[1] = rest[1] + 0.05 * a;
+        row[2] = -0.2;
+        set_zyx(row, WEFT_JOINT_LEFT_SHOULDER, -90.0 * a, 0, 0);
+        set_zyx(row, WEFT_JOINT_LEFT_KNEE, 0, 0, 60.0 * a);
+        set_zyx(row, WEFT_JOINT_RIGHT_ELBOW, 0, 45.0 * a, 0);
+        set_zyx(row, WEFT_JOINT_PELVIS, 0, 30.0 * a, 0);
+    }
+    return v;
+}
+
+static void test_synthetic_exact(void)
+{
+    const float *rest = weft_bvh_default_rest_joints();
+    double *vals = synthetic_frames(rest, 3);
+    text_buf b = smpl_bvh(rest, vals, 3, 1.0 / 30.0);
+    weft_bvh_def def = weft_default_bvh_def();
+    def.unit_scale = 1.0f; /* the file is in metres */
+    weft_clip *clip = NULL;
+    CHECK_RESULT(weft_bvh_load_memory(g_ctx, b.data, b.len, &def, &clip), WEFT_OK);
+    if (clip) {
+        /* 2 intervals of 1/30 s at 60 Hz */
+        CHECK_EQ_INT(clip->frame_count, 5);
+        CHECK_NEAR(clip->fps, 60.0, 1e-4);
+        weft_pose pose;
+        CHECK_RESULT(weft_clip_sample(clip, 2.0 / 30.0, &pose), WEFT_OK);
+        CHECK_NEAR(pose.rotations[3 * WEFT_JOINT_LEFT_SHOULDER + 2], -PI_D / 2, 1e-4);
+        CHECK_NEAR(pose.rotations[3 * WEFT_JOINT_LEFT_SHOULDER + 0], 0.0, 1e-4);
+        CHECK_NEAR(pose.rotations[3 * WEFT_JOINT_LEFT_KNEE + 0], PI_D / 3, 1e-4);
+        CHECK_NEAR(pose.rotations[3 * WEFT_JOINT_RIGHT_ELBOW + 1], PI_D / 4, 1e-4);
+        CHECK_NEAR(pose.rotations[3 * WEFT_JOINT_PELVIS + 1], PI_D / 6, 1e-4);
+        CHECK_NEAR(pose.rotations[3 * WEFT_JOINT_HEAD + 0], 0.0, 1e-5);
+        /* the root path starts above the origin and keeps its height above the floor */
+        CHECK_NEAR(pose.translation[0], 0.3, 1e-4);
+        CHECK_NEAR(pose.translation[1], 0.05, 1e-4);
+        CHECK_NEAR(pose.translation[2], 0.0, 1e-4);
+        /* halfway between the 30 Hz frames: slerp gives half the angle */
+        CHECK_RESULT(weft_clip_sample(clip, 0.5 / 30.0, &pose), WEFT_OK);
+        CHECK_NEAR(pose.rotations[3 * WEFT_JOINT_LEFT_SHOULDER + 2], -PI_D / 8, 1e-3);
+        weft_clip_destroy(clip);
+    }
+    /* keep_horizontal_origin keeps the source's X/Z */
+    def.keep_horizontal_origin = true;
+    clip = NULL;
+    CHECK_RESULT(weft_bvh_load_memory(g_ctx, b.data, b.len, &def, &clip), WEFT_OK);
+    if (clip) {
+        double pos[24][3];
+        weft_pose pose;
+        CHECK_RESULT(weft_clip_sample(clip, 0.0, &pose), WEFT_OK);
+        fk(&pose, rest, pos);
+        CHECK_NEAR(pos[0][0], 0.1, 1e-4);
+        CHECK_NEAR(pos[0][1], rest[1], 1e-4);
+        CHECK_NEAR(pos[0][2], -0.2, 1e-4);
+        weft_clip_destroy(clip);
+    }
+    free(b.data);
+    free(vals);
+}
+
+/* Rest correction: a source whose rest pose has the left arm 45 degrees down (an A-pose) while
+ * the SMPL rest is a T-pose. Retargeting matches bone directions (twist about a bone is not
+ * observable from joint positions), so the check is on posed joint positions: the source's rest
+ * frame must put the SMPL arm 45 degrees down, and a source motion that lifts the arm back to
+ * horizontal must put it where the SMPL rest has it. */
+static void test_rest_correction(void)
+{
+    const float *rest = weft_bvh_default_rest_joints();
+    float apose[72];
+    memcpy(apose, rest, sizeof apose);
+    const int arm[3] = {WEFT_JOINT_LEFT_ELBOW, WEFT_JOINT_LEFT_WRIST, WEFT_JOINT_LEFT_HAND};
+    const float *pivot = rest + 3 * WEFT_JOINT_LEFT_SHOULDER;
+    const double c = cos(-PI_D / 4), sn = sin(-PI_D / 4);
+    for (int i = 0; i < 3; ++i) {
+        const float *p = rest + 3 * arm[i];
+        double dx = p[0] - pivot[0], dy = p[1] - pivot[1];
+        apose[3 * arm[i] + 0] = (float)(pivot[0] + c * dx - sn * dy);
+        apose[3 * arm[i] + 1] = (float)(pivot[1] + sn * dx + c * dy);
+    }
+    double *vals = calloc(2 * 75, sizeof(double));
+    vals[1] = vals[75 + 1] = rest[1];
+    set_zyx(vals + 75, WEFT_JOINT_LEFT_SHOULDER, 45.0, 0, 0); /* frame 1: arm back to horizontal */
+    text_buf b = smpl_bvh(apose, vals, 2, 1.0 / 60.0);
+    weft_bvh_def def = weft_default_bvh_def();
+    weft_clip *clip = NULL;
+    CHECK_RESULT(weft_bvh_load_memory(g_ctx, b.data, b.len, &def, &clip), WEFT_OK);
+    if (clip) {
+        for (int f = 0; f < 2; ++f) {
+            weft_pose pose;
+            memcpy(pose.rotations, clip->rotations + 72 * f, sizeof pose.rotations);
+            memcpy(pose.translation, clip->translations + 3 * f, sizeof pose.translation);
+            double pos[24][3];
+            fk(&pose, rest, pos);
+            const float *want = f == 0 ? apose : rest; /* rest frame: A-pose arm; frame 1: T-pose arm */
+            for (int i = 0; i < 3; ++i) {
+                for (int k = 0; k < 3; ++k) {
+                    CHECK_NEAR(pos[arm[i]][k], want[3 * arm[i] + k], 1e-4);
+                }
+            }
+            for (int k = 0; k < 3; ++k) { /* the other arm is untouched */
+                CHECK_NEAR(pos[WEFT_JOINT_RIGHT_HAND][k], rest[3 * WEFT_JOINT_RIGHT_HAND + k], 1e-4);
+            }
+        }
+        weft_clip_destroy(clip);
+    }
+    free(b.data);
+    free(vals);
+}
+
+/* Leg-length scaling: the same file against a body twice as big doubles the root path. */
+static void test_translation_scale(void)
+{
+    const float *rest = weft_bvh_default_rest_joints();
+    double *vals = synthetic_frames(rest, 3);
+    text_buf b = smpl_bvh(rest, vals, 3, 1.0 / 60.0);
+    float big[72];
+    for (int i = 0; i < 72; ++i) {
+        big[i] = 2.0f * rest[i];
+    }
+    weft_bvh_def def = weft_default_bvh_def();
+    def.rest_joints = big;
+    weft_clip *clip = NULL;
+    CHECK_RESULT(weft_bvh_load_memory(g_ctx, b.data, b.len, &def, &clip), WEFT_OK);
+    if (clip) {
+        CHECK_EQ_INT(clip->frame_count, 3);
+        const float *last = clip->translations + 3 * 2;
+        CHECK_NEAR(last[0], 2.0 * 0.3, 1e-4);
+        CHECK_NEAR(last[1] + big[1], 2.0 * (rest[1] + 0.05), 1e-4); /* pelvis height doubles */
+        weft_clip_destroy(clip);
+    }
+    free(b.data);
+    free(vals);
+}
+
+/* ---------------------------------------------------------------------------------------- */
+/* The Debian CMU clips.                                                                      */
+
+static void check_cmu_clip_on(const char *file, double min_seconds, const float *rest)
+{
+    weft_bvh_def def = weft_default_bvh_def();
+    def.rest_joints = rest;
+    weft_clip *clip = NULL;
+    CHECK_RESULT(weft_bvh_load_file(g_ctx, file, &def, &clip), WEFT_OK);
+    if (!clip) {
+        return;
+    }
+    double seconds = (double)(clip->frame_count - 1) / clip->fps;
+    printf("%s: %u frames at %.0f Hz (%.2f s), name '%s'\n", file, clip->frame_count, (double)clip->fps, seconds, clip->name);
+    CHECK_NEAR(clip->fps, 60.0, 1e-4);
+    CHECK(seconds >= min_seconds);
+    CHECK(all_finite(clip->rotations, (size_t)clip->frame_count * 72));
+    /* Plausibility of the retargeted body, by independent FK: the pelvis stays at human hip
+     * height on average, the lowest ankle touches the floor, the head is above the pelvis in
+     * most frames and the left hip stays on the body's left (+X in the pelvis frame). */
+    double pelvis_sum = 0, min_ankle = 1e9;
+    uint32_t head_up = 0, left_ok = 0;
+    for (uint32_t f = 0; f < clip->frame_count; ++f) {
+        weft_pose pose;
+        memcpy(pose.rotations, clip->rotations + (size_t)72 * f, sizeof pose.rotations);
+        memcpy(pose.translation, clip->translations + (size_t)3 * f, sizeof pose.translation);
+        double p[24][3];
+        fk(&pose, rest, p);
+        pelvis_sum += p[0][1];
+        min_ankle = fmin(min_ankle, fmin(p[WEFT_JOINT_LEFT_ANKLE][1], p[WEFT_JOINT_RIGHT_ANKLE][1]));
+        head_up += p[WEFT_JOINT_HEAD][1] > p[0][1] + 0.3;
+        double pelvis_r[3][3];
+        rodrigues(pose.rotations, pelvis_r);
+        double d[3] = {p[WEFT_JOINT_LEFT_HIP][0] - p[0][0], p[WEFT_JOINT_LEFT_HIP][1] - p[0][1], p[WEFT_JOINT_LEFT_HIP][2] - p[0][2]};
+        double local_x = pelvis_r[0][0] * d[0] + pelvis_r[1][0] * d[1] + pelvis_r[2][0] * d[2];
+        left_ok += local_x > 0.0;
+    }
+    double pelvis_mean = pelvis_sum / clip->frame_count;
+    printf("  pelvis mean height %.3f m, lowest ankle %.3f m, head above pelvis %.1f%%\n", pelvis_mean, min_ankle,
+           100.0 * head_up / clip->frame_count);
+    CHECK(pelvis_mean > 0.6 && pelvis_mean < 1.2);
+    CHECK(min_ankle > -0.08 && min_ankle < 0.2);
+    CHECK(head_up > clip->frame_count * 9 / 10);
+    CHECK_EQ_INT(left_ok, clip->frame_count);
+    weft_clip_destroy(clip);
+}
+
+static void check_cmu_clip(const char *file, double min_seconds)
+{
+    check_cmu_clip_on(file, min_seconds, weft_bvh_default_rest_joints());
+}
+
+/* The same plausibility on weft's own avatar (its zero-pose joints, feet on y = 0), which is
+ * what the render sample drives. */
+static void test_cmu_on_avatar(void)
+{
+    weft_body *body = NULL;
+    weft_avatar_def adef = weft_default_avatar_def();
+    adef.target_vertices = 2000;
+    CHECK_RESULT(weft_avatar_create(g_ctx, &adef, &body), WEFT_OK);
+    if (body) {
+        check_cmu_clip_on(CMU_DIR "01_01.bvh", 20.0, weft_body_rest_joints(body));
+        weft_body_destroy(body);
+    }
+}
+
+static void test_cmu_01_01(void) { check_cmu_clip(CMU_DIR "01_01.bvh", 20.0); }
+static void test_cmu_01_03(void) { check_cmu_clip(CMU_DIR "01_03.bvh", 30.0); }
+static void test_boxing_toes(void) { check_cmu_clip(CMU_DIR "Boxing_Toes.bvh", 25.0); }
+
+/* ---------------------------------------------------------------------------------------- */
+/* Bad input.                                                                                 */
+
+static void expect_fail(const char *text, weft_result expected, const char *what)
+{
+    weft_bvh_def def = weft_default_bvh_def();
+    weft_clip *sentinel = (weft_clip *)(uintptr_t)0x1234;
+    weft_clip *clip = sentinel;
+    weft_result r = weft_bvh_load_memory(g_ctx, text, strlen(text), &def, &clip);
+    CHECK_MSG(r == expected, "%s: got %s (%s), expected %s", what, weft_result_string(r), weft_last_error(),
+              weft_result_string(expected));
+    CHECK_MSG(clip == sentinel, "%s: out_clip was written on failure", what);
+    CHECK_MSG(weft_last_error()[0] != '\0', "%s: no message", what);
+    if (r == expected) {
+        printf("  %-28s -> %s\n", what, weft_last_error());
+    }
+}
+
+static char *replace_once(const char *s, const char *find, const char *repl)
+{
+    const char *at = strstr(s, find);
+    size_t n = strlen(s), nf = strlen(find), nr = strlen(repl);
+    char *out = malloc(n - nf + nr + 1);
+    if (!at) {
+        memcpy(out, s, n + 1);
+        return out;
+    }
+    size_t pre = (size_t)(at - s);
+    memcpy(out, s, pre);
+    memcpy(out + pre, repl, nr);
+    memcpy(out + pre + nr, at + nf, n - pre - nf + 1);
+    return out;
+}
+
+static void test_bad_input(void)
+{
+    const float *rest = weft_bvh_default_rest_joints();
+    double *vals = synthetic_frames(rest, 2);
+    text_buf b = smpl_bvh(rest, vals, 2, 1.0 / 30.0);
+    tb_printf(&b, "%s", ""); /* make sure it is terminated */
+    const char *good = b.data;
+    weft_bvh_def def = weft_default_bvh_def();
+    weft_clip *clip = NULL;
+
+    CHECK_RESULT(weft_bvh_load_memory(NULL, good, strlen(good), &def, &clip), WEFT_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(weft_bvh_load_memory(g_ctx, NULL, 10, &def, &clip), WEFT_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(weft_bvh_load_memory(g_ctx, good, 0, &def, &clip), WEFT_ERROR_FORMAT);
+    weft_bvh_def raw = {0};
+    raw.fps = 60.0f;
+    CHECK_RESULT(weft_bvh_load_memory(g_ctx, good, strlen(good), &raw, &clip), WEFT_ERROR_INVALID_ARGUMENT);
+    def.fps = NAN;
+    CHECK_RESULT(weft_bvh_load_memory(g_ctx, good, strlen(good), &def, &clip), WEFT_ERROR_INVALID_ARGUMENT);
+    def = weft_default_bvh_def();
+    float nan_rest[72];
+    memcpy(nan_rest, rest, sizeof nan_rest);
+    nan_rest[40] = NAN;
+    def.rest_joints = nan_rest;
+    CHECK_RESULT(weft_bvh_load_memory(g_ctx, good, strlen(good), &def, &clip), WEFT_ERROR_NOT_FINITE);
+    def = weft_default_bvh_def();
+    def.first_frame = 7;
+    CHECK_RESULT(weft_bvh_load_memory(g_ctx, good, strlen(good), &def, &clip), WEFT_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(weft_bvh_load_file(g_ctx, "/nonexistent/weft.bvh", &def, &clip), WEFT_ERROR_IO);
+
+    expect_fail("", WEFT_ERROR_FORMAT, "empty");
+    expect_fail("this is not a bvh file", WEFT_ERROR_FORMAT, "garbage");
+    char *s;
+    s = replace_once(good, "MOTION", "NOTION");
+    expect_fail(s, WEFT_ERROR_FORMAT, "no MOTION");
+    free(s);
+    s = replace_once(good, "Frames: 2", "Frames: 0");
+    expect_fail(s, WEFT_ERROR_FORMAT, "zero frames");
+    free(s);
+    s = replace_once(good, "Frames: 2", "Frames: 3");
+    expect_fail(s, WEFT_ERROR_SIZE_MISMATCH, "frames x channels mismatch");
+    free(s);
+    s = replace_once(good, "Frame Time: 0.033333", "Frame Time: 0");
+    expect_fail(s, WEFT_ERROR_FORMAT, "zero frame time");
+    free(s);
+    s = replace_once(good, "Frame Time: 0.033333", "Frame Time: nan");
+    expect_fail(s, WEFT_ERROR_FORMAT, "NaN frame time");
+    free(s);
+    /* a NaN in the motion values: the first value after the frame time */
+    const char *motion = strstr(good, "Frame Time:");
+    const char *line = strchr(motion, '\n') + 1;
+    const char *value_end = strchr(line, ' ');
+    size_t pre = (size_t)(line - good);
+    s = malloc(strlen(good) + 8);
+    memcpy(s, good, pre);
+    strcpy(s + pre, "nan");
+    strcat(s, value_end);
+    expect_fail(s, WEFT_ERROR_NOT_FINITE, "NaN motion value");
+    free(s);
+    s = replace_once(good, "OFFSET ", "OFFSET inf ");
+    expect_fail(s, WEFT_ERROR_NOT_FINITE, "infinite offset");
+    free(s);
+    s = replace_once(good, "CHANNELS 3", "CHANNELS 9");
+    expect_fail(s, WEFT_ERROR_FORMAT, "bad channel count");
+    free(s);
+    s = replace_once(good, "}\n", "");
+    expect_fail(s, WEFT_ERROR_FORMAT, "unbalanced braces");
+    free(s);
+    /* an unknown skeleton: rename the left knee so no naming family covers the legs */
+    s = replace_once(good, "JOINT left_knee", "JOINT knee_L");
+    expect_fail(s, WEFT_ERROR_FORMAT, "unknown skeleton");
+    free(s);
+    /* truncated halfway through the motion block */
+    s = malloc(strlen(good) + 1);
+    strcpy(s, good);
+    s[strlen(good) - 40] = '\0';
+    expect_fail(s, WEFT_ERROR_SIZE_MISMATCH, "truncated motion");
+    free(s);
+    free(b.data);
+    free(vals);
+}
+
+/* ---------------------------------------------------------------------------------------- */
+/* Mutation fuzzing: corrupted copies of a small SMPL-named BVH and of the head of 01_01 must
+ * either load into a finite clip or fail with a message; never crash or leak (ASan build).   */
+
+static char *cmu_head(int frames)
+{
+    FILE *f = fopen(CMU_DIR "01_01.bvh", "rb");
+    if (!f) {
+        return NULL;
+    }
+    static char buf[1 << 16];
+    size_t n = fread(buf, 1, sizeof buf - 1, f);
+    fclose(f);
+    buf[n] = '\0';
+    char *motion = strstr(buf, "MOTION");
+    if (!motion) {
+        return NULL;
+    }
+    char *data = strstr(motion, "Frame Time:");
+    data = strchr(data, '\n') + 1;
+    text_buf out = {0};
+    tb_printf(&out, "%.*sMOTION\nFrames: %d\nFrame Time: .0083333\n", (int)(motion - buf), buf, frames);
+    char *p = data;
+    for (int i = 0; i < frames; ++i) {
+        char *nl = strchr(p, '\n');
+        if (!nl) {
+            free(out.data);
+            return NULL;
+        }
+        tb_printf(&out, "%.*s\n", (int)(nl - p), p);
+        p = nl + 1;
+    }
+    return out.data;
+}
+
+static void mutate(test_rng *rng, const char *src, size_t n, char *dst, size_t *out_n)
+{
+    memcpy(dst, src, n);
+    size_t m = n;
+    int kind = (int)(test_rng_u32(rng) % 5);
+    int edits = 1 + (int)(test_rng_u32(rng) % 4);
+    static const char alphabet[] = "0123456789.-+eE {}\n\tnaifHIERARCHYMOTIONJOINTCHANNELSOFFSET:";
+    for (int e = 0; e < edits && m > 1; ++e) {
+        size_t at = test_rng_u32(rng) % m;
+        switch (kind) {
+        case 0: /* replace a byte */
+            dst[at] = alphabet[test_rng_u32(rng) % (sizeof alphabet - 1)];
+            break;
+        case 1: /* truncate */
+            m = at + 1;
+            break;
+        case 2: { /* delete a span */
+            size_t len = 1 + test_rng_u32(rng) % 16;
+            len = at + len > m ? m - at : len;
+            memmove(dst + at, dst + at + len, m - at - len);
+            m -= len;
+            break;
+        }
+        case 3: /* swap digits for a huge number */
+            if (m + 12 < n + 64) {
+                memmove(dst + at + 12, dst + at, m - at);
+                memcpy(dst + at, "999999999999", 12);
+                m += 12;
+            }
+            break;
+        default: /* insert a sign or exponent */
+            if (m + 1 < n + 64) {
+                memmove(dst + at + 1, dst + at, m - at);
+                dst[at] = "-e+"[test_rng_u32(rng) % 3];
+                m += 1;
+            }
+            break;
+        }
+    }
+    *out_n = m;
+}
+
+static void fuzz_source(const char *src, int iterations, unsigned long long seed)
+{
+    size_t n = strlen(src);
+    char *buf = malloc(n + 64);
+    test_rng rng = {seed};
+    int ok = 0, failed = 0;
+    weft_bvh_def def = weft_default_bvh_def();
+    for (int it = 0; it < iterations; ++it) {
+        size_t m;
+        mutate(&rng, src, n, buf, &m);
+        weft_clip *clip = NULL;
+        weft_result r = weft_bvh_load_memory(g_ctx, buf, m, &def, &clip);
+        if (r == WEFT_OK) {
+            ok++;
+            CHECK(clip && clip->frame_count > 0);
+            if (clip) {
+                CHECK(all_finite(clip->rotations, (size_t)clip->frame_count * 72));
+                CHECK(all_finite(clip->translations, (size_t)clip->frame_count * 3));
+            }
+            weft_clip_destroy(clip);
+        } else {
+            failed++;
+            CHECK(clip == NULL);
+            CHECK(weft_last_error()[0] != '\0');
+        }
+    }
+    printf("fuzz: %d mutations loaded, %d rejected with a message\n", ok, failed);
+    CHECK(failed > 0);
+    free(buf);
+}
+
+static void test_fuzz_synthetic(void)
+{
+    const float *rest = weft_bvh_default_rest_joints();
+    double *vals = synthetic_frames(rest, 4);
+    text_buf b = smpl_bvh(rest, vals, 4, 1.0 / 30.0);
+    fuzz_source(b.data, 300, 0x9e3779b97f4a7c15ull);
+    free(b.data);
+    free(vals);
+}
+
+static void test_fuzz_cmu(void)
+{
+    char *head = cmu_head(24);
+    CHECK(head != NULL);
+    if (head) {
+        fuzz_source(head, 200, 0xd1b54a32d192ed03ull);
+        free(head);
+    }
+}
+
+static void setup(void)
+{
+    weft_context_def cdef = weft_default_context_def();
+    cdef.isa = WEFT_ISA_SCALAR;
+    CHECK_RESULT(weft_context_create(&cdef, &g_ctx), WEFT_OK);
+}
+
+static void teardown(void) { weft_context_destroy(g_ctx); }
+
+TEST_MAIN(TEST_CASE(setup), TEST_CASE(test_synthetic_exact), TEST_CASE(test_rest_correction), TEST_CASE(test_translation_scale), TEST_CASE(test_cmu_01_01),
+          TEST_CASE(test_cmu_01_03), TEST_CASE(test_boxing_toes), TEST_CASE(test_cmu_on_avatar), TEST_CASE(test_bad_input), TEST_CASE(test_fuzz_synthetic),
+          TEST_CASE(test_fuzz_cmu), TEST_CASE(teardown))
