@@ -1,0 +1,104 @@
+/*
+ * weft/sim.h — reference simulation: the penetration validator and the dataset scenarios.
+ *
+ * The XPBD solver and the LBS baseline themselves are garment methods (WEFT_METHOD_XPBD,
+ * WEFT_METHOD_LBS in weft.h). This header adds what ground-truth generation needs:
+ *
+ *   - an independent validator that certifies a pair of consecutive frames: continuous
+ *     collision detection (conservative advancement, double precision) over the linear
+ *     motion between the frames for every cloth-cloth and cloth-collider vertex-triangle and
+ *     edge-edge pair, plus triangle-triangle intersection tests at the later frame;
+ *   - the scenario builders and the sequence writer used by `weft simgen`.
+ *
+ * Units and layouts follow weft.h (metres, Y up, float xyz triplets, uint32 triangles).
+ */
+#ifndef WEFT_SIM_H
+#define WEFT_SIM_H
+
+#include "weft.h"
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* ---------------------------------------------------------------------------------------- */
+/* Validator                                                                                 */
+
+typedef struct weft_sim_validator weft_sim_validator;
+
+typedef struct weft_sim_validation {
+    uint32_t ccd_hits;            /* swept pairs whose separation fell below the tolerance */
+    uint32_t intersection_hits;   /* intersecting triangle pairs at the later frame */
+    uint32_t pairs_tested;        /* swept candidate pairs examined */
+} weft_sim_validation;
+
+/* Separation below which a sweep counts as a hit (metres): 10 micrometres. */
+#define WEFT_SIM_VALIDATOR_TOLERANCE 1e-5
+
+/* Topology is copied. The collider may be absent (collider_vertex_count 0). Cloth triangles
+ * that share a vertex are not tested against each other; the mesh checks of
+ * weft_garment_create apply. */
+WEFT_API weft_result weft_sim_validator_create(weft_context *context, const uint32_t *cloth_triangles,
+                                               uint32_t cloth_triangle_count, uint32_t cloth_vertex_count,
+                                               const uint32_t *collider_triangles, uint32_t collider_triangle_count,
+                                               uint32_t collider_vertex_count, weft_sim_validator **out_validator);
+WEFT_API void weft_sim_validator_destroy(weft_sim_validator *validator);
+/* Checks the motion from frame t (cloth0, collider0) to t+1 (cloth1, collider1). Collider
+ * arrays may be NULL when there is no collider. Allocates nothing. */
+WEFT_API weft_result weft_sim_validator_check(weft_sim_validator *validator, const float *cloth0, const float *cloth1,
+                                              const float *collider0, const float *collider1,
+                                              weft_sim_validation *out_validation);
+
+/* ---------------------------------------------------------------------------------------- */
+/* Scenarios and sequences                                                                   */
+
+typedef enum weft_sim_scenario {
+    WEFT_SIM_SCENARIO_DROP = 0,   /* a sheet falls onto procedural rigid objects */
+    WEFT_SIM_SCENARIO_GRIPPER,    /* a two-finger gripper grasps, lifts, moves and sets down a sheet */
+    WEFT_SIM_SCENARIO_GARMENT,    /* a garment on an animated avatar (needs the body/wardrobe modules) */
+    WEFT_SIM_SCENARIO_COUNT
+} weft_sim_scenario;
+
+typedef struct weft_sim_sequence_def {
+    weft_sim_scenario scenario;
+    uint64_t seed;                /* every random choice of the sequence derives from it */
+    uint32_t frames;              /* recorded frames including the initial one (default 240) */
+    uint32_t substeps;            /* XPBD substeps per 1/60 s frame (default 40) */
+    uint32_t max_substeps;        /* a rejected sequence is retried with doubled substeps up to this (default 80) */
+    uint32_t cloth_vertices;      /* approximate vertex count of the sheet (default 1024) */
+    bool validate;                /* run the validator on every frame (default true) */
+    uint32_t internal_cookie;     /* set by weft_sim_default_sequence_def(); do not touch */
+} weft_sim_sequence_def;
+
+typedef struct weft_sim_sequence_result {
+    bool accepted;                /* validated with zero hits: written as ground truth */
+    uint32_t substeps_used;
+    uint32_t attempts;
+    uint32_t vertex_count, collider_vertex_count, frames;
+    uint32_t ccd_hits, intersection_hits;  /* of the last attempt */
+    int32_t first_hit_frame;      /* -1 when none */
+    uint32_t chord_retries;       /* frames redone with one proximity pass (see docs/REFSIM.md) */
+    double simulate_s, validate_s; /* wall time of the last attempt */
+    char description[160];        /* e.g. "drop: sheet 0.9x0.7 m ellipse onto table" */
+} weft_sim_sequence_result;
+
+WEFT_API weft_sim_sequence_def weft_sim_default_sequence_def(void);
+WEFT_API const char *weft_sim_scenario_name(weft_sim_scenario scenario);
+
+/* Simulates one sequence and writes it into out_dir (created if missing): meta.json plus
+ * rest_pos.npy [N,3] f32, faces.npy [F,3] i32, cloth_pos.npy [T,N,3] f32,
+ * collider_pos.npy [T,M,3] f32, collider_faces.npy [G,3] i32, pinned.npy [T,N] u8 and
+ * stats.npy [T,K] f32 (column names in meta.json). A sequence the validator rejects even at
+ * max_substeps gets only a meta.json with "accepted": false and the hit counts; its arrays
+ * are never written. meta.json is written last (atomically), so its presence marks a
+ * finished sequence. progress(frame, frames, user) is called after every frame when given. */
+typedef void weft_sim_progress_fn(uint32_t frame, uint32_t frames, void *user);
+WEFT_API weft_result weft_sim_generate(weft_context *context, const weft_sim_sequence_def *def, const char *out_dir,
+                                       weft_sim_progress_fn *progress, void *progress_user,
+                                       weft_sim_sequence_result *out_result);
+
+#ifdef __cplusplus
+}
+#endif
+
+#endif /* WEFT_SIM_H */

@@ -1,0 +1,239 @@
+/* Skinning baseline: each garment vertex is bound at creation to its nearest collider
+ * triangles (closest-point barycentrics plus an offset in the triangle's local frame) and
+ * follows them every frame. Blending up to LBS_SLOTS nearby triangles, weighted by inverse
+ * distance, smooths the result across triangle borders; a rigid collider motion is
+ * reproduced exactly because every binding is rigid-invariant. */
+#include "xpbd/xpbd.h"
+
+#include <float.h>
+#include <math.h>
+#include <string.h>
+
+#define LBS_SLOTS 4
+
+typedef struct lbs_bind {
+    uint32_t tri[LBS_SLOTS];
+    float bary[LBS_SLOTS][3];
+    float offset[LBS_SLOTS][3]; /* along (t1, t2, n) of the triangle frame */
+    float weight[LBS_SLOTS];
+} lbs_bind;
+
+typedef struct lbs_state {
+    lbs_bind *bind;
+    uint32_t n;
+} lbs_state;
+
+/* Orthonormal frame (t1 along edge 0-1, n the face normal, t2 = n x t1). False if degenerate. */
+static bool tri_frame(const double *a, const double *b, const double *c, double t1[3], double t2[3], double nn[3])
+{
+    double e1[3], e2[3];
+    xv_sub(e1, b, a);
+    xv_sub(e2, c, a);
+    xv_cross(nn, e1, e2);
+    double l1 = xv_len(e1), ln = xv_len(nn);
+    if (!(l1 > 0.0) || !(ln > 0.0)) {
+        return false;
+    }
+    for (int k = 0; k < 3; ++k) {
+        t1[k] = e1[k] / l1;
+        nn[k] /= ln;
+    }
+    xv_cross(t2, nn, t1);
+    return true;
+}
+
+typedef struct nearest_ctx {
+    const double *p;
+    const double *cpos;
+    const uint32_t *ctris;
+    uint32_t best[LBS_SLOTS];
+    double best_d[LBS_SLOTS];
+} nearest_ctx;
+
+static bool visit_nearest(uint32_t t, void *user)
+{
+    nearest_ctx *nc = user;
+    const uint32_t *tri = nc->ctris + 3 * (size_t)t;
+    double d = sqrt(xg_point_triangle_sq(nc->p, nc->cpos + 3 * (size_t)tri[0], nc->cpos + 3 * (size_t)tri[1],
+                                         nc->cpos + 3 * (size_t)tri[2], NULL));
+    /* Insertion into the sorted LBS_SLOTS best. */
+    int k = LBS_SLOTS - 1;
+    if (d >= nc->best_d[k]) {
+        return true;
+    }
+    while (k > 0 && nc->best_d[k - 1] > d) {
+        nc->best_d[k] = nc->best_d[k - 1];
+        nc->best[k] = nc->best[k - 1];
+        --k;
+    }
+    nc->best_d[k] = d;
+    nc->best[k] = t;
+    return true;
+}
+
+static weft_result lbs_create(weft_garment *g)
+{
+    const weft_context *ctx = g->ctx;
+    if (g->collider_vertex_count == 0) {
+        return weft__fail(WEFT_ERROR_NO_COLLIDER, "lbs: the skinning baseline needs a collider to bind the garment to");
+    }
+    lbs_state *s = weft__alloc(ctx, sizeof *s);
+    if (!s) {
+        return WEFT_ERROR_OUT_OF_MEMORY;
+    }
+    s->n = g->vertex_count;
+    size_t nc3 = (size_t)g->collider_vertex_count * 3;
+    s->bind = weft__alloc(ctx, s->n * sizeof *s->bind);
+    double *cpos = weft__alloc(ctx, nc3 * sizeof(double));
+    xbvh bvh;
+    weft_result r = xbvh_create(ctx, &bvh, g->collider_triangles, g->collider_triangle_count, 3);
+    if (!s->bind || !cpos || r != WEFT_OK) {
+        if (r == WEFT_OK) {
+            xbvh_destroy(ctx, &bvh);
+        }
+        weft__free(ctx, cpos, nc3 * sizeof(double));
+        weft__free(ctx, s->bind, s->n * sizeof *s->bind);
+        weft__free(ctx, s, sizeof *s);
+        return WEFT_ERROR_OUT_OF_MEMORY;
+    }
+    for (size_t i = 0; i < nc3; ++i) {
+        cpos[i] = g->collider_rest[i];
+    }
+    xbvh_build(&bvh, cpos);
+    xbvh_refit(&bvh, cpos, NULL, 0.0);
+    const xbvh_node *root = &bvh.nodes[0];
+    double diag = 0.0;
+    for (int k = 0; k < 3; ++k) {
+        diag += (root->hi[k] - root->lo[k]) * (root->hi[k] - root->lo[k]);
+    }
+    diag = sqrt(diag);
+    for (uint32_t i = 0; i < s->n; ++i) {
+        double p[3] = {g->x[3 * (size_t)i], g->x[3 * (size_t)i + 1], g->x[3 * (size_t)i + 2]};
+        nearest_ctx nc = {.p = p, .cpos = cpos, .ctris = g->collider_triangles};
+        /* Grow the search box until it holds the nearest triangle, then widen once so the
+         * blend sees the neighbouring triangles too. */
+        double r0 = 1e-2;
+        for (;;) {
+            for (int k = 0; k < LBS_SLOTS; ++k) {
+                nc.best_d[k] = DBL_MAX;
+                nc.best[k] = UINT32_MAX;
+            }
+            double lo[3], hi[3];
+            for (int k = 0; k < 3; ++k) {
+                lo[k] = p[k] - r0;
+                hi[k] = p[k] + r0;
+            }
+            xbvh_query(&bvh, lo, hi, visit_nearest, &nc);
+            if ((nc.best_d[0] <= r0 && nc.best[LBS_SLOTS - 1] != UINT32_MAX) || r0 > 4.0 * diag + 1.0) {
+                break;
+            }
+            r0 *= 2.0;
+        }
+        lbs_bind *b = &s->bind[i];
+        /* Inverse-distance weights among triangles within 1.5x the nearest distance + 5 mm. */
+        double cut = 1.5 * nc.best_d[0] + 5e-3, wsum = 0.0;
+        for (int k = 0; k < LBS_SLOTS; ++k) {
+            b->tri[k] = nc.best[k];
+            b->weight[k] = 0.0f;
+            if (nc.best[k] == UINT32_MAX || nc.best_d[k] > cut) {
+                b->tri[k] = nc.best[0];
+                continue;
+            }
+            const uint32_t *tri = g->collider_triangles + 3 * (size_t)nc.best[k];
+            const double *a = cpos + 3 * (size_t)tri[0], *bb = cpos + 3 * (size_t)tri[1], *c = cpos + 3 * (size_t)tri[2];
+            double bary[3], t1[3], t2[3], nn[3], q[3], o[3];
+            xg_point_triangle_sq(p, a, bb, c, bary);
+            if (!tri_frame(a, bb, c, t1, t2, nn)) {
+                b->tri[k] = nc.best[0];
+                continue;
+            }
+            for (int j = 0; j < 3; ++j) {
+                q[j] = bary[0] * a[j] + bary[1] * bb[j] + bary[2] * c[j];
+                o[j] = p[j] - q[j];
+            }
+            double wk = 1.0 / (nc.best_d[k] + 1e-3);
+            for (int j = 0; j < 3; ++j) {
+                b->bary[k][j] = (float)bary[j];
+            }
+            b->offset[k][0] = (float)xv_dot(o, t1);
+            b->offset[k][1] = (float)xv_dot(o, t2);
+            b->offset[k][2] = (float)xv_dot(o, nn);
+            b->weight[k] = (float)wk;
+            wsum += wk;
+        }
+        if (!(wsum > 0.0)) {
+            xbvh_destroy(ctx, &bvh);
+            weft__free(ctx, cpos, nc3 * sizeof(double));
+            weft__free(ctx, s->bind, s->n * sizeof *s->bind);
+            weft__free(ctx, s, sizeof *s);
+            return weft__fail(WEFT_ERROR_DEGENERATE_MESH, "lbs: garment vertex %u found no usable collider triangle", i);
+        }
+        for (int k = 0; k < LBS_SLOTS; ++k) {
+            b->weight[k] = (float)(b->weight[k] / wsum);
+        }
+    }
+    xbvh_destroy(ctx, &bvh);
+    weft__free(ctx, cpos, nc3 * sizeof(double));
+    g->method_state = s;
+    return WEFT_OK;
+}
+
+static void lbs_destroy(weft_garment *g)
+{
+    lbs_state *s = g->method_state;
+    if (s) {
+        weft__free(g->ctx, s->bind, s->n * sizeof *s->bind);
+        weft__free(g->ctx, s, sizeof *s);
+    }
+    g->method_state = NULL;
+}
+
+static weft_result lbs_step(weft_garment *g)
+{
+    const lbs_state *s = g->method_state;
+    const float *c = g->collider_next;
+    for (uint32_t i = 0; i < s->n; ++i) {
+        const lbs_bind *b = &s->bind[i];
+        double out[3] = {0, 0, 0}, wsum = 0.0;
+        bool any = false;
+        for (int k = 0; k < LBS_SLOTS; ++k) {
+            if (b->weight[k] == 0.0f) {
+                continue;
+            }
+            const uint32_t *tri = g->collider_triangles + 3 * (size_t)b->tri[k];
+            double a[3], bb[3], cc[3], t1[3], t2[3], nn[3];
+            for (int j = 0; j < 3; ++j) {
+                a[j] = c[3 * (size_t)tri[0] + j];
+                bb[j] = c[3 * (size_t)tri[1] + j];
+                cc[j] = c[3 * (size_t)tri[2] + j];
+            }
+            if (!tri_frame(a, bb, cc, t1, t2, nn)) {
+                continue; /* a collapsed collider triangle: the other bindings carry the vertex */
+            }
+            double w = b->weight[k];
+            for (int j = 0; j < 3; ++j) {
+                double q = b->bary[k][0] * a[j] + b->bary[k][1] * bb[j] + b->bary[k][2] * cc[j];
+                out[j] += w * (q + b->offset[k][0] * t1[j] + b->offset[k][1] * t2[j] + b->offset[k][2] * nn[j]);
+            }
+            wsum += w;
+            any = true;
+        }
+        if (!any || !(wsum > 0.0)) {
+            return weft__fail(WEFT_ERROR_DEGENERATE_MESH,
+                              "lbs: every collider triangle bound to garment vertex %u collapsed this frame", i);
+        }
+        for (int j = 0; j < 3; ++j) {
+            g->x_next[3 * (size_t)i + j] = (float)(out[j] / wsum); /* renormalised if a binding was skipped */
+        }
+    }
+    return WEFT_OK;
+}
+
+const weft_method_ops weft__lbs_ops = {
+    .name = "lbs",
+    .supports_pins = false,
+    .create = lbs_create,
+    .destroy = lbs_destroy,
+    .reset = NULL,
+    .step = lbs_step,
+};

@@ -1,0 +1,75 @@
+/* Scene assembly for the dataset scenarios: growable float/uint32 meshes, procedural cloth
+ * sheets and rigid objects, and the per-frame kinematics (collider and pins). Scene
+ * construction runs once per sequence, outside any per-frame path, so it uses malloc. */
+#ifndef WEFT_XPBD_SCENE_H
+#define WEFT_XPBD_SCENE_H
+
+#include "weft/body.h"
+#include "weft/sim.h"
+#include "xpbd/xpbd.h"
+
+typedef struct xmesh {
+    float *pos;
+    uint32_t *tris;
+    uint32_t nv, nt, cap_v, cap_t;
+} xmesh;
+
+void xmesh_free(xmesh *m);
+bool xmesh_append(xmesh *dst, const xmesh *src);
+
+/* Deterministic generator (splitmix64). */
+typedef struct xrng {
+    uint64_t s;
+} xrng;
+uint64_t xrng_next(xrng *r);
+double xrng_uniform(xrng *r, double lo, double hi);
+uint32_t xrng_below(xrng *r, uint32_t n);
+
+typedef enum xsheet_shape { XSHEET_RECT = 0, XSHEET_ELLIPSE, XSHEET_LSHAPE, XSHEET_COUNT } xsheet_shape;
+
+/* Sheet of about target_vertices vertices, size sx x sz, in the XZ plane at the origin. */
+bool xsheet_make(xmesh *m, xsheet_shape shape, double sx, double sz, uint32_t target_vertices);
+const char *xsheet_shape_name(xsheet_shape shape);
+
+/* Closed rigid shapes (outward triangles). yaw rotates about +Y. */
+bool xshape_box(xmesh *m, const double c[3], const double half[3], double yaw);
+bool xshape_sphere(xmesh *m, const double c[3], double r, uint32_t rings, uint32_t segs);
+bool xshape_cylinder(xmesh *m, const double c[3], double r, double half_len, int axis, uint32_t segs);
+bool xshape_torus(xmesh *m, const double c[3], double R, double r, uint32_t segs_major, uint32_t segs_minor);
+bool xshape_blob(xmesh *m, const double c[3], double r, xrng *rng);
+bool xshape_ground(xmesh *m, double half);
+
+/* A scenario instance: everything the sequence runner needs per frame. */
+typedef struct xscene {
+    weft_sim_scenario scenario;
+    xmesh cloth;                 /* rest = initial positions */
+    float *cloth_init;           /* initial positions (cloth.pos is the rest shape) */
+    xmesh collider;              /* at frame 0 */
+    uint32_t moving_begin;       /* collider vertices [moving_begin, nv) are animated (gripper) */
+    char description[160];
+    char objects[256];           /* comma-separated object names */
+    /* Gripper schedule (frame times) and geometry. */
+    double grasp[3], lift, move[2];
+    uint32_t f_close, f_lifted, f_moved, f_lowered, f_release, f_open;
+    double finger_half[3], gap_open, gap_closed;
+    float *finger_rest;          /* 16 finger vertices relative to the gripper centre at gap 0 */
+    uint32_t *grasped;
+    uint32_t grasp_count;
+    float *grasp_offset;         /* grasped vertex position relative to the gripper centre */
+    /* Garment scenario: avatar, motion and the drape pre-roll (frames before recording). */
+    weft_body *body;
+    weft_motion_def motion;
+    weft_pose bind_pose, start_pose;
+    uint32_t preroll;
+} xscene;
+
+/* Frame indices passed to the per-frame functions count from the start of the pre-roll
+ * (garments drape for `preroll` frames before frame 0 of the recording). */
+weft_result xscene_build(weft_context *ctx, xscene *sc, const weft_sim_sequence_def *def, uint64_t seed);
+void xscene_free(xscene *sc);
+/* Collider positions at frame f into out (collider.nv * 3). */
+void xscene_collider_at(const xscene *sc, uint32_t f, float *out);
+/* Pins at frame f: writes indices/targets (capacity cloth.nv), returns the count. */
+uint32_t xscene_pins_at(const xscene *sc, uint32_t f, uint32_t *idx, float *targets);
+
+#endif

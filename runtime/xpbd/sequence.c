@@ -1,0 +1,475 @@
+/* One dataset sequence: build the scenario, simulate it with XPBD, validate every frame,
+ * and write the arrays (.npy) and meta.json. */
+#define _POSIX_C_SOURCE 200809L /* mkdir, rename */
+#include "xpbd/scene.h"
+
+#include <cjson/cJSON.h>
+#include <errno.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+
+enum {
+    ST_WALL_MS,
+    ST_SUBSTEPS,
+    ST_DETECTIONS,
+    ST_CONTACTS,
+    ST_CONTACTS_DROPPED,
+    ST_CLAMPED,
+    ST_MIN_SELF,
+    ST_MIN_COLLIDER,
+    ST_MAX_STRAIN,
+    ST_ENERGY,
+    ST_CCD_HITS,
+    ST_TRI_HITS,
+    ST_VALIDATE_MS,
+    ST_RETRIED,
+    ST_COUNT
+};
+static const char *const stat_names[ST_COUNT] = {
+    "wall_ms",   "substeps",   "detections",      "contacts", "contacts_dropped", "clamped",    "min_self_distance",
+    "min_collider_distance", "max_strain", "elastic_energy", "ccd_hits", "intersection_hits", "validate_ms", "chord_safe_retry"};
+
+weft_sim_sequence_def weft_sim_default_sequence_def(void)
+{
+    weft_sim_sequence_def d = {0};
+    d.scenario = WEFT_SIM_SCENARIO_DROP;
+    d.seed = 1;
+    d.frames = 240;
+    d.substeps = 40;
+    d.max_substeps = 80;
+    d.cloth_vertices = 1024;
+    d.validate = true;
+    d.internal_cookie = WEFT_DEF_COOKIE;
+    return d;
+}
+
+const char *weft_sim_scenario_name(weft_sim_scenario s)
+{
+    static const char *const names[] = {"drop", "gripper", "garment"};
+    return (unsigned)s < WEFT_SIM_SCENARIO_COUNT ? names[s] : "unknown";
+}
+
+/* NPY v1.0: magic, header length, a Python dict literal padded to a 64-byte boundary. */
+static bool npy_write(const char *path, const char *descr, const uint64_t *shape, int ndim, const void *data,
+                      size_t bytes)
+{
+    char dims[128] = "";
+    size_t len = 0;
+    for (int i = 0; i < ndim; ++i) {
+        len += (size_t)snprintf(dims + len, sizeof dims - len, "%llu%s", (unsigned long long)shape[i],
+                                ndim == 1 ? "," : (i + 1 < ndim ? ", " : ""));
+    }
+    char header[256];
+    int hl = snprintf(header, sizeof header, "{'descr': '%s', 'fortran_order': False, 'shape': (%s), }", descr, dims);
+    size_t total = 10 + (size_t)hl + 1;
+    size_t pad = (64 - total % 64) % 64;
+    FILE *f = fopen(path, "wb");
+    if (!f) {
+        return false;
+    }
+    unsigned char pre[10] = {0x93, 'N', 'U', 'M', 'P', 'Y', 1, 0, 0, 0};
+    uint16_t hlen = (uint16_t)(hl + pad + 1);
+    pre[8] = (unsigned char)(hlen & 0xff);
+    pre[9] = (unsigned char)(hlen >> 8);
+    bool ok = fwrite(pre, 1, 10, f) == 10 && fwrite(header, 1, (size_t)hl, f) == (size_t)hl;
+    for (size_t i = 0; ok && i < pad; ++i) {
+        ok = fputc(' ', f) != EOF;
+    }
+    ok = ok && fputc('\n', f) != EOF && fwrite(data, 1, bytes, f) == bytes;
+    return fclose(f) == 0 && ok;
+}
+
+static bool make_dir(const char *path)
+{
+    char buf[1024];
+    size_t n = strlen(path);
+    if (n == 0 || n >= sizeof buf) {
+        return false;
+    }
+    memcpy(buf, path, n + 1);
+    for (size_t i = 1; i <= n; ++i) {
+        if (buf[i] == '/' || buf[i] == '\0') {
+            char c = buf[i];
+            buf[i] = '\0';
+            if (mkdir(buf, 0777) != 0 && errno != EEXIST) {
+                return false;
+            }
+            buf[i] = c;
+        }
+    }
+    return true;
+}
+
+typedef struct run_buffers {
+    float *cloth;     /* frames * nv * 3 */
+    float *collider;  /* frames * nc * 3 */
+    uint8_t *pinned;  /* frames * nv */
+    float *stats;     /* frames * ST_COUNT (row 0 is the initial state) */
+    uint32_t *pin_idx;
+    float *pin_tgt;
+} run_buffers;
+
+static void buffers_free(run_buffers *b)
+{
+    free(b->cloth);
+    free(b->collider);
+    free(b->pinned);
+    free(b->stats);
+    free(b->pin_idx);
+    free(b->pin_tgt);
+    *b = (run_buffers){0};
+}
+
+/* Simulates all frames at `substeps`; stops at the first validator hit. */
+static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_sequence_def *def, uint32_t substeps,
+                            run_buffers *b, weft_sim_sequence_result *res, weft_sim_progress_fn *progress, void *user)
+{
+    /* Garments first drape for sc->preroll frames; those are simulated and validated like
+     * the rest but not written. */
+    const uint32_t nv = sc->cloth.nv, nc = sc->collider.nv, T = def->frames + sc->preroll;
+    weft_garment_def gd = weft_default_garment_def();
+    gd.method = WEFT_METHOD_XPBD;
+    gd.substeps = substeps;
+    gd.ccd = false; /* ground truth is certified by the validator, never post-processed */
+    gd.rest_positions = sc->cloth.pos;
+    gd.vertex_count = nv;
+    gd.triangles = sc->cloth.tris;
+    gd.triangle_count = sc->cloth.nt;
+    gd.collider_rest_positions = b->collider;
+    gd.collider_vertex_count = nc;
+    gd.collider_triangles = sc->collider.tris;
+    gd.collider_triangle_count = sc->collider.nt;
+    gd.initial_positions = sc->cloth_init;
+    weft_garment *g = NULL;
+    xscene_collider_at(sc, 0, b->collider);
+    weft_result r = weft_garment_create(ctx, &gd, &g);
+    if (r != WEFT_OK) {
+        return r;
+    }
+    weft_sim_validator *val = NULL;
+    if (def->validate) {
+        r = weft_sim_validator_create(ctx, sc->cloth.tris, sc->cloth.nt, nv, sc->collider.tris, sc->collider.nt, nc,
+                                      &val);
+        if (r != WEFT_OK) {
+            weft_garment_destroy(g);
+            return r;
+        }
+    }
+    memcpy(b->cloth, sc->cloth_init, sizeof(float) * 3 * nv);
+    memset(b->stats, 0, sizeof(float) * ST_COUNT * T);
+    memset(b->pinned, 0, (size_t)T * nv);
+    res->ccd_hits = res->intersection_hits = 0;
+    res->first_hit_frame = -1;
+    res->chord_retries = 0;
+    res->simulate_s = res->validate_s = 0.0;
+    for (uint32_t f = 1; f < T && r == WEFT_OK; ++f) {
+        float *cnext = b->collider + (size_t)f * nc * 3;
+        xscene_collider_at(sc, f, cnext);
+        uint32_t np = xscene_pins_at(sc, f, b->pin_idx, b->pin_tgt);
+        for (uint32_t k = 0; k < np; ++k) {
+            b->pinned[(size_t)f * nv + b->pin_idx[k]] = 1;
+        }
+        double t0 = weft__now_ms();
+        r = weft_garment_set_collider(g, cnext);
+        if (r == WEFT_OK) {
+            r = weft_garment_set_pins(g, b->pin_idx, b->pin_tgt, np);
+        }
+        if (r == WEFT_OK) {
+            r = weft_garment_step(g);
+        }
+        if (r != WEFT_OK) {
+            break;
+        }
+        double t1 = weft__now_ms();
+        memcpy(b->cloth + (size_t)f * nv * 3, weft_garment_positions(g), sizeof(float) * 3 * nv);
+        xpbd_frame_stats st = weft__xpbd_last_stats(g);
+        float *row = b->stats + (size_t)f * ST_COUNT;
+        row[ST_WALL_MS] = (float)(t1 - t0);
+        row[ST_SUBSTEPS] = (float)st.substeps;
+        row[ST_DETECTIONS] = (float)st.detections;
+        row[ST_CONTACTS] = (float)st.contacts;
+        row[ST_CONTACTS_DROPPED] = (float)st.contacts_dropped;
+        row[ST_CLAMPED] = (float)st.clamped;
+        row[ST_MIN_SELF] = (float)st.min_self_distance;
+        row[ST_MIN_COLLIDER] = (float)st.min_collider_distance;
+        row[ST_MAX_STRAIN] = (float)st.max_strain;
+        row[ST_ENERGY] = (float)st.elastic_energy;
+        res->simulate_s += (t1 - t0) / 1000.0;
+        if (val) {
+            weft_sim_validation v;
+            r = weft_sim_validator_check(val, b->cloth + (size_t)(f - 1) * nv * 3, b->cloth + (size_t)f * nv * 3,
+                                         b->collider + (size_t)(f - 1) * nc * 3, cnext, &v);
+            if (r == WEFT_OK && (v.ccd_hits || v.intersection_hits)) {
+                /* The substep path was bounded but the chord between the frames was not:
+                 * redo the frame with one proximity pass for the whole frame. */
+                r = weft__xpbd_retry_chord_safe(g, b->cloth + (size_t)(f - 1) * nv * 3,
+                                                b->cloth + (size_t)(f >= 2 ? f - 2 : 0) * nv * 3,
+                                                b->collider + (size_t)(f - 1) * nc * 3);
+                if (r == WEFT_OK) {
+                    r = weft_garment_set_collider(g, cnext);
+                }
+                if (r == WEFT_OK) {
+                    r = weft_garment_set_pins(g, b->pin_idx, b->pin_tgt, np);
+                }
+                if (r == WEFT_OK) {
+                    r = weft_garment_step(g);
+                }
+                if (r != WEFT_OK) {
+                    break;
+                }
+                memcpy(b->cloth + (size_t)f * nv * 3, weft_garment_positions(g), sizeof(float) * 3 * nv);
+                r = weft_sim_validator_check(val, b->cloth + (size_t)(f - 1) * nv * 3, b->cloth + (size_t)f * nv * 3,
+                                             b->collider + (size_t)(f - 1) * nc * 3, cnext, &v);
+                st = weft__xpbd_last_stats(g);
+                row[ST_DETECTIONS] = (float)st.detections;
+                row[ST_CONTACTS] = (float)st.contacts;
+                row[ST_CLAMPED] = (float)st.clamped;
+                row[ST_MIN_SELF] = (float)st.min_self_distance;
+                row[ST_MIN_COLLIDER] = (float)st.min_collider_distance;
+                row[ST_MAX_STRAIN] = (float)st.max_strain;
+                row[ST_ENERGY] = (float)st.elastic_energy;
+                row[ST_RETRIED] = 1.0f;
+                res->chord_retries++;
+            }
+            double t2 = weft__now_ms();
+            row[ST_CCD_HITS] = (float)v.ccd_hits;
+            row[ST_TRI_HITS] = (float)v.intersection_hits;
+            row[ST_VALIDATE_MS] = (float)(t2 - t1);
+            res->validate_s += (t2 - t1) / 1000.0;
+            res->ccd_hits += v.ccd_hits;
+            res->intersection_hits += v.intersection_hits;
+            if (r != WEFT_OK) {
+                break;
+            }
+            if ((v.ccd_hits || v.intersection_hits) && res->first_hit_frame < 0) {
+                res->first_hit_frame = (int32_t)f;
+                break; /* rejected: no point simulating further */
+            }
+        }
+        if (progress) {
+            progress(f, T - 1, user);
+        }
+    }
+    weft_sim_validator_destroy(val);
+    weft_garment_destroy(g);
+    return r;
+}
+
+static cJSON *num_obj(cJSON *parent, const char *name)
+{
+    cJSON *o = cJSON_CreateObject();
+    cJSON_AddItemToObject(parent, name, o);
+    return o;
+}
+
+static bool write_meta(const char *dir, const xscene *sc, const weft_sim_sequence_def *def,
+                       const weft_sim_sequence_result *res)
+{
+    xpbd_params p = xpbd_default_params();
+    cJSON *m = cJSON_CreateObject();
+    cJSON_AddStringToObject(m, "scenario", weft_sim_scenario_name(def->scenario));
+    cJSON_AddStringToObject(m, "description", res->description);
+    cJSON_AddNumberToObject(m, "seed", (double)def->seed);
+    cJSON_AddBoolToObject(m, "accepted", res->accepted);
+    cJSON_AddNumberToObject(m, "frames", def->frames);
+    cJSON_AddNumberToObject(m, "frame_dt", 1.0 / 60.0);
+    cJSON_AddStringToObject(m, "units", "m, s, kg; Y up");
+    cJSON_AddStringToObject(m, "solver", "xpbd small steps, one Gauss-Seidel pass per substep, double precision");
+    cJSON_AddNumberToObject(m, "substeps", res->substeps_used);
+    cJSON_AddNumberToObject(m, "attempts", res->attempts);
+    cJSON_AddNumberToObject(m, "chord_safe_retries", res->chord_retries);
+    char seed_text[32];
+    snprintf(seed_text, sizeof seed_text, "%llu", (unsigned long long)def->seed);
+    cJSON_AddStringToObject(m, "seed_u64", seed_text);
+    cJSON_AddStringToObject(m, "weft_version", weft_version_string());
+    cJSON *val = num_obj(m, "validator");
+    cJSON_AddNumberToObject(val, "ccd_hits", res->ccd_hits);
+    cJSON_AddNumberToObject(val, "intersection_hits", res->intersection_hits);
+    cJSON_AddNumberToObject(val, "first_hit_frame", res->first_hit_frame);
+    cJSON_AddNumberToObject(val, "tolerance_m", WEFT_SIM_VALIDATOR_TOLERANCE);
+    cJSON_AddBoolToObject(val, "run", def->validate);
+    cJSON *mat = num_obj(m, "material");
+    cJSON_AddNumberToObject(mat, "youngs_modulus", p.youngs_modulus);
+    cJSON_AddNumberToObject(mat, "poisson_ratio", p.poisson_ratio);
+    cJSON_AddNumberToObject(mat, "thickness", p.thickness);
+    cJSON_AddNumberToObject(mat, "areal_density", p.areal_density);
+    cJSON_AddNumberToObject(mat, "compression_scale", p.compression_scale);
+    cJSON_AddNumberToObject(mat, "shear_scale", p.shear_scale);
+    cJSON_AddNumberToObject(mat, "friction", p.friction);
+    cJSON_AddStringToObject(mat, "membrane", "baraff-witkin warp/weft stretch + shear (GIPC form)");
+    cJSON_AddStringToObject(mat, "bending", "signed dihedral, k_b |e| (theta - theta0)^2, k_b = E h^3 / (24 (1 - nu^2))");
+    cJSON_AddNumberToObject(mat, "damping", 0.0);
+    cJSON *ct = num_obj(m, "contact");
+    cJSON_AddNumberToObject(ct, "self_radius", p.self_radius);
+    cJSON_AddNumberToObject(ct, "collider_radius", p.collider_radius);
+    cJSON_AddNumberToObject(ct, "query_radius_min", p.query_radius);
+    cJSON_AddNumberToObject(ct, "bound_gamma", p.bound_gamma);
+    cJSON_AddNumberToObject(ct, "detect_window", p.detect_window);
+    if (sc->scenario == WEFT_SIM_SCENARIO_GARMENT) {
+        cJSON *gm = num_obj(m, "garment");
+        cJSON_AddStringToObject(gm, "motion", weft_motion_name(sc->motion.motion));
+        cJSON_AddNumberToObject(gm, "motion_speed", sc->motion.speed);
+        cJSON_AddNumberToObject(gm, "motion_amplitude", sc->motion.amplitude);
+        cJSON_AddNumberToObject(gm, "drape_preroll_frames", sc->preroll);
+        cJSON_AddStringToObject(gm, "drape",
+                                "the body blends from its bind pose to the motion's first pose over the first half of "
+                                "the pre-roll and holds it for the second half; recording starts after it");
+    }
+    cJSON *cl = num_obj(m, "cloth");
+    cJSON_AddNumberToObject(cl, "vertices", sc->cloth.nv);
+    cJSON_AddNumberToObject(cl, "triangles", sc->cloth.nt);
+    cJSON *co = num_obj(m, "collider");
+    cJSON_AddNumberToObject(co, "vertices", sc->collider.nv);
+    cJSON_AddNumberToObject(co, "triangles", sc->collider.nt);
+    cJSON_AddNumberToObject(co, "animated_from_vertex", sc->moving_begin);
+    cJSON_AddStringToObject(co, "objects", sc->objects);
+    if (sc->scenario == WEFT_SIM_SCENARIO_GRIPPER) {
+        cJSON *gr = num_obj(m, "gripper");
+        cJSON_AddNumberToObject(gr, "grasped_vertices", sc->grasp_count);
+        cJSON_AddNumberToObject(gr, "lift", sc->lift);
+        cJSON_AddNumberToObject(gr, "move_x", sc->move[0]);
+        cJSON_AddNumberToObject(gr, "move_z", sc->move[1]);
+        cJSON_AddNumberToObject(gr, "frame_close", sc->f_close);
+        cJSON_AddNumberToObject(gr, "frame_lifted", sc->f_lifted);
+        cJSON_AddNumberToObject(gr, "frame_moved", sc->f_moved);
+        cJSON_AddNumberToObject(gr, "frame_lowered", sc->f_lowered);
+        cJSON_AddNumberToObject(gr, "frame_release", sc->f_release);
+        cJSON_AddNumberToObject(gr, "frame_open", sc->f_open);
+        cJSON_AddStringToObject(gr, "attachment",
+                                "vertices within 12 mm of the grasp point follow the gripper (pins) from frame_close+1 "
+                                "to frame_release");
+    }
+    cJSON *tm = num_obj(m, "timings");
+    cJSON_AddNumberToObject(tm, "simulate_s", res->simulate_s);
+    cJSON_AddNumberToObject(tm, "validate_s", res->validate_s);
+    cJSON_AddNumberToObject(tm, "ms_per_frame", def->frames > 1 ? 1000.0 * res->simulate_s / (def->frames - 1) : 0.0);
+    cJSON *cols = cJSON_CreateArray();
+    for (int i = 0; i < ST_COUNT; ++i) {
+        cJSON_AddItemToArray(cols, cJSON_CreateString(stat_names[i]));
+    }
+    cJSON_AddItemToObject(m, "stats_columns", cols);
+    cJSON *files = cJSON_CreateObject();
+    if (res->accepted) {
+        cJSON_AddStringToObject(files, "cloth_pos", "cloth_pos.npy [T,N,3] f32");
+        cJSON_AddStringToObject(files, "rest_pos", "rest_pos.npy [N,3] f32");
+        cJSON_AddStringToObject(files, "faces", "faces.npy [F,3] i32");
+        cJSON_AddStringToObject(files, "collider_pos", "collider_pos.npy [T,M,3] f32");
+        cJSON_AddStringToObject(files, "collider_faces", "collider_faces.npy [G,3] i32");
+        cJSON_AddStringToObject(files, "pinned", "pinned.npy [T,N] u8");
+        cJSON_AddStringToObject(files, "stats", "stats.npy [T,K] f32 (row 0 of a sequence without pre-roll is zeros)");
+    }
+    cJSON_AddItemToObject(m, "files", files);
+    char *text = cJSON_Print(m);
+    cJSON_Delete(m);
+    if (!text) {
+        return false;
+    }
+    char tmp[1100], fin[1100];
+    snprintf(tmp, sizeof tmp, "%s/meta.json.tmp", dir);
+    snprintf(fin, sizeof fin, "%s/meta.json", dir);
+    FILE *f = fopen(tmp, "wb");
+    bool ok = f && fputs(text, f) >= 0 && fputc('\n', f) != EOF;
+    ok = (f && fclose(f) == 0) && ok;
+    cJSON_free(text);
+    return ok && rename(tmp, fin) == 0;
+}
+
+static bool write_arrays(const char *dir, const xscene *sc, const weft_sim_sequence_def *def, const run_buffers *b)
+{
+    char path[1100];
+    const uint64_t T = def->frames, nv = sc->cloth.nv, nc = sc->collider.nv, off = sc->preroll;
+    bool ok = true;
+    uint64_t s2[2] = {nv, 3}, s3[3] = {T, nv, 3};
+    snprintf(path, sizeof path, "%s/rest_pos.npy", dir);
+    ok = ok && npy_write(path, "<f4", s2, 2, sc->cloth.pos, sizeof(float) * 3 * nv);
+    snprintf(path, sizeof path, "%s/cloth_pos.npy", dir);
+    ok = ok && npy_write(path, "<f4", s3, 3, b->cloth + off * nv * 3, sizeof(float) * 3 * nv * T);
+    uint64_t sf[2] = {sc->cloth.nt, 3};
+    snprintf(path, sizeof path, "%s/faces.npy", dir);
+    ok = ok && npy_write(path, "<i4", sf, 2, sc->cloth.tris, sizeof(uint32_t) * 3 * sc->cloth.nt);
+    uint64_t sc3[3] = {T, nc, 3};
+    snprintf(path, sizeof path, "%s/collider_pos.npy", dir);
+    ok = ok && npy_write(path, "<f4", sc3, 3, b->collider + off * nc * 3, sizeof(float) * 3 * nc * T);
+    uint64_t scf[2] = {sc->collider.nt, 3};
+    snprintf(path, sizeof path, "%s/collider_faces.npy", dir);
+    ok = ok && npy_write(path, "<i4", scf, 2, sc->collider.tris, sizeof(uint32_t) * 3 * sc->collider.nt);
+    uint64_t sp[2] = {T, nv};
+    snprintf(path, sizeof path, "%s/pinned.npy", dir);
+    ok = ok && npy_write(path, "|u1", sp, 2, b->pinned + off * nv, (size_t)T * nv);
+    uint64_t ss[2] = {T, ST_COUNT};
+    snprintf(path, sizeof path, "%s/stats.npy", dir);
+    ok = ok && npy_write(path, "<f4", ss, 2, b->stats + off * ST_COUNT, sizeof(float) * ST_COUNT * T);
+    return ok;
+}
+
+weft_result weft_sim_generate(weft_context *ctx, const weft_sim_sequence_def *def, const char *out_dir,
+                              weft_sim_progress_fn *progress, void *user, weft_sim_sequence_result *out)
+{
+    if (!ctx || !def || !out_dir || !out) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_sim_generate: context, def, out_dir and result are required");
+    }
+    if (def->internal_cookie != WEFT_DEF_COOKIE) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
+                          "weft_sim_generate: def was not initialised with weft_sim_default_sequence_def()");
+    }
+    if ((unsigned)def->scenario >= WEFT_SIM_SCENARIO_COUNT || def->frames < 2 || def->frames > 100000 ||
+        def->substeps == 0 || def->substeps > 1000 || def->max_substeps < def->substeps || def->max_substeps > 1000 ||
+        def->cloth_vertices < 16 || def->cloth_vertices > 200000 || strlen(out_dir) > 900) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
+                          "weft_sim_generate: scenario, frames (2..100000), substeps (1..max_substeps<=1000), "
+                          "cloth_vertices (16..200000) or out_dir length out of range");
+    }
+    xscene sc;
+    weft_result r = xscene_build(ctx, &sc, def, def->seed);
+    if (r != WEFT_OK) {
+        return r;
+    }
+    weft_sim_sequence_result res = {0};
+    snprintf(res.description, sizeof res.description, "%s", sc.description);
+    res.vertex_count = sc.cloth.nv;
+    res.collider_vertex_count = sc.collider.nv;
+    res.frames = def->frames;
+    run_buffers b = {0};
+    const size_t T = (size_t)def->frames + sc.preroll, nv = sc.cloth.nv, nc = sc.collider.nv;
+    b.cloth = malloc(sizeof(float) * 3 * nv * T);
+    b.collider = malloc(sizeof(float) * 3 * nc * T);
+    b.pinned = malloc(T * nv);
+    b.stats = malloc(sizeof(float) * ST_COUNT * T);
+    b.pin_idx = malloc(sizeof(uint32_t) * nv);
+    b.pin_tgt = malloc(sizeof(float) * 3 * nv);
+    if (!b.cloth || !b.collider || !b.pinned || !b.stats || !b.pin_idx || !b.pin_tgt) {
+        buffers_free(&b);
+        xscene_free(&sc);
+        return weft__fail(WEFT_ERROR_OUT_OF_MEMORY, "weft_sim_generate: out of memory for %zu frames", T);
+    }
+    /* Retry a rejected sequence with doubled substeps, up to max_substeps. */
+    for (uint32_t s = def->substeps; s <= def->max_substeps; s *= 2) {
+        res.attempts++;
+        res.substeps_used = s;
+        r = simulate(ctx, &sc, def, s, &b, &res, progress, user);
+        if (r != WEFT_OK) {
+            break;
+        }
+        res.accepted = res.first_hit_frame < 0;
+        if (res.accepted || s > def->max_substeps / 2) {
+            break;
+        }
+    }
+    if (r == WEFT_OK) {
+        if (!make_dir(out_dir)) {
+            r = weft__fail(WEFT_ERROR_IO, "weft_sim_generate: cannot create '%s'", out_dir);
+        } else if (res.accepted && !write_arrays(out_dir, &sc, def, &b)) {
+            r = weft__fail(WEFT_ERROR_IO, "weft_sim_generate: writing arrays into '%s' failed", out_dir);
+        } else if (!write_meta(out_dir, &sc, def, &res)) {
+            r = weft__fail(WEFT_ERROR_IO, "weft_sim_generate: writing '%s/meta.json' failed", out_dir);
+        }
+    }
+    buffers_free(&b);
+    xscene_free(&sc);
+    if (r == WEFT_OK) {
+        *out = res;
+    }
+    return r;
+}

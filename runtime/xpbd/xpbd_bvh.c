@@ -1,0 +1,188 @@
+/* Binary AABB tree over points, edges or triangles. Children are stored as adjacent pairs
+ * after their parent, so a reverse sweep over the nodes refits bottom-up. */
+#include "xpbd/xpbd.h"
+
+#include <float.h>
+
+#define XBVH_LEAF 4u
+
+weft_result xbvh_create(const weft_context *ctx, xbvh *bvh, const uint32_t *prim_verts, uint32_t prim_count,
+                        uint32_t arity)
+{
+    *bvh = (xbvh){0};
+    bvh->prim_count = prim_count;
+    bvh->arity = arity;
+    bvh->prim_verts = prim_verts;
+    if (prim_count == 0) {
+        return WEFT_OK;
+    }
+    size_t max_nodes = 2 * (size_t)prim_count;
+    bvh->order = weft__alloc(ctx, prim_count * sizeof(uint32_t));
+    bvh->nodes = weft__alloc(ctx, max_nodes * sizeof(xbvh_node));
+    bvh->build_stack = weft__alloc(ctx, 3 * max_nodes * sizeof(uint32_t));
+    if (!bvh->order || !bvh->nodes || !bvh->build_stack) {
+        xbvh_destroy(ctx, bvh);
+        return WEFT_ERROR_OUT_OF_MEMORY;
+    }
+    return WEFT_OK;
+}
+
+void xbvh_destroy(const weft_context *ctx, xbvh *bvh)
+{
+    size_t max_nodes = 2 * (size_t)bvh->prim_count;
+    weft__free(ctx, bvh->order, bvh->prim_count * sizeof(uint32_t));
+    weft__free(ctx, bvh->nodes, max_nodes * sizeof(xbvh_node));
+    weft__free(ctx, bvh->build_stack, 3 * max_nodes * sizeof(uint32_t));
+    *bvh = (xbvh){0};
+}
+
+static double centroid(const xbvh *bvh, const double *pos, uint32_t prim, int axis)
+{
+    double s = 0.0;
+    for (uint32_t k = 0; k < bvh->arity; ++k) {
+        s += pos[3 * (size_t)bvh->prim_verts[bvh->arity * (size_t)prim + k] + axis];
+    }
+    return s / bvh->arity;
+}
+
+void xbvh_build(xbvh *bvh, const double *pos)
+{
+    if (bvh->prim_count == 0) {
+        return;
+    }
+    for (uint32_t i = 0; i < bvh->prim_count; ++i) {
+        bvh->order[i] = i;
+    }
+    uint32_t *stack = bvh->build_stack;
+    uint32_t sp = 0;
+    bvh->node_count = 1;
+    stack[sp++] = 0, stack[sp++] = 0, stack[sp++] = bvh->prim_count;
+    while (sp > 0) {
+        uint32_t end = stack[--sp], begin = stack[--sp], node = stack[--sp];
+        xbvh_node *nd = &bvh->nodes[node];
+        uint32_t n = end - begin;
+        if (n <= XBVH_LEAF) {
+            nd->left = begin;
+            nd->count = n;
+            continue;
+        }
+        /* Widest axis of the centroid bounds. */
+        double lo[3] = {DBL_MAX, DBL_MAX, DBL_MAX}, hi[3] = {-DBL_MAX, -DBL_MAX, -DBL_MAX};
+        for (uint32_t i = begin; i < end; ++i) {
+            for (int a = 0; a < 3; ++a) {
+                double c = centroid(bvh, pos, bvh->order[i], a);
+                lo[a] = c < lo[a] ? c : lo[a];
+                hi[a] = c > hi[a] ? c : hi[a];
+            }
+        }
+        int axis = 0;
+        for (int a = 1; a < 3; ++a) {
+            if (hi[a] - lo[a] > hi[axis] - lo[axis]) {
+                axis = a;
+            }
+        }
+        /* Median split (quickselect): the tree depth stays log2(n), so queries never
+         * overflow their fixed stack. */
+        uint32_t split = begin + n / 2;
+        uint32_t l = begin, r = end - 1;
+        while (l < r) {
+            double pivot = centroid(bvh, pos, bvh->order[(l + r) / 2], axis);
+            uint32_t i = l, j = r;
+            while (i <= j) {
+                while (centroid(bvh, pos, bvh->order[i], axis) < pivot) {
+                    ++i;
+                }
+                while (centroid(bvh, pos, bvh->order[j], axis) > pivot) {
+                    --j;
+                }
+                if (i <= j) {
+                    uint32_t t = bvh->order[i];
+                    bvh->order[i] = bvh->order[j];
+                    bvh->order[j] = t;
+                    ++i;
+                    if (j == 0) {
+                        break;
+                    }
+                    --j;
+                }
+            }
+            if (split <= j) {
+                r = j;
+            } else if (split >= i) {
+                l = i;
+            } else {
+                break;
+            }
+        }
+        uint32_t left = bvh->node_count;
+        bvh->node_count += 2;
+        nd->left = left;
+        nd->count = 0;
+        stack[sp++] = left, stack[sp++] = begin, stack[sp++] = split;
+        stack[sp++] = left + 1, stack[sp++] = split, stack[sp++] = end;
+    }
+}
+
+void xbvh_refit(xbvh *bvh, const double *pos0, const double *pos1, double pad)
+{
+    for (uint32_t ni = bvh->node_count; ni-- > 0;) {
+        xbvh_node *nd = &bvh->nodes[ni];
+        double lo[3] = {DBL_MAX, DBL_MAX, DBL_MAX}, hi[3] = {-DBL_MAX, -DBL_MAX, -DBL_MAX};
+        if (nd->count > 0) {
+            for (uint32_t s = nd->left; s < nd->left + nd->count; ++s) {
+                const uint32_t *pv = bvh->prim_verts + bvh->arity * (size_t)bvh->order[s];
+                for (uint32_t k = 0; k < bvh->arity; ++k) {
+                    for (int pass = 0; pass < (pos1 ? 2 : 1); ++pass) {
+                        const double *p = (pass ? pos1 : pos0) + 3 * (size_t)pv[k];
+                        for (int a = 0; a < 3; ++a) {
+                            lo[a] = p[a] < lo[a] ? p[a] : lo[a];
+                            hi[a] = p[a] > hi[a] ? p[a] : hi[a];
+                        }
+                    }
+                }
+            }
+            for (int a = 0; a < 3; ++a) {
+                lo[a] -= pad;
+                hi[a] += pad;
+            }
+        } else {
+            const xbvh_node *l = &bvh->nodes[nd->left], *r = &bvh->nodes[nd->left + 1];
+            for (int a = 0; a < 3; ++a) {
+                lo[a] = l->lo[a] < r->lo[a] ? l->lo[a] : r->lo[a];
+                hi[a] = l->hi[a] > r->hi[a] ? l->hi[a] : r->hi[a];
+            }
+        }
+        for (int a = 0; a < 3; ++a) {
+            nd->lo[a] = lo[a];
+            nd->hi[a] = hi[a];
+        }
+    }
+}
+
+bool xbvh_query(const xbvh *bvh, const double lo[3], const double hi[3], xbvh_visit_fn *fn, void *user)
+{
+    if (bvh->node_count == 0) {
+        return true;
+    }
+    uint32_t stack[128];
+    uint32_t sp = 0;
+    stack[sp++] = 0;
+    while (sp > 0) {
+        const xbvh_node *nd = &bvh->nodes[stack[--sp]];
+        if (nd->lo[0] > hi[0] || nd->hi[0] < lo[0] || nd->lo[1] > hi[1] || nd->hi[1] < lo[1] || nd->lo[2] > hi[2] ||
+            nd->hi[2] < lo[2]) {
+            continue;
+        }
+        if (nd->count > 0) {
+            for (uint32_t s = nd->left; s < nd->left + nd->count; ++s) {
+                if (!fn(bvh->order[s], user)) {
+                    return false;
+                }
+            }
+        } else {
+            stack[sp++] = nd->left;
+            stack[sp++] = nd->left + 1;
+        }
+    }
+    return true;
+}

@@ -1,0 +1,1239 @@
+/* XPBD cloth solver with small steps (one Gauss-Seidel pass per substep), GIPC-equivalent
+ * energies, contact with thickness and Coulomb friction, and per-vertex conservative
+ * displacement bounds that keep cloth-cloth and cloth-collider pairs from ever crossing.
+ *
+ * Substep (h = frame_dt / S):
+ *   1. proximity detection at the substep start (every detect_interval substeps): contact
+ *      candidates and per-vertex bounds b_v from the distance to every primitive in reach,
+ *      reduced by how far kinematic geometry (collider, pins) can move before the next pass;
+ *   2. predict x = x + h v + h^2 g; pins and collider move to their substep-end positions;
+ *   3. membrane (BW warp/weft stretch, shear), signed-dihedral bending, contacts + friction;
+ *   4. truncate every free vertex to its bound around the snapshot;
+ *   5. v = (x - x_start) / h.
+ * Everything is double precision; the garment's float buffers are read and written at the
+ * frame boundary only, and the double state carries over between frames. */
+#include "xpbd/xpbd.h"
+
+#include <float.h>
+#include <math.h>
+#include <string.h>
+
+#define FRAME_DT (1.0 / 60.0)
+#define XPI 3.14159265358979323846
+#define RQ_MAX 0.1 /* largest proximity query radius, m */
+
+typedef struct xcontact {
+    uint32_t v[4];
+    uint8_t kin[4];      /* 1: collider vertex (infinite mass) */
+    uint8_t type;        /* XC_VT: slot 0 vs triangle 1-3; XC_TV: triangle 0-2 vs slot 3; XC_EE: edge 0-1 vs edge 2-3 */
+    uint8_t self;
+    double n[3];         /* direction at detection, used only when the pair is (numerically) touching */
+} xcontact;
+
+enum { XC_VT = 0, XC_TV = 1, XC_EE = 2 };
+
+typedef struct xpbd_state {
+    xpbd_params p;
+    uint32_t n, nc, ntri, nctri;
+    xtopo topo;          /* cloth */
+    xtopo ctopo;         /* collider (edges only) */
+
+    double *xd, *vd;     /* committed state at t */
+    double *xd_back, *vd_back; /* state before the last step (for a chord-safe retry) */
+    bool chord_safe;     /* next step: one proximity pass for the whole frame */
+    bool split_moving;   /* detection routes moving-collider pairs to dmin_mov */
+    double *dmin_mov;    /* chord-safe frames: distances to moving collider geometry */
+    double *bound_frame; /* chord-safe frames: bound around xs_frame for every other pair */
+    double *xs_frame;
+    bool have_state;     /* xd/vd match g->x (cleared by set_state) */
+    double *x, *v;       /* working state */
+    double *xs;          /* snapshot at the last proximity pass */
+    double *xo;          /* substep start */
+    double *mass, *w;
+    double *bound, *dmin;
+    double *kin;         /* per cloth vertex: pinned displacement over the current detection window */
+    uint8_t *pinned;
+    double *pin_from, *pin_to;
+
+    double *cp, *cn;     /* collider at t and t+1 */
+    double *cs, *cc;     /* collider at substep start and end */
+    double *csnap;       /* collider at the last proximity pass */
+    double *cdisp;       /* collider vertex displacement per substep */
+    double *cwin;        /* collider vertex displacement over the current detection window */
+    double *kin_step;    /* per cloth vertex: pinned displacement per substep */
+
+    double *tri_coef;    /* 6 per triangle */
+    double *tri_area;
+    double *hinge_rest, *hinge_len;
+
+    xbvh bvh_tri, bvh_edge, bvh_ctri, bvh_cedge;
+    bool cloth_bvh_built, collider_bvh_built;
+
+    xcontact *contacts;
+    uint32_t contact_count, contact_cap;     /* self contacts: [0, contact_count) */
+    uint32_t collider_contact_count;          /* collider contacts: the last ones of the array */
+    uint32_t self_cap;                        /* self contacts never take the collider share */
+    double rq;           /* query radius of the current detection window */
+
+    xpbd_frame_stats stats;
+} xpbd_state;
+
+xpbd_params xpbd_default_params(void)
+{
+    xpbd_params p = {0};
+    p.youngs_modulus = 1e6;
+    p.poisson_ratio = 0.49;
+    p.thickness = 1e-3;
+    p.areal_density = 0.2;
+    p.compression_scale = 1e-2;
+    p.shear_scale = 0.03;
+    p.friction = 0.4;
+    p.gravity = 9.81;
+    p.self_radius = 1.5e-3;
+    p.collider_radius = 2.5e-3;
+    p.query_radius = 1e-2;
+    p.bound_gamma = 0.4;
+    p.detect_window = 4;
+    p.self_collision = true;
+    return p;
+}
+
+/* ---------------------------------------------------------------------------------------- */
+/* Constraint kernels                                                                        */
+
+bool xpbd_membrane_coefficients(const double *r0, const double *r1, const double *r2, double coef[6], double *area)
+{
+    /* Rest frame: u along edge 0-1, v in the triangle plane (GIPC's per-triangle frame). */
+    double e1[3], e2[3], nrm[3], u[3], vv[3];
+    xv_sub(e1, r1, r0);
+    xv_sub(e2, r2, r0);
+    xv_cross(nrm, e1, e2);
+    double l1 = xv_len(e1), ln = xv_len(nrm);
+    if (!(l1 > 0.0) || !(ln > 1e-14 * xv_dot(e1, e1))) {
+        return false;
+    }
+    for (int k = 0; k < 3; ++k) {
+        u[k] = e1[k] / l1;
+        nrm[k] /= ln;
+    }
+    xv_cross(vv, nrm, u);
+    /* Dm = [[|e1|, e2.u], [0, e2.v]]; F = [x1-x0, x2-x0] Dm^-1. */
+    double d00 = l1, d01 = xv_dot(e2, u), d11 = xv_dot(e2, vv);
+    double det = d00 * d11;
+    double i00 = d11 / det, i01 = -d01 / det, i11 = d00 / det; /* i10 = 0 */
+    coef[1] = i00;
+    coef[2] = 0.0;
+    coef[0] = -i00;
+    coef[4] = i01;
+    coef[5] = i11;
+    coef[3] = -(i01 + i11);
+    *area = 0.5 * ln;
+    return true;
+}
+
+double xpbd_membrane_eval(const double *x0, const double *x1, const double *x2, const double coef[6], int which,
+                          double grad[9])
+{
+    const double *xs[3] = {x0, x1, x2};
+    double fu[3] = {0, 0, 0}, fv[3] = {0, 0, 0};
+    for (int i = 0; i < 3; ++i) {
+        xv_axpy(fu, coef[i], xs[i]);
+        xv_axpy(fv, coef[3 + i], xs[i]);
+    }
+    if (which == 2) {
+        for (int i = 0; i < 3; ++i) {
+            for (int k = 0; k < 3; ++k) {
+                grad[3 * i + k] = coef[i] * fv[k] + coef[3 + i] * fu[k];
+            }
+        }
+        return xv_dot(fu, fv);
+    }
+    const double *f = which == 0 ? fu : fv;
+    const double *a = which == 0 ? coef : coef + 3;
+    double l = xv_len(f);
+    double inv = l > 1e-12 ? 1.0 / l : 0.0;
+    for (int i = 0; i < 3; ++i) {
+        for (int k = 0; k < 3; ++k) {
+            grad[3 * i + k] = a[i] * f[k] * inv;
+        }
+    }
+    return l - 1.0;
+}
+
+bool xpbd_dihedral_eval(const double *x0, const double *x1, const double *x2, const double *x3, double *theta,
+                        double grad[12])
+{
+    double e[3], a[3], b[3], na[3], nb[3];
+    memset(grad, 0, 12 * sizeof(double));
+    xv_sub(e, x1, x0);
+    xv_sub(a, x2, x0);
+    xv_sub(b, x3, x0);
+    xv_cross(na, e, a);
+    xv_cross(nb, b, e);
+    double le2 = xv_dot(e, e), la2 = xv_dot(na, na), lb2 = xv_dot(nb, nb);
+    if (!(le2 > 0.0) || !(la2 > 1e-24 * le2 * le2) || !(lb2 > 1e-24 * le2 * le2)) {
+        *theta = 0.0;
+        return false;
+    }
+    double le = sqrt(le2);
+    double c[3];
+    xv_cross(c, na, nb);
+    double sin_t = xv_dot(c, e) / le, cos_t = xv_dot(na, nb);
+    *theta = atan2(sin_t, cos_t);
+    /* Wing gradients are along the wing normals (Bridson et al. 2003); the edge vertices take
+     * the negated wing gradients split by where each wing projects onto the edge. */
+    double t2 = xv_dot(a, e) / le2, t3 = xv_dot(b, e) / le2;
+    double g2[3], g3[3];
+    for (int k = 0; k < 3; ++k) {
+        g2[k] = -le * na[k] / la2;
+        g3[k] = -le * nb[k] / lb2;
+    }
+    for (int k = 0; k < 3; ++k) {
+        grad[6 + k] = g2[k];
+        grad[9 + k] = g3[k];
+        grad[k] = -(1.0 - t2) * g2[k] - (1.0 - t3) * g3[k];
+        grad[3 + k] = -t2 * g2[k] - t3 * g3[k];
+    }
+    return true;
+}
+
+/* ---------------------------------------------------------------------------------------- */
+/* Creation                                                                                  */
+
+#define FREE_ARR(ptr, count) weft__free(ctx, (ptr), (size_t)(count) * sizeof *(ptr))
+
+static void state_free(const weft_context *ctx, xpbd_state *s)
+{
+    if (!s) {
+        return;
+    }
+    uint32_t n = s->n, nc = s->nc;
+    FREE_ARR(s->xd, 3 * n);
+    FREE_ARR(s->xd_back, 3 * n);
+    FREE_ARR(s->dmin_mov, n);
+    FREE_ARR(s->bound_frame, n);
+    FREE_ARR(s->xs_frame, 3 * n);
+    FREE_ARR(s->vd_back, 3 * n);
+    FREE_ARR(s->vd, 3 * n);
+    FREE_ARR(s->x, 3 * n);
+    FREE_ARR(s->v, 3 * n);
+    FREE_ARR(s->xs, 3 * n);
+    FREE_ARR(s->xo, 3 * n);
+    FREE_ARR(s->mass, n);
+    FREE_ARR(s->w, n);
+    FREE_ARR(s->bound, n);
+    FREE_ARR(s->dmin, n);
+    FREE_ARR(s->kin, n);
+    FREE_ARR(s->pinned, n);
+    FREE_ARR(s->pin_from, 3 * n);
+    FREE_ARR(s->pin_to, 3 * n);
+    FREE_ARR(s->cp, 3 * nc);
+    FREE_ARR(s->cn, 3 * nc);
+    FREE_ARR(s->cs, 3 * nc);
+    FREE_ARR(s->cc, 3 * nc);
+    FREE_ARR(s->cdisp, nc);
+    FREE_ARR(s->csnap, 3 * nc);
+    FREE_ARR(s->cwin, nc);
+    FREE_ARR(s->kin_step, n);
+    FREE_ARR(s->tri_coef, 6 * s->ntri);
+    FREE_ARR(s->tri_area, s->ntri);
+    FREE_ARR(s->hinge_rest, s->topo.hinge_count + 1);
+    FREE_ARR(s->hinge_len, s->topo.hinge_count + 1);
+    FREE_ARR(s->contacts, s->contact_cap);
+    xbvh_destroy(ctx, &s->bvh_tri);
+    xbvh_destroy(ctx, &s->bvh_edge);
+    xbvh_destroy(ctx, &s->bvh_ctri);
+    xbvh_destroy(ctx, &s->bvh_cedge);
+    xtopo_destroy(ctx, &s->topo);
+    xtopo_destroy(ctx, &s->ctopo);
+    weft__free(ctx, s, sizeof *s);
+}
+
+static double wrap_angle(double a)
+{
+    while (a > XPI) {
+        a -= 2.0 * XPI;
+    }
+    while (a <= -XPI) {
+        a += 2.0 * XPI;
+    }
+    return a;
+}
+
+/* Rest geometry and masses (depend on the material parameters). */
+static weft_result setup_rest(weft_garment *g, xpbd_state *s)
+{
+    memset(s->mass, 0, s->n * sizeof(double));
+    double rest[9];
+    for (uint32_t t = 0; t < s->ntri; ++t) {
+        const uint32_t *tri = g->triangles + 3 * (size_t)t;
+        for (int i = 0; i < 3; ++i) {
+            for (int k = 0; k < 3; ++k) {
+                rest[3 * i + k] = g->rest[3 * (size_t)tri[i] + k];
+            }
+        }
+        if (!xpbd_membrane_coefficients(rest, rest + 3, rest + 6, s->tri_coef + 6 * (size_t)t, &s->tri_area[t])) {
+            return weft__fail(WEFT_ERROR_DEGENERATE_MESH, "xpbd: garment triangle %u is degenerate in the rest shape",
+                              t);
+        }
+        for (int i = 0; i < 3; ++i) {
+            s->mass[tri[i]] += s->p.areal_density * s->tri_area[t] / 3.0;
+        }
+    }
+    for (uint32_t i = 0; i < s->n; ++i) {
+        if (!(s->mass[i] > 0.0)) {
+            return weft__fail(WEFT_ERROR_DEGENERATE_MESH, "xpbd: garment vertex %u belongs to no triangle", i);
+        }
+    }
+    for (uint32_t h = 0; h < s->topo.hinge_count; ++h) {
+        const uint32_t *hg = s->topo.hinges + 4 * (size_t)h;
+        double p[4][3], grad[12], th;
+        for (int i = 0; i < 4; ++i) {
+            for (int k = 0; k < 3; ++k) {
+                p[i][k] = g->rest[3 * (size_t)hg[i] + k];
+            }
+        }
+        xpbd_dihedral_eval(p[0], p[1], p[2], p[3], &th, grad);
+        s->hinge_rest[h] = th;
+        double e[3];
+        xv_sub(e, p[1], p[0]);
+        s->hinge_len[h] = xv_len(e);
+    }
+    return WEFT_OK;
+}
+
+static bool params_valid(const xpbd_params *p)
+{
+    return p->youngs_modulus > 0 && p->poisson_ratio > -1 && p->poisson_ratio < 0.5 && p->thickness > 0 &&
+           p->areal_density > 0 && p->compression_scale > 0 && p->compression_scale <= 1 && p->shear_scale >= 0 &&
+           p->friction >= 0 && isfinite(p->gravity) && p->self_radius > 0 && p->collider_radius > 0 &&
+           p->query_radius > p->self_radius && p->query_radius > p->collider_radius && p->bound_gamma > 0 &&
+           p->bound_gamma < 0.5 && p->detect_window >= 1 && p->detect_window <= 64;
+}
+
+static weft_result xpbd_create(weft_garment *g)
+{
+    const weft_context *ctx = g->ctx;
+    xpbd_state *s = weft__alloc(ctx, sizeof *s);
+    if (!s) {
+        return WEFT_ERROR_OUT_OF_MEMORY;
+    }
+    s->p = xpbd_default_params();
+    s->n = g->vertex_count;
+    s->nc = g->collider_vertex_count;
+    s->ntri = g->triangle_count;
+    s->nctri = g->collider_triangle_count;
+    weft_result r = xtopo_create(ctx, &s->topo, g->triangles, s->ntri, s->n, "xpbd garment");
+    if (r != WEFT_OK) {
+        weft__free(ctx, s, sizeof *s);
+        return r;
+    }
+    if (s->nc > 0) {
+        r = xtopo_create(ctx, &s->ctopo, g->collider_triangles, s->nctri, s->nc, NULL);
+        if (r != WEFT_OK) {
+            state_free(ctx, s);
+            return r;
+        }
+    }
+    uint32_t n = s->n, nc = s->nc;
+    /* Contact capacity: generous per-vertex budget; overflowing pairs are dropped and
+     * counted, which is safe because the bounds alone prevent crossings. */
+    s->self_cap = 24u * n + 64u;
+    s->contact_cap = s->self_cap + 8u * n + 4u * nc + 64u;
+#define ALLOC_ARR(ptr, count) ((ptr) = weft__alloc(ctx, (size_t)(count) * sizeof *(ptr)))
+    bool ok = ALLOC_ARR(s->xd, 3 * n) && ALLOC_ARR(s->vd, 3 * n) && ALLOC_ARR(s->xd_back, 3 * n) &&
+              ALLOC_ARR(s->dmin_mov, n) && ALLOC_ARR(s->bound_frame, n) && ALLOC_ARR(s->xs_frame, 3 * n) &&
+              ALLOC_ARR(s->vd_back, 3 * n) && ALLOC_ARR(s->x, 3 * n) &&
+              ALLOC_ARR(s->v, 3 * n) && ALLOC_ARR(s->xs, 3 * n) && ALLOC_ARR(s->xo, 3 * n) &&
+              ALLOC_ARR(s->mass, n) && ALLOC_ARR(s->w, n) && ALLOC_ARR(s->bound, n) && ALLOC_ARR(s->dmin, n) &&
+              ALLOC_ARR(s->kin, n) && ALLOC_ARR(s->kin_step, n) && ALLOC_ARR(s->pinned, n) && ALLOC_ARR(s->pin_from, 3 * n) &&
+              ALLOC_ARR(s->pin_to, 3 * n) && ALLOC_ARR(s->tri_coef, 6 * s->ntri) &&
+              ALLOC_ARR(s->tri_area, s->ntri) && ALLOC_ARR(s->hinge_rest, s->topo.hinge_count + 1) &&
+              ALLOC_ARR(s->hinge_len, s->topo.hinge_count + 1) && ALLOC_ARR(s->contacts, s->contact_cap);
+    if (ok && nc > 0) {
+        ok = ALLOC_ARR(s->cp, 3 * nc) && ALLOC_ARR(s->cn, 3 * nc) && ALLOC_ARR(s->cs, 3 * nc) &&
+             ALLOC_ARR(s->cc, 3 * nc) && ALLOC_ARR(s->cdisp, nc) && ALLOC_ARR(s->csnap, 3 * nc) &&
+             ALLOC_ARR(s->cwin, nc);
+    }
+#undef ALLOC_ARR
+    /* hinge arrays have one spare slot so a hinge-free mesh still gets a valid pointer */
+    if (!ok) {
+        state_free(ctx, s);
+        return WEFT_ERROR_OUT_OF_MEMORY;
+    }
+    ok = xbvh_create(ctx, &s->bvh_tri, g->triangles, s->ntri, 3) == WEFT_OK &&
+         xbvh_create(ctx, &s->bvh_edge, s->topo.edges, s->topo.edge_count, 2) == WEFT_OK;
+    if (ok && nc > 0) {
+        ok = xbvh_create(ctx, &s->bvh_ctri, g->collider_triangles, s->nctri, 3) == WEFT_OK &&
+             xbvh_create(ctx, &s->bvh_cedge, s->ctopo.edges, s->ctopo.edge_count, 2) == WEFT_OK;
+    }
+    if (!ok) {
+        state_free(ctx, s);
+        return WEFT_ERROR_OUT_OF_MEMORY;
+    }
+    r = setup_rest(g, s);
+    if (r != WEFT_OK) {
+        state_free(ctx, s);
+        return r;
+    }
+    g->method_state = s;
+    return WEFT_OK;
+}
+
+static void xpbd_destroy(weft_garment *g)
+{
+    state_free(g->ctx, g->method_state);
+    g->method_state = NULL;
+}
+
+static void xpbd_reset(weft_garment *g)
+{
+    xpbd_state *s = g->method_state;
+    s->have_state = false;
+}
+
+weft_result weft__xpbd_configure(weft_garment *g, const xpbd_params *params)
+{
+    if (!g || !params || g->ops != &weft__xpbd_ops) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "xpbd configure: garment is not an XPBD garment");
+    }
+    if (!params_valid(params)) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
+                          "xpbd configure: a parameter is out of range (moduli and radii > 0, poisson in (-1, 0.5), "
+                          "query radius above both contact radii, bound gamma in (0, 0.5))");
+    }
+    xpbd_state *s = g->method_state;
+    xpbd_params old = s->p;
+    s->p = *params;
+    weft_result r = setup_rest(g, s);
+    if (r != WEFT_OK) {
+        s->p = old;
+        setup_rest(g, s);
+    }
+    return r;
+}
+
+weft_result weft__xpbd_retry_chord_safe(weft_garment *g, const float *x_t, const float *x_prev,
+                                        const float *collider_t)
+{
+    if (!g || g->ops != &weft__xpbd_ops || !x_t || !x_prev || (g->collider_vertex_count > 0 && !collider_t)) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
+                          "xpbd retry: needs an XPBD garment, both earlier frames and the collider at t");
+    }
+    xpbd_state *s = g->method_state;
+    weft_result r = weft_garment_set_state(g, x_t, x_prev);
+    if (r != WEFT_OK) {
+        return r;
+    }
+    memcpy(s->xd, s->xd_back, 3 * (size_t)s->n * sizeof(double));
+    memcpy(s->vd, s->vd_back, 3 * (size_t)s->n * sizeof(double));
+    s->have_state = true; /* still checked against x_t at the next step */
+    if (g->collider_vertex_count > 0) {
+        memcpy(g->collider_prev, collider_t, 3 * (size_t)g->collider_vertex_count * sizeof(float));
+        g->collider_next_set = false;
+    }
+    s->chord_safe = true;
+    return WEFT_OK;
+}
+
+xpbd_frame_stats weft__xpbd_last_stats(const weft_garment *g)
+{
+    xpbd_frame_stats st = {0};
+    if (g && g->ops == &weft__xpbd_ops && g->method_state) {
+        st = ((const xpbd_state *)g->method_state)->stats;
+    }
+    return st;
+}
+
+/* ---------------------------------------------------------------------------------------- */
+/* Proximity detection and bounds                                                            */
+
+typedef struct detect_ctx {
+    xpbd_state *s;
+    const uint32_t *tris, *ctris;
+    uint32_t query;      /* the vertex or edge being queried */
+    double lo[3], hi[3]; /* the query box (BVH leaves report every primitive they hold) */
+} detect_ctx;
+
+/* False when the box of the k points misses the query box: skips the exact distance. */
+static inline bool box_hits(const detect_ctx *dc, const double *pos, const uint32_t *idx, int k)
+{
+    for (int a = 0; a < 3; ++a) {
+        double mn = pos[3 * (size_t)idx[0] + a], mx = mn;
+        for (int i = 1; i < k; ++i) {
+            double v = pos[3 * (size_t)idx[i] + a];
+            mn = v < mn ? v : mn;
+            mx = v > mx ? v : mx;
+        }
+        if (mn > dc->hi[a] || mx < dc->lo[a]) {
+            return false;
+        }
+    }
+    return true;
+}
+
+static void add_contact(xpbd_state *s, const xcontact *c)
+{
+    if (c->self && s->contact_count < s->self_cap) {
+        s->contacts[s->contact_count++] = *c;
+    } else if (!c->self && s->collider_contact_count < s->contact_cap - s->self_cap) {
+        s->contacts[s->contact_cap - 1 - s->collider_contact_count++] = *c;
+    } else {
+        s->stats.contacts_dropped++;
+    }
+}
+
+static void lower(xpbd_state *s, uint32_t v, double d)
+{
+    if (d < s->dmin[v]) {
+        s->dmin[v] = d;
+    }
+}
+
+/* In split mode (chord-safe frames) pairs with moving kinematic geometry (collider vertices
+ * or pinned cloth vertices) feed the windowed bound dmin_mov instead of the frame-level one. */
+static void lower_collider(xpbd_state *s, uint32_t v, double d, double collider_motion)
+{
+    if (s->split_moving && collider_motion > 0.0) {
+        if (d < s->dmin_mov[v]) {
+            s->dmin_mov[v] = d;
+        }
+    } else {
+        lower(s, v, d);
+    }
+}
+
+static double kin_max3(const xpbd_state *s, const uint32_t *t)
+{
+    return fmax(s->kin[t[0]], fmax(s->kin[t[1]], s->kin[t[2]]));
+}
+
+/* Cloth vertex vs cloth triangle. */
+static bool visit_self_vt(uint32_t t, void *user)
+{
+    detect_ctx *dc = user;
+    xpbd_state *s = dc->s;
+    uint32_t v = dc->query;
+    const uint32_t *tri = dc->tris + 3 * (size_t)t;
+    if (tri[0] == v || tri[1] == v || tri[2] == v || !box_hits(dc, s->xs, tri, 3)) {
+        return true;
+    }
+    const double *x = s->xs;
+    double b[3];
+    double d = sqrt(xg_point_triangle_sq(x + 3 * (size_t)v, x + 3 * (size_t)tri[0], x + 3 * (size_t)tri[1],
+                                         x + 3 * (size_t)tri[2], b));
+    if (d >= s->rq) {
+        return true;
+    }
+    if (d < s->stats.min_self_distance) {
+        s->stats.min_self_distance = d;
+    }
+    double km = fmax(s->kin[v], kin_max3(s, tri));
+    double de = d - km;
+    lower_collider(s, v, de, km);
+    for (int k = 0; k < 3; ++k) {
+        lower_collider(s, tri[k], de, km);
+    }
+    if (d > 0.0 && de * (1.0 - 2.0 * s->p.bound_gamma) < s->p.self_radius) {
+        xcontact c = {.v = {v, tri[0], tri[1], tri[2]}, .type = XC_VT, .self = 1};
+        for (int k = 0; k < 3; ++k) {
+            double q = b[0] * x[3 * (size_t)tri[0] + k] + b[1] * x[3 * (size_t)tri[1] + k] +
+                       b[2] * x[3 * (size_t)tri[2] + k];
+            c.n[k] = (x[3 * (size_t)v + k] - q) / d;
+        }
+        add_contact(s, &c);
+    }
+    return true;
+}
+
+/* Cloth edge vs cloth edge (each unordered pair once). */
+static bool visit_self_ee(uint32_t e2, void *user)
+{
+    detect_ctx *dc = user;
+    xpbd_state *s = dc->s;
+    uint32_t e1 = dc->query;
+    if (e2 <= e1) {
+        return true;
+    }
+    const uint32_t *a = s->topo.edges + 2 * (size_t)e1, *b = s->topo.edges + 2 * (size_t)e2;
+    if (a[0] == b[0] || a[0] == b[1] || a[1] == b[0] || a[1] == b[1] || !box_hits(dc, s->xs, b, 2)) {
+        return true;
+    }
+    const double *x = s->xs;
+    double sa, tb;
+    double d = sqrt(xg_segment_segment_sq(x + 3 * (size_t)a[0], x + 3 * (size_t)a[1], x + 3 * (size_t)b[0],
+                                          x + 3 * (size_t)b[1], &sa, &tb));
+    if (d >= s->rq) {
+        return true;
+    }
+    if (d < s->stats.min_self_distance) {
+        s->stats.min_self_distance = d;
+    }
+    double km = fmax(fmax(s->kin[a[0]], s->kin[a[1]]), fmax(s->kin[b[0]], s->kin[b[1]]));
+    double de = d - km;
+    lower_collider(s, a[0], de, km), lower_collider(s, a[1], de, km);
+    lower_collider(s, b[0], de, km), lower_collider(s, b[1], de, km);
+    if (d > 0.0 && de * (1.0 - 2.0 * s->p.bound_gamma) < s->p.self_radius) {
+        xcontact c = {.v = {a[0], a[1], b[0], b[1]}, .type = XC_EE, .self = 1};
+        for (int k = 0; k < 3; ++k) {
+            double pa = (1.0 - sa) * x[3 * (size_t)a[0] + k] + sa * x[3 * (size_t)a[1] + k];
+            double pb = (1.0 - tb) * x[3 * (size_t)b[0] + k] + tb * x[3 * (size_t)b[1] + k];
+            c.n[k] = (pa - pb) / d;
+        }
+        add_contact(s, &c);
+    }
+    return true;
+}
+
+/* Cloth vertex vs collider triangle. */
+static bool visit_vt_collider(uint32_t t, void *user)
+{
+    detect_ctx *dc = user;
+    xpbd_state *s = dc->s;
+    uint32_t v = dc->query;
+    const uint32_t *tri = dc->ctris + 3 * (size_t)t;
+    const double *x = s->xs, *c = s->csnap;
+    double b[3];
+    double d = sqrt(xg_point_triangle_sq(x + 3 * (size_t)v, c + 3 * (size_t)tri[0], c + 3 * (size_t)tri[1],
+                                         c + 3 * (size_t)tri[2], b));
+    if (d >= s->rq) {
+        return true;
+    }
+    if (d < s->stats.min_collider_distance) {
+        s->stats.min_collider_distance = d;
+    }
+    double D = fmax(s->cwin[tri[0]], fmax(s->cwin[tri[1]], s->cwin[tri[2]]));
+    double de = d - D - s->kin[v];
+    lower_collider(s, v, de, D);
+    /* Only pairs that can come within the contact radius inside the window need a contact. */
+    if (d > 0.0 && de * (1.0 - s->p.bound_gamma) < s->p.collider_radius) {
+        xcontact ct = {.v = {v, tri[0], tri[1], tri[2]}, .kin = {0, 1, 1, 1}, .type = XC_VT};
+        for (int k = 0; k < 3; ++k) {
+            double q = b[0] * c[3 * (size_t)tri[0] + k] + b[1] * c[3 * (size_t)tri[1] + k] +
+                       b[2] * c[3 * (size_t)tri[2] + k];
+            ct.n[k] = (x[3 * (size_t)v + k] - q) / d;
+        }
+        add_contact(s, &ct);
+    }
+    return true;
+}
+
+/* Collider vertex vs cloth triangle. */
+static bool visit_tv_collider(uint32_t t, void *user)
+{
+    detect_ctx *dc = user;
+    xpbd_state *s = dc->s;
+    uint32_t u = dc->query;
+    const uint32_t *tri = dc->tris + 3 * (size_t)t;
+    const double *x = s->xs, *c = s->csnap;
+    double b[3];
+    double d = sqrt(xg_point_triangle_sq(c + 3 * (size_t)u, x + 3 * (size_t)tri[0], x + 3 * (size_t)tri[1],
+                                         x + 3 * (size_t)tri[2], b));
+    if (d >= s->rq) {
+        return true;
+    }
+    if (d < s->stats.min_collider_distance) {
+        s->stats.min_collider_distance = d;
+    }
+    double de = d - s->cwin[u] - kin_max3(s, tri);
+    for (int k = 0; k < 3; ++k) {
+        lower_collider(s, tri[k], de, s->cwin[u]);
+    }
+    if (d > 0.0 && de * (1.0 - s->p.bound_gamma) < s->p.collider_radius) {
+        xcontact ct = {.v = {tri[0], tri[1], tri[2], u}, .kin = {0, 0, 0, 1}, .type = XC_TV};
+        for (int k = 0; k < 3; ++k) {
+            double q = b[0] * x[3 * (size_t)tri[0] + k] + b[1] * x[3 * (size_t)tri[1] + k] +
+                       b[2] * x[3 * (size_t)tri[2] + k];
+            ct.n[k] = (q - c[3 * (size_t)u + k]) / d;
+        }
+        add_contact(s, &ct);
+    }
+    return true;
+}
+
+/* Cloth edge vs collider edge. */
+static bool visit_ee_collider(uint32_t ce, void *user)
+{
+    detect_ctx *dc = user;
+    xpbd_state *s = dc->s;
+    const uint32_t *a = s->topo.edges + 2 * (size_t)dc->query, *b = s->ctopo.edges + 2 * (size_t)ce;
+    const double *x = s->xs, *c = s->csnap;
+    double sa, tb;
+    double d = sqrt(xg_segment_segment_sq(x + 3 * (size_t)a[0], x + 3 * (size_t)a[1], c + 3 * (size_t)b[0],
+                                          c + 3 * (size_t)b[1], &sa, &tb));
+    if (d >= s->rq) {
+        return true;
+    }
+    if (d < s->stats.min_collider_distance) {
+        s->stats.min_collider_distance = d;
+    }
+    double de = d - fmax(s->cwin[b[0]], s->cwin[b[1]]) - fmax(s->kin[a[0]], s->kin[a[1]]);
+    lower_collider(s, a[0], de, fmax(s->cwin[b[0]], s->cwin[b[1]]));
+    lower_collider(s, a[1], de, fmax(s->cwin[b[0]], s->cwin[b[1]]));
+    if (d > 0.0 && de * (1.0 - s->p.bound_gamma) < s->p.collider_radius) {
+        xcontact ct = {.v = {a[0], a[1], b[0], b[1]}, .kin = {0, 0, 1, 1}, .type = XC_EE};
+        for (int k = 0; k < 3; ++k) {
+            double pa = (1.0 - sa) * x[3 * (size_t)a[0] + k] + sa * x[3 * (size_t)a[1] + k];
+            double pb = (1.0 - tb) * c[3 * (size_t)b[0] + k] + tb * c[3 * (size_t)b[1] + k];
+            ct.n[k] = (pa - pb) / d;
+        }
+        add_contact(s, &ct);
+    }
+    return true;
+}
+
+static void box_around(const double *p, double r, double lo[3], double hi[3])
+{
+    for (int k = 0; k < 3; ++k) {
+        lo[k] = p[k] - r;
+        hi[k] = p[k] + r;
+    }
+}
+
+static void box_edge(const double *p, const double *q, double r, double lo[3], double hi[3])
+{
+    for (int k = 0; k < 3; ++k) {
+        lo[k] = fmin(p[k], q[k]) - r;
+        hi[k] = fmax(p[k], q[k]) + r;
+    }
+}
+
+/* One proximity pass at the snapshot s->xs / s->csnap; window = substeps until the next pass. */
+static void detect(weft_garment *g, xpbd_state *s)
+{
+    const double gamma = s->p.bound_gamma;
+    s->contact_count = 0;
+    s->collider_contact_count = 0;
+    s->stats.detections++;
+    for (uint32_t i = 0; i < s->n; ++i) {
+        s->dmin[i] = s->rq;
+        s->dmin_mov[i] = s->rq;
+    }
+    detect_ctx dc = {.s = s, .tris = g->triangles, .ctris = g->collider_triangles};
+    if (!s->cloth_bvh_built) {
+        xbvh_build(&s->bvh_tri, s->xs);
+        xbvh_build(&s->bvh_edge, s->xs);
+        s->cloth_bvh_built = true;
+    }
+    if (!s->collider_bvh_built && s->nc > 0) {
+        xbvh_build(&s->bvh_ctri, s->csnap);
+        xbvh_build(&s->bvh_cedge, s->csnap);
+        s->collider_bvh_built = true;
+    }
+    xbvh_refit(&s->bvh_tri, s->xs, NULL, 0.0);
+    xbvh_refit(&s->bvh_edge, s->xs, NULL, 0.0);
+    if (s->p.self_collision) {
+        for (uint32_t v = 0; v < s->n; ++v) {
+            dc.query = v;
+            box_around(s->xs + 3 * (size_t)v, s->rq, dc.lo, dc.hi);
+            xbvh_query(&s->bvh_tri, dc.lo, dc.hi, visit_self_vt, &dc);
+        }
+        for (uint32_t e = 0; e < s->topo.edge_count; ++e) {
+            const uint32_t *ed = s->topo.edges + 2 * (size_t)e;
+            dc.query = e;
+            box_edge(s->xs + 3 * (size_t)ed[0], s->xs + 3 * (size_t)ed[1], s->rq, dc.lo, dc.hi);
+            xbvh_query(&s->bvh_edge, dc.lo, dc.hi, visit_self_ee, &dc);
+        }
+    }
+    if (s->nc > 0) {
+        xbvh_refit(&s->bvh_ctri, s->csnap, NULL, 0.0);
+        xbvh_refit(&s->bvh_cedge, s->csnap, NULL, 0.0);
+        const xbvh_node *root = &s->bvh_tri.nodes[0];
+        for (uint32_t v = 0; v < s->n; ++v) {
+            dc.query = v;
+            box_around(s->xs + 3 * (size_t)v, s->rq, dc.lo, dc.hi);
+            xbvh_query(&s->bvh_ctri, dc.lo, dc.hi, visit_vt_collider, &dc);
+        }
+        for (uint32_t u = 0; u < s->nc; ++u) {
+            const double *p = s->csnap + 3 * (size_t)u;
+            /* Cheap reject against the whole cloth box. */
+            if (p[0] < root->lo[0] - s->rq || p[0] > root->hi[0] + s->rq || p[1] < root->lo[1] - s->rq ||
+                p[1] > root->hi[1] + s->rq || p[2] < root->lo[2] - s->rq || p[2] > root->hi[2] + s->rq) {
+                continue;
+            }
+            dc.query = u;
+            box_around(p, s->rq, dc.lo, dc.hi);
+            xbvh_query(&s->bvh_tri, dc.lo, dc.hi, visit_tv_collider, &dc);
+        }
+        for (uint32_t e = 0; e < s->topo.edge_count; ++e) {
+            const uint32_t *ed = s->topo.edges + 2 * (size_t)e;
+            dc.query = e;
+            box_edge(s->xs + 3 * (size_t)ed[0], s->xs + 3 * (size_t)ed[1], s->rq, dc.lo, dc.hi);
+            xbvh_query(&s->bvh_cedge, dc.lo, dc.hi, visit_ee_collider, &dc);
+        }
+    }
+    for (uint32_t i = 0; i < s->n; ++i) {
+        double d = s->dmin[i];
+        s->bound[i] = d > 0.0 ? gamma * d : 0.0;
+    }
+}
+
+/* ---------------------------------------------------------------------------------------- */
+/* Projection                                                                                */
+
+static inline double *pos_of(xpbd_state *s, uint32_t idx, uint8_t kin) { return (kin ? s->cc : s->x) + 3 * (size_t)idx; }
+
+/* Closest features of a contact pair at the current positions: coefficients c such that
+ * sum_i c_i y_i is the separation vector, and its unit direction n. The unsigned distance is
+ * safe because the bounds never let a pair pass through zero separation. */
+static double contact_refresh(xpbd_state *s, const xcontact *ct, double c[4], double n[3])
+{
+    const double *y[4];
+    for (int i = 0; i < 4; ++i) {
+        y[i] = pos_of(s, ct->v[i], ct->kin[i]);
+    }
+    double b[3], sa, tb;
+    if (ct->type == XC_VT) {
+        xg_point_triangle_sq(y[0], y[1], y[2], y[3], b);
+        c[0] = 1.0, c[1] = -b[0], c[2] = -b[1], c[3] = -b[2];
+    } else if (ct->type == XC_TV) {
+        xg_point_triangle_sq(y[3], y[0], y[1], y[2], b);
+        c[0] = b[0], c[1] = b[1], c[2] = b[2], c[3] = -1.0;
+    } else {
+        xg_segment_segment_sq(y[0], y[1], y[2], y[3], &sa, &tb);
+        c[0] = 1.0 - sa, c[1] = sa, c[2] = -(1.0 - tb), c[3] = -tb;
+    }
+    double d[3] = {0, 0, 0};
+    for (int i = 0; i < 4; ++i) {
+        xv_axpy(d, c[i], y[i]);
+    }
+    double len = xv_len(d);
+    if (len > 1e-12) {
+        for (int k = 0; k < 3; ++k) {
+            n[k] = d[k] / len;
+        }
+    } else {
+        for (int k = 0; k < 3; ++k) {
+            n[k] = ct->n[k];
+        }
+    }
+    return xv_dot(d, n);
+}
+
+static uint32_t solve_contacts(xpbd_state *s)
+{
+    uint32_t active = 0;
+    const double mu = s->p.friction;
+    for (uint32_t j = 0; j < s->contact_count + s->collider_contact_count; ++j) {
+        uint32_t k = j < s->contact_count ? j : s->contact_cap - 1 - (j - s->contact_count);
+        const xcontact *ct = &s->contacts[k];
+        double r = ct->self ? s->p.self_radius : s->p.collider_radius;
+        double cc[4], n[3];
+        double C = contact_refresh(s, ct, cc, n) - r;
+        if (C >= 0.0) {
+            continue;
+        }
+        double W = 0.0, wi[4];
+        for (int i = 0; i < 4; ++i) {
+            wi[i] = ct->kin[i] ? 0.0 : s->w[ct->v[i]];
+            W += wi[i] * cc[i] * cc[i];
+        }
+        if (!(W > 0.0)) {
+            continue;
+        }
+        active++;
+        double dl = -C / W;
+        for (int i = 0; i < 4; ++i) {
+            if (wi[i] > 0.0) {
+                xv_axpy(pos_of(s, ct->v[i], 0), wi[i] * cc[i] * dl, n);
+            }
+        }
+        if (mu <= 0.0) {
+            continue;
+        }
+        /* Coulomb friction on the relative tangential displacement over this substep. */
+        double u[3] = {0, 0, 0};
+        for (int i = 0; i < 4; ++i) {
+            const double *y = pos_of(s, ct->v[i], ct->kin[i]);
+            const double *y0 = (ct->kin[i] ? s->cs : s->xo) + 3 * (size_t)ct->v[i];
+            for (int a = 0; a < 3; ++a) {
+                u[a] += cc[i] * (y[a] - y0[a]);
+            }
+        }
+        double un = xv_dot(u, n);
+        xv_axpy(u, -un, n);
+        double ut = xv_len(u);
+        if (!(ut > 0.0)) {
+            continue;
+        }
+        double limit = mu * (-C);
+        double scale = ut <= limit ? 1.0 : limit / ut;
+        for (int i = 0; i < 4; ++i) {
+            if (wi[i] > 0.0) {
+                xv_axpy(pos_of(s, ct->v[i], 0), -wi[i] * cc[i] * scale / W, u);
+            }
+        }
+    }
+    return active;
+}
+
+static void solve_elastic(weft_garment *g, xpbd_state *s, double h)
+{
+    const double mu_h = s->p.youngs_modulus * s->p.thickness / (2.0 * (1.0 + s->p.poisson_ratio));
+    const double inv_h2 = 1.0 / (h * h);
+    double grad[12];
+    for (uint32_t t = 0; t < s->ntri; ++t) {
+        const uint32_t *tri = g->triangles + 3 * (size_t)t;
+        double *x0 = s->x + 3 * (size_t)tri[0], *x1 = s->x + 3 * (size_t)tri[1], *x2 = s->x + 3 * (size_t)tri[2];
+        double w0 = s->w[tri[0]], w1 = s->w[tri[1]], w2 = s->w[tri[2]];
+        if (w0 + w1 + w2 == 0.0) {
+            continue;
+        }
+        const double *coef = s->tri_coef + 6 * (size_t)t;
+        double area = s->tri_area[t];
+        for (int which = 0; which < 3; ++which) {
+            double C = xpbd_membrane_eval(x0, x1, x2, coef, which, grad);
+            double k;
+            if (which == 2) {
+                k = 2.0 * area * s->p.shear_scale * mu_h;
+            } else {
+                k = 2.0 * area * mu_h * (C < 0.0 ? s->p.compression_scale : 1.0);
+            }
+            if (!(k > 0.0)) {
+                continue;
+            }
+            double alpha = inv_h2 / k;
+            double W = w0 * xv_dot(grad, grad) + w1 * xv_dot(grad + 3, grad + 3) + w2 * xv_dot(grad + 6, grad + 6);
+            double dl = -C / (W + alpha);
+            xv_axpy(x0, w0 * dl, grad);
+            xv_axpy(x1, w1 * dl, grad + 3);
+            xv_axpy(x2, w2 * dl, grad + 6);
+        }
+    }
+    const double nu = s->p.poisson_ratio;
+    const double kb = s->p.youngs_modulus * s->p.thickness * s->p.thickness * s->p.thickness / (24.0 * (1.0 - nu * nu));
+    for (uint32_t hi = 0; hi < s->topo.hinge_count; ++hi) {
+        const uint32_t *hg = s->topo.hinges + 4 * (size_t)hi;
+        double *p[4];
+        double wsum = 0.0, wv[4];
+        for (int i = 0; i < 4; ++i) {
+            p[i] = s->x + 3 * (size_t)hg[i];
+            wv[i] = s->w[hg[i]];
+            wsum += wv[i];
+        }
+        if (wsum == 0.0) {
+            continue;
+        }
+        double th;
+        if (!xpbd_dihedral_eval(p[0], p[1], p[2], p[3], &th, grad)) {
+            continue;
+        }
+        double C = wrap_angle(th - s->hinge_rest[hi]);
+        double alpha = inv_h2 / (2.0 * kb * s->hinge_len[hi]);
+        double W = 0.0;
+        for (int i = 0; i < 4; ++i) {
+            W += wv[i] * xv_dot(grad + 3 * i, grad + 3 * i);
+        }
+        double dl = -C / (W + alpha);
+        for (int i = 0; i < 4; ++i) {
+            xv_axpy(p[i], wv[i] * dl, grad + 3 * i);
+        }
+    }
+}
+
+/* Strain and elastic energy of the committed state (for statistics). */
+static void measure(weft_garment *g, xpbd_state *s)
+{
+    const double mu_h = s->p.youngs_modulus * s->p.thickness / (2.0 * (1.0 + s->p.poisson_ratio));
+    const double nu = s->p.poisson_ratio;
+    const double kb = s->p.youngs_modulus * s->p.thickness * s->p.thickness * s->p.thickness / (24.0 * (1.0 - nu * nu));
+    double grad[12], max_strain = 0.0, energy = 0.0;
+    for (uint32_t t = 0; t < s->ntri; ++t) {
+        const uint32_t *tri = g->triangles + 3 * (size_t)t;
+        const double *coef = s->tri_coef + 6 * (size_t)t;
+        const double *x0 = s->xd + 3 * (size_t)tri[0], *x1 = s->xd + 3 * (size_t)tri[1], *x2 = s->xd + 3 * (size_t)tri[2];
+        for (int which = 0; which < 3; ++which) {
+            double C = xpbd_membrane_eval(x0, x1, x2, coef, which, grad);
+            double k = which == 2 ? 2.0 * s->tri_area[t] * s->p.shear_scale * mu_h
+                                  : 2.0 * s->tri_area[t] * mu_h * (C < 0.0 ? s->p.compression_scale : 1.0);
+            energy += 0.5 * k * C * C;
+            if (which < 2 && C > max_strain) {
+                max_strain = C;
+            }
+        }
+    }
+    for (uint32_t hi = 0; hi < s->topo.hinge_count; ++hi) {
+        const uint32_t *hg = s->topo.hinges + 4 * (size_t)hi;
+        double th;
+        if (xpbd_dihedral_eval(s->xd + 3 * (size_t)hg[0], s->xd + 3 * (size_t)hg[1], s->xd + 3 * (size_t)hg[2],
+                               s->xd + 3 * (size_t)hg[3], &th, grad)) {
+            double C = wrap_angle(th - s->hinge_rest[hi]);
+            energy += kb * s->hinge_len[hi] * C * C;
+        }
+    }
+    s->stats.max_strain = max_strain;
+    s->stats.elastic_energy = energy;
+}
+
+static weft_result xpbd_step(weft_garment *g)
+{
+    xpbd_state *s = g->method_state;
+    const uint32_t n = s->n, nc = s->nc, S = g->substeps;
+    const double h = FRAME_DT / S;
+    /* The double state continues the previous frame unless the positions were replaced
+     * (set_state, or a post-process that moved vertices). */
+    if (s->have_state) {
+        for (size_t i = 0; i < 3 * (size_t)n; ++i) {
+            if ((float)s->xd[i] != g->x[i]) {
+                s->have_state = false;
+                break;
+            }
+        }
+    }
+    if (!s->have_state) {
+        for (size_t i = 0; i < 3 * (size_t)n; ++i) {
+            s->xd[i] = g->x[i];
+            s->vd[i] = ((double)g->x[i] - (double)g->x_prev[i]) / FRAME_DT;
+        }
+    }
+    memcpy(s->xd_back, s->xd, 3 * (size_t)n * sizeof(double));
+    memcpy(s->vd_back, s->vd, 3 * (size_t)n * sizeof(double));
+    const bool chord_safe = s->chord_safe;
+    s->chord_safe = false;
+    memcpy(s->x, s->xd, 3 * (size_t)n * sizeof(double));
+    memcpy(s->v, s->vd, 3 * (size_t)n * sizeof(double));
+    for (uint32_t i = 0; i < n; ++i) {
+        s->pinned[i] = 0;
+        s->w[i] = 1.0 / s->mass[i];
+        s->kin[i] = 0.0;
+        s->kin_step[i] = 0.0;
+    }
+    for (uint32_t k = 0; k < g->pin_count; ++k) {
+        uint32_t i = g->pin_indices[k];
+        s->pinned[i] = 1;
+        s->w[i] = 0.0;
+        double d2 = 0.0;
+        for (int a = 0; a < 3; ++a) {
+            s->pin_from[3 * (size_t)i + a] = s->xd[3 * (size_t)i + a];
+            s->pin_to[3 * (size_t)i + a] = g->pin_targets[3 * (size_t)k + a];
+            double d = s->pin_to[3 * (size_t)i + a] - s->pin_from[3 * (size_t)i + a];
+            d2 += d * d;
+        }
+        s->kin_step[i] = sqrt(d2) / S;
+    }
+    for (size_t i = 0; i < 3 * (size_t)nc; ++i) {
+        s->cp[i] = g->collider_prev[i];
+        s->cn[i] = g->collider_next[i];
+    }
+    for (uint32_t u = 0; u < nc; ++u) {
+        double d2 = 0.0;
+        for (int a = 0; a < 3; ++a) {
+            double d = s->cn[3 * (size_t)u + a] - s->cp[3 * (size_t)u + a];
+            d2 += d * d;
+        }
+        s->cdisp[u] = sqrt(d2) / S;
+    }
+    s->stats = (xpbd_frame_stats){.substeps = S, .min_self_distance = INFINITY, .min_collider_distance = INFINITY};
+
+    double cdisp_max = 0.0;
+    for (uint32_t u = 0; u < nc; ++u) {
+        cdisp_max = s->cdisp[u] > cdisp_max ? s->cdisp[u] : cdisp_max;
+    }
+    /* The cloth tree is rebuilt once per frame (the cloth may deform a lot), then refit. */
+    s->cloth_bvh_built = false;
+    uint32_t window = 0, since = 0, clamped_last = 0;
+    /* Re-detect early only when more than 2 % of the vertices hit their bounds: a few
+     * clamped vertices wait for the next regular pass (at most detect_window substeps). */
+    const uint32_t clamp_redetect = n / 50;
+    /* Chord-safe frames: every pair gets one bound around the frame-start position, except
+     * pairs with moving kinematic geometry (collider, pins), which keep windowed passes (a
+     * frame-long bound would hold the cloth still while the collider moves into it). */
+    bool moving_pins = false;
+    for (uint32_t i = 0; i < n && !moving_pins; ++i) {
+        moving_pins = s->kin_step[i] > 0.0;
+    }
+    const bool split = chord_safe && (cdisp_max > 0.0 || moving_pins), frame_only = chord_safe && !split;
+    s->split_moving = split;
+    for (uint32_t step = 0; step < S; ++step) {
+        double a0 = (double)step / S, a1 = (double)(step + 1) / S;
+        for (size_t i = 0; i < 3 * (size_t)nc; ++i) {
+            s->cs[i] = s->cp[i] + a0 * (s->cn[i] - s->cp[i]);
+            s->cc[i] = s->cp[i] + a1 * (s->cn[i] - s->cp[i]);
+        }
+        memcpy(s->xo, s->x, 3 * (size_t)n * sizeof(double));
+        /* A new proximity pass when the window is used up, or early when many vertices hit
+         * their bounds (they cannot move further on the old bounds: avoids sticking). */
+        if (split && step == 0) {
+            double vmax = 0.0;
+            for (uint32_t i = 0; i < n; ++i) {
+                double sp = xv_len(s->v + 3 * (size_t)i);
+                vmax = sp > vmax ? sp : vmax;
+            }
+            double travel = (vmax + s->p.gravity * h * S) * h * S;
+            s->rq = fmin(fmax(s->p.query_radius, travel / s->p.bound_gamma + 2.0 * s->p.collider_radius), RQ_MAX);
+            memcpy(s->xs, s->x, 3 * (size_t)n * sizeof(double));
+            memcpy(s->csnap, s->cs, 3 * (size_t)nc * sizeof(double));
+            for (uint32_t u = 0; u < nc; ++u) {
+                s->cwin[u] = s->cdisp[u] * S;
+            }
+            for (uint32_t i = 0; i < n; ++i) {
+                s->kin[i] = s->kin_step[i] * S;
+            }
+            detect(g, s);
+            memcpy(s->bound_frame, s->bound, (size_t)n * sizeof(double));
+            memcpy(s->xs_frame, s->x, 3 * (size_t)n * sizeof(double));
+        }
+        if (since >= window || (clamped_last > clamp_redetect && !frame_only)) {
+            /* Query radius: contact thickness plus room for the fastest vertex over the
+             * window (bounds are a fraction gamma of it); fast motion shortens the window
+             * so the radius stays below RQ_MAX. */
+            double vmax = 0.0;
+            for (uint32_t i = 0; i < n; ++i) {
+                double sp = xv_len(s->v + 3 * (size_t)i);
+                vmax = sp > vmax ? sp : vmax;
+            }
+            window = frame_only ? S : (S - step < s->p.detect_window ? S - step : s->p.detect_window);
+            /* A fast collider shortens the window: its displacement over the window is taken
+             * off every cloth-collider bound, so keep it under a third of the contact radius. */
+            while (!frame_only && window > 1 && cdisp_max * window > s->p.collider_radius / 3.0) {
+                window--;
+            }
+            double travel = 0.0;
+            for (;;) {
+                travel = (vmax + s->p.gravity * h * window) * h * window;
+                if (window == 1 || frame_only || travel / s->p.bound_gamma + 2.0 * s->p.collider_radius <= RQ_MAX) {
+                    break;
+                }
+                window--;
+            }
+            s->rq = fmin(fmax(s->p.query_radius, travel / s->p.bound_gamma + 2.0 * s->p.collider_radius), RQ_MAX);
+            since = 0;
+            memcpy(s->xs, s->x, 3 * (size_t)n * sizeof(double));
+            if (nc > 0) {
+                memcpy(s->csnap, s->cs, 3 * (size_t)nc * sizeof(double));
+            }
+            for (uint32_t u = 0; u < nc; ++u) {
+                s->cwin[u] = s->cdisp[u] * window;
+            }
+            for (uint32_t i = 0; i < n; ++i) {
+                s->kin[i] = s->kin_step[i] * window;
+            }
+            detect(g, s);
+            if (split) {
+                /* windowed bounds from the moving-collider pairs only */
+                for (uint32_t i = 0; i < n; ++i) {
+                    s->bound[i] = s->dmin_mov[i] > 0.0 ? s->p.bound_gamma * s->dmin_mov[i] : 0.0;
+                }
+            }
+            /* Shorten the window while more than a few free vertices would outrun their
+             * bounds at their current speed (the bounds stay valid: they assumed the longer
+             * window). */
+            while (window > 1 && !frame_only) {
+                uint32_t misfits = 0;
+                for (uint32_t i = 0; i < n && misfits <= clamp_redetect; ++i) {
+                    double need = (xv_len(s->v + 3 * (size_t)i) + s->p.gravity * h * window) * h * window;
+                    misfits += !s->pinned[i] && need > s->bound[i];
+                }
+                if (misfits <= clamp_redetect) {
+                    break;
+                }
+                window--;
+            }
+        }
+        since++;
+        for (uint32_t i = 0; i < n; ++i) {
+            double *xi = s->x + 3 * (size_t)i, *vi = s->v + 3 * (size_t)i;
+            if (s->pinned[i]) {
+                for (int a = 0; a < 3; ++a) {
+                    xi[a] = s->pin_from[3 * (size_t)i + a] + a1 * (s->pin_to[3 * (size_t)i + a] - s->pin_from[3 * (size_t)i + a]);
+                }
+                continue;
+            }
+            vi[1] -= s->p.gravity * h;
+            xv_axpy(xi, h, vi);
+        }
+        solve_elastic(g, s, h);
+        s->stats.contacts += solve_contacts(s);
+        uint32_t clamped_now = 0;
+        for (uint32_t i = 0; i < n; ++i) {
+            double *xi = s->x + 3 * (size_t)i;
+            const double *x0 = s->xs + 3 * (size_t)i;
+            if (!s->pinned[i] && split) {
+                const double *xf = s->xs_frame + 3 * (size_t)i;
+                double d[3];
+                xv_sub(d, xi, xf);
+                double l = xv_len(d);
+                if (l > s->bound_frame[i]) {
+                    double f = l > 0.0 ? s->bound_frame[i] / l : 0.0;
+                    for (int a = 0; a < 3; ++a) {
+                        xi[a] = xf[a] + f * d[a];
+                    }
+                    s->stats.clamped++;
+                    clamped_now++;
+                }
+            }
+            if (!s->pinned[i]) {
+                double d[3];
+                xv_sub(d, xi, x0);
+                double l = xv_len(d);
+                if (l > s->bound[i]) {
+                    double f = l > 0.0 ? s->bound[i] / l : 0.0;
+                    for (int a = 0; a < 3; ++a) {
+                        xi[a] = x0[a] + f * d[a];
+                    }
+                    s->stats.clamped++;
+                    clamped_now++;
+                }
+            }
+            const double *xo = s->xo + 3 * (size_t)i;
+            for (int a = 0; a < 3; ++a) {
+                s->v[3 * (size_t)i + a] = (xi[a] - xo[a]) / h;
+            }
+        }
+        clamped_last = clamped_now;
+#ifdef XPBD_DEBUG_BOUNDS
+        for (uint32_t i = 0; i < n; ++i) {
+            for (uint32_t t = 0; t < s->nctri; ++t) {
+                const uint32_t *tri = g->collider_triangles + 3 * (size_t)t;
+                double dnow = sqrt(xg_point_triangle_sq(s->x + 3 * (size_t)i, s->cc + 3 * (size_t)tri[0], s->cc + 3 * (size_t)tri[1], s->cc + 3 * (size_t)tri[2], NULL));
+                double dsnap = sqrt(xg_point_triangle_sq(s->xs + 3 * (size_t)i, s->csnap + 3 * (size_t)tri[0], s->csnap + 3 * (size_t)tri[1], s->csnap + 3 * (size_t)tri[2], NULL));
+                double dd[3]; xv_sub(dd, s->x + 3 * (size_t)i, s->xs + 3 * (size_t)i);
+                if (dnow < 1e-7) {
+                    fprintf(stderr, "step %u since %u vertex %u tri %u: now %g snap %g bound %g dmin %g moved %g rq %g\n", step, since, i, t, dnow, dsnap, s->bound[i], s->dmin[i], xv_len(dd), s->rq);
+                }
+            }
+        }
+        for (uint32_t e = 0; e < s->topo.edge_count; ++e) {
+            const uint32_t *a = s->topo.edges + 2 * (size_t)e;
+            for (uint32_t f = 0; f < s->ctopo.edge_count; ++f) {
+                const uint32_t *b = s->ctopo.edges + 2 * (size_t)f;
+                double dnow = sqrt(xg_segment_segment_sq(s->x + 3 * (size_t)a[0], s->x + 3 * (size_t)a[1], s->cc + 3 * (size_t)b[0], s->cc + 3 * (size_t)b[1], NULL, NULL));
+                double dsnap = sqrt(xg_segment_segment_sq(s->xs + 3 * (size_t)a[0], s->xs + 3 * (size_t)a[1], s->csnap + 3 * (size_t)b[0], s->csnap + 3 * (size_t)b[1], NULL, NULL));
+                if (dnow < 1e-7) {
+                    double d0[3], d1[3]; xv_sub(d0, s->x + 3 * (size_t)a[0], s->xs + 3 * (size_t)a[0]); xv_sub(d1, s->x + 3 * (size_t)a[1], s->xs + 3 * (size_t)a[1]);
+                    fprintf(stderr, "EE step %u since %u edge %u-%u cedge %u-%u: now %g snap %g bounds %g %g moved %g %g rq %g\n", step, since, a[0], a[1], b[0], b[1], dnow, dsnap, s->bound[a[0]], s->bound[a[1]], xv_len(d0), xv_len(d1), s->rq);
+                }
+            }
+        }
+#endif
+    }
+    for (size_t i = 0; i < 3 * (size_t)n; ++i) {
+        if (!isfinite(s->x[i]) || !isfinite(s->v[i])) {
+            return weft__fail(WEFT_ERROR_NOT_FINITE, "xpbd: the solve produced NaN or infinity at vertex %zu; state kept",
+                              i / 3);
+        }
+    }
+    memcpy(s->xd, s->x, 3 * (size_t)n * sizeof(double));
+    memcpy(s->vd, s->v, 3 * (size_t)n * sizeof(double));
+    s->have_state = true;
+    for (size_t i = 0; i < 3 * (size_t)n; ++i) {
+        g->x_next[i] = (float)s->xd[i];
+    }
+    if (!isfinite(s->stats.min_self_distance)) {
+        s->stats.min_self_distance = s->rq;
+    }
+    if (!isfinite(s->stats.min_collider_distance)) {
+        s->stats.min_collider_distance = s->rq;
+    }
+    measure(g, s);
+    return WEFT_OK;
+}
+
+const weft_method_ops weft__xpbd_ops = {
+    .name = "xpbd",
+    .supports_pins = true,
+    .create = xpbd_create,
+    .destroy = xpbd_destroy,
+    .reset = xpbd_reset,
+    .step = xpbd_step,
+};

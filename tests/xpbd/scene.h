@@ -1,0 +1,77 @@
+/* Small meshes for the XPBD tests: a regular sheet and a closed box. */
+#ifndef WEFT_TEST_XPBD_SCENE_H
+#define WEFT_TEST_XPBD_SCENE_H
+
+#include "weft.h"
+
+#include <stdint.h>
+#include <stdlib.h>
+
+typedef struct test_mesh {
+    float *pos;
+    uint32_t *tris;
+    uint32_t nv, nt;
+} test_mesh;
+
+static inline void test_mesh_free(test_mesh *m)
+{
+    free(m->pos);
+    free(m->tris);
+    m->pos = NULL;
+    m->tris = NULL;
+}
+
+/* nx x nz vertices spanning sx x sz metres in the XZ plane at height y, centred at (cx, cz). */
+static inline test_mesh test_sheet(uint32_t nx, uint32_t nz, float sx, float sz, float cx, float y, float cz)
+{
+    test_mesh m = {0};
+    m.nv = nx * nz;
+    m.nt = 2 * (nx - 1) * (nz - 1);
+    m.pos = malloc(sizeof(float) * 3 * m.nv);
+    m.tris = malloc(sizeof(uint32_t) * 3 * m.nt);
+    for (uint32_t j = 0; j < nz; ++j) {
+        for (uint32_t i = 0; i < nx; ++i) {
+            float *p = m.pos + 3 * (j * nx + i);
+            p[0] = cx + sx * ((float)i / (float)(nx - 1) - 0.5f);
+            p[1] = y;
+            p[2] = cz + sz * ((float)j / (float)(nz - 1) - 0.5f);
+        }
+    }
+    uint32_t t = 0;
+    for (uint32_t j = 0; j + 1 < nz; ++j) {
+        for (uint32_t i = 0; i + 1 < nx; ++i) {
+            uint32_t a = j * nx + i, b = a + 1, c = a + nx, d = c + 1;
+            /* counter-clockwise seen from +Y */
+            uint32_t *q = m.tris + 6 * t++;
+            if ((i + j) & 1) {
+                q[0] = a, q[1] = c, q[2] = b, q[3] = b, q[4] = c, q[5] = d;
+            } else {
+                q[0] = a, q[1] = c, q[2] = d, q[3] = a, q[4] = d, q[5] = b;
+            }
+        }
+    }
+    return m;
+}
+
+/* Axis-aligned box [lo, hi], 8 vertices, 12 outward-facing triangles. */
+static inline test_mesh test_box(const float lo[3], const float hi[3])
+{
+    test_mesh m = {0};
+    m.nv = 8;
+    m.nt = 12;
+    m.pos = malloc(sizeof(float) * 24);
+    m.tris = malloc(sizeof(uint32_t) * 36);
+    for (uint32_t i = 0; i < 8; ++i) {
+        m.pos[3 * i + 0] = (i & 1) ? hi[0] : lo[0];
+        m.pos[3 * i + 1] = (i & 2) ? hi[1] : lo[1];
+        m.pos[3 * i + 2] = (i & 4) ? hi[2] : lo[2];
+    }
+    static const uint32_t t[36] = {0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4,
+                                   2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4, 6, 1, 3, 5, 3, 7, 5};
+    for (int i = 0; i < 36; ++i) {
+        m.tris[i] = t[i];
+    }
+    return m;
+}
+
+#endif

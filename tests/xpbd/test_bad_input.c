@@ -1,0 +1,190 @@
+/* Bad input to the XPBD method, the validator and the sequence generator: clear errors,
+ * nothing changed, no crash. */
+#include "scene.h"
+#include "test.h"
+#include "weft/sim.h"
+#include "xpbd/xpbd.h"
+
+static weft_context *ctx_;
+
+static weft_garment_def xpbd_def(const test_mesh *m)
+{
+    weft_garment_def gd = weft_default_garment_def();
+    gd.method = WEFT_METHOD_XPBD;
+    gd.ccd = false;
+    gd.rest_positions = m->pos;
+    gd.vertex_count = m->nv;
+    gd.triangles = m->tris;
+    gd.triangle_count = m->nt;
+    return gd;
+}
+
+static void test_non_manifold(void)
+{
+    /* Three triangles on one edge (0, 1). */
+    float pos[] = {0, 0, 0, 1, 0, 0, 0.5f, 1, 0, 0.5f, -1, 0, 0.5f, 0, 1};
+    uint32_t tris[] = {0, 1, 2, 1, 0, 3, 0, 1, 4};
+    test_mesh m = {pos, tris, 5, 3};
+    weft_garment_def gd = xpbd_def(&m);
+    weft_garment *g = NULL;
+    CHECK_RESULT(weft_garment_create(ctx_, &gd, &g), WEFT_ERROR_DEGENERATE_MESH);
+    CHECK(strstr(weft_last_error(), "non-manifold") != NULL);
+    CHECK(g == NULL);
+}
+
+static void test_duplicate_triangle(void)
+{
+    float pos[] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+    uint32_t tris[] = {0, 1, 2, 1, 0, 2};
+    test_mesh m = {pos, tris, 3, 2};
+    weft_garment_def gd = xpbd_def(&m);
+    weft_garment *g = NULL;
+    CHECK_RESULT(weft_garment_create(ctx_, &gd, &g), WEFT_ERROR_DEGENERATE_MESH);
+    CHECK(strstr(weft_last_error(), "duplicate") != NULL);
+}
+
+static void test_isolated_vertex(void)
+{
+    float pos[] = {0, 0, 0, 1, 0, 0, 0, 1, 0, 5, 5, 5};
+    uint32_t tris[] = {0, 1, 2};
+    test_mesh m = {pos, tris, 4, 1};
+    weft_garment_def gd = xpbd_def(&m);
+    weft_garment *g = NULL;
+    CHECK_RESULT(weft_garment_create(ctx_, &gd, &g), WEFT_ERROR_DEGENERATE_MESH);
+    CHECK(strstr(weft_last_error(), "no triangle") != NULL);
+}
+
+static void test_nan_and_configure(void)
+{
+    test_mesh m = test_sheet(6, 6, 0.3f, 0.3f, 0, 0.5f, 0);
+    weft_garment_def gd = xpbd_def(&m);
+    weft_garment *g = NULL;
+    CHECK_RESULT(weft_garment_create(ctx_, &gd, &g), WEFT_OK);
+    CHECK_RESULT(weft_garment_step(g), WEFT_OK);
+    float *before = malloc(sizeof(float) * 3 * m.nv);
+    memcpy(before, weft_garment_positions(g), sizeof(float) * 3 * m.nv);
+    float *bad = malloc(sizeof(float) * 3 * m.nv);
+    memcpy(bad, before, sizeof(float) * 3 * m.nv);
+    bad[7] = NAN;
+    CHECK_RESULT(weft_garment_set_state(g, bad, NULL), WEFT_ERROR_NOT_FINITE);
+    CHECK(memcmp(before, weft_garment_positions(g), sizeof(float) * 3 * m.nv) == 0);
+    xpbd_params p = xpbd_default_params();
+    p.bound_gamma = 0.6; /* must stay below 0.5 for the non-penetration guarantee */
+    CHECK_RESULT(weft__xpbd_configure(g, &p), WEFT_ERROR_INVALID_ARGUMENT);
+    p = xpbd_default_params();
+    p.poisson_ratio = 0.5;
+    CHECK_RESULT(weft__xpbd_configure(g, &p), WEFT_ERROR_INVALID_ARGUMENT);
+    p = xpbd_default_params();
+    p.youngs_modulus = 2e6;
+    CHECK_RESULT(weft__xpbd_configure(g, &p), WEFT_OK);
+    CHECK_RESULT(weft_garment_step(g), WEFT_OK);
+    free(before);
+    free(bad);
+    weft_garment_destroy(g);
+    test_mesh_free(&m);
+}
+
+static void test_inverted_initial_state(void)
+{
+    /* Start with every other vertex pushed through its neighbours (inverted, crumpled
+     * triangles): the solver stays finite and the membrane restores the sheet. */
+    test_mesh m = test_sheet(8, 8, 0.4f, 0.4f, 0, 0.5f, 0);
+    float *init = malloc(sizeof(float) * 3 * m.nv);
+    memcpy(init, m.pos, sizeof(float) * 3 * m.nv);
+    for (uint32_t i = 0; i < m.nv; i += 2) {
+        init[3 * i] += 0.08f;
+    }
+    weft_garment_def gd = xpbd_def(&m);
+    gd.initial_positions = init;
+    weft_garment *g = NULL;
+    CHECK_RESULT(weft_garment_create(ctx_, &gd, &g), WEFT_OK);
+    xpbd_params p = xpbd_default_params();
+    p.self_collision = false; /* the crumpled start is self-intersecting by construction */
+    CHECK_RESULT(weft__xpbd_configure(g, &p), WEFT_OK);
+    for (int f = 0; f < 60; ++f) {
+        CHECK_RESULT(weft_garment_step(g), WEFT_OK);
+    }
+    xpbd_frame_stats st = weft__xpbd_last_stats(g);
+    CHECK(isfinite(st.elastic_energy));
+    CHECK_MSG(st.max_strain < 0.05, "max strain after recovery %g", st.max_strain);
+    free(init);
+    weft_garment_destroy(g);
+    test_mesh_free(&m);
+}
+
+static void test_validator_bad_input(void)
+{
+    uint32_t tris[] = {0, 1, 7};
+    weft_sim_validator *v = NULL;
+    CHECK_RESULT(weft_sim_validator_create(ctx_, tris, 1, 3, NULL, 0, 0, &v), WEFT_ERROR_DEGENERATE_MESH);
+    CHECK_RESULT(weft_sim_validator_create(ctx_, NULL, 1, 3, NULL, 0, 0, &v), WEFT_ERROR_INVALID_ARGUMENT);
+    uint32_t ok_tris[] = {0, 1, 2};
+    CHECK_RESULT(weft_sim_validator_create(ctx_, ok_tris, 1, 3, NULL, 0, 0, &v), WEFT_OK);
+    float a[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0}, b[9] = {0, 0, 0, 1, 0, 0, 0, NAN, 0};
+    weft_sim_validation res;
+    CHECK_RESULT(weft_sim_validator_check(v, a, b, NULL, NULL, &res), WEFT_ERROR_NOT_FINITE);
+    CHECK_RESULT(weft_sim_validator_check(v, a, a, NULL, NULL, &res), WEFT_OK);
+    CHECK_EQ_INT(res.ccd_hits + res.intersection_hits, 0);
+    weft_sim_validator_destroy(v);
+}
+
+static void test_validator_catches_penetration(void)
+{
+    /* A sheet falling through a box in one frame is caught by the sweeps; a sheet resting
+     * inside the box's faces is caught by the intersection tests. */
+    test_mesh sheet = test_sheet(5, 5, 0.2f, 0.2f, 0, 0.3f, 0);
+    const float lo[3] = {-0.3f, 0.0f, -0.3f}, hi[3] = {0.3f, 0.2f, 0.3f};
+    test_mesh box = test_box(lo, hi);
+    weft_sim_validator *v = NULL;
+    CHECK_RESULT(weft_sim_validator_create(ctx_, sheet.tris, sheet.nt, sheet.nv, box.tris, box.nt, box.nv, &v), WEFT_OK);
+    float *below = malloc(sizeof(float) * 3 * sheet.nv);
+    memcpy(below, sheet.pos, sizeof(float) * 3 * sheet.nv);
+    for (uint32_t i = 0; i < sheet.nv; ++i) {
+        below[3 * i + 1] = 0.1f; /* inside the box */
+    }
+    weft_sim_validation res;
+    CHECK_RESULT(weft_sim_validator_check(v, sheet.pos, below, box.pos, box.pos, &res), WEFT_OK);
+    CHECK(res.ccd_hits > 0);
+    /* A sheet crossing the top face. */
+    float *cross = malloc(sizeof(float) * 3 * sheet.nv);
+    memcpy(cross, sheet.pos, sizeof(float) * 3 * sheet.nv);
+    for (uint32_t i = 0; i < sheet.nv; ++i) {
+        cross[3 * i + 1] = 0.2f + 0.5f * (cross[3 * i] + 0.013f);
+    }
+    CHECK_RESULT(weft_sim_validator_check(v, cross, cross, box.pos, box.pos, &res), WEFT_OK);
+    CHECK(res.intersection_hits > 0);
+    /* Still above: clean. */
+    CHECK_RESULT(weft_sim_validator_check(v, sheet.pos, sheet.pos, box.pos, box.pos, &res), WEFT_OK);
+    CHECK_EQ_INT(res.ccd_hits + res.intersection_hits, 0);
+    free(below);
+    free(cross);
+    weft_sim_validator_destroy(v);
+    test_mesh_free(&box);
+    test_mesh_free(&sheet);
+}
+
+static void test_generate_bad_def(void)
+{
+    weft_sim_sequence_def d = weft_sim_default_sequence_def();
+    weft_sim_sequence_result res;
+    d.frames = 1;
+    CHECK_RESULT(weft_sim_generate(ctx_, &d, "/tmp/never", NULL, NULL, &res), WEFT_ERROR_INVALID_ARGUMENT);
+    d = weft_sim_default_sequence_def();
+    d.max_substeps = 10; /* below substeps */
+    CHECK_RESULT(weft_sim_generate(ctx_, &d, "/tmp/never", NULL, NULL, &res), WEFT_ERROR_INVALID_ARGUMENT);
+    weft_sim_sequence_def raw = {0};
+    CHECK_RESULT(weft_sim_generate(ctx_, &raw, "/tmp/never", NULL, NULL, &res), WEFT_ERROR_INVALID_ARGUMENT);
+}
+
+static void setup(void)
+{
+    weft_context_def cd = weft_default_context_def();
+    CHECK_RESULT(weft_context_create(&cd, &ctx_), WEFT_OK);
+}
+
+static void teardown(void) { weft_context_destroy(ctx_); }
+
+TEST_MAIN(TEST_CASE(setup), TEST_CASE(test_non_manifold), TEST_CASE(test_duplicate_triangle),
+          TEST_CASE(test_isolated_vertex), TEST_CASE(test_nan_and_configure), TEST_CASE(test_inverted_initial_state),
+          TEST_CASE(test_validator_bad_input), TEST_CASE(test_validator_catches_penetration),
+          TEST_CASE(test_generate_bad_def), TEST_CASE(teardown))

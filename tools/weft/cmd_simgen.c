@@ -1,0 +1,380 @@
+/* weft simgen: generate the reference-simulation dataset (see docs/DATASET.md). */
+#define _POSIX_C_SOURCE 200809L
+#include "weft.h"
+#include "weft/sim.h"
+
+#include <cjson/cJSON.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
+
+int weft_cmd_simgen(int argc, char **argv); /* the CLI registry declares it in main.c */
+const char weft_cmd_simgen_help[] = "generate validated XPBD cloth sequences (drop, gripper, garment) for training";
+
+typedef struct plan_item {
+    weft_sim_scenario scenario;
+    uint32_t vertices;
+    uint32_t index;
+    char name[64];
+} plan_item;
+
+/* The full dataset: small sheets first so training can start early, then larger ones. */
+typedef struct plan_tier {
+    uint32_t vertices, per_scenario;
+    const char *tag;
+} plan_tier;
+static const plan_tier k_tiers[] = {{1024, 150, "1k"}, {4096, 30, "4k"}, {16384, 2, "16k"}};
+
+static uint64_t mix64(uint64_t z)
+{
+    z = (z ^ (z >> 30)) * 0xBF58476D1CE4E5B9ull;
+    z = (z ^ (z >> 27)) * 0x94D049BB133111EBull;
+    return z ^ (z >> 31);
+}
+
+static uint64_t seq_seed(uint64_t seed0, const char *name)
+{
+    uint64_t h = 1469598103934665603ull ^ seed0;
+    for (const char *c = name; *c; ++c) {
+        h = (h ^ (unsigned char)*c) * 1099511628211ull;
+    }
+    return mix64(h);
+}
+
+/* 8:1:1 split from a hash of the name, so it never changes when the set grows. */
+static const char *split_of(const char *name)
+{
+    uint64_t h = seq_seed(0x5b11u, name) % 10;
+    return h < 8 ? "train" : (h == 8 ? "val" : "test");
+}
+
+static bool file_exists(const char *path)
+{
+    struct stat st;
+    return stat(path, &st) == 0;
+}
+
+typedef struct progress_state {
+    uint32_t done, total;
+    const char *name;
+    double t0;
+} progress_state;
+
+static double now_s(void)
+{
+    struct timespec ts;
+    clock_gettime(CLOCK_MONOTONIC, &ts);
+    return ts.tv_sec + ts.tv_nsec * 1e-9;
+}
+
+static void draw_bar(const progress_state *p, uint32_t frame, uint32_t frames)
+{
+    double frac = p->total ? (p->done + (frames ? (double)frame / frames : 0.0)) / p->total : 1.0;
+    int width = 30, fill = (int)(frac * width);
+    char bar[32];
+    for (int i = 0; i < width; ++i) {
+        bar[i] = i < fill ? '#' : '-';
+    }
+    bar[width] = '\0';
+    double el = now_s() - p->t0;
+    double eta = frac > 1e-6 ? el * (1.0 - frac) / frac : 0.0;
+    fprintf(stderr, "\r[%s] %u/%u %-22s frame %3u/%u  %5.0fs elapsed, ~%5.0fs left ", bar, p->done, p->total,
+            p->name ? p->name : "", frame, frames, el, eta);
+    fflush(stderr);
+}
+
+static void on_frame(uint32_t frame, uint32_t frames, void *user)
+{
+    if (frame % 10 == 0 || frame + 1 == frames) {
+        draw_bar(user, frame, frames);
+    }
+}
+
+static int write_manifest(const char *out, const plan_item *plan, uint32_t n)
+{
+    cJSON *root = cJSON_CreateObject();
+    cJSON *seqs = cJSON_CreateArray();
+    uint32_t counts[WEFT_SIM_SCENARIO_COUNT][4] = {{0}}; /* accepted train/val/test, rejected */
+    char path[1200];
+    snprintf(path, sizeof path, "%s/splits", out);
+    mkdir(path, 0777);
+    FILE *split_files[WEFT_SIM_SCENARIO_COUNT][3] = {{NULL}};
+    static const char *const names[3] = {"train", "val", "test"};
+    for (int s = 0; s < WEFT_SIM_SCENARIO_COUNT; ++s) {
+        for (int k = 0; k < 3; ++k) {
+            snprintf(path, sizeof path, "%s/splits/%s_%s.txt", out, weft_sim_scenario_name((weft_sim_scenario)s),
+                     names[k]);
+            split_files[s][k] = fopen(path, "w");
+        }
+    }
+    for (uint32_t i = 0; i < n; ++i) {
+        snprintf(path, sizeof path, "%s/%s/meta.json", out, plan[i].name);
+        FILE *f = fopen(path, "rb");
+        if (!f) {
+            continue;
+        }
+        fseek(f, 0, SEEK_END);
+        long len = ftell(f);
+        fseek(f, 0, SEEK_SET);
+        char *text = len > 0 ? malloc((size_t)len + 1) : NULL;
+        bool read_ok = text && fread(text, 1, (size_t)len, f) == (size_t)len;
+        fclose(f);
+        if (!read_ok) {
+            free(text);
+            continue;
+        }
+        text[len] = '\0';
+        cJSON *meta = cJSON_Parse(text);
+        free(text);
+        if (!meta) {
+            continue;
+        }
+        bool accepted = cJSON_IsTrue(cJSON_GetObjectItem(meta, "accepted"));
+        cJSON *e = cJSON_CreateObject();
+        cJSON_AddStringToObject(e, "name", plan[i].name);
+        cJSON_AddStringToObject(e, "scenario", weft_sim_scenario_name(plan[i].scenario));
+        cJSON *cl = cJSON_GetObjectItem(meta, "cloth");
+        cJSON_AddNumberToObject(e, "vertices", cJSON_GetNumberValue(cJSON_GetObjectItem(cl, "vertices")));
+        cJSON_AddNumberToObject(e, "substeps", cJSON_GetNumberValue(cJSON_GetObjectItem(meta, "substeps")));
+        cJSON_AddNumberToObject(e, "frames", cJSON_GetNumberValue(cJSON_GetObjectItem(meta, "frames")));
+        cJSON_AddBoolToObject(e, "accepted", accepted);
+        const char *split = accepted ? split_of(plan[i].name) : "rejected";
+        cJSON_AddStringToObject(e, "split", split);
+        cJSON_AddItemToArray(seqs, e);
+        int k = accepted ? (strcmp(split, "train") == 0 ? 0 : (strcmp(split, "val") == 0 ? 1 : 2)) : 3;
+        counts[plan[i].scenario][k]++;
+        if (k < 3 && split_files[plan[i].scenario][k]) {
+            fprintf(split_files[plan[i].scenario][k], "%s\n", plan[i].name);
+        }
+        cJSON_Delete(meta);
+    }
+    for (int s = 0; s < WEFT_SIM_SCENARIO_COUNT; ++s) {
+        for (int k = 0; k < 3; ++k) {
+            if (split_files[s][k]) {
+                fclose(split_files[s][k]);
+            }
+        }
+        cJSON *c = cJSON_CreateObject();
+        cJSON_AddNumberToObject(c, "train", counts[s][0]);
+        cJSON_AddNumberToObject(c, "val", counts[s][1]);
+        cJSON_AddNumberToObject(c, "test", counts[s][2]);
+        cJSON_AddNumberToObject(c, "rejected", counts[s][3]);
+        cJSON_AddItemToObject(root, weft_sim_scenario_name((weft_sim_scenario)s), c);
+    }
+    cJSON_AddItemToObject(root, "sequences", seqs);
+    char *text = cJSON_Print(root);
+    cJSON_Delete(root);
+    if (!text) {
+        return 1;
+    }
+    /* Shards may rebuild the manifest concurrently: write a private file, then rename. */
+    char tmp[1200], fin[1200];
+    snprintf(tmp, sizeof tmp, "%s/manifest.json.%ld.tmp", out, (long)getpid());
+    snprintf(fin, sizeof fin, "%s/manifest.json", out);
+    FILE *f = fopen(tmp, "wb");
+    bool ok = f && fputs(text, f) >= 0;
+    ok = (f && fclose(f) == 0) && ok && rename(tmp, fin) == 0;
+    cJSON_free(text);
+    if (!ok) {
+        fprintf(stderr, "simgen: cannot write %s\n", fin);
+        return 1;
+    }
+    return 0;
+}
+
+static void usage(FILE *f)
+{
+    fprintf(f,
+            "usage: weft simgen --out DIR (--all | --scenario drop|gripper|garment [--count N] [--vertices V])\n"
+            "                   [--shard I/N] [--frames T] [--substeps S] [--max-substeps S] [--seed X]\n"
+            "                   [--no-validate] [--manifest-only] [--limit N] [--garments]\n"
+            "  --all            the whole planned set: per scenario (drop, gripper) 150 x 1k,\n"
+            "                   30 x 4k and 2 x 16k vertices, smallest first\n"
+            "  --garments       include the garment scenario in --all (experimental: mostly rejected)\n"
+            "  --shard I/N      only sequences whose plan index is I modulo N (job arrays)\n"
+            "  --limit N        stop after generating N new sequences\n"
+            "Finished sequences (DIR/<name>/meta.json present) are skipped, so a run resumes.\n"
+            "Writes DIR/manifest.json and DIR/splits/<scenario>_{train,val,test}.txt (8:1:1).\n");
+}
+
+int weft_cmd_simgen(int argc, char **argv)
+{
+    const char *out = NULL, *scenario = NULL;
+    bool all = false, manifest_only = false, validate = true, garments = false;
+    uint32_t count = 10, vertices = 1024, frames = 240, substeps = 40, max_substeps = 80, shard_i = 0, shard_n = 1;
+    uint32_t limit = UINT32_MAX;
+    unsigned long long seed0 = 1;
+    for (int i = 1; i < argc; ++i) {
+        const char *a = argv[i];
+        const char *v = i + 1 < argc ? argv[i + 1] : NULL;
+        if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
+            usage(stdout);
+            return 0;
+        } else if (strcmp(a, "--all") == 0) {
+            all = true;
+        } else if (strcmp(a, "--garments") == 0) {
+            garments = true;
+        } else if (strcmp(a, "--manifest-only") == 0) {
+            manifest_only = true;
+        } else if (strcmp(a, "--no-validate") == 0) {
+            validate = false;
+        } else if (v && strcmp(a, "--out") == 0) {
+            out = v, ++i;
+        } else if (v && strcmp(a, "--scenario") == 0) {
+            scenario = v, ++i;
+        } else if (v && strcmp(a, "--count") == 0) {
+            count = (uint32_t)strtoul(v, NULL, 10), ++i;
+        } else if (v && strcmp(a, "--vertices") == 0) {
+            vertices = (uint32_t)strtoul(v, NULL, 10), ++i;
+        } else if (v && strcmp(a, "--frames") == 0) {
+            frames = (uint32_t)strtoul(v, NULL, 10), ++i;
+        } else if (v && strcmp(a, "--substeps") == 0) {
+            substeps = (uint32_t)strtoul(v, NULL, 10), ++i;
+        } else if (v && strcmp(a, "--max-substeps") == 0) {
+            max_substeps = (uint32_t)strtoul(v, NULL, 10), ++i;
+        } else if (v && strcmp(a, "--limit") == 0) {
+            limit = (uint32_t)strtoul(v, NULL, 10), ++i;
+        } else if (v && strcmp(a, "--seed") == 0) {
+            seed0 = strtoull(v, NULL, 10), ++i;
+        } else if (v && strcmp(a, "--shard") == 0) {
+            if (sscanf(v, "%u/%u", &shard_i, &shard_n) != 2 || shard_n == 0 || shard_i >= shard_n) {
+                fprintf(stderr, "simgen: --shard wants I/N with 0 <= I < N, got '%s'\n", v);
+                return 2;
+            }
+            ++i;
+        } else {
+            fprintf(stderr, "simgen: unknown or incomplete option '%s'\n", a);
+            usage(stderr);
+            return 2;
+        }
+    }
+    if (!out || (!all && !scenario && !manifest_only)) {
+        usage(stderr);
+        return 2;
+    }
+    if (max_substeps < substeps) {
+        max_substeps = substeps;
+    }
+    /* The plan: every sequence name and its parameters, in generation order. */
+    /* Garment sequences are still rejected by the validator most of the time (docs/REFSIM.md),
+     * so the full set includes them only on request. */
+    const int plan_scenarios = garments ? WEFT_SIM_SCENARIO_COUNT : WEFT_SIM_SCENARIO_GARMENT;
+    uint32_t cap = 0;
+    if (all || manifest_only) {
+        for (size_t t = 0; t < sizeof k_tiers / sizeof k_tiers[0]; ++t) {
+            cap += (uint32_t)plan_scenarios * k_tiers[t].per_scenario;
+        }
+    }
+    if (scenario) {
+        cap += count;
+    }
+    plan_item *plan = calloc(cap ? cap : 1, sizeof *plan);
+    if (!plan) {
+        fprintf(stderr, "simgen: out of memory\n");
+        return 1;
+    }
+    uint32_t n = 0;
+    if (all || manifest_only) {
+        for (size_t t = 0; t < sizeof k_tiers / sizeof k_tiers[0]; ++t) {
+            for (uint32_t k = 0; k < k_tiers[t].per_scenario; ++k) {
+                for (int s = 0; s < plan_scenarios; ++s) {
+                    plan_item *p = &plan[n++];
+                    p->scenario = (weft_sim_scenario)s;
+                    p->vertices = k_tiers[t].vertices;
+                    p->index = k;
+                    snprintf(p->name, sizeof p->name, "%s_%s_%04u", weft_sim_scenario_name(p->scenario), k_tiers[t].tag, k);
+                }
+            }
+        }
+    }
+    if (scenario) {
+        weft_sim_scenario sc = WEFT_SIM_SCENARIO_COUNT;
+        for (int s = 0; s < WEFT_SIM_SCENARIO_COUNT; ++s) {
+            if (strcmp(scenario, weft_sim_scenario_name((weft_sim_scenario)s)) == 0) {
+                sc = (weft_sim_scenario)s;
+            }
+        }
+        if (sc == WEFT_SIM_SCENARIO_COUNT) {
+            fprintf(stderr, "simgen: unknown scenario '%s' (drop, gripper, garment)\n", scenario);
+            free(plan);
+            return 2;
+        }
+        for (uint32_t k = 0; k < count; ++k) {
+            plan_item *p = &plan[n++];
+            p->scenario = sc;
+            p->vertices = vertices;
+            p->index = k;
+            snprintf(p->name, sizeof p->name, "%s_v%u_%04u", scenario, vertices, k);
+        }
+    }
+    mkdir(out, 0777);
+    if (!file_exists(out)) {
+        fprintf(stderr, "simgen: cannot create '%s'\n", out);
+        free(plan);
+        return 1;
+    }
+    int rc = 0;
+    if (!manifest_only) {
+        weft_context_def cd = weft_default_context_def();
+        weft_context *ctx = NULL;
+        if (weft_context_create(&cd, &ctx) != WEFT_OK) {
+            fprintf(stderr, "simgen: %s\n", weft_last_error());
+            free(plan);
+            return 1;
+        }
+        uint32_t todo = 0;
+        for (uint32_t i = 0; i < n; ++i) {
+            char path[1200];
+            snprintf(path, sizeof path, "%s/%s/meta.json", out, plan[i].name);
+            todo += (i % shard_n == shard_i) && !file_exists(path);
+        }
+        if (todo > limit) {
+            todo = limit;
+        }
+        progress_state ps = {.total = todo, .t0 = now_s()};
+        uint32_t accepted = 0, rejected = 0;
+        for (uint32_t i = 0; i < n && ps.done < todo; ++i) {
+            char dir[1100], path[1200];
+            snprintf(dir, sizeof dir, "%s/%s", out, plan[i].name);
+            snprintf(path, sizeof path, "%s/meta.json", dir);
+            if (i % shard_n != shard_i || file_exists(path)) {
+                continue;
+            }
+            weft_sim_sequence_def def = weft_sim_default_sequence_def();
+            def.scenario = plan[i].scenario;
+            def.seed = seq_seed(seed0, plan[i].name);
+            def.frames = frames;
+            def.substeps = substeps;
+            def.max_substeps = max_substeps;
+            def.cloth_vertices = plan[i].vertices;
+            def.validate = validate;
+            ps.name = plan[i].name;
+            weft_sim_sequence_result res;
+            weft_result r = weft_sim_generate(ctx, &def, dir, on_frame, &ps, &res);
+            ps.done++;
+            if (r != WEFT_OK) {
+                fprintf(stderr, "\nsimgen: %s failed: %s (%s)\n", plan[i].name, weft_result_string(r), weft_last_error());
+                rc = 1;
+                continue;
+            }
+            accepted += res.accepted;
+            rejected += !res.accepted;
+            if (!res.accepted) {
+                fprintf(stderr, "\nsimgen: %s rejected by the validator (%u CCD, %u intersection hits, first at frame %d, "
+                                "substeps %u)\n",
+                        plan[i].name, res.ccd_hits, res.intersection_hits, res.first_hit_frame, res.substeps_used);
+            }
+        }
+        draw_bar(&ps, 0, 0);
+        fprintf(stderr, "\nsimgen: %u accepted, %u rejected, %.0f s\n", accepted, rejected, now_s() - ps.t0);
+        weft_context_destroy(ctx);
+    }
+    if (write_manifest(out, plan, n) != 0) {
+        rc = 1;
+    }
+    free(plan);
+    return rc;
+}
