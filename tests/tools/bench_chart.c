@@ -1,0 +1,118 @@
+/* `weft bench chart --quick` on the committed sample sequence: the run succeeds, and chart.csv
+ * holds an LBS row and an XPBD row with finite, plausible numbers for the frames asked for.
+ * argv: weft binary, data folder, output folder. Exits 77 (skipped) without a sample sequence. */
+#define _POSIX_C_SOURCE 200809L /* posix_spawn, stat */
+#include "test.h"
+
+#include <spawn.h>
+#include <stdbool.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+
+extern char **environ;
+
+static const char *g_exe, *g_data, *g_out;
+
+static int run(const char *const argv[])
+{
+    pid_t pid;
+    if (posix_spawn(&pid, argv[0], NULL, NULL, (char *const *)argv, environ) != 0) {
+        return -1;
+    }
+    int status = 0;
+    if (waitpid(pid, &status, 0) < 0) {
+        return -1;
+    }
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+/* Field `col` (0-based) of a CSV line into out. */
+static void field(const char *line, int col, char *out, size_t cap)
+{
+    for (int c = 0; c < col && line; ++c) {
+        line = strchr(line, ',');
+        line = line ? line + 1 : NULL;
+    }
+    size_t n = 0;
+    while (line && line[n] && line[n] != ',' && line[n] != '\n' && n + 1 < cap) {
+        out[n] = line[n];
+        n++;
+    }
+    out[n] = '\0';
+}
+
+static void chart_quick_rows(void)
+{
+    const char *argv[] = {g_exe, "bench", "chart", "--data", g_data, "--split", "all", "--quick", "--frames", "4",
+                          "--xpbd", "5", "--no-fnopt", "--no-plot", "--out", g_out, NULL};
+    CHECK_EQ_INT(run(argv), 0);
+    char path[1024];
+    snprintf(path, sizeof path, "%s/chart.csv", g_out);
+    FILE *f = fopen(path, "r");
+    CHECK_MSG(f != NULL, "cannot open %s", path);
+    if (!f) {
+        return;
+    }
+    char line[2048];
+    CHECK(fgets(line, sizeof line, f) != NULL);
+    static const char header[] = "scenario,method,family,precision,ccd,sequences,frames,mve_cm,";
+    CHECK(strncmp(line, header, sizeof header - 1) == 0);
+    int lbs = 0, xpbd = 0;
+    while (fgets(line, sizeof line, f)) {
+        char method[128], family[32], frames[32], mve[64], ms[64], failed[16];
+        field(line, 1, method, sizeof method);
+        field(line, 2, family, sizeof family);
+        field(line, 6, frames, sizeof frames);
+        field(line, 7, mve, sizeof mve);
+        field(line, 9, ms, sizeof ms);
+        field(line, 15, failed, sizeof failed);
+        double e = strtod(mve, NULL), t = strtod(ms, NULL);
+        bool is_lbs = strcmp(method, "LBS") == 0, is_xpbd = strcmp(method, "XPBD-5") == 0;
+        if (!is_lbs && !is_xpbd) {
+            continue;
+        }
+        lbs += is_lbs;
+        xpbd += is_xpbd;
+        CHECK_MSG(mve[0] && isfinite(e) && e >= 0.0 && e < 1000.0, "%s: MVE '%s'", method, mve);
+        CHECK_MSG(isfinite(t) && t > 0.0, "%s: ms/frame '%s'", method, ms);
+        CHECK_MSG(strcmp(frames, "4") == 0, "%s: %s frames scored, asked for 4", method, frames);
+        CHECK_MSG(strcmp(failed, "0") == 0, "%s: %s failed runs", method, failed);
+        CHECK(strcmp(family, is_lbs ? "lbs" : "xpbd") == 0);
+    }
+    fclose(f);
+    CHECK_EQ_INT(lbs, 1);
+    CHECK_EQ_INT(xpbd, 1);
+    snprintf(path, sizeof path, "%s/CHART.md", g_out);
+    struct stat st;
+    CHECK_MSG(stat(path, &st) == 0 && st.st_size > 0, "%s missing or empty", path);
+}
+
+static void chart_rejects_bad_input(void)
+{
+    /* A folder without sequences and an unknown option both fail cleanly. */
+    const char *none[] = {g_exe, "bench", "chart", "--data", g_out, "--no-fnopt", "--no-plot", "--out", g_out, NULL};
+    CHECK_EQ_INT(run(none), 1);
+    const char *bad[] = {g_exe, "bench", "chart", "--data", g_data, "--xpbd", "0", NULL};
+    CHECK_EQ_INT(run(bad), 2);
+}
+
+int main(int argc, char **argv)
+{
+    if (argc < 4) {
+        fprintf(stderr, "usage: %s WEFT DATA OUT\n", argv[0]);
+        return 1;
+    }
+    g_exe = argv[1];
+    g_data = argv[2];
+    g_out = argv[3];
+    char meta[1024];
+    struct stat st;
+    snprintf(meta, sizeof meta, "%s/sample_seq/meta.json", g_data);
+    if (stat(meta, &st) != 0) {
+        printf("no sample sequence at %s: skipped\n", meta);
+        return 77;
+    }
+    mkdir(g_out, 0777);
+    static const test_case_ cases[] = {TEST_CASE(chart_quick_rows), TEST_CASE(chart_rejects_bad_input)};
+    return test_run_(cases, sizeof cases / sizeof cases[0], 1, argv);
+}

@@ -1,0 +1,673 @@
+/* weft bench chart: speed against accuracy for every method on a held-out split.
+ *
+ * Every (method, sequence) pair is one `weft eval --json` child process (same code path as the
+ * user-facing command). Results are aggregated per scenario and method with frame-weighted means,
+ * the Pareto front (lower ms and lower error) is marked, and the run writes <out>/chart.csv,
+ * <out>/CHART.md and, through tools/bench/plot_chart.py, <out>/img/chart.png. The FNOpt grid
+ * scenes are scored by `weft fnopt run --gt` (relative e3D against its XPBD reference, a
+ * different metric from MVE, so they get their own panel). */
+#define _POSIX_C_SOURCE 200809L /* opendir, access, stat */
+#include "weft.h"
+#include "support_bench.h"
+
+#include <dirent.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+#include <unistd.h>
+
+const char weft_bench_chart_help[] = "speed vs accuracy of every method on a test split: CSV, markdown table, PNG chart";
+
+#define CHART_MAX_METHODS 128
+#define CHART_MAX_SCEN 16
+
+typedef struct chart_method {
+    char label[96];
+    char family[16];    /* lbs, xpbd, model, fnopt */
+    char method[16];    /* --method value, or the FNOpt optimizer */
+    char precision[8];  /* fp32 fp16 int8, "-" for methods without one */
+    char model[1024];
+    bool ccd;
+} chart_method;
+
+typedef struct chart_row {
+    char scenario[32];
+    int method;
+    uint32_t sequences, frames, nan_runs, exploded_runs, failed_runs;
+    double mve_w, e3d_w, coll_w, self_w, ms_w, max_strain;
+    bool pareto;
+    char note[240];
+} chart_row;
+
+typedef struct chart_opts {
+    const char *data, *split, *models, *out, *fnopt_model;
+    uint32_t frames, max_seqs;
+    unsigned xpbd[8];
+    size_t nxpbd;
+    const char *fnopt_motions;
+    bool quick, plot, fnopt, frames_given;
+} chart_opts;
+
+static void usage(FILE *f)
+{
+    fprintf(f,
+            "usage: weft bench chart --data DIR [--split test|val|train|all] [--models DIR] [--frames N] [--out DIR]\n"
+            "                        [--max-seqs N] [--xpbd 5,10,20,40] [--quick] [--no-plot] [--no-fnopt]\n"
+            "                        [--fnopt-model PATH] [--fnopt-motions xy,xyz,rot_h0]\n"
+            "  Runs LBS, XPBD (5/10/20/40 substeps), every DIR/*.safetensors model (fp32/fp16/int8, CCD on/off)\n"
+            "  on each sequence of the split, and the FNOpt grid scenes; writes OUT/chart.csv, OUT/CHART.md and\n"
+            "  OUT/img/chart.png (default OUT: docs).\n"
+            "  --quick   30 frames, at most 2 sequences per scenario, one FNOpt scene (xy; whole trajectory)\n");
+}
+
+static double row_error(const chart_row *r, const chart_method *m)
+{
+    uint32_t w = r->frames;
+    if (w == 0) {
+        return NAN;
+    }
+    return strcmp(m->family, "fnopt") == 0 ? r->e3d_w / w : r->mve_w / w;
+}
+
+static bool row_valid(const chart_row *r, const chart_method *m)
+{
+    return r->frames > 0 && r->nan_runs == 0 && r->failed_runs < r->sequences && isfinite(row_error(r, m));
+}
+
+static chart_row *find_row(chart_row *rows, size_t *n, size_t cap, const char *scenario, int method)
+{
+    for (size_t i = 0; i < *n; ++i) {
+        if (rows[i].method == method && strcmp(rows[i].scenario, scenario) == 0) {
+            return &rows[i];
+        }
+    }
+    if (*n == cap) {
+        return NULL;
+    }
+    chart_row *r = &rows[(*n)++];
+    memset(r, 0, sizeof *r);
+    snprintf(r->scenario, sizeof r->scenario, "%s", scenario);
+    r->method = method;
+    return r;
+}
+
+static void add_note(chart_row *r, const char *why)
+{
+    if (!r->note[0] && why && why[0]) {
+        snprintf(r->note, sizeof r->note, "%s", why);
+    }
+}
+
+static int cmp_cstr(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }
+
+/* Every *.safetensors under dir, sorted. */
+static size_t list_models(const char *dir, char names[][256], size_t cap)
+{
+    DIR *dh = dir ? opendir(dir) : NULL;
+    if (!dh) {
+        return 0;
+    }
+    char *tmp[64];
+    size_t n = 0;
+    struct dirent *de;
+    while ((de = readdir(dh)) != NULL && n < cap && n < 64) {
+        size_t l = strlen(de->d_name);
+        /* MODEL.fp16/int8.safetensors are `weft quantize` outputs of MODEL.safetensors, not models
+         * of their own: they are picked per precision below. */
+        bool quantized = l > 17 && (strcmp(de->d_name + l - 17, ".fp16.safetensors") == 0 ||
+                                    strcmp(de->d_name + l - 17, ".int8.safetensors") == 0);
+        if (l > 12 && l < 200 && !quantized && strcmp(de->d_name + l - 12, ".safetensors") == 0) {
+            tmp[n++] = strdup(de->d_name);
+        }
+    }
+    closedir(dh);
+    qsort(tmp, n, sizeof tmp[0], cmp_cstr);
+    size_t k = 0;
+    for (size_t i = 0; i < n; ++i) {
+        if (tmp[i]) {
+            snprintf(names[k++], 256, "%s", tmp[i]);
+            free(tmp[i]);
+        }
+    }
+    return k;
+}
+
+/* "5,10,20" into out (at most cap values in 1..1000). */
+static size_t parse_substeps(const char *v, unsigned *out, size_t cap)
+{
+    size_t n = 0;
+    while (*v) {
+        char *end;
+        unsigned long x = strtoul(v, &end, 10);
+        if (end == v || x == 0 || x > 1000 || n == cap || (*end && *end != ',')) {
+            return 0;
+        }
+        out[n++] = (unsigned)x;
+        v = *end ? end + 1 : end;
+    }
+    return n;
+}
+
+static bool file_exists(const char *p)
+{
+    struct stat st;
+    return stat(p, &st) == 0 && S_ISREG(st.st_mode);
+}
+
+/* The file for one precision: the quantiser's MODEL.<precision>.safetensors when present (its
+ * calibrated weights), else MODEL.safetensors, which the runtime converts at garment creation. */
+static void model_file(const char *dir, const char *stem, const char *base, const char *precision, char *out,
+                       size_t cap)
+{
+    snprintf(out, cap, "%.700s/%.200s.%.8s.safetensors", dir, stem, precision);
+    if (strcmp(precision, "fp32") == 0 || !file_exists(out)) {
+        snprintf(out, cap, "%.700s/%.250s", dir, base);
+    }
+}
+
+/* The plotting script: relative to the working directory, else to the binary
+ * (build-x/bin/weft -> ../../tools/bench). */
+static bool find_script(const char *exe, const char *name, char *out, size_t cap)
+{
+    snprintf(out, cap, "tools/bench/%s", name);
+    if (file_exists(out)) {
+        return true;
+    }
+    char dir[1024];
+    snprintf(dir, sizeof dir, "%s", exe);
+    for (int up = 0; up < 3; ++up) {
+        char *s = strrchr(dir, '/');
+        if (!s) {
+            return false;
+        }
+        *s = '\0';
+    }
+    int n = snprintf(out, cap, "%s/tools/bench/%s", dir, name);
+    return n > 0 && (size_t)n < cap && file_exists(out);
+}
+
+/* One FNOpt grid scene: `weft fnopt run --gt` prints a CSV header and one row. */
+static bool run_fnopt(const char *exe, const chart_opts *o, const chart_method *m, const char *motion, chart_row *r)
+{
+    char frames[16];
+    /* The whole trajectory unless --frames was given: the handles start moving only after a rest
+     * phase, so a short cut scores nothing but the cloth settling. */
+    snprintf(frames, sizeof frames, "%u", o->frames_given ? o->frames : 0u);
+    const char *argv[20];
+    int n = 0;
+    argv[n++] = exe;
+    argv[n++] = "fnopt";
+    argv[n++] = "run";
+    argv[n++] = "--gt";
+    argv[n++] = "--motion";
+    argv[n++] = motion;
+    argv[n++] = "--optimizer";
+    argv[n++] = m->method;
+    argv[n++] = "--frames";
+    argv[n++] = frames;
+    if (strcmp(m->method, "learned") == 0) {
+        argv[n++] = "--model";
+        argv[n++] = m->model;
+    }
+    argv[n] = NULL;
+    char *out = NULL, why[240];
+    int rc = bench_spawn(argv, &out, why, sizeof why);
+    const char *row = out ? strstr(out, "\n") : NULL; /* skip the header line */
+    unsigned res = 0, iters = 0, fr = 0;
+    int diverged = 0;
+    double ms = NAN, e3d = NAN;
+    char mo[64], ha[64], opt[32];
+    double speed, lr, Y, S, B, ch, loss;
+    bool ok = rc == 0 && row &&
+              sscanf(row + 1, "%u,%63[^,],%63[^,],%lf,%31[^,],%u,%lf,%lf,%lf,%lf,%u,%d,%lf,%lf,%lf,%lf", &res, mo, ha,
+                     &speed, opt, &iters, &lr, &Y, &S, &B, &fr, &diverged, &ms, &e3d, &ch, &loss) == 16;
+    free(out);
+    r->sequences++;
+    if (!ok) {
+        r->failed_runs++;
+        bench_sanitize(why);
+        add_note(r, why[0] ? why : "fnopt printed no result row");
+        return false;
+    }
+    if (diverged || !isfinite(e3d)) {
+        r->nan_runs++;
+        add_note(r, "diverged");
+    }
+    r->frames += fr;
+    r->e3d_w += isfinite(e3d) ? e3d * fr : 0.0;
+    r->ms_w += ms * fr;
+    return true;
+}
+
+static void write_outputs(const chart_opts *o, const chart_method *methods, const chart_row *rows, size_t nrows,
+                          char skipped[][300], size_t nskipped, const char *command, double wall_s, const char *exe)
+{
+    char path[1200];
+    snprintf(path, sizeof path, "%s/chart.csv", o->out);
+    FILE *f = fopen(path, "w");
+    if (!f) {
+        fprintf(stderr, "weft bench chart: cannot write %s\n", path);
+        return;
+    }
+    fprintf(f, "scenario,method,family,precision,ccd,sequences,frames,mve_cm,e3d,ms_per_frame,collision_rate,"
+               "self_collision_rate,max_edge_strain,nan_runs,exploded_runs,failed_runs,pareto,note\n");
+    for (size_t i = 0; i < nrows; ++i) {
+        const chart_row *r = &rows[i];
+        const chart_method *m = &methods[r->method];
+        double w = r->frames ? (double)r->frames : NAN;
+        bool fn = strcmp(m->family, "fnopt") == 0;
+        fprintf(f, "%s,%s,%s,%s,%s,%u,%u,", r->scenario, m->label, m->family, m->precision, m->ccd ? "on" : "off",
+                r->sequences, r->frames);
+        if (fn) {
+            fprintf(f, ",%.6g,%.6g,,,,", r->e3d_w / w, r->ms_w / w);
+        } else {
+            fprintf(f, "%.6g,,%.6g,%.6g,%.6g,%.6g,", r->mve_w / w, r->ms_w / w, r->coll_w / w, r->self_w / w,
+                    r->max_strain);
+        }
+        fprintf(f, "%u,%u,%u,%d,%s\n", r->nan_runs, r->exploded_runs, r->failed_runs, r->pareto ? 1 : 0, r->note);
+    }
+    fclose(f);
+
+    snprintf(path, sizeof path, "%s/CHART.md", o->out);
+    f = fopen(path, "w");
+    if (!f) {
+        fprintf(stderr, "weft bench chart: cannot write %s\n", path);
+        return;
+    }
+    time_t now = time(NULL);
+    char date[64];
+    strftime(date, sizeof date, "%Y-%m-%d %H:%M UTC", gmtime(&now));
+    fprintf(f, "# Speed against accuracy\n\n");
+    fprintf(f, "![ms/frame against error, one panel per scenario](img/chart.png)\n\n");
+    fprintf(f, "Generated by `weft bench chart` on %s in %.0f s:\n\n```\n%s\n```\n\n", date, wall_s, command);
+    fprintf(f, "Machine and build: `%s`\n\n", weft_config_string());
+    fprintf(f, "Data: `%s`, split `%s`. Each (method, sequence) is one `weft eval --json` run: the rollout "
+               "starts from the first two ground-truth frames and then sees only the collider. MVE is the mean "
+               "vertex error in cm; means are weighted by scored frames. ms/frame is the wall time of "
+               "`weft_garment_step` (CCD post-processing included when on), on a machine shared with other jobs, "
+               "so treat small differences as noise. Pareto-front methods (nothing else is both faster and more "
+               "accurate) are marked **bold**. NaN: rollouts that produced a non-finite state (stopped there); "
+               "exploded: max edge strain over 25%%.\n\n",
+            o->data, o->split);
+    if (o->frames) {
+        fprintf(f, "Every rollout was cut at %u predicted frames.\n\n", o->frames);
+    }
+    fprintf(f, "Reading the numbers: the ground truth comes from `weft simgen`, itself an XPBD solver (double "
+               "precision, 40 substeps, retried with more when its validator rejects a sequence). The runtime's "
+               "XPBD at the same substep count is therefore close to the reference by construction where the "
+               "two share their material model; it is the accuracy ceiling of the classical path, not an "
+               "independent check. LBS carries the cloth rigidly with the collider: its error is what a "
+               "method that simulates nothing scores. Learned models in fp16/int8 load `MODEL.fp16/int8.safetensors` "
+               "(`weft quantize` output) when present, else the runtime converts the fp32 file.\n\n");
+    for (size_t pass = 0; pass < nrows; ++pass) {
+        /* One table per scenario, in first-seen order. */
+        const char *sc = rows[pass].scenario;
+        bool seen = false;
+        for (size_t k = 0; k < pass; ++k) {
+            seen = seen || strcmp(rows[k].scenario, sc) == 0;
+        }
+        if (seen) {
+            continue;
+        }
+        bool fn = strcmp(methods[rows[pass].method].family, "fnopt") == 0;
+        fprintf(f, "## %s\n\n", sc);
+        if (fn) {
+            fprintf(f, "FNOpt grid scenes (`weft fnopt run --gt`), error = e3D relative to the XPBD reference of the "
+                       "scene (not MVE; not comparable with the other panels).\n\n");
+            fprintf(f, "| method | scenes | frames | e3D | ms/frame | diverged | note |\n|---|---|---|---|---|---|---|\n");
+        } else {
+            fprintf(f, "| method | CCD | sequences | frames | MVE (cm) | ms/frame | collision %% | self-collision %% | "
+                       "max edge strain | NaN | exploded | failed | note |\n"
+                       "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+        }
+        /* rows of this scenario sorted by ms/frame (selection, the tables are tiny) */
+        bool done[CHART_MAX_METHODS * CHART_MAX_SCEN] = {false};
+        for (;;) {
+            size_t best = nrows;
+            double best_ms = INFINITY;
+            for (size_t i = 0; i < nrows; ++i) {
+                if (done[i] || strcmp(rows[i].scenario, sc) != 0) {
+                    continue;
+                }
+                double ms = rows[i].frames ? rows[i].ms_w / rows[i].frames : INFINITY;
+                if (best == nrows || ms < best_ms) {
+                    best = i;
+                    best_ms = ms;
+                }
+            }
+            if (best == nrows) {
+                break;
+            }
+            done[best] = true;
+            const chart_row *r = &rows[best];
+            const chart_method *m = &methods[r->method];
+            double w = r->frames ? (double)r->frames : NAN;
+            const char *b = r->pareto ? "**" : "";
+            if (fn) {
+                fprintf(f, "| %s%s%s | %u | %u | %.4f | %.3f | %u | %s |\n", b, m->label, b, r->sequences, r->frames,
+                        r->e3d_w / w, r->ms_w / w, r->nan_runs, r->note);
+            } else {
+                fprintf(f, "| %s%s%s | %s | %u | %u | %.3f | %.3f | %.2f | %.2f | %.3f | %u | %u | %u | %s |\n", b,
+                        m->label, b, m->ccd ? "on" : "off", r->sequences, r->frames, r->mve_w / w, r->ms_w / w,
+                        r->coll_w / w, r->self_w / w, r->max_strain, r->nan_runs, r->exploded_runs, r->failed_runs,
+                        r->note);
+            }
+        }
+        fprintf(f, "\n");
+    }
+    if (nskipped) {
+        fprintf(f, "## Not measured in this run\n\n");
+        for (size_t i = 0; i < nskipped; ++i) {
+            fprintf(f, "- %s\n", skipped[i]);
+        }
+        fprintf(f, "\n");
+    }
+    fprintf(f, "Raw numbers: [chart.csv](chart.csv). Chart drawn by `tools/bench/plot_chart.py`.\n");
+    fclose(f);
+
+    if (o->plot) {
+        char script[1200], png[1200], csv[1200], img[1200];
+        snprintf(img, sizeof img, "%s/img", o->out);
+        snprintf(png, sizeof png, "%s/img/chart.png", o->out);
+        snprintf(csv, sizeof csv, "%s/chart.csv", o->out);
+        if (!bench_mkdirs(img) || !find_script(exe, "plot_chart.py", script, sizeof script)) {
+            fprintf(stderr, "weft bench chart: tools/bench/plot_chart.py not found (run from the source root); no PNG\n");
+            return;
+        }
+        const char *argv[] = {"/usr/bin/python3", script, "--csv", csv, "--out", png, NULL};
+        char *out = NULL, why[240];
+        int rc = bench_spawn(argv, &out, why, sizeof why);
+        free(out);
+        if (rc != 0) {
+            fprintf(stderr, "weft bench chart: plotting failed: %s\n", why);
+        } else {
+            printf("wrote %s\n", png);
+        }
+    }
+}
+
+int weft_bench_chart(int argc, char **argv)
+{
+    chart_opts o = {.split = "test", .models = "tools/train/models", .out = "docs",
+                    .fnopt_model = "tools/fnopt/models/fnopt_32.safetensors", .plot = true, .fnopt = true};
+    char command[2048] = "weft bench chart";
+    for (int i = 1; i < argc; ++i) {
+        size_t cl = strlen(command);
+        snprintf(command + cl, sizeof command - cl, " %s", argv[i]);
+        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
+        if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
+            usage(stdout);
+            return 0;
+        } else if (strcmp(a, "--quick") == 0) {
+            o.quick = true;
+        } else if (strcmp(a, "--no-plot") == 0) {
+            o.plot = false;
+        } else if (strcmp(a, "--no-fnopt") == 0) {
+            o.fnopt = false;
+        } else if (!v) {
+            fprintf(stderr, "weft bench chart: %s needs a value\n", a);
+            usage(stderr);
+            return 2;
+        } else {
+            if (strcmp(a, "--xpbd") == 0) {
+                if ((o.nxpbd = parse_substeps(v, o.xpbd, 8)) == 0) {
+                    fprintf(stderr, "weft bench chart: --xpbd wants substep counts like 5,10,20,40\n");
+                    return 2;
+                }
+            } else if (strcmp(a, "--data") == 0) {
+                o.data = v;
+            } else if (strcmp(a, "--split") == 0) {
+                o.split = v;
+            } else if (strcmp(a, "--models") == 0) {
+                o.models = v;
+            } else if (strcmp(a, "--out") == 0) {
+                o.out = v;
+            } else if (strcmp(a, "--fnopt-model") == 0) {
+                o.fnopt_model = v;
+            } else if (strcmp(a, "--fnopt-motions") == 0) {
+                o.fnopt_motions = v;
+            } else if (strcmp(a, "--frames") == 0 || strcmp(a, "--max-seqs") == 0) {
+                char *end;
+                unsigned long x = strtoul(v, &end, 10);
+                if (*end || x > 1000000) {
+                    fprintf(stderr, "weft bench chart: bad number '%s' for %s\n", v, a);
+                    return 2;
+                }
+                *(a[2] == 'f' ? &o.frames : &o.max_seqs) = (uint32_t)x;
+                o.frames_given = o.frames_given || a[2] == 'f';
+            } else {
+                fprintf(stderr, "weft bench chart: unknown option '%s'\n", a);
+                usage(stderr);
+                return 2;
+            }
+            cl = strlen(command);
+            snprintf(command + cl, sizeof command - cl, " %s", v);
+            ++i;
+        }
+    }
+    if (!o.data) {
+        fprintf(stderr, "weft bench chart: --data is required\n");
+        usage(stderr);
+        return 2;
+    }
+    if (o.quick) {
+        o.frames = o.frames ? o.frames : 30;
+        o.max_seqs = o.max_seqs ? o.max_seqs : 2;
+    }
+    char exe[1024];
+    if (!bench_self_exe(exe, sizeof exe)) {
+        fprintf(stderr, "weft bench chart: cannot find the running weft binary (/proc/self/exe)\n");
+        return 1;
+    }
+    if (!bench_mkdirs(o.out)) {
+        fprintf(stderr, "weft bench chart: cannot create %s\n", o.out);
+        return 1;
+    }
+    bench_seq *seqs = NULL;
+    size_t nseq = 0;
+    if (!bench_list_sequences(o.data, strcmp(o.split, "all") == 0 ? NULL : o.split, &seqs, &nseq)) {
+        fprintf(stderr, "weft bench chart: cannot read %s\n", o.data);
+        return 1;
+    }
+    if (nseq == 0) {
+        fprintf(stderr, "weft bench chart: no %s sequences (meta.json + cloth_pos.npy) under %s\n", o.split, o.data);
+        free(seqs);
+        return 1;
+    }
+
+    static chart_method methods[CHART_MAX_METHODS];
+    static char skipped[64][300];
+    size_t nm = 0, nskipped = 0;
+    memset(methods, 0, sizeof methods);
+    chart_method *m = &methods[nm++];
+    snprintf(m->label, sizeof m->label, "LBS");
+    snprintf(m->family, sizeof m->family, "lbs");
+    snprintf(m->method, sizeof m->method, "lbs");
+    snprintf(m->precision, sizeof m->precision, "-");
+    m->ccd = true;
+    m = &methods[nm++];
+    *m = methods[0];
+    snprintf(m->label, sizeof m->label, "LBS no-CCD");
+    m->ccd = false;
+    if (o.nxpbd == 0) {
+        static const unsigned k_substeps[] = {5, 10, 20, 40};
+        memcpy(o.xpbd, k_substeps, sizeof k_substeps);
+        o.nxpbd = 4;
+    }
+    for (size_t k = 0; k < o.nxpbd; ++k) {
+        m = &methods[nm++];
+        snprintf(m->label, sizeof m->label, "XPBD-%u", o.xpbd[k]);
+        snprintf(m->family, sizeof m->family, "xpbd");
+        snprintf(m->method, sizeof m->method, "xpbd:%u", o.xpbd[k]);
+        snprintf(m->precision, sizeof m->precision, "-");
+        m->ccd = true;
+    }
+    static char model_names[32][256];
+    size_t nmodels = list_models(o.models, model_names, 32);
+    if (nmodels == 0) {
+        snprintf(skipped[nskipped++], 300, "learned models: no `*.safetensors` under `%s` yet", o.models);
+    }
+    static const char *const k_prec[] = {"fp32", "fp16", "int8"};
+    for (size_t i = 0; i < nmodels && nm + 6 <= CHART_MAX_METHODS - 8; ++i) {
+        char stem[256];
+        snprintf(stem, sizeof stem, "%s", model_names[i]);
+        stem[strlen(stem) - 12] = '\0';
+        for (int p = 0; p < 3; ++p) {
+            for (int c = 1; c >= 0; --c) {
+                m = &methods[nm++];
+                snprintf(m->label, sizeof m->label, "%.60s %s%s", stem, k_prec[p], c ? "" : " no-CCD");
+                snprintf(m->family, sizeof m->family, "model");
+                snprintf(m->method, sizeof m->method, "model");
+                snprintf(m->precision, sizeof m->precision, "%s", k_prec[p]);
+                model_file(o.models, stem, model_names[i], k_prec[p], m->model, sizeof m->model);
+                m->ccd = c != 0;
+            }
+        }
+    }
+    size_t first_fnopt = nm;
+    static const char *const k_fnopt_opt[] = {"learned", "gd", "adam", "lbfgs"};
+    if (o.fnopt) {
+        for (int k = 0; k < 4; ++k) {
+            if (k == 0 && !file_exists(o.fnopt_model)) {
+                snprintf(skipped[nskipped++], 300, "FNOpt learned optimizer: no weights at `%s`", o.fnopt_model);
+                continue;
+            }
+            m = &methods[nm++];
+            snprintf(m->label, sizeof m->label, k == 0 ? "FNOpt" : "%s (10 it)", k_fnopt_opt[k]);
+            snprintf(m->family, sizeof m->family, "fnopt");
+            snprintf(m->method, sizeof m->method, "%s", k_fnopt_opt[k]);
+            snprintf(m->precision, sizeof m->precision, "fp32");
+            snprintf(m->model, sizeof m->model, "%s", o.fnopt_model);
+        }
+    } else {
+        snprintf(skipped[nskipped++], 300, "FNOpt grid scenes: disabled with --no-fnopt");
+    }
+
+    static chart_row rows[CHART_MAX_METHODS * CHART_MAX_SCEN];
+    size_t nrows = 0;
+    const size_t row_cap = sizeof rows / sizeof rows[0];
+    struct timespec t0, t1;
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    char frames_arg[16];
+    snprintf(frames_arg, sizeof frames_arg, "%u", o.frames);
+    /* Sequences per scenario used so far (for --max-seqs). */
+    char scen_names[CHART_MAX_SCEN][32];
+    uint32_t scen_used[CHART_MAX_SCEN] = {0};
+    size_t nscen = 0;
+    for (size_t s = 0; s < nseq; ++s) {
+        size_t si = 0;
+        while (si < nscen && strcmp(scen_names[si], seqs[s].scenario) != 0) {
+            ++si;
+        }
+        if (si == nscen) {
+            if (nscen == CHART_MAX_SCEN) {
+                continue;
+            }
+            snprintf(scen_names[nscen++], 32, "%s", seqs[s].scenario);
+        }
+        if (o.max_seqs && scen_used[si] >= o.max_seqs) {
+            continue;
+        }
+        scen_used[si]++;
+        for (size_t k = 0; k < first_fnopt; ++k) {
+            const chart_method *mm = &methods[k];
+            chart_row *r = find_row(rows, &nrows, row_cap, seqs[s].scenario, (int)k);
+            if (!r) {
+                continue;
+            }
+            const char *extra[16];
+            int n = 0;
+            extra[n++] = "--method";
+            extra[n++] = mm->method;
+            extra[n++] = "--ccd";
+            extra[n++] = mm->ccd ? "on" : "off";
+            if (o.frames) {
+                extra[n++] = "--frames";
+                extra[n++] = frames_arg;
+            }
+            if (strcmp(mm->family, "model") == 0) {
+                extra[n++] = "--model";
+                extra[n++] = mm->model;
+                extra[n++] = "--precision";
+                extra[n++] = mm->precision;
+            }
+            extra[n] = NULL;
+            bench_eval_result e;
+            bench_eval(exe, seqs[s].dir, extra, &e);
+            r->sequences++;
+            if (!e.ok) {
+                r->failed_runs++;
+                add_note(r, e.why);
+                printf("%-24s %-22s FAILED: %s\n", seqs[s].name, mm->label, e.why);
+                continue;
+            }
+            double w = e.frames;
+            r->frames += e.frames;
+            r->mve_w += e.mve_cm * w;
+            r->coll_w += e.collision_rate * w;
+            r->self_w += e.self_collision_rate * w;
+            r->ms_w += e.ms_per_frame * w;
+            r->max_strain = fmax(r->max_strain, e.max_edge_strain);
+            r->nan_runs += e.nan;
+            r->exploded_runs += e.max_edge_strain > 0.25;
+            printf("%-24s %-22s frames %4u  MVE %8.3f cm  %8.3f ms/frame  coll %5.2f%%  strain %.3f%s\n",
+                   seqs[s].name, mm->label, e.frames, e.mve_cm, e.ms_per_frame, e.collision_rate, e.max_edge_strain,
+                   e.nan ? "  NaN" : "");
+            fflush(stdout);
+        }
+    }
+    if (o.fnopt && nm > first_fnopt) {
+        /* Comma-separated motion names of `weft fnopt run --motion`. */
+        char motions[256];
+        snprintf(motions, sizeof motions, "%s", o.fnopt_motions ? o.fnopt_motions : (o.quick ? "xy" : "xy,xyz,rot_h0"));
+        for (size_t k = first_fnopt; k < nm; ++k) {
+            chart_row *r = find_row(rows, &nrows, row_cap, "fnopt-grid", (int)k);
+            for (char *mo = motions; r && *mo;) {
+                char *comma = strchr(mo, ',');
+                char one[64];
+                size_t len = comma ? (size_t)(comma - mo) : strlen(mo);
+                snprintf(one, sizeof one, "%.*s", (int)(len < 63 ? len : 63), mo);
+                bool ok = run_fnopt(exe, &o, &methods[k], one, r);
+                printf("fnopt %-8s %-18s %s\n", one, methods[k].label, ok ? "ok" : r->note);
+                fflush(stdout);
+                mo = comma ? comma + 1 : mo + len;
+            }
+        }
+    }
+    /* Unsupported precisions: the runtime says so in the eval error; record why. */
+    for (size_t i = 0; i < nrows; ++i) {
+        const chart_method *mm = &methods[rows[i].method];
+        if (rows[i].failed_runs == rows[i].sequences && nskipped < 64) {
+            snprintf(skipped[nskipped++], 300, "%.60s on %.31s: every run failed (%.180s)", mm->label, rows[i].scenario,
+                     rows[i].note[0] ? rows[i].note : "no message");
+        }
+    }
+    /* Pareto front per scenario: no other valid row is at least as fast and as accurate, and
+     * strictly better in one. */
+    for (size_t i = 0; i < nrows; ++i) {
+        const chart_method *mi = &methods[rows[i].method];
+        if (!row_valid(&rows[i], mi)) {
+            continue;
+        }
+        double ei = row_error(&rows[i], mi), ti = rows[i].ms_w / rows[i].frames;
+        bool dominated = false;
+        for (size_t j = 0; j < nrows && !dominated; ++j) {
+            const chart_method *mj = &methods[rows[j].method];
+            if (j == i || strcmp(rows[i].scenario, rows[j].scenario) != 0 || !row_valid(&rows[j], mj)) {
+                continue;
+            }
+            double ej = row_error(&rows[j], mj), tj = rows[j].ms_w / rows[j].frames;
+            dominated = ej <= ei && tj <= ti && (ej < ei || tj < ti);
+        }
+        rows[i].pareto = !dominated;
+    }
+    clock_gettime(CLOCK_MONOTONIC, &t1);
+    double wall = (double)(t1.tv_sec - t0.tv_sec) + (double)(t1.tv_nsec - t0.tv_nsec) * 1e-9;
+    write_outputs(&o, methods, rows, nrows, skipped, nskipped, command, wall, exe);
+    printf("wrote %s/chart.csv and %s/CHART.md (%zu rows, %.1f s)\n", o.out, o.out, nrows, wall);
+    free(seqs);
+    return 0;
+}

@@ -1,0 +1,780 @@
+/* weft bench stability: where each method fails, against reference-simulator ground truth.
+ *
+ * Stress cases are generated with `weft simgen` (resumable: finished sequences are kept under
+ * --data) and every (method, case, sequence) is scored by `weft eval --json` child processes:
+ *   resolution  x1 x2 x4 x10 of the base cloth vertex count
+ *   long        one rollout of --long-frames frames (2400 by default, 10x the 240-frame horizon)
+ *   unseen      the training scenario with a seed outside the training set (new objects/motions),
+ *               and the garment scenario when simgen can build it
+ *   speed       x1 x1.5 x2 x3 on the FNOpt grid scenes (`weft fnopt run --gt --speed`); simgen has
+ *               no speed option, so the simgen methods are reported as not measured on this axis
+ * Per cell: NaN, explosion (max edge strain > 25%), penetrations after CCD (collision_rate), and
+ * MVE growth: the last quarter's MVE over the first quarter's. eval reports only a whole-rollout
+ * mean, but rollouts are deterministic and a shorter rollout is a prefix of a longer one, so the
+ * quarter means follow exactly from runs cut at 1/4, 3/4 and the full length. */
+#define _POSIX_C_SOURCE 200809L /* opendir, stat */
+#include "weft.h"
+#include "support_bench.h"
+
+#include <cjson/cJSON.h>
+
+#include <dirent.h>
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <time.h>
+
+const char weft_bench_stability_help[] = "stability suite: NaN, explosions, penetrations, MVE growth per method and stress case";
+
+#define ST_MAX_METHODS 64
+#define ST_MAX_CASES 16
+#define ST_STRAIN_LIMIT 0.25   /* explosion: an edge stretched by more than 25% */
+#define ST_COLL_WARN 1.0       /* % of vertices penetrating after CCD that counts as a failure sign */
+#define ST_GROWTH_WARN 2.0     /* last-quarter MVE more than twice the first quarter's ... */
+#define ST_GROWTH_FLOOR_CM 0.5 /* ... and at least this large: ratios of near-zero errors are noise */
+#define ST_RATIO_FLOOR_CM 0.1  /* growth ratios are printed only above this first-quarter MVE */
+
+typedef struct st_method {
+    char label[96], family[16], method[16], precision[8], model[1024];
+} st_method;
+
+typedef struct st_case {
+    char name[32], axis[16], level[32];
+    char scenario[16];
+    uint32_t vertices, frames, count;
+    unsigned long long seed;
+    double speed;          /* FNOpt cases */
+    bool fnopt;
+    bool available;
+    char note[240];
+} st_case;
+
+typedef struct st_cell {
+    uint32_t sequences, frames, nan_runs, exploded_runs, failed_runs;
+    double mve_w, coll_w, self_w, ms_w, max_strain, e3d_w;
+    double q1_sum, q1_frames, q4_sum, q4_frames; /* error sums (cm x frames) of the first / last quarter */
+    bool growth_ok;
+    char note[240];
+} st_cell;
+
+typedef struct st_opts {
+    const char *data, *out, *models, *scenario, *fnopt_model;
+    uint32_t base_vertices, frames, long_frames, count;
+    unsigned xpbd[8];
+    size_t nxpbd;
+    bool quick, plot, fnopt, garment;
+} st_opts;
+
+static void usage(FILE *f)
+{
+    fprintf(f,
+            "usage: weft bench stability [--data DIR] [--out DIR] [--models DIR] [--scenario gripper|drop]\n"
+            "                            [--base-vertices V] [--frames T] [--long-frames T] [--count N]\n"
+            "                            [--xpbd 5,10,20,40] [--quick] [--no-plot] [--no-fnopt] [--no-garment]\n"
+            "                            [--fnopt-model PATH]\n"
+            "  Generates the stress cases with weft simgen under DIR (default data/stability; resumable), scores\n"
+            "  LBS, XPBD 5/10/20/40 and every DIR/*.safetensors model (fp32/fp16/int8, CCD on) on each, and\n"
+            "  writes OUT/stability.csv, OUT/STABILITY.md, OUT/img/stability.png (default OUT: docs).\n"
+            "  defaults: V=256 vertices, T=240 frames, long 2400 frames, 2 sequences per case\n"
+            "  --quick   V=64, T=60, long 480 frames, 1 sequence per case, FNOpt speed axis with adam only\n");
+}
+
+/* "5,10,20" into out (at most cap values in 1..1000). */
+static size_t parse_substeps(const char *v, unsigned *out, size_t cap)
+{
+    size_t n = 0;
+    while (*v) {
+        char *end;
+        unsigned long x = strtoul(v, &end, 10);
+        if (end == v || x == 0 || x > 1000 || n == cap || (*end && *end != ',')) {
+            return 0;
+        }
+        out[n++] = (unsigned)x;
+        v = *end ? end + 1 : end;
+    }
+    return n;
+}
+
+static bool file_exists(const char *p)
+{
+    struct stat st;
+    return stat(p, &st) == 0 && S_ISREG(st.st_mode);
+}
+
+static int cmp_cstr(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }
+
+static size_t list_models(const char *dir, char names[][256], size_t cap)
+{
+    DIR *dh = dir ? opendir(dir) : NULL;
+    if (!dh) {
+        return 0;
+    }
+    char *tmp[64];
+    size_t n = 0;
+    struct dirent *de;
+    while ((de = readdir(dh)) != NULL && n < cap && n < 64) {
+        size_t l = strlen(de->d_name);
+        /* MODEL.fp16/int8.safetensors are `weft quantize` outputs of MODEL.safetensors, not models
+         * of their own: they are picked per precision below. */
+        bool quantized = l > 17 && (strcmp(de->d_name + l - 17, ".fp16.safetensors") == 0 ||
+                                    strcmp(de->d_name + l - 17, ".int8.safetensors") == 0);
+        if (l > 12 && l < 200 && !quantized && strcmp(de->d_name + l - 12, ".safetensors") == 0) {
+            tmp[n++] = strdup(de->d_name);
+        }
+    }
+    closedir(dh);
+    qsort(tmp, n, sizeof tmp[0], cmp_cstr);
+    size_t k = 0;
+    for (size_t i = 0; i < n; ++i) {
+        if (tmp[i]) {
+            snprintf(names[k++], 256, "%s", tmp[i]);
+            free(tmp[i]);
+        }
+    }
+    return k;
+}
+
+/* The file for one precision: the quantiser's MODEL.<precision>.safetensors when present (its
+ * calibrated weights), else MODEL.safetensors, which the runtime converts at garment creation. */
+static void model_file(const char *dir, const char *stem, const char *base, const char *precision, char *out,
+                       size_t cap)
+{
+    snprintf(out, cap, "%.700s/%.200s.%.8s.safetensors", dir, stem, precision);
+    if (strcmp(precision, "fp32") == 0 || !file_exists(out)) {
+        snprintf(out, cap, "%.700s/%.250s", dir, base);
+    }
+}
+
+static bool find_script(const char *exe, const char *name, char *out, size_t cap)
+{
+    snprintf(out, cap, "tools/bench/%s", name);
+    if (file_exists(out)) {
+        return true;
+    }
+    char dir[1024];
+    snprintf(dir, sizeof dir, "%s", exe);
+    for (int up = 0; up < 3; ++up) {
+        char *s = strrchr(dir, '/');
+        if (!s) {
+            return false;
+        }
+        *s = '\0';
+    }
+    int n = snprintf(out, cap, "%s/tools/bench/%s", dir, name);
+    return n > 0 && (size_t)n < cap && file_exists(out);
+}
+
+/* When simgen's validator rejected the case, say why from the rejected sequence's meta.json. */
+static void rejection_note(const char *dir, st_case *c)
+{
+    DIR *dh = opendir(dir);
+    struct dirent *de;
+    while (dh && (de = readdir(dh)) != NULL) {
+        char path[1400];
+        if (de->d_name[0] == '.' || snprintf(path, sizeof path, "%s/%s/meta.json", dir, de->d_name) >= (int)sizeof path) {
+            continue;
+        }
+        char *text = bench_slurp(path, NULL);
+        cJSON *j = text ? cJSON_Parse(text) : NULL;
+        free(text);
+        const cJSON *v = j ? cJSON_GetObjectItemCaseSensitive(j, "validator") : NULL;
+        const cJSON *ih = cJSON_GetObjectItemCaseSensitive(v, "intersection_hits");
+        const cJSON *ch = cJSON_GetObjectItemCaseSensitive(v, "ccd_hits");
+        const cJSON *ff = cJSON_GetObjectItemCaseSensitive(v, "first_hit_frame");
+        const cJSON *ss = j ? cJSON_GetObjectItemCaseSensitive(j, "substeps") : NULL;
+        if (j && cJSON_IsFalse(cJSON_GetObjectItemCaseSensitive(j, "accepted")) && cJSON_IsNumber(ih) &&
+            cJSON_IsNumber(ch) && cJSON_IsNumber(ff) && cJSON_IsNumber(ss)) {
+            snprintf(c->note, sizeof c->note,
+                     "the reference simulation was rejected by its validator (%d intersection and %d CCD hits, "
+                     "first at frame %d, even at %d substeps), so there is no ground truth",
+                     ih->valueint, ch->valueint, ff->valueint, ss->valueint);
+            cJSON_Delete(j);
+            break;
+        }
+        cJSON_Delete(j);
+    }
+    if (dh) {
+        closedir(dh);
+    }
+}
+
+/* Runs simgen for one case; resumes when the sequences already exist. */
+static bool generate_case(const char *exe, const st_opts *o, st_case *c, char *dir, size_t dir_cap)
+{
+    snprintf(dir, dir_cap, "%s/%s", o->data, c->name);
+    char vert[16], frames[16], count[16], seed[32];
+    snprintf(vert, sizeof vert, "%u", c->vertices);
+    snprintf(frames, sizeof frames, "%u", c->frames);
+    snprintf(count, sizeof count, "%u", c->count);
+    snprintf(seed, sizeof seed, "%llu", c->seed);
+    const char *argv[] = {exe, "simgen", "--out", dir, "--scenario", c->scenario, "--count", count, "--vertices", vert,
+                          "--frames", frames, "--seed", seed, NULL};
+    char *out = NULL, why[240];
+    printf("generating %-14s %s, %u vertices, %u frames, %u sequence(s)\n", c->name, c->scenario, c->vertices,
+           c->frames, c->count);
+    fflush(stdout);
+    int rc = bench_spawn(argv, &out, why, sizeof why);
+    free(out);
+    bench_seq *seqs = NULL;
+    size_t n = 0;
+    bool listed = bench_list_sequences(dir, NULL, &seqs, &n);
+    free(seqs);
+    if (!listed || n == 0) {
+        bench_sanitize(why);
+        snprintf(c->note, sizeof c->note, "simgen produced no accepted sequence (exit %d: %.150s)", rc, why);
+        rejection_note(dir, c);
+        return false;
+    }
+    return true;
+}
+
+/* One eval with the method's arguments, cut at `frames` predicted frames (0: all). */
+static bool eval_method(const char *exe, const st_method *m, const char *seq, uint32_t frames, bench_eval_result *e)
+{
+    char fr[16];
+    snprintf(fr, sizeof fr, "%u", frames);
+    const char *extra[16];
+    int n = 0;
+    extra[n++] = "--method";
+    extra[n++] = m->method;
+    extra[n++] = "--ccd";
+    extra[n++] = "on";
+    if (frames) {
+        extra[n++] = "--frames";
+        extra[n++] = fr;
+    }
+    if (strcmp(m->family, "model") == 0) {
+        extra[n++] = "--model";
+        extra[n++] = m->model;
+        extra[n++] = "--precision";
+        extra[n++] = m->precision;
+    }
+    extra[n] = NULL;
+    return bench_eval(exe, seq, extra, e);
+}
+
+static void score_sequence(const char *exe, const st_method *m, const bench_seq *s, st_cell *cell)
+{
+    bench_eval_result full;
+    cell->sequences++;
+    if (!eval_method(exe, m, s->dir, 0, &full)) {
+        cell->failed_runs++;
+        if (!cell->note[0]) {
+            snprintf(cell->note, sizeof cell->note, "%s", full.why);
+        }
+        return;
+    }
+    uint32_t F = full.frames;
+    cell->frames += F;
+    cell->mve_w += full.mve_cm * F;
+    cell->coll_w += full.collision_rate * F;
+    cell->self_w += full.self_collision_rate * F;
+    cell->ms_w += full.ms_per_frame * F;
+    cell->max_strain = fmax(cell->max_strain, full.max_edge_strain);
+    cell->nan_runs += full.nan;
+    cell->exploded_runs += full.max_edge_strain > ST_STRAIN_LIMIT;
+    if (full.nan || F < 8) {
+        return; /* growth is undefined for a rollout that stopped or is too short */
+    }
+    bench_eval_result q1, q3;
+    uint32_t f1 = F / 4, f3 = F - F / 4;
+    if (eval_method(exe, m, s->dir, f1, &q1) && eval_method(exe, m, s->dir, f3, &q3) && !q1.nan && !q3.nan &&
+        q1.frames == f1 && q3.frames == f3) {
+        cell->q1_sum += q1.mve_cm * f1;
+        cell->q1_frames += f1;
+        cell->q4_sum += full.mve_cm * F - q3.mve_cm * f3;
+        cell->q4_frames += F - f3;
+        cell->growth_ok = true;
+    }
+}
+
+static void score_fnopt(const char *exe, const st_opts *o, const st_method *m, const st_case *c, st_cell *cell)
+{
+    static const char *const motions[] = {"xy", "xyz", "rot_h0"};
+    size_t nmot = o->quick ? 1 : 3;
+    char speed[16], frames[16];
+    snprintf(speed, sizeof speed, "%g", c->speed);
+    /* Always the whole trajectory: the handles start moving only after a rest phase, so a cut
+     * rollout would not see the speed change at all. */
+    snprintf(frames, sizeof frames, "%u", 0u);
+    for (size_t k = 0; k < nmot; ++k) {
+        const char *argv[20];
+        int n = 0;
+        argv[n++] = exe;
+        argv[n++] = "fnopt";
+        argv[n++] = "run";
+        argv[n++] = "--gt";
+        argv[n++] = "--speed";
+        argv[n++] = speed;
+        argv[n++] = "--motion";
+        argv[n++] = motions[k];
+        argv[n++] = "--optimizer";
+        argv[n++] = m->method;
+        argv[n++] = "--frames";
+        argv[n++] = frames;
+        if (strcmp(m->method, "learned") == 0) {
+            argv[n++] = "--model";
+            argv[n++] = m->model;
+        }
+        argv[n] = NULL;
+        char *out = NULL, why[240];
+        int rc = bench_spawn(argv, &out, why, sizeof why);
+        const char *row = out ? strchr(out, '\n') : NULL;
+        unsigned res, iters, fr = 0;
+        int diverged = 0;
+        double sp, lr, Y, S, B, ms = NAN, e3d = NAN, ch, loss;
+        char mo[64], ha[64], opt[32];
+        bool ok = rc == 0 && row &&
+                  sscanf(row + 1, "%u,%63[^,],%63[^,],%lf,%31[^,],%u,%lf,%lf,%lf,%lf,%u,%d,%lf,%lf,%lf,%lf", &res, mo,
+                         ha, &sp, opt, &iters, &lr, &Y, &S, &B, &fr, &diverged, &ms, &e3d, &ch, &loss) == 16;
+        free(out);
+        cell->sequences++;
+        if (!ok) {
+            cell->failed_runs++;
+            bench_sanitize(why);
+            if (!cell->note[0]) {
+                snprintf(cell->note, sizeof cell->note, "%s", why[0] ? why : "fnopt printed no result row");
+            }
+            continue;
+        }
+        cell->nan_runs += diverged || !isfinite(e3d);
+        cell->frames += fr;
+        cell->e3d_w += isfinite(e3d) ? e3d * fr : 0.0;
+        cell->ms_w += ms * fr;
+        printf("  fnopt %-6s speed %-4s %-14s e3D %.4f  %.2f ms/frame%s\n", motions[k], speed, m->label, e3d, ms,
+               diverged ? "  DIVERGED" : "");
+        fflush(stdout);
+    }
+}
+
+/* pass, warn (penetrations or drift), fail (NaN / explosion / could not run), n/a */
+static const char *cell_status(const st_cell *c)
+{
+    if (c->sequences == 0) {
+        return "n/a";
+    }
+    if (c->failed_runs == c->sequences) {
+        return strstr(c->note, "nsupported") ? "n/a" : "error";
+    }
+    if (c->nan_runs) {
+        return "NaN";
+    }
+    if (c->exploded_runs) {
+        return "exploded";
+    }
+    if (c->frames && c->coll_w / c->frames > ST_COLL_WARN) {
+        return "penetrates";
+    }
+    if (c->growth_ok && c->q1_sum > 0 && (c->q4_sum / c->q4_frames) / (c->q1_sum / c->q1_frames) > ST_GROWTH_WARN &&
+        c->q4_sum / c->q4_frames >= ST_GROWTH_FLOOR_CM) {
+        return "drifts";
+    }
+    return "pass";
+}
+
+static void num_or_empty(FILE *f, bool have, double v)
+{
+    if (have && isfinite(v)) {
+        fprintf(f, ",%.6g", v);
+    } else {
+        fprintf(f, ",");
+    }
+}
+
+int weft_bench_stability(int argc, char **argv)
+{
+    st_opts o = {.data = "data/stability", .out = "docs", .models = "tools/train/models", .scenario = "gripper",
+                 .fnopt_model = "tools/fnopt/models/fnopt_32.safetensors", .plot = true, .fnopt = true,
+                 .garment = true};
+    char command[2048] = "weft bench stability";
+    for (int i = 1; i < argc; ++i) {
+        size_t cl = strlen(command);
+        snprintf(command + cl, sizeof command - cl, " %s", argv[i]);
+        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
+        if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
+            usage(stdout);
+            return 0;
+        } else if (strcmp(a, "--quick") == 0) {
+            o.quick = true;
+        } else if (strcmp(a, "--no-plot") == 0) {
+            o.plot = false;
+        } else if (strcmp(a, "--no-fnopt") == 0) {
+            o.fnopt = false;
+        } else if (strcmp(a, "--no-garment") == 0) {
+            o.garment = false;
+        } else if (!v) {
+            fprintf(stderr, "weft bench stability: %s needs a value\n", a);
+            return 2;
+        } else {
+            uint32_t *num = strcmp(a, "--base-vertices") == 0 ? &o.base_vertices
+                            : strcmp(a, "--frames") == 0      ? &o.frames
+                            : strcmp(a, "--long-frames") == 0 ? &o.long_frames
+                            : strcmp(a, "--count") == 0       ? &o.count
+                                                              : NULL;
+            if (num) {
+                char *end;
+                unsigned long x = strtoul(v, &end, 10);
+                if (*end || x == 0 || x > 1000000) {
+                    fprintf(stderr, "weft bench stability: bad number '%s' for %s\n", v, a);
+                    return 2;
+                }
+                *num = (uint32_t)x;
+            } else if (strcmp(a, "--xpbd") == 0) {
+                if ((o.nxpbd = parse_substeps(v, o.xpbd, 8)) == 0) {
+                    fprintf(stderr, "weft bench stability: --xpbd wants substep counts like 5,10,20,40\n");
+                    return 2;
+                }
+            } else if (strcmp(a, "--data") == 0) {
+                o.data = v;
+            } else if (strcmp(a, "--out") == 0) {
+                o.out = v;
+            } else if (strcmp(a, "--models") == 0) {
+                o.models = v;
+            } else if (strcmp(a, "--scenario") == 0) {
+                o.scenario = v;
+            } else if (strcmp(a, "--fnopt-model") == 0) {
+                o.fnopt_model = v;
+            } else {
+                fprintf(stderr, "weft bench stability: unknown option '%s'\n", a);
+                usage(stderr);
+                return 2;
+            }
+            cl = strlen(command);
+            snprintf(command + cl, sizeof command - cl, " %s", v);
+            ++i;
+        }
+    }
+    if (strcmp(o.scenario, "gripper") != 0 && strcmp(o.scenario, "drop") != 0) {
+        fprintf(stderr, "weft bench stability: --scenario takes gripper or drop\n");
+        return 2;
+    }
+    o.base_vertices = o.base_vertices ? o.base_vertices : (o.quick ? 64 : 256);
+    o.frames = o.frames ? o.frames : (o.quick ? 60 : 240);
+    o.long_frames = o.long_frames ? o.long_frames : (o.quick ? 480 : 2400);
+    o.count = o.count ? o.count : (o.quick ? 1 : 2);
+    if (o.frames < 10 || o.long_frames < 10) {
+        fprintf(stderr, "weft bench stability: --frames and --long-frames must be >= 10\n");
+        return 2;
+    }
+    char exe[1024];
+    if (!bench_self_exe(exe, sizeof exe)) {
+        fprintf(stderr, "weft bench stability: cannot find the running weft binary (/proc/self/exe)\n");
+        return 1;
+    }
+    if (!bench_mkdirs(o.data) || !bench_mkdirs(o.out)) {
+        fprintf(stderr, "weft bench stability: cannot create %s or %s\n", o.data, o.out);
+        return 1;
+    }
+
+    /* Methods. */
+    static st_method methods[ST_MAX_METHODS];
+    memset(methods, 0, sizeof methods);
+    size_t nm = 0;
+    snprintf(methods[nm].label, 96, "LBS");
+    snprintf(methods[nm].family, 16, "lbs");
+    snprintf(methods[nm].method, 16, "lbs");
+    snprintf(methods[nm++].precision, 8, "-");
+    if (o.nxpbd == 0) {
+        static const unsigned k_substeps[] = {5, 10, 20, 40};
+        memcpy(o.xpbd, k_substeps, sizeof k_substeps);
+        o.nxpbd = 4;
+    }
+    for (size_t k = 0; k < o.nxpbd; ++k) {
+        snprintf(methods[nm].label, 96, "XPBD-%u", o.xpbd[k]);
+        snprintf(methods[nm].family, 16, "xpbd");
+        snprintf(methods[nm].method, 16, "xpbd:%u", o.xpbd[k]);
+        snprintf(methods[nm++].precision, 8, "-");
+    }
+    static char model_names[16][256];
+    size_t nmodels = list_models(o.models, model_names, 16);
+    static const char *const k_prec[] = {"fp32", "fp16", "int8"};
+    for (size_t i = 0; i < nmodels && nm + 3 < ST_MAX_METHODS - 4; ++i) {
+        char stem[256];
+        snprintf(stem, sizeof stem, "%.240s", model_names[i]);
+        stem[strlen(stem) - 12] = '\0';
+        for (int p = 0; p < 3; ++p) {
+            snprintf(methods[nm].label, 96, "%.60s %s", stem, k_prec[p]);
+            snprintf(methods[nm].family, 16, "model");
+            snprintf(methods[nm].method, 16, "model");
+            snprintf(methods[nm].precision, 8, "%s", k_prec[p]);
+            model_file(o.models, stem, model_names[i], k_prec[p], methods[nm++].model, 1024);
+        }
+    }
+    size_t first_fnopt = nm;
+    static const char *const k_fnopt_opt[] = {"learned", "gd", "adam", "lbfgs"};
+    bool fnopt_weights = file_exists(o.fnopt_model);
+    for (int k = 0; o.fnopt && k < 4; ++k) {
+        /* Each FNOpt run re-simulates its XPBD reference, and the learned optimizer's whole trajectory
+         * takes minutes on a loaded machine: --quick keeps the best classical optimizer (adam) only. */
+        if ((k == 0 && !fnopt_weights) || (o.quick && k != 2)) {
+            continue;
+        }
+        snprintf(methods[nm].label, 96, k == 0 ? "FNOpt" : "%s (10 it)", k_fnopt_opt[k]);
+        snprintf(methods[nm].family, 16, "fnopt");
+        snprintf(methods[nm].method, 16, "%s", k_fnopt_opt[k]);
+        snprintf(methods[nm].precision, 8, "fp32");
+        snprintf(methods[nm++].model, 1024, "%s", o.fnopt_model);
+    }
+
+    /* Cases. The seed offset keeps the "unseen" draws out of the default-seed training names. */
+    static st_case cases[ST_MAX_CASES];
+    memset(cases, 0, sizeof cases);
+    size_t nc = 0;
+    static const unsigned k_res[] = {1, 2, 4, 10};
+    for (int k = 0; k < 4; ++k) {
+        st_case *c = &cases[nc++];
+        snprintf(c->name, sizeof c->name, "res_x%u", k_res[k]);
+        snprintf(c->axis, sizeof c->axis, "resolution");
+        snprintf(c->level, sizeof c->level, "x%u", k_res[k]);
+        snprintf(c->scenario, sizeof c->scenario, "%s", o.scenario);
+        c->vertices = o.base_vertices * k_res[k];
+        c->frames = o.frames;
+        c->count = o.count;
+    }
+    st_case *c = &cases[nc++];
+    snprintf(c->name, sizeof c->name, "long_%u", o.long_frames);
+    snprintf(c->axis, sizeof c->axis, "long rollout");
+    snprintf(c->level, sizeof c->level, "%u frames", o.long_frames);
+    snprintf(c->scenario, sizeof c->scenario, "%s", o.scenario);
+    c->vertices = o.base_vertices;
+    c->frames = o.long_frames;
+    c->count = 1;
+    c = &cases[nc++];
+    snprintf(c->name, sizeof c->name, "unseen_motion");
+    snprintf(c->axis, sizeof c->axis, "unseen");
+    snprintf(c->level, sizeof c->level, "new seed");
+    snprintf(c->scenario, sizeof c->scenario, "%s", o.scenario);
+    c->vertices = o.base_vertices;
+    c->frames = o.frames;
+    c->count = o.count;
+    c->seed = 0x57AB1E5EEDull;
+    c = o.garment ? &cases[nc++] : &cases[ST_MAX_CASES - 1]; /* the spare slot is never listed */
+    snprintf(c->name, sizeof c->name, "unseen_garment");
+    snprintf(c->axis, sizeof c->axis, "unseen");
+    snprintf(c->level, sizeof c->level, "garment");
+    snprintf(c->scenario, sizeof c->scenario, "garment");
+    c->vertices = o.base_vertices < 256 ? 256 : o.base_vertices; /* simgen's garments need >= 200 vertices */
+    c->frames = o.frames;
+    c->count = 1;
+    c->seed = 0x57AB1E5EEDull;
+    static const double k_speed[] = {1.0, 1.5, 2.0, 3.0};
+    for (int k = 0; o.fnopt && k < 4; ++k) {
+        c = &cases[nc++];
+        snprintf(c->name, sizeof c->name, "speed_x%g", k_speed[k]);
+        snprintf(c->axis, sizeof c->axis, "speed");
+        snprintf(c->level, sizeof c->level, "x%g", k_speed[k]);
+        snprintf(c->scenario, sizeof c->scenario, "fnopt-grid");
+        c->speed = k_speed[k];
+        c->fnopt = true;
+    }
+
+    struct timespec t0, t1;
+    clock_gettime(CLOCK_MONOTONIC, &t0);
+    static st_cell cells[ST_MAX_CASES][ST_MAX_METHODS];
+    memset(cells, 0, sizeof cells);
+    for (size_t ci = 0; ci < nc; ++ci) {
+        st_case *cs = &cases[ci];
+        if (cs->fnopt) {
+            cs->available = true;
+            for (size_t k = first_fnopt; k < nm; ++k) {
+                score_fnopt(exe, &o, &methods[k], cs, &cells[ci][k]);
+            }
+            continue;
+        }
+        char dir[1100];
+        cs->available = generate_case(exe, &o, cs, dir, sizeof dir);
+        if (!cs->available) {
+            printf("  %s: %s\n", cs->name, cs->note);
+            continue;
+        }
+        bench_seq *seqs = NULL;
+        size_t ns = 0;
+        bench_list_sequences(dir, NULL, &seqs, &ns);
+        if (ns && seqs[0].vertices) {
+            snprintf(cs->note, sizeof cs->note, "%u cloth vertices, %u frames, %zu sequence(s)", seqs[0].vertices,
+                     seqs[0].frames, ns);
+        }
+        for (size_t s = 0; s < ns; ++s) {
+            for (size_t k = 0; k < first_fnopt; ++k) {
+                st_cell *cell = &cells[ci][k];
+                score_sequence(exe, &methods[k], &seqs[s], cell);
+                double w = cell->frames ? (double)cell->frames : NAN;
+                printf("  %-14s %-22s %-20s MVE %8.3f cm  coll %5.2f%%  strain %.3f  %s\n", cs->name, seqs[s].name,
+                       methods[k].label, cell->mve_w / w, cell->coll_w / w, cell->max_strain, cell_status(cell));
+                fflush(stdout);
+            }
+        }
+        free(seqs);
+    }
+    clock_gettime(CLOCK_MONOTONIC, &t1);
+    double wall = (double)(t1.tv_sec - t0.tv_sec) + (double)(t1.tv_nsec - t0.tv_nsec) * 1e-9;
+
+    /* CSV */
+    char path[1200];
+    snprintf(path, sizeof path, "%s/stability.csv", o.out);
+    FILE *f = fopen(path, "w");
+    if (!f) {
+        fprintf(stderr, "weft bench stability: cannot write %s\n", path);
+        return 1;
+    }
+    fprintf(f, "case,axis,level,method,family,precision,sequences,frames,mve_cm,e3d,mve_first_quarter,"
+               "mve_last_quarter,mve_growth,collision_rate,self_collision_rate,max_edge_strain,ms_per_frame,nan_runs,"
+               "exploded_runs,failed_runs,status,note\n");
+    for (size_t ci = 0; ci < nc; ++ci) {
+        for (size_t k = 0; k < nm; ++k) {
+            const st_case *cs = &cases[ci];
+            bool fn = strcmp(methods[k].family, "fnopt") == 0;
+            if (fn != cs->fnopt) {
+                continue;
+            }
+            const st_cell *cell = &cells[ci][k];
+            double w = cell->frames ? (double)cell->frames : NAN;
+            bool have = cell->frames > 0;
+            double q1 = cell->q1_frames ? cell->q1_sum / cell->q1_frames : NAN;
+            double q4 = cell->q4_frames ? cell->q4_sum / cell->q4_frames : NAN;
+            fprintf(f, "%s,%s,%s,%s,%s,%s,%u,%u", cs->name, cs->axis, cs->level, methods[k].label, methods[k].family,
+                    methods[k].precision, cell->sequences, cell->frames);
+            num_or_empty(f, have && !fn, cell->mve_w / w);
+            num_or_empty(f, have && fn, cell->e3d_w / w);
+            num_or_empty(f, cell->growth_ok, q1);
+            num_or_empty(f, cell->growth_ok, q4);
+            num_or_empty(f, cell->growth_ok && q1 > 0, q4 / q1);
+            num_or_empty(f, have && !fn, cell->coll_w / w);
+            num_or_empty(f, have && !fn, cell->self_w / w);
+            num_or_empty(f, have && !fn, cell->max_strain);
+            num_or_empty(f, have, cell->ms_w / w);
+            char note[240];
+            snprintf(note, sizeof note, "%s", cs->available ? cell->note : cs->note);
+            bench_sanitize(note);
+            fprintf(f, ",%u,%u,%u,%s,%s\n", cell->nan_runs, cell->exploded_runs, cell->failed_runs,
+                    cs->available ? cell_status(cell) : "not generated", note);
+        }
+    }
+    fclose(f);
+
+    /* Markdown */
+    snprintf(path, sizeof path, "%s/STABILITY.md", o.out);
+    f = fopen(path, "w");
+    if (!f) {
+        fprintf(stderr, "weft bench stability: cannot write %s\n", path);
+        return 1;
+    }
+    time_t now = time(NULL);
+    char date[64];
+    strftime(date, sizeof date, "%Y-%m-%d %H:%M UTC", gmtime(&now));
+    fprintf(f, "# Stability suite\n\n![pass/fail per method and stress case](img/stability.png)\n\n");
+    fprintf(f, "Generated by `weft bench stability` on %s; scoring took %.0f s (case generation excluded when the "
+               "cases already existed under `%s`):\n\n```\n%s\n```\n\n",
+            date, wall, o.data, command);
+    fprintf(f, "Machine and build: `%s`\n\n", weft_config_string());
+    fprintf(f, "Ground truth: `weft simgen` (validated XPBD reference, scenario `%s`), base %u cloth vertices, %u "
+               "frames, %u sequence(s) per case. Every method runs with CCD post-processing on, from the first two "
+               "ground-truth frames, and then sees only the collider.\n\n",
+            o.scenario, o.base_vertices, o.frames, o.count);
+    fprintf(f, "Status: **NaN** (non-finite state), **exploded** (max edge strain > %.0f%%), **error** (the run "
+               "failed, see note), **penetrates** (more than %.0f%% of cloth vertices in collision per frame after "
+               "CCD), **drifts** (last-quarter MVE > %.0fx first-quarter MVE and >= %.1f cm), else **pass**. MVE growth compares "
+               "the MVE of the last quarter of the rollout with the first quarter's (exact: rollouts are "
+               "deterministic prefixes, scored at 1/4, 3/4 and full length); the ratio is shown only when the "
+               "first quarter is at least %.1f cm, since rollouts start from ground truth.\n\n",
+            ST_STRAIN_LIMIT * 100, ST_COLL_WARN, ST_GROWTH_WARN, ST_GROWTH_FLOOR_CM, ST_RATIO_FLOOR_CM);
+    fprintf(f, "XPBD at 40 substeps matches the reference solver's own setting (simgen: XPBD, 40 substeps, "
+               "double precision), so near-zero errors there are expected; the axes show where fewer substeps, "
+               "LBS and the learned models leave that envelope.\n\n");
+    fprintf(f, "| case | axis | method | status | MVE (cm) | MVE first → last quarter (cm) | collision %% | self %% | max strain | "
+               "ms/frame | note |\n|---|---|---|---|---|---|---|---|---|---|---|\n");
+    for (size_t ci = 0; ci < nc; ++ci) {
+        const st_case *cs = &cases[ci];
+        if (!cs->available) {
+            fprintf(f, "| %s | %s | all | not generated | | | | | | | %s |\n", cs->name, cs->axis, cs->note);
+            continue;
+        }
+        for (size_t k = 0; k < nm; ++k) {
+            bool fn = strcmp(methods[k].family, "fnopt") == 0;
+            if (fn != cs->fnopt) {
+                continue;
+            }
+            const st_cell *cell = &cells[ci][k];
+            double w = cell->frames ? (double)cell->frames : NAN;
+            double g = cell->growth_ok && cell->q1_sum > 0
+                           ? (cell->q4_sum / cell->q4_frames) / (cell->q1_sum / cell->q1_frames)
+                           : NAN;
+            /* First and last quarter side by side; the ratio only when the first quarter is large enough
+             * for it to mean something (rollouts start from ground truth, so it is often ~0). */
+            char gs[96] = "";
+            if (cell->growth_ok) {
+                double q1 = cell->q1_sum / cell->q1_frames, q4 = cell->q4_sum / cell->q4_frames;
+                int n = snprintf(gs, sizeof gs, "%.3f → %.3f", q1, q4);
+                if (isfinite(g) && q1 >= ST_RATIO_FLOOR_CM && n > 0 && (size_t)n < sizeof gs) {
+                    snprintf(gs + n, sizeof gs - (size_t)n, " (%.1fx)", g);
+                }
+            }
+            if (fn) {
+                fprintf(f, "| %s | %s | %s | %s | e3D %.4f | | | | | %.2f | %s |\n", cs->name, cs->axis,
+                        methods[k].label, cell_status(cell), cell->e3d_w / w, cell->ms_w / w, cell->note);
+            } else {
+                fprintf(f, "| %s | %s | %s | %s | %.3f | %s | %.2f | %.2f | %.3f | %.3f | %s |\n", cs->name, cs->axis,
+                        methods[k].label, cell_status(cell), cell->mve_w / w, gs, cell->coll_w / w, cell->self_w / w,
+                        cell->max_strain, cell->ms_w / w, cell->note);
+            }
+        }
+    }
+    fprintf(f, "\n## Not measured in this run\n\n");
+    fprintf(f, "- motion speed x1.5/x2/x3 for the simgen methods: `weft simgen` has no motion-speed option, so there "
+               "is no reference ground truth at other speeds. The speed axis is measured only on the FNOpt grid "
+               "scenes (`weft fnopt run --gt --speed`), whose XPBD reference is re-simulated at each speed.\n");
+    if (nmodels == 0) {
+        fprintf(f, "- learned models: no `*.safetensors` under `%s` yet.\n", o.models);
+    }
+    if (o.fnopt && !fnopt_weights) {
+        fprintf(f, "- FNOpt learned optimizer: no weights at `%s`.\n", o.fnopt_model);
+    }
+    if (!o.garment) {
+        fprintf(f, "- unseen garments: disabled with --no-garment.\n");
+    }
+    if (!o.fnopt) {
+        fprintf(f, "- FNOpt speed axis: disabled with --no-fnopt.\n");
+    } else if (o.quick) {
+        fprintf(f, "- FNOpt speed axis for the learned FNOpt optimizer, gd and L-BFGS: left out by --quick (adam "
+                   "only, one motion instead of three). Each learned run re-simulates the reference and steps the "
+                   "whole trajectory, minutes per speed on a loaded machine.\n");
+    }
+    for (size_t ci = 0; ci < nc; ++ci) {
+        if (!cases[ci].available) {
+            fprintf(f, "- %s: %s\n", cases[ci].name, cases[ci].note);
+        }
+    }
+    if (o.quick) {
+        fprintf(f, "\nThis is the --quick suite (tiny cases, long rollout of %u frames instead of 2400). The full "
+                   "suite is `weft bench stability` without --quick: base 256 vertices, 240 frames, a 2400-frame "
+                   "rollout, two sequences per case, all four FNOpt optimizers on three motions. Its run time has "
+                   "not been measured yet on this machine.\n",
+                o.long_frames);
+    }
+    fprintf(f, "\nRaw numbers: [stability.csv](stability.csv). Plot drawn by `tools/bench/plot_stability.py`.\n");
+    fclose(f);
+    printf("wrote %s/stability.csv and %s/STABILITY.md (%.1f s)\n", o.out, o.out, wall);
+
+    if (o.plot) {
+        char script[1200], png[1200], csv[1200], img[1200];
+        snprintf(img, sizeof img, "%s/img", o.out);
+        snprintf(png, sizeof png, "%s/img/stability.png", o.out);
+        snprintf(csv, sizeof csv, "%s/stability.csv", o.out);
+        if (!bench_mkdirs(img) || !find_script(exe, "plot_stability.py", script, sizeof script)) {
+            fprintf(stderr, "weft bench stability: tools/bench/plot_stability.py not found; no PNG\n");
+            return 0;
+        }
+        const char *pargv[] = {"/usr/bin/python3", script, "--csv", csv, "--out", png, NULL};
+        char *out = NULL, why[240];
+        int rc = bench_spawn(pargv, &out, why, sizeof why);
+        free(out);
+        if (rc != 0) {
+            fprintf(stderr, "weft bench stability: plotting failed: %s\n", why);
+        } else {
+            printf("wrote %s\n", png);
+        }
+    }
+    return 0;
+}

@@ -1,0 +1,373 @@
+/* Child-process and dataset helpers for the harness benchmarks. Each measured run is a separate
+ * `weft eval` process so that one method crashing or exhausting memory costs one cell of the
+ * table, not the whole run, and every figure comes from the same code path users run. */
+#define _POSIX_C_SOURCE 200809L /* posix_spawn, readlink, mkstemp, opendir */
+#include "support_bench.h"
+
+#include <cjson/cJSON.h>
+#include <dirent.h>
+#include <errno.h>
+#include <fcntl.h>
+#include <math.h>
+#include <spawn.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+#include <sys/stat.h>
+#include <sys/types.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+extern char **environ;
+
+bool bench_self_exe(char *out, size_t cap)
+{
+    ssize_t n = readlink("/proc/self/exe", out, cap - 1);
+    if (n <= 0 || (size_t)n >= cap - 1) {
+        return false;
+    }
+    out[n] = '\0';
+    return true;
+}
+
+char *bench_slurp(const char *path, size_t *size)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f) {
+        return NULL;
+    }
+    char *p = NULL;
+    if (fseek(f, 0, SEEK_END) == 0) {
+        long n = ftell(f);
+        if (n >= 0 && fseek(f, 0, SEEK_SET) == 0 && (p = malloc((size_t)n + 1)) != NULL) {
+            if (fread(p, 1, (size_t)n, f) != (size_t)n) {
+                free(p);
+                p = NULL;
+            } else {
+                p[n] = '\0';
+                if (size) {
+                    *size = (size_t)n;
+                }
+            }
+        }
+    }
+    fclose(f);
+    return p;
+}
+
+bool bench_mkdirs(const char *path)
+{
+    char tmp[1024];
+    size_t n = strlen(path);
+    if (n == 0 || n >= sizeof tmp) {
+        return false;
+    }
+    memcpy(tmp, path, n + 1);
+    for (char *p = tmp + 1; *p; ++p) {
+        if (*p == '/') {
+            *p = '\0';
+            if (mkdir(tmp, 0777) != 0 && errno != EEXIST) {
+                return false;
+            }
+            *p = '/';
+        }
+    }
+    struct stat st;
+    return (mkdir(tmp, 0777) == 0 || errno == EEXIST) && stat(tmp, &st) == 0 && S_ISDIR(st.st_mode);
+}
+
+void bench_sanitize(char *s)
+{
+    for (; *s; ++s) {
+        if (*s == ',' || *s == '|' || *s == '\n' || *s == '\r' || *s == '"') {
+            *s = (*s == ',') ? ';' : ' ';
+        }
+    }
+}
+
+/* The last non-empty line of a text, trimmed, into why. */
+static void last_line(const char *text, char *why, size_t cap)
+{
+    if (!why || cap == 0) {
+        return;
+    }
+    why[0] = '\0';
+    if (!text) {
+        return;
+    }
+    const char *end = text + strlen(text);
+    while (end > text && (end[-1] == '\n' || end[-1] == '\r' || end[-1] == ' ')) {
+        --end;
+    }
+    const char *begin = end;
+    while (begin > text && begin[-1] != '\n' && begin[-1] != '\r') {
+        --begin;
+    }
+    size_t n = (size_t)(end - begin);
+    if (n >= cap) {
+        n = cap - 1;
+    }
+    memcpy(why, begin, n);
+    why[n] = '\0';
+}
+
+int bench_spawn(const char *const argv[], char **out, char *why, size_t why_cap)
+{
+    *out = NULL;
+    if (why && why_cap) {
+        why[0] = '\0';
+    }
+    /* stderr goes to a temporary file: reading two pipes without poll() could deadlock. */
+    char errpath[] = "/tmp/weft-bench-XXXXXX";
+    int errfd = mkstemp(errpath);
+    if (errfd < 0) {
+        snprintf(why, why_cap, "cannot create a temporary file: %s", strerror(errno));
+        return -1;
+    }
+    int fds[2];
+    if (pipe(fds) != 0) {
+        snprintf(why, why_cap, "pipe: %s", strerror(errno));
+        close(errfd);
+        unlink(errpath);
+        return -1;
+    }
+    posix_spawn_file_actions_t fa;
+    posix_spawn_file_actions_init(&fa);
+    posix_spawn_file_actions_adddup2(&fa, fds[1], STDOUT_FILENO);
+    posix_spawn_file_actions_adddup2(&fa, errfd, STDERR_FILENO);
+    posix_spawn_file_actions_addclose(&fa, fds[0]);
+    posix_spawn_file_actions_addclose(&fa, fds[1]);
+    posix_spawn_file_actions_addclose(&fa, errfd);
+    pid_t pid;
+    int se = posix_spawn(&pid, argv[0], &fa, NULL, (char *const *)argv, environ);
+    posix_spawn_file_actions_destroy(&fa);
+    close(fds[1]);
+    close(errfd);
+    if (se != 0) {
+        snprintf(why, why_cap, "cannot start %s: %s", argv[0], strerror(se));
+        close(fds[0]);
+        unlink(errpath);
+        return -1;
+    }
+    size_t len = 0, cap = 4096;
+    char *buf = malloc(cap);
+    for (;;) {
+        if (buf && len + 1 >= cap) {
+            char *nb = realloc(buf, cap * 2);
+            if (!nb) {
+                free(buf);
+                buf = NULL;
+            } else {
+                buf = nb;
+                cap *= 2;
+            }
+        }
+        char sink[4096];
+        ssize_t n = buf ? read(fds[0], buf + len, cap - len - 1) : read(fds[0], sink, sizeof sink);
+        if (n < 0 && errno == EINTR) {
+            continue;
+        }
+        if (n <= 0) {
+            break;
+        }
+        if (buf) {
+            len += (size_t)n;
+        }
+    }
+    close(fds[0]);
+    int status = 0;
+    while (waitpid(pid, &status, 0) < 0 && errno == EINTR) {
+    }
+    char *err = bench_slurp(errpath, NULL);
+    unlink(errpath);
+    last_line(err, why, why_cap);
+    free(err);
+    if (buf) {
+        buf[len] = '\0';
+    }
+    *out = buf;
+    if (WIFSIGNALED(status)) {
+        if (why && why_cap) {
+            char tail[160];
+            snprintf(tail, sizeof tail, "%s", why);
+            snprintf(why, why_cap, "killed by signal %d%s%s", WTERMSIG(status), tail[0] ? ": " : "", tail);
+        }
+        return -1;
+    }
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+static double json_num(const cJSON *o, const char *key, bool *ok)
+{
+    const cJSON *v = cJSON_GetObjectItemCaseSensitive(o, key);
+    if (!cJSON_IsNumber(v)) {
+        *ok = false;
+        return NAN;
+    }
+    return v->valuedouble;
+}
+
+bool bench_eval(const char *exe, const char *seq_dir, const char *const extra[], bench_eval_result *r)
+{
+    memset(r, 0, sizeof *r);
+    const char *argv[32];
+    int n = 0;
+    argv[n++] = exe;
+    argv[n++] = "eval";
+    argv[n++] = "--json";
+    argv[n++] = "--seq";
+    argv[n++] = seq_dir;
+    for (int i = 0; extra && extra[i] && n < 31; ++i) {
+        argv[n++] = extra[i];
+    }
+    argv[n] = NULL;
+    char *out = NULL;
+    int rc = bench_spawn(argv, &out, r->why, sizeof r->why);
+    /* The JSON object is the last line that starts with '{'. */
+    const char *js = NULL;
+    for (const char *p = out; p && *p; p = strchr(p, '\n') ? strchr(p, '\n') + 1 : p + strlen(p)) {
+        if (*p == '{') {
+            js = p;
+        }
+    }
+    cJSON *j = js ? cJSON_Parse(js) : NULL;
+    bool ok = j != NULL;
+    if (j) {
+        r->mve_cm = json_num(j, "mve_cm", &ok);
+        r->collision_rate = json_num(j, "collision_rate", &ok);
+        r->self_collision_rate = json_num(j, "self_collision_rate", &ok);
+        r->ms_per_frame = json_num(j, "ms_per_frame", &ok);
+        r->max_edge_strain = json_num(j, "max_edge_strain", &ok);
+        double f = json_num(j, "frames", &ok);
+        r->frames = ok && f >= 0 && f < 4e9 ? (uint32_t)f : 0;
+        r->nan = cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(j, "nan"));
+        cJSON_Delete(j);
+    }
+    free(out);
+    /* eval exits 1 on a per-sequence error even after printing JSON; zero frames means nothing
+     * was measured. A NaN rollout is a measured failure, not a harness error. */
+    r->ok = ok && (rc == 0 || r->nan) && (r->frames > 0 || r->nan);
+    if (!r->ok && !r->why[0]) {
+        snprintf(r->why, sizeof r->why, "eval exited with %d and no result", rc);
+    }
+    bench_sanitize(r->why);
+    return r->ok;
+}
+
+/* Same hash as `weft simgen` / `weft eval` split by (FNV-1a, splitmix64 finaliser). */
+static uint64_t split_hash(const char *name)
+{
+    uint64_t h = 1469598103934665603ull ^ 0x5b11u;
+    for (const char *c = name; *c; ++c) {
+        h = (h ^ (unsigned char)*c) * 1099511628211ull;
+    }
+    h = (h ^ (h >> 30)) * 0xBF58476D1CE4E5B9ull;
+    h = (h ^ (h >> 27)) * 0x94D049BB133111EBull;
+    return h ^ (h >> 31);
+}
+
+static int cmp_seq(const void *a, const void *b)
+{
+    return strcmp(((const bench_seq *)a)->name, ((const bench_seq *)b)->name);
+}
+
+static bool is_file(const char *dir, const char *name)
+{
+    char p[1200];
+    struct stat st;
+    int n = snprintf(p, sizeof p, "%s/%s", dir, name);
+    return n > 0 && (size_t)n < sizeof p && stat(p, &st) == 0 && S_ISREG(st.st_mode);
+}
+
+bool bench_list_sequences(const char *root, const char *split, bench_seq **out, size_t *count)
+{
+    *out = NULL;
+    *count = 0;
+    DIR *dh = opendir(root);
+    if (!dh) {
+        return false;
+    }
+    char mpath[1200];
+    snprintf(mpath, sizeof mpath, "%s/manifest.json", root);
+    char *mtext = bench_slurp(mpath, NULL);
+    cJSON *manifest = mtext ? cJSON_Parse(mtext) : NULL;
+    const cJSON *mseqs = manifest ? cJSON_GetObjectItemCaseSensitive(manifest, "sequences") : NULL;
+    bench_seq *list = NULL;
+    size_t n = 0, cap = 0;
+    bool ok = true;
+    struct dirent *de;
+    while ((de = readdir(dh)) != NULL) {
+        bench_seq s;
+        memset(&s, 0, sizeof s);
+        int dl = snprintf(s.dir, sizeof s.dir, "%s/%s", root, de->d_name);
+        if (de->d_name[0] == '.' || strlen(de->d_name) >= sizeof s.name || dl <= 0 || (size_t)dl >= sizeof s.dir ||
+            !is_file(s.dir, "meta.json") || !is_file(s.dir, "cloth_pos.npy")) {
+            continue;
+        }
+        memcpy(s.name, de->d_name, strlen(de->d_name) + 1);
+        char path[1200];
+        snprintf(path, sizeof path, "%s/meta.json", s.dir);
+        char *text = bench_slurp(path, NULL);
+        cJSON *meta = text ? cJSON_Parse(text) : NULL;
+        free(text);
+        if (!meta) {
+            fprintf(stderr, "weft bench: %s: unreadable meta.json, skipped\n", s.dir);
+            continue;
+        }
+        const cJSON *sc = cJSON_GetObjectItemCaseSensitive(meta, "scenario");
+        const cJSON *fr = cJSON_GetObjectItemCaseSensitive(meta, "frames");
+        const cJSON *cl = cJSON_GetObjectItemCaseSensitive(meta, "cloth");
+        const cJSON *vx = cl ? cJSON_GetObjectItemCaseSensitive(cl, "vertices") : NULL;
+        const cJSON *sp = cJSON_GetObjectItemCaseSensitive(meta, "split");
+        snprintf(s.scenario, sizeof s.scenario, "%s", cJSON_IsString(sc) ? sc->valuestring : "unknown");
+        bench_sanitize(s.scenario);
+        s.frames = cJSON_IsNumber(fr) && fr->valuedouble > 0 ? (uint32_t)fr->valuedouble : 0;
+        s.vertices = cJSON_IsNumber(vx) && vx->valuedouble > 0 ? (uint32_t)vx->valuedouble : 0;
+        bool keep = true;
+        if (split) {
+            const char *which = cJSON_IsString(sp) ? sp->valuestring : NULL;
+            const cJSON *e;
+            cJSON_ArrayForEach(e, mseqs)
+            {
+                const cJSON *en = cJSON_GetObjectItemCaseSensitive(e, "name");
+                const cJSON *es = cJSON_GetObjectItemCaseSensitive(e, "split");
+                if (!which && cJSON_IsString(en) && cJSON_IsString(es) && strcmp(en->valuestring, s.name) == 0) {
+                    which = es->valuestring;
+                }
+            }
+            if (which) {
+                keep = strcmp(which, split) == 0;
+            } else {
+                uint64_t h = split_hash(s.name) % 10;
+                keep = strcmp(split, h < 8 ? "train" : (h == 8 ? "val" : "test")) == 0;
+            }
+        }
+        cJSON_Delete(meta);
+        if (!keep) {
+            continue;
+        }
+        if (n == cap) {
+            cap = cap ? cap * 2 : 32;
+            bench_seq *nl = realloc(list, cap * sizeof *nl);
+            if (!nl) {
+                ok = false;
+                break;
+            }
+            list = nl;
+        }
+        list[n++] = s;
+    }
+    closedir(dh);
+    cJSON_Delete(manifest);
+    free(mtext);
+    if (!ok) {
+        free(list);
+        return false;
+    }
+    if (n) {
+        qsort(list, n, sizeof *list, cmp_seq);
+    }
+    *out = list;
+    *count = n;
+    return true;
+}

@@ -1,0 +1,53 @@
+/* Shared pieces of the harness benchmarks (`weft bench chart`, `weft bench stability`): running
+ * other `weft` subcommands as child processes, reading their JSON, and walking simgen folders. */
+#ifndef WEFT_SUPPORT_BENCH_H
+#define WEFT_SUPPORT_BENCH_H
+
+#include <stdbool.h>
+#include <stddef.h>
+#include <stdint.h>
+
+/* One `weft eval --json` run. ok is false when the child failed or printed no valid JSON; why
+ * then holds its last stderr line (e.g. "unsupported: int8 needs ..."). */
+typedef struct bench_eval_result {
+    bool ok;
+    double mve_cm, collision_rate, self_collision_rate, ms_per_frame, max_edge_strain;
+    uint32_t frames;
+    bool nan;
+    char why[240];
+} bench_eval_result;
+
+/* A simgen sequence folder. */
+typedef struct bench_seq {
+    char name[128];
+    char dir[1024];
+    char scenario[32];
+    uint32_t frames, vertices;
+} bench_seq;
+
+/* Path of the running executable (/proc/self/exe); false when it cannot be read. */
+bool bench_self_exe(char *out, size_t cap);
+
+/* Runs argv (argv[0] is a path, argv NULL-terminated) with stdout captured into *out (malloc'd,
+ * NUL-terminated; the caller frees) and the last non-empty stderr line copied into why.
+ * Returns the exit status, or -1 when the child could not be started or was killed. */
+int bench_spawn(const char *const argv[], char **out, char *why, size_t why_cap);
+
+/* `exe eval --json --seq seq_dir <extra...>` parsed into r. Returns r->ok. */
+bool bench_eval(const char *exe, const char *seq_dir, const char *const extra[], bench_eval_result *r);
+
+/* The whole file, NUL-terminated; NULL when it cannot be read. */
+char *bench_slurp(const char *path, size_t *size);
+
+/* mkdir -p. */
+bool bench_mkdirs(const char *path);
+
+/* Sequence folders (meta.json + cloth_pos.npy) directly under root, sorted by name, whose
+ * split is `split` (NULL: all). The split follows `weft eval`: meta.json "split", else the
+ * root's manifest.json, else simgen's name hash. *out is malloc'd; the caller frees. */
+bool bench_list_sequences(const char *root, const char *split, bench_seq **out, size_t *count);
+
+/* Collapses a stderr line into something safe for one CSV / markdown cell. */
+void bench_sanitize(char *s);
+
+#endif
