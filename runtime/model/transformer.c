@@ -320,6 +320,7 @@ typedef struct ct_buf {
 typedef struct ct_state {
     weft_ct_config c;
     weft_ct_weights w;
+    const weft_context *ctx;            /* allocator and the host's parallel_for hook */
     const weft_kernels *k;
     /* Reduced precision: the table, int8 activation scratch, deterministic attention scratch,
      * and one arena holding every layer's packed / transposed weights. */
@@ -366,17 +367,16 @@ typedef struct ct_state {
 
 static ct_state *state_of(weft_garment *g) { return (ct_state *)g->method_state; }
 
-/* C = act(A W^T + b (+ C)) at the garment's precision. */
-static void linear(const ct_state *s, uint32_t rows, const weft_ct_linear *l, const float *A, uint32_t lda,
-                   float *C, uint32_t ldc, weft_activation act, bool accumulate)
+/* C = act(A W^T + b (+ C)) for `rows` rows at the garment's precision. Rows are independent
+ * (each output row depends on its input row only, in every precision), so any split of the rows
+ * gives the same bits. */
+static void linear_rows(const ct_state *s, uint32_t rows, const weft_ct_linear *l, const float *A, uint32_t lda,
+                        float *C, uint32_t ldc, weft_activation act, bool accumulate, int8_t *qa, float *qa_scale)
 {
-    if (rows == 0) {
-        return;
-    }
     if (s->prec == WEFT_PRECISION_INT8) {
         if (l->q8.packed) {
-            s->qk->quantize_rows(A, rows, l->in, lda, s->qa, l->q8.Kp, s->qa_scale);
-            s->qk->gemm_q8(rows, s->qa, l->q8.Kp, s->qa_scale, &l->q8, l->b, C, ldc, act, accumulate);
+            s->qk->quantize_rows(A, rows, l->in, lda, qa, l->q8.Kp, qa_scale);
+            s->qk->gemm_q8(rows, qa, l->q8.Kp, qa_scale, &l->q8, l->b, C, ldc, act, accumulate);
         } else {
             s->qk->gemm_det(rows, l->out, l->in, A, lda, l->wt, l->out, l->b, C, ldc, act, accumulate);
         }
@@ -387,6 +387,45 @@ static void linear(const ct_state *s, uint32_t rows, const weft_ct_linear *l, co
         return;
     }
     s->k->gemm(rows, l->out, l->in, A, lda, l->w, l->in, l->b, C, ldc, act, accumulate);
+}
+
+typedef struct linear_job {
+    const ct_state *s;
+    const weft_ct_linear *l;
+    const float *A;
+    float *C;
+    uint32_t lda, ldc;
+    weft_activation act;
+    bool accumulate;
+} linear_job;
+
+static void linear_chunk(uint32_t begin, uint32_t end, uint32_t worker, void *job_ptr)
+{
+    (void)worker;
+    const linear_job *j = job_ptr;
+    const ct_state *s = j->s;
+    const size_t kp = j->l->q8.Kp;
+    linear_rows(s, end - begin, j->l, j->A + (size_t)begin * j->lda, j->lda, j->C + (size_t)begin * j->ldc, j->ldc,
+                j->act, j->accumulate, s->qa ? s->qa + (size_t)begin * kp : NULL,
+                s->qa_scale ? s->qa_scale + begin : NULL);
+}
+
+/* Row blocks of the big per-vertex layers go through the host's parallel_for when it has one. */
+#define CT_PARALLEL_MIN_ROWS 256u
+#define CT_PARALLEL_CHUNK 128u
+
+static void linear(const ct_state *s, uint32_t rows, const weft_ct_linear *l, const float *A, uint32_t lda,
+                   float *C, uint32_t ldc, weft_activation act, bool accumulate)
+{
+    if (rows == 0) {
+        return;
+    }
+    if (rows >= CT_PARALLEL_MIN_ROWS && s->ctx->parallel_for) {
+        linear_job job = {s, l, A, C, lda, ldc, act, accumulate};
+        weft__parallel_for(s->ctx, linear_chunk, rows, CT_PARALLEL_CHUNK, &job);
+    } else {
+        linear_rows(s, rows, l, A, lda, C, ldc, act, accumulate, s->qa, s->qa_scale);
+    }
 }
 
 static void norm(const ct_state *s, const weft_ct_norm *n, const float *X, float *Y, uint32_t rows, uint32_t d,
@@ -735,6 +774,7 @@ static weft_result ct_create(weft_garment *g)
     }
     s->c = c;
     s->w = *w;
+    s->ctx = g->ctx;
     s->k = g->ctx->kernels;
     s->prec = g->precision;
     s->qk = qk;

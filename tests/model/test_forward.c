@@ -1,6 +1,7 @@
 /* C forward pass of the ClothTransformer against PyTorch golden tensors
  * (tools/train/export.py --golden), plus the method's bad-input behaviour. */
 #include "test.h"
+#include <pthread.h>
 #include "quant.h"
 #include "weft.h"
 
@@ -618,6 +619,95 @@ static void quantized_files(void)
     golden_free(&g);
 }
 
+/* The host's job hook: chunks run on two threads (in reverse order on the second), and the
+ * result is bit-identical to the serial run at every precision. */
+typedef struct hook_job {
+    weft_task_fn *task;
+    void *ctx;
+    uint32_t count, chunk;
+    int calls;
+} hook_job;
+
+static void *hook_thread(void *arg)
+{
+    hook_job *j = arg;
+    uint32_t nchunks = (j->count + j->chunk - 1) / j->chunk;
+    for (uint32_t c = nchunks; c-- > nchunks / 2;) { /* upper half, last chunk first */
+        uint32_t b = c * j->chunk, e = b + j->chunk < j->count ? b + j->chunk : j->count;
+        j->task(b, e, 1, j->ctx);
+    }
+    return NULL;
+}
+
+static int g_hook_calls;
+
+static void two_thread_parallel_for(weft_task_fn *task, uint32_t count, uint32_t min_chunk, void *task_context,
+                                    void *user)
+{
+    (void)user;
+    g_hook_calls++;
+    hook_job job = {task, task_context, count, min_chunk, 0};
+    pthread_t th;
+    bool threaded = pthread_create(&th, NULL, hook_thread, &job) == 0;
+    uint32_t nchunks = (count + min_chunk - 1) / min_chunk;
+    for (uint32_t c = 0; c < nchunks / 2; ++c) {
+        uint32_t b = c * min_chunk, e = b + min_chunk < count ? b + min_chunk : count;
+        task(b, e, 0, task_context);
+    }
+    if (threaded) {
+        pthread_join(th, NULL);
+    } else {
+        hook_thread(&job);
+    }
+}
+
+static void parallel_for_hook(void)
+{
+    golden g;
+    if (!golden_load(&g)) {
+        CHECK(!"golden tensors missing");
+        return;
+    }
+    const size_t n = (size_t)g.V * 3;
+    float *serial = malloc(n * sizeof(float) * 5), *hooked = malloc(n * sizeof(float) * 5);
+    for (int prec = 0; prec < 3; ++prec) {
+        for (int use_hook = 0; use_hook < 2; ++use_hook) {
+            weft_context_def cd = weft_default_context_def();
+            if (use_hook) {
+                cd.parallel_for = two_thread_parallel_for;
+                cd.max_workers = 2;
+            }
+            weft_context *ctx = NULL;
+            CHECK_RESULT(weft_context_create(&cd, &ctx), WEFT_OK);
+            weft_model *m = NULL;
+            CHECK_RESULT(weft_model_load_file(ctx, DATA "golden_model.safetensors", &m), WEFT_OK);
+            weft_garment_def d = garment_def(&g, m, 1);
+            d.precision = (weft_precision)prec;
+            weft_garment *gar = NULL;
+            if (m) {
+                CHECK_RESULT(weft_garment_create(ctx, &d, &gar), WEFT_OK);
+            }
+            int calls_before = g_hook_calls;
+            for (uint32_t t = 0; gar && t < 5; ++t) {
+                CHECK_RESULT(weft_garment_set_collider(gar, frame(&g.cpos, 2 + t)), WEFT_OK);
+                CHECK_RESULT(weft_garment_step(gar), WEFT_OK);
+                memcpy((use_hook ? hooked : serial) + t * n, weft_garment_positions(gar), n * sizeof(float));
+            }
+            if (use_hook) {
+                CHECK_MSG(g_hook_calls > calls_before, "the hook was never called");
+                CHECK_MSG(memcmp(serial, hooked, n * 5 * sizeof(float)) == 0,
+                          "precision %d: parallel_for changes the result", prec);
+            }
+            weft_garment_destroy(gar);
+            weft_model_destroy(m);
+            weft_context_destroy(ctx);
+        }
+    }
+    free(serial);
+    free(hooked);
+    golden_free(&g);
+}
+
 TEST_MAIN(TEST_CASE(teacher_forced_parity), TEST_CASE(shipped_models_step), TEST_CASE(rollout_parity), TEST_CASE(bad_model_files),
           TEST_CASE(bad_state_and_collider), TEST_CASE(reduced_precision),
-          TEST_CASE(quantized_files))
+          TEST_CASE(quantized_files), TEST_CASE(parallel_for_hook))
