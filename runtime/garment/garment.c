@@ -270,11 +270,11 @@ weft_result weft_garment_step(weft_garment *g)
     if (r != WEFT_OK) {
         return r;
     }
-    weft__ccd_postprocess_garment(g); /* sweeps x -> x_next against the collider and itself */
     if (!weft__all_finite(g->x_next, (size_t)g->vertex_count * 3)) {
         return weft__fail(WEFT_ERROR_NOT_FINITE, "weft_garment_step: method '%s' produced NaN or infinity; state kept",
                           g->ops->name);
     }
+    weft__ccd_postprocess_garment(g); /* sweeps x -> x_next against the collider and itself */
     /* Rotate: t-1 <- t, t <- t+1 (pointer swaps, no copies). */
     float *old_prev = g->x_prev;
     g->x_prev = g->x;
