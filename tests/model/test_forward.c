@@ -473,6 +473,29 @@ static void shipped_models_step(void)
     golden_free(&g);
 }
 
+/* Rolls the golden garment out for T frames from ground-truth frames (0, 1) at a precision and
+ * copies each frame's positions into out (T x V x 3). False if the garment could not be made. */
+static bool rollout_into(const golden *g, weft_context *ctx, const weft_model *m, weft_precision prec, uint32_t T,
+                         float *out)
+{
+    weft_garment_def d = garment_def(g, m, 1);
+    d.precision = prec;
+    weft_garment *gar = NULL;
+    CHECK_RESULT(weft_garment_create(ctx, &d, &gar), WEFT_OK);
+    if (!gar) {
+        return false;
+    }
+    const size_t n = (size_t)g->V * 3;
+    CHECK_RESULT(weft_garment_set_state(gar, frame(&g->gt, 1), frame(&g->gt, 0)), WEFT_OK);
+    for (uint32_t t = 0; t < T; ++t) {
+        CHECK_RESULT(weft_garment_set_collider(gar, frame(&g->cpos, 2 + t)), WEFT_OK);
+        CHECK_RESULT(weft_garment_step(gar), WEFT_OK);
+        memcpy(out + t * n, weft_garment_positions(gar), n * sizeof(float));
+    }
+    weft_garment_destroy(gar);
+    return true;
+}
+
 /* fp16 and int8 against fp32 on the teacher-forced frames and a 20-frame rollout, and the int8
  * path bit-identical on every ISA level this CPU runs (scalar oracle included). */
 static void reduced_precision(void)
@@ -506,21 +529,9 @@ static void reduced_precision(void)
     double worst[3] = {0, 0, 0};
     for (int prec = 0; prec < 3 && nctx > 0; ++prec) {
         for (uint32_t c = 0; c < nctx; ++c) {
-            weft_garment_def d = garment_def(&g, models[c], 1);
-            d.precision = (weft_precision)prec;
-            weft_garment *gar = NULL;
-            CHECK_RESULT(weft_garment_create(ctxs[c], &d, &gar), WEFT_OK);
-            if (!gar) {
+            if (!rollout_into(&g, ctxs[c], models[c], (weft_precision)prec, T, c == 0 ? ref : out)) {
                 continue;
             }
-            CHECK_RESULT(weft_garment_set_state(gar, frame(&g.gt, 1), frame(&g.gt, 0)), WEFT_OK);
-            float *dst = c == 0 ? ref : out;
-            for (uint32_t t = 0; t < T; ++t) {
-                CHECK_RESULT(weft_garment_set_collider(gar, frame(&g.cpos, 2 + t)), WEFT_OK);
-                CHECK_RESULT(weft_garment_step(gar), WEFT_OK);
-                memcpy(dst + t * n, weft_garment_positions(gar), n * sizeof(float));
-            }
-            weft_garment_destroy(gar);
             if (c > 0 && prec == WEFT_PRECISION_INT8) {
                 CHECK_MSG(memcmp(ref, out, n * T * sizeof(float)) == 0, "int8 rollout differs on isa %s",
                           weft_isa_name(weft_context_isa(ctxs[c])));
@@ -580,23 +591,8 @@ static void quantized_files(void)
         CHECK(weft_model_get_info(qm).precision == (fmt == 0 ? WEFT_PRECISION_INT8 : WEFT_PRECISION_FP16));
         /* every precision runs from the quantised file; the matching one equals the fp32 file's */
         for (int prec = 0; prec < 3; ++prec) {
-            for (int which = 0; which < 2; ++which) {
-                weft_garment_def d = garment_def(&g, which == 0 ? fp32 : qm, 1);
-                d.precision = (weft_precision)prec;
-                weft_garment *gar = NULL;
-                CHECK_RESULT(weft_garment_create(ctx, &d, &gar), WEFT_OK);
-                if (!gar) {
-                    continue;
-                }
-                CHECK_RESULT(weft_garment_set_state(gar, frame(&g.gt, 1), frame(&g.gt, 0)), WEFT_OK);
-                float *dst = which == 0 ? a : b;
-                for (uint32_t t = 0; t < 10; ++t) {
-                    CHECK_RESULT(weft_garment_set_collider(gar, frame(&g.cpos, 2 + t)), WEFT_OK);
-                    CHECK_RESULT(weft_garment_step(gar), WEFT_OK);
-                    memcpy(dst + t * n, weft_garment_positions(gar), n * sizeof(float));
-                }
-                weft_garment_destroy(gar);
-            }
+            rollout_into(&g, ctx, fp32, (weft_precision)prec, 10, a);
+            rollout_into(&g, ctx, qm, (weft_precision)prec, 10, b);
             bool matching = (fmt == 0 && prec == WEFT_PRECISION_INT8) || (fmt == 1 && prec == WEFT_PRECISION_FP16);
             if (matching) {
                 CHECK_MSG(memcmp(a, b, n * 10 * sizeof(float)) == 0, "%s file at its own precision differs from "
@@ -681,24 +677,15 @@ static void parallel_for_hook(void)
             CHECK_RESULT(weft_context_create(&cd, &ctx), WEFT_OK);
             weft_model *m = NULL;
             CHECK_RESULT(weft_model_load_file(ctx, DATA "golden_model.safetensors", &m), WEFT_OK);
-            weft_garment_def d = garment_def(&g, m, 1);
-            d.precision = (weft_precision)prec;
-            weft_garment *gar = NULL;
-            if (m) {
-                CHECK_RESULT(weft_garment_create(ctx, &d, &gar), WEFT_OK);
-            }
             int calls_before = g_hook_calls;
-            for (uint32_t t = 0; gar && t < 5; ++t) {
-                CHECK_RESULT(weft_garment_set_collider(gar, frame(&g.cpos, 2 + t)), WEFT_OK);
-                CHECK_RESULT(weft_garment_step(gar), WEFT_OK);
-                memcpy((use_hook ? hooked : serial) + t * n, weft_garment_positions(gar), n * sizeof(float));
+            if (m) {
+                rollout_into(&g, ctx, m, (weft_precision)prec, 5, use_hook ? hooked : serial);
             }
             if (use_hook) {
                 CHECK_MSG(g_hook_calls > calls_before, "the hook was never called");
                 CHECK_MSG(memcmp(serial, hooked, n * 5 * sizeof(float)) == 0,
                           "precision %d: parallel_for changes the result", prec);
             }
-            weft_garment_destroy(gar);
             weft_model_destroy(m);
             weft_context_destroy(ctx);
         }
