@@ -161,6 +161,8 @@ def main():
     ap.add_argument('--seed', type=int, default=1)
     ap.add_argument('--stop-at', default='', help='UTC HH:MM: checkpoint and exit at this time')
     ap.add_argument('--export', default='', help='write safetensors here after every epoch')
+    ap.add_argument('--init-from', default='', help='start from these exported weights (e.g. the shipped '
+                    'tools/fnopt/models/fnopt_32.safetensors) when --out has no checkpoint yet')
     args = ap.parse_args()
     torch.set_num_threads(args.threads)
     os.makedirs(args.out, exist_ok=True)
@@ -171,6 +173,9 @@ def main():
     torch.manual_seed(args.seed)
     rng = np.random.default_rng(args.seed)
     net = ft.FNO()
+    if args.init_from and not os.path.exists(ckpt_path):
+        net = ft.import_model(args.init_from)
+        print(f'starting from the weights in {args.init_from} (fresh optimizer and pool)')
     opt = torch.optim.AdamW(net.parameters(), lr=args.lr)
     ms = [args.epochs // 4, args.epochs // 2, 3 * args.epochs // 4]
     sched = torch.optim.lr_scheduler.MultiStepLR(opt, milestones=ms, gamma=0.5)
