@@ -174,7 +174,7 @@ def main():
     rng = np.random.default_rng(args.seed)
     net = ft.FNO()
     if args.init_from and not os.path.exists(ckpt_path):
-        net = ft.import_model(args.init_from)
+        net = ft.import_model(args.init_from)[0]
         print(f'starting from the weights in {args.init_from} (fresh optimizer and pool)')
     opt = torch.optim.AdamW(net.parameters(), lr=args.lr)
     ms = [args.epochs // 4, args.epochs // 2, 3 * args.epochs // 4]
