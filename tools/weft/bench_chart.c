@@ -6,16 +6,14 @@
  * <out>/CHART.md and, through tools/bench/plot_chart.py, <out>/img/chart.png. The FNOpt grid
  * scenes are scored by `weft fnopt run --gt` (relative e3D against its XPBD reference, a
  * different metric from MVE, so they get their own panel). */
-#define _POSIX_C_SOURCE 200809L /* opendir, access, stat */
+#define _POSIX_C_SOURCE 200809L /* strdup, access */
 #include "weft.h"
 #include "support_bench.h"
 
-#include <dirent.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
-#include <sys/stat.h>
 #include <time.h>
 #include <unistd.h>
 
@@ -99,94 +97,6 @@ static void add_note(chart_row *r, const char *why)
     if (!r->note[0] && why && why[0]) {
         snprintf(r->note, sizeof r->note, "%s", why);
     }
-}
-
-static int cmp_cstr(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }
-
-/* Every *.safetensors under dir, sorted. */
-static size_t list_models(const char *dir, char names[][256], size_t cap)
-{
-    DIR *dh = dir ? opendir(dir) : NULL;
-    if (!dh) {
-        return 0;
-    }
-    char *tmp[64];
-    size_t n = 0;
-    struct dirent *de;
-    while ((de = readdir(dh)) != NULL && n < cap && n < 64) {
-        size_t l = strlen(de->d_name);
-        /* MODEL.fp16/int8.safetensors are `weft quantize` outputs of MODEL.safetensors, not models
-         * of their own: they are picked per precision below. */
-        bool quantized = l > 17 && (strcmp(de->d_name + l - 17, ".fp16.safetensors") == 0 ||
-                                    strcmp(de->d_name + l - 17, ".int8.safetensors") == 0);
-        if (l > 12 && l < 200 && !quantized && strcmp(de->d_name + l - 12, ".safetensors") == 0) {
-            tmp[n++] = strdup(de->d_name);
-        }
-    }
-    closedir(dh);
-    qsort(tmp, n, sizeof tmp[0], cmp_cstr);
-    size_t k = 0;
-    for (size_t i = 0; i < n; ++i) {
-        if (tmp[i]) {
-            snprintf(names[k++], 256, "%s", tmp[i]);
-            free(tmp[i]);
-        }
-    }
-    return k;
-}
-
-/* "5,10,20" into out (at most cap values in 1..1000). */
-static size_t parse_substeps(const char *v, unsigned *out, size_t cap)
-{
-    size_t n = 0;
-    while (*v) {
-        char *end;
-        unsigned long x = strtoul(v, &end, 10);
-        if (end == v || x == 0 || x > 1000 || n == cap || (*end && *end != ',')) {
-            return 0;
-        }
-        out[n++] = (unsigned)x;
-        v = *end ? end + 1 : end;
-    }
-    return n;
-}
-
-static bool file_exists(const char *p)
-{
-    struct stat st;
-    return stat(p, &st) == 0 && S_ISREG(st.st_mode);
-}
-
-/* The file for one precision: the quantiser's MODEL.<precision>.safetensors when present (its
- * calibrated weights), else MODEL.safetensors, which the runtime converts at garment creation. */
-static void model_file(const char *dir, const char *stem, const char *base, const char *precision, char *out,
-                       size_t cap)
-{
-    snprintf(out, cap, "%.700s/%.200s.%.8s.safetensors", dir, stem, precision);
-    if (strcmp(precision, "fp32") == 0 || !file_exists(out)) {
-        snprintf(out, cap, "%.700s/%.250s", dir, base);
-    }
-}
-
-/* The plotting script: relative to the working directory, else to the binary
- * (build-x/bin/weft -> ../../tools/bench). */
-static bool find_script(const char *exe, const char *name, char *out, size_t cap)
-{
-    snprintf(out, cap, "tools/bench/%s", name);
-    if (file_exists(out)) {
-        return true;
-    }
-    char dir[1024];
-    snprintf(dir, sizeof dir, "%s", exe);
-    for (int up = 0; up < 3; ++up) {
-        char *s = strrchr(dir, '/');
-        if (!s) {
-            return false;
-        }
-        *s = '\0';
-    }
-    int n = snprintf(out, cap, "%s/tools/bench/%s", dir, name);
-    return n > 0 && (size_t)n < cap && file_exists(out);
 }
 
 /* One FNOpt grid scene: `weft fnopt run --gt` prints a CSV header and one row. */
@@ -373,7 +283,7 @@ static void write_outputs(const chart_opts *o, const chart_method *methods, cons
         snprintf(img, sizeof img, "%s/img", o->out);
         snprintf(png, sizeof png, "%s/img/chart.png", o->out);
         snprintf(csv, sizeof csv, "%s/chart.csv", o->out);
-        if (!bench_mkdirs(img) || !find_script(exe, "plot_chart.py", script, sizeof script)) {
+        if (!bench_mkdirs(img) || !bench_find_script(exe, "plot_chart.py", script, sizeof script)) {
             fprintf(stderr, "weft bench chart: tools/bench/plot_chart.py not found (run from the source root); no PNG\n");
             return;
         }
@@ -413,7 +323,7 @@ int weft_bench_chart(int argc, char **argv)
             return 2;
         } else {
             if (strcmp(a, "--xpbd") == 0) {
-                if ((o.nxpbd = parse_substeps(v, o.xpbd, 8)) == 0) {
+                if ((o.nxpbd = bench_parse_substeps(v, o.xpbd, 8)) == 0) {
                     fprintf(stderr, "weft bench chart: --xpbd wants substep counts like 5,10,20,40\n");
                     return 2;
                 }
@@ -506,7 +416,7 @@ int weft_bench_chart(int argc, char **argv)
         m->ccd = true;
     }
     static char model_names[32][256];
-    size_t nmodels = list_models(o.models, model_names, 32);
+    size_t nmodels = bench_list_models(o.models, model_names, 32);
     if (nmodels == 0) {
         snprintf(skipped[nskipped++], 300, "learned models: no `*.safetensors` under `%s` yet", o.models);
     }
@@ -522,7 +432,7 @@ int weft_bench_chart(int argc, char **argv)
                 snprintf(m->family, sizeof m->family, "model");
                 snprintf(m->method, sizeof m->method, "model");
                 snprintf(m->precision, sizeof m->precision, "%s", k_prec[p]);
-                model_file(o.models, stem, model_names[i], k_prec[p], m->model, sizeof m->model);
+                bench_model_file(o.models, stem, model_names[i], k_prec[p], m->model, sizeof m->model);
                 m->ccd = c != 0;
             }
         }
@@ -531,7 +441,7 @@ int weft_bench_chart(int argc, char **argv)
     static const char *const k_fnopt_opt[] = {"learned", "gd", "adam", "lbfgs"};
     if (o.fnopt) {
         for (int k = 0; k < 4; ++k) {
-            if (k == 0 && !file_exists(o.fnopt_model)) {
+            if (k == 0 && !bench_file_exists(o.fnopt_model)) {
                 snprintf(skipped[nskipped++], 300, "FNOpt learned optimizer: no weights at `%s`", o.fnopt_model);
                 continue;
             }

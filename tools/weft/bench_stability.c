@@ -81,91 +81,6 @@ static void usage(FILE *f)
             "  --quick   V=64, T=60, long 480 frames, 1 sequence per case, FNOpt speed axis with adam only\n");
 }
 
-/* "5,10,20" into out (at most cap values in 1..1000). */
-static size_t parse_substeps(const char *v, unsigned *out, size_t cap)
-{
-    size_t n = 0;
-    while (*v) {
-        char *end;
-        unsigned long x = strtoul(v, &end, 10);
-        if (end == v || x == 0 || x > 1000 || n == cap || (*end && *end != ',')) {
-            return 0;
-        }
-        out[n++] = (unsigned)x;
-        v = *end ? end + 1 : end;
-    }
-    return n;
-}
-
-static bool file_exists(const char *p)
-{
-    struct stat st;
-    return stat(p, &st) == 0 && S_ISREG(st.st_mode);
-}
-
-static int cmp_cstr(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }
-
-static size_t list_models(const char *dir, char names[][256], size_t cap)
-{
-    DIR *dh = dir ? opendir(dir) : NULL;
-    if (!dh) {
-        return 0;
-    }
-    char *tmp[64];
-    size_t n = 0;
-    struct dirent *de;
-    while ((de = readdir(dh)) != NULL && n < cap && n < 64) {
-        size_t l = strlen(de->d_name);
-        /* MODEL.fp16/int8.safetensors are `weft quantize` outputs of MODEL.safetensors, not models
-         * of their own: they are picked per precision below. */
-        bool quantized = l > 17 && (strcmp(de->d_name + l - 17, ".fp16.safetensors") == 0 ||
-                                    strcmp(de->d_name + l - 17, ".int8.safetensors") == 0);
-        if (l > 12 && l < 200 && !quantized && strcmp(de->d_name + l - 12, ".safetensors") == 0) {
-            tmp[n++] = strdup(de->d_name);
-        }
-    }
-    closedir(dh);
-    qsort(tmp, n, sizeof tmp[0], cmp_cstr);
-    size_t k = 0;
-    for (size_t i = 0; i < n; ++i) {
-        if (tmp[i]) {
-            snprintf(names[k++], 256, "%s", tmp[i]);
-            free(tmp[i]);
-        }
-    }
-    return k;
-}
-
-/* The file for one precision: the quantiser's MODEL.<precision>.safetensors when present (its
- * calibrated weights), else MODEL.safetensors, which the runtime converts at garment creation. */
-static void model_file(const char *dir, const char *stem, const char *base, const char *precision, char *out,
-                       size_t cap)
-{
-    snprintf(out, cap, "%.700s/%.200s.%.8s.safetensors", dir, stem, precision);
-    if (strcmp(precision, "fp32") == 0 || !file_exists(out)) {
-        snprintf(out, cap, "%.700s/%.250s", dir, base);
-    }
-}
-
-static bool find_script(const char *exe, const char *name, char *out, size_t cap)
-{
-    snprintf(out, cap, "tools/bench/%s", name);
-    if (file_exists(out)) {
-        return true;
-    }
-    char dir[1024];
-    snprintf(dir, sizeof dir, "%s", exe);
-    for (int up = 0; up < 3; ++up) {
-        char *s = strrchr(dir, '/');
-        if (!s) {
-            return false;
-        }
-        *s = '\0';
-    }
-    int n = snprintf(out, cap, "%s/tools/bench/%s", dir, name);
-    return n > 0 && (size_t)n < cap && file_exists(out);
-}
-
 /* When simgen's validator rejected the case, say why from the rejected sequence's meta.json. */
 static void rejection_note(const char *dir, st_case *c)
 {
@@ -422,7 +337,7 @@ int weft_bench_stability(int argc, char **argv)
                 }
                 *num = (uint32_t)x;
             } else if (strcmp(a, "--xpbd") == 0) {
-                if ((o.nxpbd = parse_substeps(v, o.xpbd, 8)) == 0) {
+                if ((o.nxpbd = bench_parse_substeps(v, o.xpbd, 8)) == 0) {
                     fprintf(stderr, "weft bench stability: --xpbd wants substep counts like 5,10,20,40\n");
                     return 2;
                 }
@@ -488,7 +403,7 @@ int weft_bench_stability(int argc, char **argv)
         snprintf(methods[nm++].precision, 8, "-");
     }
     static char model_names[16][256];
-    size_t nmodels = list_models(o.models, model_names, 16);
+    size_t nmodels = bench_list_models(o.models, model_names, 16);
     static const char *const k_prec[] = {"fp32", "fp16", "int8"};
     for (size_t i = 0; i < nmodels && nm + 3 < ST_MAX_METHODS - 4; ++i) {
         char stem[256];
@@ -499,12 +414,12 @@ int weft_bench_stability(int argc, char **argv)
             snprintf(methods[nm].family, 16, "model");
             snprintf(methods[nm].method, 16, "model");
             snprintf(methods[nm].precision, 8, "%s", k_prec[p]);
-            model_file(o.models, stem, model_names[i], k_prec[p], methods[nm++].model, 1024);
+            bench_model_file(o.models, stem, model_names[i], k_prec[p], methods[nm++].model, 1024);
         }
     }
     size_t first_fnopt = nm;
     static const char *const k_fnopt_opt[] = {"learned", "gd", "adam", "lbfgs"};
-    bool fnopt_weights = file_exists(o.fnopt_model);
+    bool fnopt_weights = bench_file_exists(o.fnopt_model);
     for (int k = 0; o.fnopt && k < 4; ++k) {
         /* Each FNOpt run re-simulates its XPBD reference, and the learned optimizer's whole trajectory
          * takes minutes on a loaded machine: --quick keeps the best classical optimizer (adam) only. */
@@ -762,7 +677,7 @@ int weft_bench_stability(int argc, char **argv)
         snprintf(img, sizeof img, "%s/img", o.out);
         snprintf(png, sizeof png, "%s/img/stability.png", o.out);
         snprintf(csv, sizeof csv, "%s/stability.csv", o.out);
-        if (!bench_mkdirs(img) || !find_script(exe, "plot_stability.py", script, sizeof script)) {
+        if (!bench_mkdirs(img) || !bench_find_script(exe, "plot_stability.py", script, sizeof script)) {
             fprintf(stderr, "weft bench stability: tools/bench/plot_stability.py not found; no PNG\n");
             return 0;
         }

@@ -371,3 +371,87 @@ bool bench_list_sequences(const char *root, const char *split, bench_seq **out, 
     *count = n;
     return true;
 }
+
+/* ---- model files, scripts and options shared by the harnesses ---- */
+
+static int cmp_cstr(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }
+
+bool bench_file_exists(const char *p)
+{
+    struct stat st;
+    return stat(p, &st) == 0 && S_ISREG(st.st_mode);
+}
+
+size_t bench_list_models(const char *dir, char names[][256], size_t cap)
+{
+    DIR *dh = dir ? opendir(dir) : NULL;
+    if (!dh) {
+        return 0;
+    }
+    char *tmp[64];
+    size_t n = 0;
+    struct dirent *de;
+    while ((de = readdir(dh)) != NULL && n < cap && n < 64) {
+        size_t l = strlen(de->d_name);
+        /* MODEL.fp16/int8.safetensors are `weft quantize` outputs of MODEL.safetensors, not models
+         * of their own: bench_model_file picks them per precision. */
+        bool quantized = l > 17 && (strcmp(de->d_name + l - 17, ".fp16.safetensors") == 0 ||
+                                    strcmp(de->d_name + l - 17, ".int8.safetensors") == 0);
+        if (l > 12 && l < 200 && !quantized && strcmp(de->d_name + l - 12, ".safetensors") == 0) {
+            tmp[n++] = strdup(de->d_name);
+        }
+    }
+    closedir(dh);
+    qsort(tmp, n, sizeof tmp[0], cmp_cstr);
+    size_t k = 0;
+    for (size_t i = 0; i < n; ++i) {
+        if (tmp[i]) {
+            snprintf(names[k++], 256, "%s", tmp[i]);
+            free(tmp[i]);
+        }
+    }
+    return k;
+}
+
+bool bench_find_script(const char *exe, const char *name, char *out, size_t cap)
+{
+    snprintf(out, cap, "tools/bench/%s", name);
+    if (bench_file_exists(out)) {
+        return true;
+    }
+    char dir[1024];
+    snprintf(dir, sizeof dir, "%s", exe);
+    for (int up = 0; up < 3; ++up) {
+        char *s = strrchr(dir, '/');
+        if (!s) {
+            return false;
+        }
+        *s = '\0';
+    }
+    int n = snprintf(out, cap, "%s/tools/bench/%s", dir, name);
+    return n > 0 && (size_t)n < cap && bench_file_exists(out);
+}
+
+void bench_model_file(const char *dir, const char *stem, const char *base, const char *precision, char *out,
+                       size_t cap)
+{
+    snprintf(out, cap, "%.700s/%.200s.%.8s.safetensors", dir, stem, precision);
+    if (strcmp(precision, "fp32") == 0 || !bench_file_exists(out)) {
+        snprintf(out, cap, "%.700s/%.250s", dir, base);
+    }
+}
+
+size_t bench_parse_substeps(const char *v, unsigned *out, size_t cap)
+{
+    size_t n = 0;
+    while (*v) {
+        char *end;
+        unsigned long x = strtoul(v, &end, 10);
+        if (end == v || x == 0 || x > 1000 || n == cap || (*end && *end != ',')) {
+            return 0;
+        }
+        out[n++] = (unsigned)x;
+        v = *end ? end + 1 : end;
+    }
+    return n;
+}

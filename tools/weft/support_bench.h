@@ -50,4 +50,23 @@ bool bench_list_sequences(const char *root, const char *split, bench_seq **out, 
 /* Collapses a stderr line into something safe for one CSV / markdown cell. */
 void bench_sanitize(char *s);
 
+/* A regular file exists at p. */
+bool bench_file_exists(const char *p);
+
+/* Model files (*.safetensors) in dir, sorted; the quantiser's MODEL.fp16/int8.safetensors are
+ * left out (bench_model_file picks them per precision). Returns the count (<= cap, <= 64). */
+size_t bench_list_models(const char *dir, char names[][256], size_t cap);
+
+/* A plotting script tools/bench/NAME: relative to the working directory, else to the binary
+ * (build-x/bin/weft -> ../../tools/bench). */
+bool bench_find_script(const char *exe, const char *name, char *out, size_t cap);
+
+/* The file for one precision: MODEL.<precision>.safetensors when the quantiser wrote one, else
+ * MODEL.safetensors (base), which the runtime converts at garment creation. */
+void bench_model_file(const char *dir, const char *stem, const char *base, const char *precision, char *out,
+                      size_t cap);
+
+/* "5,10,20" into out (at most cap values in 1..1000); 0 on a malformed list. */
+size_t bench_parse_substeps(const char *v, unsigned *out, size_t cap);
+
 #endif
