@@ -6,7 +6,7 @@
  * <out>/CHART.md and, through tools/bench/plot_chart.py, <out>/img/chart.png. The FNOpt grid
  * scenes are scored by `weft fnopt run --gt` (relative e3D against its XPBD reference, a
  * different metric from MVE, so they get their own panel). */
-#define _POSIX_C_SOURCE 200809L /* strdup, access */
+#define _POSIX_C_SOURCE 200809L /* clock_gettime */
 #include "weft.h"
 #include "support_bench.h"
 
