@@ -22,13 +22,25 @@ typedef struct vctx {
     weft_sim_validation *out;
 } vctx;
 
-static void gather4(const double *const src0[4], const double *const src1[4], double dp[12])
+/* Sweeps one primitive pair over the frame: the first `na` of the 4 points are vertices ia of
+ * the mesh at a0 -> a1, the rest vertices ib of the mesh at b0 -> b1. Vertex-triangle when
+ * na == 1, edge-edge when na == 2. */
+static void sweep(vctx *c, const double *a0, const double *a1, const uint32_t *ia, int na, const double *b0,
+                  const double *b1, const uint32_t *ib)
 {
+    const double *p[4];
+    double dp[12];
     for (int i = 0; i < 4; ++i) {
+        const double *x0 = i < na ? a0 : b0, *x1 = i < na ? a1 : b1;
+        size_t idx = 3 * (size_t)(i < na ? ia[i] : ib[i - na]);
+        p[i] = x0 + idx;
         for (int k = 0; k < 3; ++k) {
-            dp[3 * i + k] = src1[i][k] - src0[i][k];
+            dp[3 * i + k] = x1[idx + k] - x0[idx + k];
         }
     }
+    c->out->pairs_tested++;
+    c->out->ccd_hits += na == 1 ? xg_accd_point_triangle(p, dp, WEFT_SIM_VALIDATOR_TOLERANCE)
+                                : xg_accd_edge_edge(p, dp, WEFT_SIM_VALIDATOR_TOLERANCE);
 }
 
 static bool v_self_vt(uint32_t t, void *user)
@@ -40,14 +52,7 @@ static bool v_self_vt(uint32_t t, void *user)
     if (tri[0] == p || tri[1] == p || tri[2] == p) {
         return true;
     }
-    const double *a[4] = {v->x0 + 3 * (size_t)p, v->x0 + 3 * (size_t)tri[0], v->x0 + 3 * (size_t)tri[1],
-                          v->x0 + 3 * (size_t)tri[2]};
-    const double *b[4] = {v->x1 + 3 * (size_t)p, v->x1 + 3 * (size_t)tri[0], v->x1 + 3 * (size_t)tri[1],
-                          v->x1 + 3 * (size_t)tri[2]};
-    double dp[12];
-    gather4(a, b, dp);
-    c->out->pairs_tested++;
-    c->out->ccd_hits += xg_accd_point_triangle(a, dp, WEFT_SIM_VALIDATOR_TOLERANCE);
+    sweep(c, v->x0, v->x1, &p, 1, v->x0, v->x1, tri);
     return true;
 }
 
@@ -62,14 +67,7 @@ static bool v_self_ee(uint32_t e2, void *user)
     if (ea[0] == eb[0] || ea[0] == eb[1] || ea[1] == eb[0] || ea[1] == eb[1]) {
         return true;
     }
-    const double *a[4] = {v->x0 + 3 * (size_t)ea[0], v->x0 + 3 * (size_t)ea[1], v->x0 + 3 * (size_t)eb[0],
-                          v->x0 + 3 * (size_t)eb[1]};
-    const double *b[4] = {v->x1 + 3 * (size_t)ea[0], v->x1 + 3 * (size_t)ea[1], v->x1 + 3 * (size_t)eb[0],
-                          v->x1 + 3 * (size_t)eb[1]};
-    double dp[12];
-    gather4(a, b, dp);
-    c->out->pairs_tested++;
-    c->out->ccd_hits += xg_accd_edge_edge(a, dp, WEFT_SIM_VALIDATOR_TOLERANCE);
+    sweep(c, v->x0, v->x1, ea, 2, v->x0, v->x1, eb);
     return true;
 }
 
@@ -79,14 +77,7 @@ static bool v_vt_collider(uint32_t t, void *user)
     weft_sim_validator *v = c->v;
     const uint32_t *tri = v->ctris + 3 * (size_t)t;
     uint32_t p = c->query;
-    const double *a[4] = {v->x0 + 3 * (size_t)p, v->c0 + 3 * (size_t)tri[0], v->c0 + 3 * (size_t)tri[1],
-                          v->c0 + 3 * (size_t)tri[2]};
-    const double *b[4] = {v->x1 + 3 * (size_t)p, v->c1 + 3 * (size_t)tri[0], v->c1 + 3 * (size_t)tri[1],
-                          v->c1 + 3 * (size_t)tri[2]};
-    double dp[12];
-    gather4(a, b, dp);
-    c->out->pairs_tested++;
-    c->out->ccd_hits += xg_accd_point_triangle(a, dp, WEFT_SIM_VALIDATOR_TOLERANCE);
+    sweep(c, v->x0, v->x1, &p, 1, v->c0, v->c1, tri);
     return true;
 }
 
@@ -96,14 +87,7 @@ static bool v_tv_collider(uint32_t t, void *user)
     weft_sim_validator *v = c->v;
     const uint32_t *tri = v->tris + 3 * (size_t)t;
     uint32_t u = c->query;
-    const double *a[4] = {v->c0 + 3 * (size_t)u, v->x0 + 3 * (size_t)tri[0], v->x0 + 3 * (size_t)tri[1],
-                          v->x0 + 3 * (size_t)tri[2]};
-    const double *b[4] = {v->c1 + 3 * (size_t)u, v->x1 + 3 * (size_t)tri[0], v->x1 + 3 * (size_t)tri[1],
-                          v->x1 + 3 * (size_t)tri[2]};
-    double dp[12];
-    gather4(a, b, dp);
-    c->out->pairs_tested++;
-    c->out->ccd_hits += xg_accd_point_triangle(a, dp, WEFT_SIM_VALIDATOR_TOLERANCE);
+    sweep(c, v->c0, v->c1, &u, 1, v->x0, v->x1, tri);
     return true;
 }
 
@@ -112,14 +96,7 @@ static bool v_ee_collider(uint32_t ce, void *user)
     vctx *c = user;
     weft_sim_validator *v = c->v;
     const uint32_t *ea = v->topo.edges + 2 * (size_t)c->query, *eb = v->ctopo.edges + 2 * (size_t)ce;
-    const double *a[4] = {v->x0 + 3 * (size_t)ea[0], v->x0 + 3 * (size_t)ea[1], v->c0 + 3 * (size_t)eb[0],
-                          v->c0 + 3 * (size_t)eb[1]};
-    const double *b[4] = {v->x1 + 3 * (size_t)ea[0], v->x1 + 3 * (size_t)ea[1], v->c1 + 3 * (size_t)eb[0],
-                          v->c1 + 3 * (size_t)eb[1]};
-    double dp[12];
-    gather4(a, b, dp);
-    c->out->pairs_tested++;
-    c->out->ccd_hits += xg_accd_edge_edge(a, dp, WEFT_SIM_VALIDATOR_TOLERANCE);
+    sweep(c, v->x0, v->x1, ea, 2, v->c0, v->c1, eb);
     return true;
 }
 
