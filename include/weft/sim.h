@@ -4,10 +4,11 @@
  * The XPBD solver and the LBS baseline themselves are garment methods (WEFT_METHOD_XPBD,
  * WEFT_METHOD_LBS in weft.h). This header adds what ground-truth generation needs:
  *
- *   - an independent validator that certifies a pair of consecutive frames: continuous
- *     collision detection (conservative advancement, double precision) over the linear
- *     motion between the frames for every cloth-cloth and cloth-collider vertex-triangle and
- *     edge-edge pair, plus triangle-triangle intersection tests at the later frame;
+ *   - an independent validator built on the CCD module (weft/ccd.h) that certifies a motion:
+ *     conservative CCD of all five contact types (cloth vertex-face and edge-edge against the
+ *     collider, collider vertex against cloth faces, cloth self vertex-face and edge-edge) over
+ *     the linear motion between two frames or along a recorded substep path, plus exact
+ *     triangle-triangle intersection tests at the end of the motion;
  *   - the scenario builders and the sequence writer used by `weft simgen`.
  *
  * Units and layouts follow weft.h (metres, Y up, float xyz triplets, uint32 triangles).
@@ -30,6 +31,7 @@ typedef struct weft_sim_validation {
     uint32_t ccd_hits;            /* swept pairs whose separation fell below the tolerance */
     uint32_t intersection_hits;   /* intersecting triangle pairs at the later frame */
     uint32_t pairs_tested;        /* swept candidate pairs examined */
+    uint32_t motions_checked;     /* linear motions swept (1 per frame pair, S for an S-substep path) */
 } weft_sim_validation;
 
 /* Separation below which a sweep counts as a hit (metres): 10 micrometres. */
@@ -48,6 +50,15 @@ WEFT_API void weft_sim_validator_destroy(weft_sim_validator *validator);
 WEFT_API weft_result weft_sim_validator_check(weft_sim_validator *validator, const float *cloth0, const float *cloth1,
                                               const float *collider0, const float *collider1,
                                               weft_sim_validation *out_validation);
+/* Checks the motion over one frame along a finer path: cloth_states holds state_count >= 2
+ * cloth states (state 0 = frame t, the last = frame t+1, e.g. the solver's substep ends) and
+ * the collider moves linearly from collider0 to collider1, state k at k / (state_count - 1).
+ * Every consecutive pair of states is swept as one linear motion; triangles are tested at the
+ * last state. The path is what the reference simulator actually integrated, so it certifies
+ * ground truth whose frame-to-frame chord grazes a curved surface the substeps went around. */
+WEFT_API weft_result weft_sim_validator_check_path(weft_sim_validator *validator, const float *cloth_states,
+                                                   uint32_t state_count, const float *collider0,
+                                                   const float *collider1, weft_sim_validation *out_validation);
 
 /* ---------------------------------------------------------------------------------------- */
 /* Scenarios and sequences                                                                   */
@@ -78,6 +89,7 @@ typedef struct weft_sim_sequence_result {
     uint32_t ccd_hits, intersection_hits;  /* of the last attempt */
     int32_t first_hit_frame;      /* -1 when none */
     uint32_t chord_retries;       /* frames redone with one proximity pass (see docs/REFSIM.md) */
+    uint32_t path_frames;         /* frames whose chord grazed but whose substep path is clean */
     double simulate_s, validate_s; /* wall time of the last attempt */
     char description[160];        /* e.g. "drop: sheet 0.9x0.7 m ellipse onto table" */
 } weft_sim_sequence_result;

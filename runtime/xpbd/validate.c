@@ -1,136 +1,19 @@
-/* Independent penetration validator: shares only the geometry kernels and the BVH with the
- * solver, never its contact or bound logic. A frame pair passes when no swept
- * vertex-triangle or edge-edge pair comes closer than WEFT_SIM_VALIDATOR_TOLERANCE over the
- * linear motion between the frames, and no two triangles intersect at the later frame. */
+/* Independent penetration validator on top of the CCD module (runtime/ccd): it shares no code
+ * with the solver's proximity passes and bounds. A motion passes when no swept vertex-face or
+ * edge-edge pair of the five CCD types comes closer than WEFT_SIM_VALIDATOR_TOLERANCE, and no
+ * two triangles intersect at the end of it (exact predicates). */
+#include "weft/ccd.h"
 #include "weft/sim.h"
-#include "xpbd/xpbd.h"
+#include "core/core.h"
 
 #include <string.h>
 
 struct weft_sim_validator {
     weft_context *ctx;
-    uint32_t n, nt, nc, nct;
-    uint32_t *tris, *ctris;
-    xtopo topo, ctopo;
-    double *x0, *x1, *c0, *c1;
-    xbvh bvh_tri, bvh_edge, bvh_ctri, bvh_cedge;
+    uint32_t n, nc;
+    weft_ccd_world *world;
+    float *ca, *cb; /* collider interpolated along a substep path */
 };
-
-typedef struct vctx {
-    weft_sim_validator *v;
-    uint32_t query;
-    weft_sim_validation *out;
-} vctx;
-
-/* Sweeps one primitive pair over the frame: the first `na` of the 4 points are vertices ia of
- * the mesh at a0 -> a1, the rest vertices ib of the mesh at b0 -> b1. Vertex-triangle when
- * na == 1, edge-edge when na == 2. */
-static void sweep(vctx *c, const double *a0, const double *a1, const uint32_t *ia, int na, const double *b0,
-                  const double *b1, const uint32_t *ib)
-{
-    const double *p[4];
-    double dp[12];
-    for (int i = 0; i < 4; ++i) {
-        const double *x0 = i < na ? a0 : b0, *x1 = i < na ? a1 : b1;
-        size_t idx = 3 * (size_t)(i < na ? ia[i] : ib[i - na]);
-        p[i] = x0 + idx;
-        for (int k = 0; k < 3; ++k) {
-            dp[3 * i + k] = x1[idx + k] - x0[idx + k];
-        }
-    }
-    c->out->pairs_tested++;
-    c->out->ccd_hits += na == 1 ? xg_accd_point_triangle(p, dp, WEFT_SIM_VALIDATOR_TOLERANCE)
-                                : xg_accd_edge_edge(p, dp, WEFT_SIM_VALIDATOR_TOLERANCE);
-}
-
-static bool v_self_vt(uint32_t t, void *user)
-{
-    vctx *c = user;
-    weft_sim_validator *v = c->v;
-    const uint32_t *tri = v->tris + 3 * (size_t)t;
-    uint32_t p = c->query;
-    if (tri[0] == p || tri[1] == p || tri[2] == p) {
-        return true;
-    }
-    sweep(c, v->x0, v->x1, &p, 1, v->x0, v->x1, tri);
-    return true;
-}
-
-static bool v_self_ee(uint32_t e2, void *user)
-{
-    vctx *c = user;
-    weft_sim_validator *v = c->v;
-    if (e2 <= c->query) {
-        return true;
-    }
-    const uint32_t *ea = v->topo.edges + 2 * (size_t)c->query, *eb = v->topo.edges + 2 * (size_t)e2;
-    if (ea[0] == eb[0] || ea[0] == eb[1] || ea[1] == eb[0] || ea[1] == eb[1]) {
-        return true;
-    }
-    sweep(c, v->x0, v->x1, ea, 2, v->x0, v->x1, eb);
-    return true;
-}
-
-static bool v_vt_collider(uint32_t t, void *user)
-{
-    vctx *c = user;
-    weft_sim_validator *v = c->v;
-    const uint32_t *tri = v->ctris + 3 * (size_t)t;
-    uint32_t p = c->query;
-    sweep(c, v->x0, v->x1, &p, 1, v->c0, v->c1, tri);
-    return true;
-}
-
-static bool v_tv_collider(uint32_t t, void *user)
-{
-    vctx *c = user;
-    weft_sim_validator *v = c->v;
-    const uint32_t *tri = v->tris + 3 * (size_t)t;
-    uint32_t u = c->query;
-    sweep(c, v->c0, v->c1, &u, 1, v->x0, v->x1, tri);
-    return true;
-}
-
-static bool v_ee_collider(uint32_t ce, void *user)
-{
-    vctx *c = user;
-    weft_sim_validator *v = c->v;
-    const uint32_t *ea = v->topo.edges + 2 * (size_t)c->query, *eb = v->ctopo.edges + 2 * (size_t)ce;
-    sweep(c, v->x0, v->x1, ea, 2, v->c0, v->c1, eb);
-    return true;
-}
-
-static bool v_tt_self(uint32_t t2, void *user)
-{
-    vctx *c = user;
-    weft_sim_validator *v = c->v;
-    if (t2 <= c->query) {
-        return true;
-    }
-    const uint32_t *a = v->tris + 3 * (size_t)c->query, *b = v->tris + 3 * (size_t)t2;
-    for (int i = 0; i < 3; ++i) {
-        if (a[i] == b[0] || a[i] == b[1] || a[i] == b[2]) {
-            return true;
-        }
-    }
-    const double *x = v->x1;
-    c->out->intersection_hits +=
-        xg_triangles_intersect(x + 3 * (size_t)a[0], x + 3 * (size_t)a[1], x + 3 * (size_t)a[2], x + 3 * (size_t)b[0],
-                               x + 3 * (size_t)b[1], x + 3 * (size_t)b[2]);
-    return true;
-}
-
-static bool v_tt_collider(uint32_t t2, void *user)
-{
-    vctx *c = user;
-    weft_sim_validator *v = c->v;
-    const uint32_t *a = v->tris + 3 * (size_t)c->query, *b = v->ctris + 3 * (size_t)t2;
-    const double *x = v->x1, *y = v->c1;
-    c->out->intersection_hits +=
-        xg_triangles_intersect(x + 3 * (size_t)a[0], x + 3 * (size_t)a[1], x + 3 * (size_t)a[2], y + 3 * (size_t)b[0],
-                               y + 3 * (size_t)b[1], y + 3 * (size_t)b[2]);
-    return true;
-}
 
 void weft_sim_validator_destroy(weft_sim_validator *v)
 {
@@ -138,18 +21,9 @@ void weft_sim_validator_destroy(weft_sim_validator *v)
         return;
     }
     const weft_context *ctx = v->ctx;
-    xbvh_destroy(ctx, &v->bvh_tri);
-    xbvh_destroy(ctx, &v->bvh_edge);
-    xbvh_destroy(ctx, &v->bvh_ctri);
-    xbvh_destroy(ctx, &v->bvh_cedge);
-    xtopo_destroy(ctx, &v->topo);
-    xtopo_destroy(ctx, &v->ctopo);
-    weft__free(ctx, v->x0, 3 * (size_t)v->n * sizeof(double));
-    weft__free(ctx, v->x1, 3 * (size_t)v->n * sizeof(double));
-    weft__free(ctx, v->c0, 3 * (size_t)v->nc * sizeof(double));
-    weft__free(ctx, v->c1, 3 * (size_t)v->nc * sizeof(double));
-    weft__free(ctx, v->tris, 3 * (size_t)v->nt * sizeof(uint32_t));
-    weft__free(ctx, v->ctris, 3 * (size_t)v->nct * sizeof(uint32_t));
+    weft_ccd_world_destroy(v->world);
+    weft__free(ctx, v->ca, 3 * (size_t)(v->nc ? v->nc : 1) * sizeof(float));
+    weft__free(ctx, v->cb, 3 * (size_t)(v->nc ? v->nc : 1) * sizeof(float));
     weft__free(ctx, v, sizeof *v);
 }
 
@@ -182,39 +56,26 @@ weft_result weft_sim_validator_create(weft_context *ctx, const uint32_t *cloth_t
     }
     v->ctx = ctx;
     v->n = cloth_vertex_count;
-    v->nt = cloth_triangle_count;
     v->nc = collider_vertex_count;
-    v->nct = collider_vertex_count > 0 ? collider_triangle_count : 0;
-    v->tris = weft__alloc(ctx, 3 * (size_t)v->nt * sizeof(uint32_t));
-    v->ctris = weft__alloc(ctx, 3 * (size_t)(v->nct ? v->nct : 1) * sizeof(uint32_t));
-    v->x0 = weft__alloc(ctx, 3 * (size_t)v->n * sizeof(double));
-    v->x1 = weft__alloc(ctx, 3 * (size_t)v->n * sizeof(double));
-    v->c0 = weft__alloc(ctx, 3 * (size_t)(v->nc ? v->nc : 1) * sizeof(double));
-    v->c1 = weft__alloc(ctx, 3 * (size_t)(v->nc ? v->nc : 1) * sizeof(double));
-    if (!v->tris || !v->ctris || !v->x0 || !v->x1 || !v->c0 || !v->c1) {
+    v->ca = weft__alloc(ctx, 3 * (size_t)(v->nc ? v->nc : 1) * sizeof(float));
+    v->cb = weft__alloc(ctx, 3 * (size_t)(v->nc ? v->nc : 1) * sizeof(float));
+    if (!v->ca || !v->cb) {
         weft_sim_validator_destroy(v);
         return WEFT_ERROR_OUT_OF_MEMORY;
     }
-    memcpy(v->tris, cloth_triangles, 3 * (size_t)v->nt * sizeof(uint32_t));
-    if (v->nct) {
-        memcpy(v->ctris, collider_triangles, 3 * (size_t)v->nct * sizeof(uint32_t));
+    weft_ccd_world_def wd = weft_default_ccd_world_def();
+    wd.cloth_triangles = cloth_triangles;
+    wd.cloth_triangle_count = cloth_triangle_count;
+    wd.cloth_vertex_count = cloth_vertex_count;
+    if (collider_vertex_count > 0) {
+        wd.collider_triangles = collider_triangles;
+        wd.collider_triangle_count = collider_triangle_count;
+        wd.collider_vertex_count = collider_vertex_count;
     }
-    weft_result r = xtopo_create(ctx, &v->topo, v->tris, v->nt, v->n, NULL);
-    if (r == WEFT_OK && v->nct) {
-        r = xtopo_create(ctx, &v->ctopo, v->ctris, v->nct, v->nc, NULL);
-    }
-    if (r == WEFT_OK) {
-        r = xbvh_create(ctx, &v->bvh_tri, v->tris, v->nt, 3);
-    }
-    if (r == WEFT_OK) {
-        r = xbvh_create(ctx, &v->bvh_edge, v->topo.edges, v->topo.edge_count, 2);
-    }
-    if (r == WEFT_OK && v->nct) {
-        r = xbvh_create(ctx, &v->bvh_ctri, v->ctris, v->nct, 3);
-    }
-    if (r == WEFT_OK && v->nct) {
-        r = xbvh_create(ctx, &v->bvh_cedge, v->ctopo.edges, v->ctopo.edge_count, 2);
-    }
+    wd.self_collision = true;
+    wd.min_separation = WEFT_SIM_VALIDATOR_TOLERANCE;
+    wd.max_hits = 1; /* counts are exact; the hits themselves are not needed */
+    weft_result r = weft_ccd_world_create(ctx, &wd, &v->world);
     if (r != WEFT_OK) {
         weft_sim_validator_destroy(v);
         return r;
@@ -223,116 +84,102 @@ weft_result weft_sim_validator_create(weft_context *ctx, const uint32_t *cloth_t
     return WEFT_OK;
 }
 
-static void swept_box(const double *p0, const double *p1, double lo[3], double hi[3])
+static weft_result check_args(const weft_sim_validator *v, const float *cloth0, const float *cloth1, size_t cloth_floats,
+                              const float *collider0, const float *collider1, const weft_sim_validation *out,
+                              const char *fn)
 {
-    for (int k = 0; k < 3; ++k) {
-        lo[k] = (p0[k] < p1[k] ? p0[k] : p1[k]) - WEFT_SIM_VALIDATOR_TOLERANCE;
-        hi[k] = (p0[k] > p1[k] ? p0[k] : p1[k]) + WEFT_SIM_VALIDATOR_TOLERANCE;
+    if (!v || !cloth0 || !cloth1 || !out || (v->nc > 0 && (!collider0 || !collider1))) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
+                          "%s: the cloth states are required, and both collider frames when the validator has a "
+                          "collider",
+                          fn);
     }
+    if (!weft__all_finite(cloth0, cloth_floats) ||
+        (v->nc > 0 && (!weft__all_finite(collider0, 3 * (size_t)v->nc) || !weft__all_finite(collider1, 3 * (size_t)v->nc)))) {
+        return weft__fail(WEFT_ERROR_NOT_FINITE, "%s: positions contain NaN or infinity", fn);
+    }
+    return WEFT_OK;
 }
 
-static void swept_edge_box(const double *a0, const double *a1, const double *b0, const double *b1, double lo[3],
-                           double hi[3])
+/* One linear motion, all five CCD types. */
+static weft_result sweep(weft_sim_validator *v, const float *x0, const float *x1, const float *c0, const float *c1,
+                         weft_sim_validation *res)
 {
-    double l2[3], h2[3];
-    swept_box(a0, a1, lo, hi);
-    swept_box(b0, b1, l2, h2);
-    for (int k = 0; k < 3; ++k) {
-        lo[k] = lo[k] < l2[k] ? lo[k] : l2[k];
-        hi[k] = hi[k] > h2[k] ? hi[k] : h2[k];
+    weft_ccd_report rep;
+    weft_result r = weft_ccd_detect(v->world, x0, x1, v->nc ? c0 : NULL, v->nc ? c1 : NULL, WEFT_CCD_MASK_ALL, &rep);
+    if (r == WEFT_OK) {
+        res->ccd_hits += rep.hit_total;
+        res->pairs_tested += rep.narrow_tests;
+        res->motions_checked++;
     }
+    return r;
+}
+
+static weft_result intersect(weft_sim_validator *v, const float *x, const float *c, weft_sim_validation *res)
+{
+    weft_ccd_intersections in;
+    weft_result r = weft_ccd_intersect_frame(v->world, x, v->nc ? c : NULL, &in);
+    if (r == WEFT_OK) {
+        res->intersection_hits += in.cloth_cloth + in.cloth_collider;
+    }
+    return r;
 }
 
 weft_result weft_sim_validator_check(weft_sim_validator *v, const float *cloth0, const float *cloth1,
                                      const float *collider0, const float *collider1, weft_sim_validation *out)
 {
-    if (!v || !cloth0 || !cloth1 || !out || (v->nc > 0 && (!collider0 || !collider1))) {
-        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
-                          "weft_sim_validator_check: both cloth frames are required, and both collider frames when "
-                          "the validator has a collider");
+    weft_result r = check_args(v, cloth0, cloth1, 3 * (size_t)(v ? v->n : 0), collider0, collider1, out,
+                               "weft_sim_validator_check");
+    if (r != WEFT_OK) {
+        return r;
     }
-    if (!weft__all_finite(cloth0, 3 * (size_t)v->n) || !weft__all_finite(cloth1, 3 * (size_t)v->n) ||
-        (v->nc > 0 && (!weft__all_finite(collider0, 3 * (size_t)v->nc) || !weft__all_finite(collider1, 3 * (size_t)v->nc)))) {
+    if (!weft__all_finite(cloth1, 3 * (size_t)v->n)) {
         return weft__fail(WEFT_ERROR_NOT_FINITE, "weft_sim_validator_check: positions contain NaN or infinity");
     }
-    for (size_t i = 0; i < 3 * (size_t)v->n; ++i) {
-        v->x0[i] = cloth0[i];
-        v->x1[i] = cloth1[i];
+    weft_sim_validation res = {0};
+    r = sweep(v, cloth0, cloth1, collider0, collider1, &res);
+    if (r == WEFT_OK) {
+        r = intersect(v, cloth1, collider1, &res);
     }
-    for (size_t i = 0; i < 3 * (size_t)v->nc; ++i) {
-        v->c0[i] = collider0[i];
-        v->c1[i] = collider1[i];
+    if (r == WEFT_OK) {
+        *out = res;
+    }
+    return r;
+}
+
+weft_result weft_sim_validator_check_path(weft_sim_validator *v, const float *cloth_states, uint32_t state_count,
+                                          const float *collider0, const float *collider1, weft_sim_validation *out)
+{
+    if (v && state_count < 2) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_sim_validator_check_path: needs at least two states");
+    }
+    const size_t stride = 3 * (size_t)(v ? v->n : 0);
+    weft_result r = check_args(v, cloth_states, cloth_states, stride * state_count, collider0, collider1, out,
+                               "weft_sim_validator_check_path");
+    if (r != WEFT_OK) {
+        return r;
     }
     weft_sim_validation res = {0};
-    vctx c = {.v = v, .out = &res};
-    double lo[3], hi[3];
-    /* Cloth trees are rebuilt at the later frame (the cloth may have deformed a lot since
-     * creation) and refit to the swept boxes. */
-    xbvh_build(&v->bvh_tri, v->x1);
-    xbvh_refit(&v->bvh_tri, v->x0, v->x1, WEFT_SIM_VALIDATOR_TOLERANCE);
-    xbvh_build(&v->bvh_edge, v->x1);
-    xbvh_refit(&v->bvh_edge, v->x0, v->x1, WEFT_SIM_VALIDATOR_TOLERANCE);
-    for (uint32_t p = 0; p < v->n; ++p) {
-        c.query = p;
-        swept_box(v->x0 + 3 * (size_t)p, v->x1 + 3 * (size_t)p, lo, hi);
-        xbvh_query(&v->bvh_tri, lo, hi, v_self_vt, &c);
+    const size_t nc3 = 3 * (size_t)v->nc;
+    const uint32_t segs = state_count - 1;
+    for (uint32_t k = 0; k < segs && r == WEFT_OK; ++k) {
+        /* The collider moves linearly over the frame: the same interpolation as the solver's
+         * substeps, so each piece is one straight motion of both meshes. */
+        const float a0 = (float)k / (float)segs, a1 = (float)(k + 1) / (float)segs;
+        for (size_t i = 0; i < nc3; ++i) {
+            v->ca[i] = collider0[i] + a0 * (collider1[i] - collider0[i]);
+            v->cb[i] = k + 1 == segs ? collider1[i] : collider0[i] + a1 * (collider1[i] - collider0[i]);
+        }
+        if (k == 0) {
+            memcpy(v->ca, collider0, nc3 * sizeof(float));
+        }
+        r = sweep(v, cloth_states + k * stride, cloth_states + (k + 1) * stride, v->ca, v->cb, &res);
     }
-    for (uint32_t e = 0; e < v->topo.edge_count; ++e) {
-        const uint32_t *ed = v->topo.edges + 2 * (size_t)e;
-        c.query = e;
-        swept_edge_box(v->x0 + 3 * (size_t)ed[0], v->x1 + 3 * (size_t)ed[0], v->x0 + 3 * (size_t)ed[1],
-                       v->x1 + 3 * (size_t)ed[1], lo, hi);
-        xbvh_query(&v->bvh_edge, lo, hi, v_self_ee, &c);
+    if (r == WEFT_OK) {
+        r = intersect(v, cloth_states + segs * stride, collider1, &res);
     }
-    for (uint32_t t = 0; t < v->nt; ++t) {
-        const uint32_t *tri = v->tris + 3 * (size_t)t;
-        c.query = t;
-        for (int k = 0; k < 3; ++k) {
-            double a = v->x1[3 * (size_t)tri[0] + k], b = v->x1[3 * (size_t)tri[1] + k], d = v->x1[3 * (size_t)tri[2] + k];
-            lo[k] = (a < b ? (a < d ? a : d) : (b < d ? b : d));
-            hi[k] = (a > b ? (a > d ? a : d) : (b > d ? b : d));
-        }
-        xbvh_query(&v->bvh_tri, lo, hi, v_tt_self, &c);
+    if (r == WEFT_OK) {
+        *out = res;
     }
-    if (v->nct > 0) {
-        xbvh_build(&v->bvh_ctri, v->c1);
-        xbvh_refit(&v->bvh_ctri, v->c0, v->c1, WEFT_SIM_VALIDATOR_TOLERANCE);
-        xbvh_build(&v->bvh_cedge, v->c1);
-        xbvh_refit(&v->bvh_cedge, v->c0, v->c1, WEFT_SIM_VALIDATOR_TOLERANCE);
-        for (uint32_t p = 0; p < v->n; ++p) {
-            c.query = p;
-            swept_box(v->x0 + 3 * (size_t)p, v->x1 + 3 * (size_t)p, lo, hi);
-            xbvh_query(&v->bvh_ctri, lo, hi, v_vt_collider, &c);
-        }
-        const xbvh_node *root = &v->bvh_tri.nodes[0];
-        for (uint32_t u = 0; u < v->nc; ++u) {
-            swept_box(v->c0 + 3 * (size_t)u, v->c1 + 3 * (size_t)u, lo, hi);
-            if (lo[0] > root->hi[0] || hi[0] < root->lo[0] || lo[1] > root->hi[1] || hi[1] < root->lo[1] ||
-                lo[2] > root->hi[2] || hi[2] < root->lo[2]) {
-                continue;
-            }
-            c.query = u;
-            xbvh_query(&v->bvh_tri, lo, hi, v_tv_collider, &c);
-        }
-        for (uint32_t e = 0; e < v->topo.edge_count; ++e) {
-            const uint32_t *ed = v->topo.edges + 2 * (size_t)e;
-            c.query = e;
-            swept_edge_box(v->x0 + 3 * (size_t)ed[0], v->x1 + 3 * (size_t)ed[0], v->x0 + 3 * (size_t)ed[1],
-                           v->x1 + 3 * (size_t)ed[1], lo, hi);
-            xbvh_query(&v->bvh_cedge, lo, hi, v_ee_collider, &c);
-        }
-        for (uint32_t t = 0; t < v->nt; ++t) {
-            const uint32_t *tri = v->tris + 3 * (size_t)t;
-            c.query = t;
-            for (int k = 0; k < 3; ++k) {
-                double a = v->x1[3 * (size_t)tri[0] + k], b = v->x1[3 * (size_t)tri[1] + k],
-                       d = v->x1[3 * (size_t)tri[2] + k];
-                lo[k] = (a < b ? (a < d ? a : d) : (b < d ? b : d));
-                hi[k] = (a > b ? (a > d ? a : d) : (b > d ? b : d));
-            }
-            xbvh_query(&v->bvh_ctri, lo, hi, v_tt_collider, &c);
-        }
-    }
-    *out = res;
-    return WEFT_OK;
+    return r;
 }

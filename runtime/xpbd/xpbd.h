@@ -42,14 +42,6 @@ double xg_point_triangle_sq(const double *p, const double *a, const double *b, c
 /* Squared distance between segments p0-p1 and q0-q1; s, t are the closest points' parameters. */
 double xg_segment_segment_sq(const double *p0, const double *p1, const double *q0, const double *q1, double *s,
                              double *t);
-/* True when triangles (a0,a1,a2) and (b0,b1,b2) intersect (an edge of one crosses the other). */
-bool xg_triangles_intersect(const double *a0, const double *a1, const double *a2, const double *b0, const double *b1,
-                            const double *b2);
-/* Conservative advancement over the linear motion start -> start + delta. Returns true when
- * the separation drops below eta at some time in [0, 1] (or the iteration cap is hit, which
- * is reported as a hit). p[4] are the start positions, dp the four displacements (xyz each). */
-bool xg_accd_point_triangle(const double *const p[4], const double dp[12], double eta);
-bool xg_accd_edge_edge(const double *const p[4], const double dp[12], double eta);
 
 /* ---------------------------------------------------------------------------------------- */
 /* Bounding volume hierarchy over primitives of 1-3 vertices (xpbd_bvh.c). Built once per
@@ -146,6 +138,13 @@ weft_result weft__xpbd_configure(weft_garment *g, const xpbd_params *params);
  * the collider at t+1 and the pins again before stepping. */
 weft_result weft__xpbd_retry_chord_safe(weft_garment *g, const float *x_t, const float *x_prev,
                                         const float *collider_t);
+/* Records the cloth positions along the substep path of every following step into buffer
+ * ((capacity_substeps + 1) x n x 3 floats: state 0 is the frame start, state k the end of
+ * substep k), for the validator's path check. NULL stops recording. A step with more
+ * substeps than the capacity records nothing. */
+weft_result weft__xpbd_record_substeps(weft_garment *g, float *buffer, uint32_t capacity_substeps);
+/* States recorded by the last step (S + 1, or 0 when it recorded nothing). */
+uint32_t weft__xpbd_recorded_states(const weft_garment *g);
 /* Statistics of the last step of an XPBD garment (zeros for other methods). */
 xpbd_frame_stats weft__xpbd_last_stats(const weft_garment *g);
 

@@ -41,6 +41,8 @@ typedef struct xpbd_state {
     double *xd, *vd;     /* committed state at t */
     double *xd_back, *vd_back; /* state before the last step (for a chord-safe retry) */
     bool chord_safe;     /* next step: one proximity pass for the whole frame */
+    float *rec;          /* optional substep path recording (caller-owned), rec_cap + 1 states */
+    uint32_t rec_cap, rec_states;
     bool split_moving;   /* detection routes moving-collider pairs to dmin_mov */
     double *dmin_mov;    /* chord-safe frames: distances to moving collider geometry */
     double *bound_frame; /* chord-safe frames: bound around xs_frame for every other pair */
@@ -434,6 +436,23 @@ weft_result weft__xpbd_retry_chord_safe(weft_garment *g, const float *x_t, const
     }
     s->chord_safe = true;
     return WEFT_OK;
+}
+
+weft_result weft__xpbd_record_substeps(weft_garment *g, float *buffer, uint32_t capacity_substeps)
+{
+    if (!g || g->ops != &weft__xpbd_ops || (buffer && capacity_substeps == 0)) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "xpbd record: needs an XPBD garment and a non-empty buffer");
+    }
+    xpbd_state *s = g->method_state;
+    s->rec = buffer;
+    s->rec_cap = buffer ? capacity_substeps : 0;
+    s->rec_states = 0;
+    return WEFT_OK;
+}
+
+uint32_t weft__xpbd_recorded_states(const weft_garment *g)
+{
+    return g && g->ops == &weft__xpbd_ops && g->method_state ? ((const xpbd_state *)g->method_state)->rec_states : 0;
 }
 
 xpbd_frame_stats weft__xpbd_last_stats(const weft_garment *g)
@@ -990,6 +1009,13 @@ static weft_result xpbd_step(weft_garment *g)
     memcpy(s->vd_back, s->vd, 3 * (size_t)n * sizeof(double));
     const bool chord_safe = s->chord_safe;
     s->chord_safe = false;
+    const bool record = s->rec && S <= s->rec_cap;
+    s->rec_states = 0;
+    if (record) {
+        for (size_t i = 0; i < 3 * (size_t)n; ++i) {
+            s->rec[i] = (float)s->xd[i];
+        }
+    }
     memcpy(s->x, s->xd, 3 * (size_t)n * sizeof(double));
     memcpy(s->v, s->vd, 3 * (size_t)n * sizeof(double));
     for (uint32_t i = 0; i < n; ++i) {
@@ -1181,6 +1207,12 @@ static weft_result xpbd_step(weft_garment *g)
             }
         }
         clamped_last = clamped_now;
+        if (record) {
+            float *dst = s->rec + (size_t)(step + 1) * 3 * n;
+            for (size_t i = 0; i < 3 * (size_t)n; ++i) {
+                dst[i] = (float)s->x[i];
+            }
+        }
 #ifdef XPBD_DEBUG_BOUNDS
         for (uint32_t i = 0; i < n; ++i) {
             for (uint32_t t = 0; t < s->nctri; ++t) {
@@ -1216,6 +1248,7 @@ static weft_result xpbd_step(weft_garment *g)
     memcpy(s->xd, s->x, 3 * (size_t)n * sizeof(double));
     memcpy(s->vd, s->v, 3 * (size_t)n * sizeof(double));
     s->have_state = true;
+    s->rec_states = record ? S + 1 : 0;
     for (size_t i = 0; i < 3 * (size_t)n; ++i) {
         g->x_next[i] = (float)s->xd[i];
     }

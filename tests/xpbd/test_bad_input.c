@@ -128,6 +128,53 @@ static void test_validator_bad_input(void)
     weft_sim_validator_destroy(v);
 }
 
+/* A small sheet moves from beside a box to above it. Its chord cuts through the box's upper
+ * corner, but a two-piece path (up, then across) goes around it: check() rejects the chord,
+ * check_path() accepts the path; a path through the box is still caught. */
+static void test_validator_path(void)
+{
+    test_mesh sheet = test_sheet(3, 3, 0.04f, 0.04f, 0.0f, 0.0f, 0.0f);
+    const float lo[3] = {-0.1f, -0.1f, -0.1f}, hi[3] = {0.1f, 0.1f, 0.1f};
+    test_mesh box = test_box(lo, hi);
+    const uint32_t n = sheet.nv;
+    float *path = malloc(sizeof(float) * 3 * n * 3);
+    const float at[3][2] = {{0.2f, -0.05f}, {0.2f, 0.2f}, {0.0f, 0.2f}}; /* (x, y) of the sheet centre */
+    for (int k = 0; k < 3; ++k) {
+        for (uint32_t i = 0; i < n; ++i) {
+            path[(size_t)k * 3 * n + 3 * i + 0] = sheet.pos[3 * i + 0] + at[k][0];
+            path[(size_t)k * 3 * n + 3 * i + 1] = sheet.pos[3 * i + 1] + at[k][1];
+            path[(size_t)k * 3 * n + 3 * i + 2] = sheet.pos[3 * i + 2];
+        }
+    }
+    weft_sim_validator *v = NULL;
+    CHECK_RESULT(weft_sim_validator_create(ctx_, sheet.tris, sheet.nt, n, box.tris, box.nt, box.nv, &v), WEFT_OK);
+    weft_sim_validation res;
+    CHECK_RESULT(weft_sim_validator_check(v, path, path + 6 * n, box.pos, box.pos, &res), WEFT_OK);
+    CHECK(res.ccd_hits > 0);
+    CHECK_EQ_INT(res.motions_checked, 1);
+    CHECK_RESULT(weft_sim_validator_check_path(v, path, 3, box.pos, box.pos, &res), WEFT_OK);
+    CHECK_EQ_INT(res.ccd_hits + res.intersection_hits, 0);
+    CHECK_EQ_INT(res.motions_checked, 2);
+    /* Through the box: the middle state sits inside it. */
+    for (uint32_t i = 0; i < n; ++i) {
+        path[3 * n + 3 * i + 0] = sheet.pos[3 * i + 0];
+        path[3 * n + 3 * i + 1] = 0.05f;
+    }
+    CHECK_RESULT(weft_sim_validator_check_path(v, path, 3, box.pos, box.pos, &res), WEFT_OK);
+    CHECK(res.ccd_hits > 0);
+    /* Bad input: one state, NaN, a missing collider. */
+    weft_sim_validation keep = res;
+    CHECK_RESULT(weft_sim_validator_check_path(v, path, 1, box.pos, box.pos, &res), WEFT_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(weft_sim_validator_check_path(v, path, 3, NULL, box.pos, &res), WEFT_ERROR_INVALID_ARGUMENT);
+    path[3 * n + 4] = NAN;
+    CHECK_RESULT(weft_sim_validator_check_path(v, path, 3, box.pos, box.pos, &res), WEFT_ERROR_NOT_FINITE);
+    CHECK_EQ_INT(res.ccd_hits, keep.ccd_hits);
+    free(path);
+    weft_sim_validator_destroy(v);
+    test_mesh_free(&box);
+    test_mesh_free(&sheet);
+}
+
 static void test_validator_catches_penetration(void)
 {
     /* A sheet falling through a box in one frame is caught by the sweeps; a sheet resting
@@ -186,5 +233,5 @@ static void teardown(void) { weft_context_destroy(ctx_); }
 
 TEST_MAIN(TEST_CASE(setup), TEST_CASE(test_non_manifold), TEST_CASE(test_duplicate_triangle),
           TEST_CASE(test_isolated_vertex), TEST_CASE(test_nan_and_configure), TEST_CASE(test_inverted_initial_state),
-          TEST_CASE(test_validator_bad_input), TEST_CASE(test_validator_catches_penetration),
+          TEST_CASE(test_validator_bad_input), TEST_CASE(test_validator_catches_penetration), TEST_CASE(test_validator_path),
           TEST_CASE(test_generate_bad_def), TEST_CASE(teardown))

@@ -163,36 +163,5 @@ static void test_segment_distance(void)
     }
 }
 
-static void test_ccd_and_intersection(void)
-{
-    /* A vertex passing straight through a triangle is caught; one passing beside it is not. */
-    double a[3] = {0, 0, 0}, b[3] = {1, 0, 0}, c[3] = {0, 0, 1};
-    double p[3] = {0.2, 0.5, 0.2};
-    const double *pts[4] = {p, a, b, c};
-    double through[12] = {0, -1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0};
-    double beside[12] = {1.5, -1, 1.5, 0, 0, 0, 0, 0, 0, 0, 0, 0};
-    CHECK(xg_accd_point_triangle(pts, through, 1e-5));
-    double far[3] = {2.0, 0.5, 2.0};
-    const double *pts2[4] = {far, a, b, c};
-    CHECK(!xg_accd_point_triangle(pts2, beside, 1e-5));
-    /* Triangle moving onto a resting vertex (relative motion only matters). */
-    double up[12] = {0, 0, 0, 0, 0.6, 0, 0, 0.6, 0, 0, 0.6, 0};
-    CHECK(xg_accd_point_triangle(pts, up, 1e-5));
-    double short_up[12] = {0, 0, 0, 0, 0.4, 0, 0, 0.4, 0, 0, 0.4, 0};
-    CHECK(!xg_accd_point_triangle(pts, short_up, 1e-5));
-    /* Crossing edges. */
-    double e0[3] = {-1, 0.1, 0}, e1[3] = {1, 0.1, 0}, f0[3] = {0, 0, -1}, f1[3] = {0, 0, 1};
-    const double *edges[4] = {e0, e1, f0, f1};
-    double down[12] = {0, -0.2, 0, 0, -0.2, 0, 0, 0, 0, 0, 0, 0};
-    double stay[12] = {0, -0.05, 0, 0, -0.05, 0, 0, 0, 0, 0, 0, 0};
-    CHECK(xg_accd_edge_edge(edges, down, 1e-5));
-    CHECK(!xg_accd_edge_edge(edges, stay, 1e-5));
-    /* Triangle-triangle: piercing vs separated. */
-    double t0[3] = {0.2, -0.5, 0.2}, t1[3] = {0.2, 0.5, 0.2}, t2[3] = {0.3, 0.5, 0.3};
-    CHECK(xg_triangles_intersect(a, b, c, t0, t1, t2));
-    double s0[3] = {0.2, 0.1, 0.2}, s1[3] = {0.2, 0.5, 0.2}, s2[3] = {0.3, 0.5, 0.3};
-    CHECK(!xg_triangles_intersect(a, b, c, s0, s1, s2));
-}
-
 TEST_MAIN(TEST_CASE(test_membrane_gradients), TEST_CASE(test_dihedral_gradients), TEST_CASE(test_dihedral_flat_and_sign),
-          TEST_CASE(test_point_triangle_distance), TEST_CASE(test_segment_distance), TEST_CASE(test_ccd_and_intersection))
+          TEST_CASE(test_point_triangle_distance), TEST_CASE(test_segment_distance))
