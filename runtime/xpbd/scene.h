@@ -61,6 +61,12 @@ typedef struct xscene {
     weft_motion_def motion;
     weft_pose bind_pose, start_pose;
     uint32_t preroll;
+    /* Waistband (skirts, dresses): the garment's top ring rides on the body like an elastic
+     * band. Each band vertex keeps its bind-pose offset in the frame of its closest body
+     * triangle (barycentric point + offset along the edge, bitangent and normal). */
+    uint32_t band_count;
+    uint32_t *band_idx, *band_tri;
+    float *band_bary, *band_off; /* 3 per band vertex each */
 } xscene;
 
 /* Frame indices passed to the per-frame functions count from the start of the pre-roll
@@ -69,7 +75,8 @@ weft_result xscene_build(weft_context *ctx, xscene *sc, const weft_sim_sequence_
 void xscene_free(xscene *sc);
 /* Collider positions at frame f into out (collider.nv * 3). */
 void xscene_collider_at(const xscene *sc, uint32_t f, float *out);
-/* Pins at frame f: writes indices/targets (capacity cloth.nv), returns the count. */
-uint32_t xscene_pins_at(const xscene *sc, uint32_t f, uint32_t *idx, float *targets);
+/* Pins at frame f given the collider at f (from xscene_collider_at): writes indices/targets
+ * (capacity cloth.nv), returns the count. */
+uint32_t xscene_pins_at(const xscene *sc, uint32_t f, const float *collider, uint32_t *idx, float *targets);
 
 #endif

@@ -202,7 +202,7 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
     for (uint32_t f = 1; f < T && r == WEFT_OK; ++f) {
         float *cnext = b->collider + (size_t)f * nc * 3;
         xscene_collider_at(sc, f, cnext);
-        uint32_t np = xscene_pins_at(sc, f, b->pin_idx, b->pin_tgt);
+        uint32_t np = xscene_pins_at(sc, f, cnext, b->pin_idx, b->pin_tgt);
         for (uint32_t k = 0; k < np; ++k) {
             b->pinned[(size_t)f * nv + b->pin_idx[k]] = 1;
         }
@@ -356,6 +356,12 @@ static bool write_meta(const char *dir, const xscene *sc, const weft_sim_sequenc
         cJSON_AddStringToObject(gm, "drape",
                                 "the body blends from its bind pose to the motion's first pose over the first half of "
                                 "the pre-roll and holds it for the second half; recording starts after it");
+        cJSON_AddNumberToObject(gm, "waistband_vertices", sc->band_count);
+        if (sc->band_count) {
+            cJSON_AddStringToObject(gm, "waistband",
+                                    "the top ring is pinned to the body (bind-pose offset in the closest body "
+                                    "triangle's frame), as an elastic band; pinned.npy marks it");
+        }
     }
     cJSON *cl = num_obj(m, "cloth");
     cJSON_AddNumberToObject(cl, "vertices", sc->cloth.nv);

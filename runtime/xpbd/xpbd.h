@@ -116,6 +116,7 @@ xpbd_params xpbd_default_params(void);
 typedef struct xpbd_frame_stats {
     uint32_t substeps;
     uint32_t detections;         /* proximity passes */
+    uint32_t pair_rebuilds;      /* candidate-pair lists rebuilt from the trees */
     uint32_t contacts;           /* active contact projections in the frame (summed over substeps) */
     uint32_t contacts_dropped;   /* candidate pairs beyond the contact capacity (bounds still hold) */
     uint32_t clamped;            /* vertex truncations to their conservative bound (summed) */

@@ -32,6 +32,13 @@ typedef struct xcontact {
 
 enum { XC_VT = 0, XC_TV = 1, XC_EE = 2 };
 
+/* Kinds of candidate pairs: (query, primitive). */
+enum { PL_SELF_VT, PL_SELF_EE, PL_VT_COLLIDER, PL_TV_COLLIDER, PL_EE_COLLIDER, PL_COUNT };
+
+typedef struct xpair {
+    uint32_t query, prim;
+} xpair;
+
 typedef struct xpbd_state {
     xpbd_params p;
     uint32_t n, nc, ntri, nctri;
@@ -70,6 +77,16 @@ typedef struct xpbd_state {
 
     xbvh bvh_tri, bvh_edge, bvh_ctri, bvh_cedge;
     bool cloth_bvh_built, collider_bvh_built;
+
+    /* Candidate pairs (a Verlet list): every primitive pair whose boxes were within
+     * pair_radius at the snapshot xs_pairs / cs_pairs. A proximity pass with query radius rq
+     * can use it instead of the trees while rq plus the largest motion since then stays
+     * inside pair_radius (see pairs_fresh). */
+    xpair *pairs;
+    uint32_t pair_cap, pair_count[PL_COUNT];
+    bool pairs_valid;
+    double pair_radius;
+    double *xs_pairs, *cs_pairs;
 
     xcontact *contacts;
     uint32_t contact_count, contact_cap;     /* self contacts: [0, contact_count) */
@@ -242,6 +259,9 @@ static void state_free(const weft_context *ctx, xpbd_state *s)
     FREE_ARR(s->hinge_rest, s->topo.hinge_count + 1);
     FREE_ARR(s->hinge_len, s->topo.hinge_count + 1);
     FREE_ARR(s->contacts, s->contact_cap);
+    FREE_ARR(s->pairs, s->pair_cap);
+    FREE_ARR(s->xs_pairs, 3 * n);
+    FREE_ARR(s->cs_pairs, 3 * nc);
     xbvh_destroy(ctx, &s->bvh_tri);
     xbvh_destroy(ctx, &s->bvh_edge);
     xbvh_destroy(ctx, &s->bvh_ctri);
@@ -342,6 +362,9 @@ static weft_result xpbd_create(weft_garment *g)
      * counted, which is safe because the bounds alone prevent crossings. */
     s->self_cap = 24u * n + 64u;
     s->contact_cap = s->self_cap + 8u * n + 4u * nc + 64u;
+    /* Candidate pairs: a generous budget per query primitive; a pass that would overflow it
+     * queries the trees directly instead (correct, only slower). */
+    s->pair_cap = 96u * (n + s->topo.edge_count) + 8u * nc + 1024u;
 #define ALLOC_ARR(ptr, count) ((ptr) = weft__alloc(ctx, (size_t)(count) * sizeof *(ptr)))
     bool ok = ALLOC_ARR(s->xd, 3 * n) && ALLOC_ARR(s->vd, 3 * n) && ALLOC_ARR(s->xd_back, 3 * n) &&
               ALLOC_ARR(s->dmin_mov, n) && ALLOC_ARR(s->bound_frame, n) && ALLOC_ARR(s->xs_frame, 3 * n) &&
@@ -351,11 +374,12 @@ static weft_result xpbd_create(weft_garment *g)
               ALLOC_ARR(s->kin, n) && ALLOC_ARR(s->kin_step, n) && ALLOC_ARR(s->pinned, n) && ALLOC_ARR(s->pin_from, 3 * n) &&
               ALLOC_ARR(s->pin_to, 3 * n) && ALLOC_ARR(s->tri_coef, 6 * s->ntri) &&
               ALLOC_ARR(s->tri_area, s->ntri) && ALLOC_ARR(s->hinge_rest, s->topo.hinge_count + 1) &&
-              ALLOC_ARR(s->hinge_len, s->topo.hinge_count + 1) && ALLOC_ARR(s->contacts, s->contact_cap);
+              ALLOC_ARR(s->hinge_len, s->topo.hinge_count + 1) && ALLOC_ARR(s->contacts, s->contact_cap) &&
+              ALLOC_ARR(s->pairs, s->pair_cap) && ALLOC_ARR(s->xs_pairs, 3 * n);
     if (ok && nc > 0) {
         ok = ALLOC_ARR(s->cp, 3 * nc) && ALLOC_ARR(s->cn, 3 * nc) && ALLOC_ARR(s->cs, 3 * nc) &&
              ALLOC_ARR(s->cc, 3 * nc) && ALLOC_ARR(s->cdisp, nc) && ALLOC_ARR(s->csnap, 3 * nc) &&
-             ALLOC_ARR(s->cwin, nc);
+             ALLOC_ARR(s->cwin, nc) && ALLOC_ARR(s->cs_pairs, 3 * nc);
     }
 #undef ALLOC_ARR
     /* hinge arrays have one spare slot so a hinge-free mesh still gets a valid pointer */
@@ -472,6 +496,8 @@ typedef struct detect_ctx {
     const uint32_t *tris, *ctris;
     uint32_t query;      /* the vertex or edge being queried */
     double lo[3], hi[3]; /* the query box (BVH leaves report every primitive they hold) */
+    int list;            /* candidate collection: the pair kind being collected */
+    bool overflow;       /* candidate collection ran out of room */
 } detect_ctx;
 
 /* False when the box of the k points misses the query box: skips the exact distance. */
@@ -717,18 +743,128 @@ static void box_edge(const double *p, const double *q, double r, double lo[3], d
     }
 }
 
-/* One proximity pass at the snapshot s->xs / s->csnap; window = substeps until the next pass. */
-static void detect(weft_garment *g, xpbd_state *s)
+/* Candidate collection: topology-only filters (adjacency, each unordered self pair once),
+ * then the pair is kept for the distance visits of later passes. */
+static bool collect(detect_ctx *dc, uint32_t prim)
 {
-    const double gamma = s->p.bound_gamma;
-    s->contact_count = 0;
-    s->collider_contact_count = 0;
-    s->stats.detections++;
-    for (uint32_t i = 0; i < s->n; ++i) {
-        s->dmin[i] = s->rq;
-        s->dmin_mov[i] = s->rq;
+    xpbd_state *s = dc->s;
+    uint32_t at = 0;
+    for (int k = 0; k < PL_COUNT; ++k) {
+        at += s->pair_count[k];
     }
-    detect_ctx dc = {.s = s, .tris = g->triangles, .ctris = g->collider_triangles};
+    if (at >= s->pair_cap) {
+        dc->overflow = true;
+        return false; /* stop this traversal: the list is unusable for this pass */
+    }
+    s->pairs[at] = (xpair){dc->query, prim};
+    s->pair_count[dc->list]++;
+    return true;
+}
+
+static bool collect_self_vt(uint32_t t, void *user)
+{
+    detect_ctx *dc = user;
+    const uint32_t *tri = dc->tris + 3 * (size_t)t;
+    uint32_t v = dc->query;
+    return tri[0] == v || tri[1] == v || tri[2] == v || collect(dc, t);
+}
+
+static bool collect_self_ee(uint32_t e2, void *user)
+{
+    detect_ctx *dc = user;
+    const xpbd_state *s = dc->s;
+    uint32_t e1 = dc->query;
+    const uint32_t *a = s->topo.edges + 2 * (size_t)e1, *b = s->topo.edges + 2 * (size_t)e2;
+    return e2 <= e1 || a[0] == b[0] || a[0] == b[1] || a[1] == b[0] || a[1] == b[1] || collect(dc, e2);
+}
+
+static bool collect_any(uint32_t prim, void *user) { return collect(user, prim); }
+
+typedef struct pass_fns {
+    xbvh_visit_fn *self_vt, *self_ee, *vt_collider, *tv_collider, *ee_collider;
+} pass_fns;
+
+/* The five tree traversals of a proximity pass with query radius r: each query primitive's
+ * box grown by r against the other side's tree. fns either visit (distances, bounds,
+ * contacts) or collect candidate pairs. False when a collector overflowed. */
+static bool traverse(weft_garment *g, xpbd_state *s, double r, const pass_fns *fns, detect_ctx *dc)
+{
+    if (s->p.self_collision) {
+        dc->list = PL_SELF_VT;
+        for (uint32_t v = 0; v < s->n && !dc->overflow; ++v) {
+            dc->query = v;
+            box_around(s->xs + 3 * (size_t)v, r, dc->lo, dc->hi);
+            xbvh_query(&s->bvh_tri, dc->lo, dc->hi, fns->self_vt, dc);
+        }
+        dc->list = PL_SELF_EE;
+        for (uint32_t e = 0; e < s->topo.edge_count && !dc->overflow; ++e) {
+            const uint32_t *ed = s->topo.edges + 2 * (size_t)e;
+            dc->query = e;
+            box_edge(s->xs + 3 * (size_t)ed[0], s->xs + 3 * (size_t)ed[1], r, dc->lo, dc->hi);
+            xbvh_query(&s->bvh_edge, dc->lo, dc->hi, fns->self_ee, dc);
+        }
+    }
+    if (s->nc > 0) {
+        (void)g;
+        const xbvh_node *root = &s->bvh_tri.nodes[0];
+        dc->list = PL_VT_COLLIDER;
+        for (uint32_t v = 0; v < s->n && !dc->overflow; ++v) {
+            dc->query = v;
+            box_around(s->xs + 3 * (size_t)v, r, dc->lo, dc->hi);
+            xbvh_query(&s->bvh_ctri, dc->lo, dc->hi, fns->vt_collider, dc);
+        }
+        dc->list = PL_TV_COLLIDER;
+        for (uint32_t u = 0; u < s->nc && !dc->overflow; ++u) {
+            const double *p = s->csnap + 3 * (size_t)u;
+            /* Cheap reject against the whole cloth box. */
+            if (p[0] < root->lo[0] - r || p[0] > root->hi[0] + r || p[1] < root->lo[1] - r || p[1] > root->hi[1] + r ||
+                p[2] < root->lo[2] - r || p[2] > root->hi[2] + r) {
+                continue;
+            }
+            dc->query = u;
+            box_around(p, r, dc->lo, dc->hi);
+            xbvh_query(&s->bvh_tri, dc->lo, dc->hi, fns->tv_collider, dc);
+        }
+        dc->list = PL_EE_COLLIDER;
+        for (uint32_t e = 0; e < s->topo.edge_count && !dc->overflow; ++e) {
+            const uint32_t *ed = s->topo.edges + 2 * (size_t)e;
+            dc->query = e;
+            box_edge(s->xs + 3 * (size_t)ed[0], s->xs + 3 * (size_t)ed[1], r, dc->lo, dc->hi);
+            xbvh_query(&s->bvh_cedge, dc->lo, dc->hi, fns->ee_collider, dc);
+        }
+    }
+    return !dc->overflow;
+}
+
+/* Largest displacement of n points between two xyz arrays. */
+static double max_motion(const double *a, const double *b, uint32_t n)
+{
+    double m2 = 0.0;
+    for (uint32_t i = 0; i < n; ++i) {
+        double d[3];
+        xv_sub(d, a + 3 * (size_t)i, b + 3 * (size_t)i);
+        double l2 = xv_dot(d, d);
+        m2 = l2 > m2 ? l2 : m2;
+    }
+    return sqrt(m2);
+}
+
+/* The candidate pairs still cover this pass: two primitives whose boxes (grown by rq) overlap
+ * now had boxes within rq + their motion since the lists were built, at most 2 dx for a
+ * cloth pair and dx + dc for a cloth-collider pair (per axis, each vertex moved at most its
+ * Euclidean displacement). */
+static bool pairs_fresh(const xpbd_state *s)
+{
+    if (!s->pairs_valid) {
+        return false;
+    }
+    double dx = max_motion(s->xs, s->xs_pairs, s->n);
+    double dcol = s->nc > 0 ? max_motion(s->csnap, s->cs_pairs, s->nc) : 0.0;
+    return s->rq + 2.0 * dx + dcol <= s->pair_radius;
+}
+
+static void refit_trees(xpbd_state *s)
+{
     if (!s->cloth_bvh_built) {
         xbvh_build(&s->bvh_tri, s->xs);
         xbvh_build(&s->bvh_edge, s->xs);
@@ -741,45 +877,87 @@ static void detect(weft_garment *g, xpbd_state *s)
     }
     xbvh_refit(&s->bvh_tri, s->xs, NULL, 0.0);
     xbvh_refit(&s->bvh_edge, s->xs, NULL, 0.0);
-    if (s->p.self_collision) {
-        for (uint32_t v = 0; v < s->n; ++v) {
-            dc.query = v;
-            box_around(s->xs + 3 * (size_t)v, s->rq, dc.lo, dc.hi);
-            xbvh_query(&s->bvh_tri, dc.lo, dc.hi, visit_self_vt, &dc);
-        }
-        for (uint32_t e = 0; e < s->topo.edge_count; ++e) {
-            const uint32_t *ed = s->topo.edges + 2 * (size_t)e;
-            dc.query = e;
-            box_edge(s->xs + 3 * (size_t)ed[0], s->xs + 3 * (size_t)ed[1], s->rq, dc.lo, dc.hi);
-            xbvh_query(&s->bvh_edge, dc.lo, dc.hi, visit_self_ee, &dc);
-        }
-    }
     if (s->nc > 0) {
         xbvh_refit(&s->bvh_ctri, s->csnap, NULL, 0.0);
         xbvh_refit(&s->bvh_cedge, s->csnap, NULL, 0.0);
-        const xbvh_node *root = &s->bvh_tri.nodes[0];
-        for (uint32_t v = 0; v < s->n; ++v) {
-            dc.query = v;
-            box_around(s->xs + 3 * (size_t)v, s->rq, dc.lo, dc.hi);
-            xbvh_query(&s->bvh_ctri, dc.lo, dc.hi, visit_vt_collider, &dc);
+    }
+}
+
+/* Rebuilds the candidate lists at the current snapshot with radius rq plus a skin of
+ * query_radius (room for motion before the next rebuild). */
+static bool build_pairs(weft_garment *g, xpbd_state *s)
+{
+    refit_trees(s);
+    memset(s->pair_count, 0, sizeof s->pair_count);
+    s->pair_radius = s->rq + s->p.query_radius;
+    detect_ctx dc = {.s = s, .tris = g->triangles, .ctris = g->collider_triangles};
+    const pass_fns collectors = {collect_self_vt, collect_self_ee, collect_any, collect_any, collect_any};
+    s->pairs_valid = traverse(g, s, s->pair_radius, &collectors, &dc);
+    if (s->pairs_valid) {
+        memcpy(s->xs_pairs, s->xs, 3 * (size_t)s->n * sizeof(double));
+        if (s->nc > 0) {
+            memcpy(s->cs_pairs, s->csnap, 3 * (size_t)s->nc * sizeof(double));
         }
-        for (uint32_t u = 0; u < s->nc; ++u) {
-            const double *p = s->csnap + 3 * (size_t)u;
-            /* Cheap reject against the whole cloth box. */
-            if (p[0] < root->lo[0] - s->rq || p[0] > root->hi[0] + s->rq || p[1] < root->lo[1] - s->rq ||
-                p[1] > root->hi[1] + s->rq || p[2] < root->lo[2] - s->rq || p[2] > root->hi[2] + s->rq) {
-                continue;
+        s->stats.pair_rebuilds++;
+    }
+    return s->pairs_valid;
+}
+
+/* Query box of a cached pair's query primitive, as traverse() would build it. */
+static void query_box(const xpbd_state *s, int list, uint32_t q, detect_ctx *dc)
+{
+    if (list == PL_SELF_VT || list == PL_VT_COLLIDER) {
+        box_around(s->xs + 3 * (size_t)q, s->rq, dc->lo, dc->hi);
+    } else if (list == PL_TV_COLLIDER) {
+        box_around(s->csnap + 3 * (size_t)q, s->rq, dc->lo, dc->hi);
+    } else {
+        const uint32_t *ed = s->topo.edges + 2 * (size_t)q;
+        box_edge(s->xs + 3 * (size_t)ed[0], s->xs + 3 * (size_t)ed[1], s->rq, dc->lo, dc->hi);
+    }
+}
+
+/* One proximity pass at the snapshot s->xs / s->csnap; window = substeps until the next pass.
+ * Distances are visited over the candidate lists when they are fresh (rebuilt when not),
+ * else straight from the trees. Both give every pair within rq. */
+static void detect(weft_garment *g, xpbd_state *s)
+{
+    const double gamma = s->p.bound_gamma;
+    s->contact_count = 0;
+    s->collider_contact_count = 0;
+    s->stats.detections++;
+    for (uint32_t i = 0; i < s->n; ++i) {
+        s->dmin[i] = s->rq;
+        s->dmin_mov[i] = s->rq;
+    }
+    detect_ctx dc = {.s = s, .tris = g->triangles, .ctris = g->collider_triangles};
+    static xbvh_visit_fn *const visitors[PL_COUNT] = {visit_self_vt, visit_self_ee, visit_vt_collider,
+                                                      visit_tv_collider, visit_ee_collider};
+    if (pairs_fresh(s) || build_pairs(g, s)) {
+        const xpair *pr = s->pairs;
+        for (int list = 0; list < PL_COUNT; ++list) {
+            uint32_t last = UINT32_MAX;
+            for (uint32_t k = 0; k < s->pair_count[list]; ++k, ++pr) {
+                if (pr->query != last) {
+                    last = pr->query;
+                    dc.query = last;
+                    query_box(s, list, last, &dc);
+                }
+                /* The trees only report primitives whose boxes meet the query box. */
+                const uint32_t *prim = list == PL_SELF_VT || list == PL_TV_COLLIDER ? g->triangles + 3 * (size_t)pr->prim
+                                       : list == PL_SELF_EE ? s->topo.edges + 2 * (size_t)pr->prim
+                                       : list == PL_VT_COLLIDER ? g->collider_triangles + 3 * (size_t)pr->prim
+                                                                : s->ctopo.edges + 2 * (size_t)pr->prim;
+                const double *pos = list == PL_VT_COLLIDER || list == PL_EE_COLLIDER ? s->csnap : s->xs;
+                int k_pts = list == PL_SELF_EE || list == PL_EE_COLLIDER ? 2 : 3;
+                if (box_hits(&dc, pos, prim, k_pts)) {
+                    visitors[list](pr->prim, &dc);
+                }
             }
-            dc.query = u;
-            box_around(p, s->rq, dc.lo, dc.hi);
-            xbvh_query(&s->bvh_tri, dc.lo, dc.hi, visit_tv_collider, &dc);
         }
-        for (uint32_t e = 0; e < s->topo.edge_count; ++e) {
-            const uint32_t *ed = s->topo.edges + 2 * (size_t)e;
-            dc.query = e;
-            box_edge(s->xs + 3 * (size_t)ed[0], s->xs + 3 * (size_t)ed[1], s->rq, dc.lo, dc.hi);
-            xbvh_query(&s->bvh_cedge, dc.lo, dc.hi, visit_ee_collider, &dc);
-        }
+    } else {
+        refit_trees(s);
+        const pass_fns direct = {visit_self_vt, visit_self_ee, visit_vt_collider, visit_tv_collider, visit_ee_collider};
+        traverse(g, s, s->rq, &direct, &dc);
     }
     for (uint32_t i = 0; i < s->n; ++i) {
         double d = s->dmin[i];
