@@ -41,6 +41,57 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *options);
  * bind pose and poses from the procedural motions, garments skinned to the pose. */
 int weft_avatar_sample_docs_sheet(const char *path, uint32_t tile_size);
 
+/* ---------------------------------------------------------------------------------------- */
+/* Sequence contact sheets (seqview.c, `weft render --seq DIR --sheet OUT.png`)              */
+
+/* Renders chosen frames of a `weft simgen` sequence folder (meta.json, cloth_pos.npy [T,N,3],
+ * faces.npy [F,3], collider_pos.npy [T,M,3] + collider_faces.npy [G,3], see weft/sim.h) into
+ * one PNG: one tile per frame stamped with its frame number, cloth two-sided blue/orange, the
+ * collider grey (skin-coloured for the garment scenario's avatar), one fixed camera framed on
+ * the union bounding box of the chosen frames. Upward-facing collider triangles lying on the
+ * collider's lowest plane (the scenarios' 6 m floor quad) are drawn as the renderer's checker
+ * ground instead, so the framing follows the cloth and the objects. Rendering uses softpipe,
+ * so the same folder and options give the same bytes. A caption strip carries meta.json's
+ * description and validator verdict (validated, unvalidated or rejected). Every array is
+ * validated (dtype, rank, shapes agreeing, indices in range, finite positions) before anything
+ * is drawn; on failure nothing is written. */
+#define WEFT_SEQ_SHEET_MAX_FRAMES 32u
+
+typedef struct weft_seq_sheet_options {
+    const char *seq_dir;        /* the sequence folder */
+    const char *out_path;       /* the PNG to write */
+    uint32_t frames[WEFT_SEQ_SHEET_MAX_FRAMES];
+    uint32_t frame_count;       /* 0: five frames at 0, T/4, T/2, 3T/4 and T-1 (default) */
+    uint32_t tile;              /* tile width in pixels, 64..1024 (default 240) */
+    uint32_t tile_height;       /* 64..1024; 0: square, or 4:3 portrait for garments (default 0) */
+    uint32_t columns;           /* tiles per row; 0: all in one row up to 6 (default 0) */
+    float yaw, pitch;           /* camera direction in degrees, |pitch| <= 85; NaN: per scenario */
+    bool caption;               /* the caption strip (default true) */
+} weft_seq_sheet_options;
+
+typedef struct weft_seq_sheet_info {
+    uint32_t width, height;     /* of the written sheet */
+    uint32_t tile_width, tile_height;
+    uint32_t sequence_frames;   /* T */
+    uint32_t cloth_vertices, cloth_triangles, collider_vertices, collider_triangles;
+    uint32_t ground_triangles;  /* collider triangles drawn as the checker ground */
+    uint32_t frames[WEFT_SEQ_SHEET_MAX_FRAMES];
+    uint32_t frame_count;       /* the frames drawn, in tile order */
+    int accepted;               /* meta.json "accepted": 1 true, 0 false, -1 absent */
+    int validated;              /* meta.json "validator"."run": 1 true, 0 false (--no-validate), -1 absent */
+    uint32_t validator_hits;    /* meta.json validator ccd_hits + intersection_hits */
+    char scenario[32];          /* meta.json "scenario", or "" */
+    char description[160];      /* meta.json "description", or "" */
+} weft_seq_sheet_info;
+
+void weft_seq_sheet_default_options(weft_seq_sheet_options *options);
+/* Parses a comma-separated frame list ("0,60,120") into options->frames. INVALID_ARGUMENT on
+ * an empty item, a non-number, a value over 2^31 or more than WEFT_SEQ_SHEET_MAX_FRAMES items;
+ * options are unchanged on failure. Frames are checked against the sequence when rendering. */
+weft_result weft_seq_sheet_parse_frames(const char *text, weft_seq_sheet_options *options);
+/* Reads, renders and writes the sheet. out_info (optional) describes what was drawn. */
+weft_result weft_seq_sheet_render(const weft_seq_sheet_options *options, weft_seq_sheet_info *out_info);
+
 #ifdef __cplusplus
 }
 #endif
