@@ -884,12 +884,13 @@ static void refit_trees(xpbd_state *s)
 }
 
 /* Rebuilds the candidate lists at the current snapshot with radius rq plus a skin of
- * query_radius (room for motion before the next rebuild). */
+ * half the minimum query radius (room for motion before the next rebuild; 1x and 0.25x were
+ * 7 % and 15 % slower on a skirt drape). */
 static bool build_pairs(weft_garment *g, xpbd_state *s)
 {
     refit_trees(s);
     memset(s->pair_count, 0, sizeof s->pair_count);
-    s->pair_radius = s->rq + s->p.query_radius;
+    s->pair_radius = s->rq + 0.5 * s->p.query_radius;
     detect_ctx dc = {.s = s, .tris = g->triangles, .ctris = g->collider_triangles};
     const pass_fns collectors = {collect_self_vt, collect_self_ee, collect_any, collect_any, collect_any};
     s->pairs_valid = traverse(g, s, s->pair_radius, &collectors, &dc);
