@@ -78,6 +78,9 @@ typedef struct weft_sim_sequence_def {
     uint32_t max_substeps;        /* a rejected sequence is retried with doubled substeps up to this (default 80) */
     uint32_t cloth_vertices;      /* approximate vertex count of the sheet (default 1024) */
     bool validate;                /* run the validator on every frame (default true) */
+    float motion_speed;           /* scales the kinematic motion: the avatar's motion (garment) and the
+                                   * gripper's schedule; 1 = as drawn from the seed, which stays the same
+                                   * draw at any speed; the drop scenario has none (0.1..10, default 1) */
     uint32_t internal_cookie;     /* set by weft_sim_default_sequence_def(); do not touch */
 } weft_sim_sequence_def;
 

@@ -561,7 +561,8 @@ static weft_result build_gripper(xscene *sc, const weft_sim_sequence_def *def, x
     sc->lift = xrng_uniform(r, 0.15, 0.45);
     double ang = xrng_uniform(r, 0, 2 * SPI), dist = xrng_uniform(r, 0.1, 0.4);
     sc->move[0] = dist * cos(ang), sc->move[1] = dist * sin(ang);
-    double speed = xrng_uniform(r, 0.7, 1.3); /* time scale of the whole schedule */
+    /* Time scale of the whole schedule: drawn first so every motion_speed gets the same draw. */
+    double speed = xrng_uniform(r, 0.7, 1.3) / def->motion_speed;
     sc->f_close = (uint32_t)(30 * speed);
     sc->f_lifted = sc->f_close + (uint32_t)(45 * speed);
     sc->f_moved = sc->f_lifted + (uint32_t)(45 * speed);
@@ -762,7 +763,7 @@ static weft_result build_garment(weft_context *ctx, xscene *sc, const weft_sim_s
                                            WEFT_MOTION_JUMP,  WEFT_MOTION_DANCE, WEFT_MOTION_ARM_RAISE};
     weft_motion m = motions[xrng_below(r, 6)];
     sc->motion = weft_default_motion_def(m);
-    sc->motion.speed = (float)xrng_uniform(r, 0.6, 1.4);
+    sc->motion.speed = (float)xrng_uniform(r, 0.6, 1.4) * def->motion_speed;
     sc->motion.amplitude = (float)xrng_uniform(r, 0.6, 1.0);
     sc->motion.height = ad.height;
     weft_body_bind_pose(sc->body, &sc->bind_pose);

@@ -43,6 +43,7 @@ weft_sim_sequence_def weft_sim_default_sequence_def(void)
     d.max_substeps = 80;
     d.cloth_vertices = 1024;
     d.validate = true;
+    d.motion_speed = 1.0f;
     d.internal_cookie = WEFT_DEF_COOKIE;
     return d;
 }
@@ -318,6 +319,7 @@ static bool write_meta(const char *dir, const xscene *sc, const weft_sim_sequenc
     cJSON_AddNumberToObject(m, "attempts", res->attempts);
     cJSON_AddNumberToObject(m, "chord_safe_retries", res->chord_retries);
     cJSON_AddNumberToObject(m, "path_validated_frames", res->path_frames);
+    cJSON_AddNumberToObject(m, "motion_speed", def->motion_speed);
     char seed_text[32];
     snprintf(seed_text, sizeof seed_text, "%llu", (unsigned long long)def->seed);
     cJSON_AddStringToObject(m, "seed_u64", seed_text);
@@ -462,10 +464,11 @@ weft_result weft_sim_generate(weft_context *ctx, const weft_sim_sequence_def *de
     }
     if ((unsigned)def->scenario >= WEFT_SIM_SCENARIO_COUNT || def->frames < 2 || def->frames > 100000 ||
         def->substeps == 0 || def->substeps > 1000 || def->max_substeps < def->substeps || def->max_substeps > 1000 ||
-        def->cloth_vertices < 16 || def->cloth_vertices > 200000 || strlen(out_dir) > 900) {
+        def->cloth_vertices < 16 || def->cloth_vertices > 200000 || strlen(out_dir) > 900 ||
+        !(def->motion_speed >= 0.1f && def->motion_speed <= 10.0f)) {
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
                           "weft_sim_generate: scenario, frames (2..100000), substeps (1..max_substeps<=1000), "
-                          "cloth_vertices (16..200000) or out_dir length out of range");
+                          "cloth_vertices (16..200000), motion_speed (0.1..10) or out_dir length out of range");
     }
     xscene sc;
     weft_result r = xscene_build(ctx, &sc, def, def->seed);

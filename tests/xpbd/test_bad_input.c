@@ -219,6 +219,11 @@ static void test_generate_bad_def(void)
     d = weft_sim_default_sequence_def();
     d.max_substeps = 10; /* below substeps */
     CHECK_RESULT(weft_sim_generate(ctx_, &d, "/tmp/never", NULL, NULL, &res), WEFT_ERROR_INVALID_ARGUMENT);
+    d = weft_sim_default_sequence_def();
+    d.motion_speed = 0.0f;
+    CHECK_RESULT(weft_sim_generate(ctx_, &d, "/tmp/never", NULL, NULL, &res), WEFT_ERROR_INVALID_ARGUMENT);
+    d.motion_speed = NAN;
+    CHECK_RESULT(weft_sim_generate(ctx_, &d, "/tmp/never", NULL, NULL, &res), WEFT_ERROR_INVALID_ARGUMENT);
     weft_sim_sequence_def raw = {0};
     CHECK_RESULT(weft_sim_generate(ctx_, &raw, "/tmp/never", NULL, NULL, &res), WEFT_ERROR_INVALID_ARGUMENT);
 }

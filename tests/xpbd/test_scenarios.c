@@ -36,10 +36,11 @@ static unsigned char *read_all(const char *path, long *n)
     return b;
 }
 
-static weft_sim_sequence_result generate(weft_context *ctx, weft_sim_scenario sc, uint64_t seed, uint32_t frames,
-                                         const char *dir)
+static weft_sim_sequence_result generate_at(weft_context *ctx, weft_sim_scenario sc, uint64_t seed, uint32_t frames,
+                                            const char *dir, float motion_speed)
 {
     weft_sim_sequence_def d = weft_sim_default_sequence_def();
+    d.motion_speed = motion_speed;
     d.scenario = sc;
     d.seed = seed;
     d.frames = frames;
@@ -49,6 +50,30 @@ static weft_sim_sequence_result generate(weft_context *ctx, weft_sim_scenario sc
     weft_sim_sequence_result res = {0};
     CHECK_RESULT(weft_sim_generate(ctx, &d, dir, NULL, NULL, &res), WEFT_OK);
     return res;
+}
+
+static weft_sim_sequence_result generate(weft_context *ctx, weft_sim_scenario sc, uint64_t seed, uint32_t frames,
+                                         const char *dir)
+{
+    return generate_at(ctx, sc, seed, frames, dir, 1.0f);
+}
+
+/* First frame with a pinned vertex in dir/pinned.npy, or -1. */
+static long first_pinned_frame(const char *dir, uint32_t vertices)
+{
+    char path[600];
+    snprintf(path, sizeof path, "%s/pinned.npy", dir);
+    long n = 0;
+    unsigned char *p = read_all(path, &n);
+    long first = -1;
+    if (p && n > 10) {
+        long h = 10 + (p[8] | (p[9] << 8));
+        for (long i = h; i < n && first < 0; ++i) {
+            first = p[i] ? (i - h) / (long)vertices : -1;
+        }
+    }
+    free(p);
+    return first;
 }
 
 static void test_drop_deterministic(void)
@@ -118,4 +143,25 @@ static void test_gripper_lifts(void)
     weft_context_destroy(ctx);
 }
 
-TEST_MAIN(TEST_CASE(test_drop_deterministic), TEST_CASE(test_gripper_lifts))
+/* motion_speed 2 plays the same drawn gripper schedule twice as fast: the grasp (first pinned
+ * frame) comes about twice as early. */
+static void test_gripper_speed(void)
+{
+    weft_context_def cd = weft_default_context_def();
+    weft_context *ctx = NULL;
+    CHECK_RESULT(weft_context_create(&cd, &ctx), WEFT_OK);
+    char d1[512], d2[512];
+    snprintf(d1, sizeof d1, "%s/xpbd_scenarios/gripper_x1", WEFT_BINARY_DIR);
+    snprintf(d2, sizeof d2, "%s/xpbd_scenarios/gripper_x2", WEFT_BINARY_DIR);
+    weft_sim_sequence_result r1 = generate_at(ctx, WEFT_SIM_SCENARIO_GRIPPER, 5, 45, d1, 1.0f);
+    weft_sim_sequence_result r2 = generate_at(ctx, WEFT_SIM_SCENARIO_GRIPPER, 5, 45, d2, 2.0f);
+    CHECK(r1.accepted && r2.accepted);
+    if (r1.accepted && r2.accepted) {
+        long f1 = first_pinned_frame(d1, r1.vertex_count), f2 = first_pinned_frame(d2, r2.vertex_count);
+        CHECK_MSG(f1 > 0 && f2 > 0 && f2 < f1 && labs(2 * f2 - f1) <= 2, "first pinned frame %ld at x1, %ld at x2",
+                  f1, f2);
+    }
+    weft_context_destroy(ctx);
+}
+
+TEST_MAIN(TEST_CASE(test_drop_deterministic), TEST_CASE(test_gripper_lifts), TEST_CASE(test_gripper_speed))

@@ -191,10 +191,12 @@ static void usage(FILE *f)
             "usage: weft simgen --out DIR (--all | --scenario drop|gripper|garment [--count N] [--vertices V])\n"
             "                   [--shard I/N] [--frames T] [--substeps S] [--max-substeps S] [--seed X]\n"
             "                   [--garment-substeps S] [--no-validate] [--manifest-only] [--limit N]\n"
-            "                   [--no-garments]\n"
+            "                   [--no-garments] [--speed X]\n"
             "  --all            the whole planned set: per scenario (drop, gripper, garment) 150 x 1k,\n"
             "                   30 x 4k and 2 x 16k vertices, smallest first\n"
             "  --no-garments    leave the garment scenario out of --all (it is the slowest)\n"
+            "  --speed X        scale the avatar's motion and the gripper's schedule (0.1..10, default 1;\n"
+            "                   the stability suite's speed axis); same draws as at speed 1\n"
             "  --garment-substeps S  first attempt of a garment sequence (default 80: at 40 the\n"
             "                   motion start is rejected, docs/REFSIM.md)\n"
             "  --shard I/N      only sequences whose plan index is I modulo N (job arrays)\n"
@@ -208,6 +210,7 @@ int weft_cmd_simgen(int argc, char **argv)
     const char *out = NULL, *scenario = NULL;
     bool all = false, manifest_only = false, validate = true, garments = true;
     uint32_t garment_substeps = 80;
+    float motion_speed = 1.0f;
     uint32_t count = 10, vertices = 1024, frames = 240, substeps = 40, max_substeps = 80, shard_i = 0, shard_n = 1;
     uint32_t limit = UINT32_MAX;
     unsigned long long seed0 = 1;
@@ -221,6 +224,8 @@ int weft_cmd_simgen(int argc, char **argv)
             all = true;
         } else if (strcmp(a, "--no-garments") == 0) {
             garments = false;
+        } else if (v && strcmp(a, "--speed") == 0) {
+            motion_speed = strtof(v, NULL), ++i;
         } else if (v && strcmp(a, "--garment-substeps") == 0) {
             garment_substeps = (uint32_t)strtoul(v, NULL, 10), ++i;
         } else if (strcmp(a, "--manifest-only") == 0) {
@@ -359,6 +364,7 @@ int weft_cmd_simgen(int argc, char **argv)
             }
             def.cloth_vertices = plan[i].vertices;
             def.validate = validate;
+            def.motion_speed = motion_speed;
             ps.name = plan[i].name;
             weft_sim_sequence_result res;
             weft_result r = weft_sim_generate(ctx, &def, dir, on_frame, &ps, &res);
