@@ -131,6 +131,12 @@ int ccd_orient2d(const double a[3], const double b[3], const double c[3], int i,
     if (fabs(det) > bound) {
         return sign_of(det);
     }
+    /* Exactly zero when the three points share one projected coordinate (a zero column): the
+     * common degenerate case of flat sheets and floors in axis planes, decided without the
+     * expansion arithmetic. */
+    if ((a[i] == b[i] && a[i] == c[i]) || (a[j] == b[j] && a[j] == c[j])) {
+        return 0;
+    }
     double ux[2], uy[2], vx[2], vy[2];
     two_diff(b[i], a[i], &ux[1], &ux[0]);
     two_diff(b[j], a[j], &uy[1], &uy[0]);
@@ -164,6 +170,12 @@ int ccd_orient3d(const double a[3], const double b[3], const double c[3], const 
     /* Shewchuk's first-stage bound is (7 + 56 eps) eps * perm = 7.8e-16 perm; 2e-15 leaves margin. */
     if (fabs(det) > 2e-15 * perm) {
         return sign_of(det);
+    }
+    /* Exactly zero when the four points share one coordinate (a zero column), as above. */
+    for (int k = 0; k < 3; ++k) {
+        if (a[k] == b[k] && a[k] == c[k] && a[k] == d[k]) {
+            return 0;
+        }
     }
     double U[3][2], V[3][2], W[3][2];
     for (int k = 0; k < 3; ++k) {
