@@ -252,6 +252,29 @@ WEFT_API weft_result weft_garment_set_pins(weft_garment *garment, const uint32_t
  * On failure the state is unchanged. */
 WEFT_API weft_result weft_garment_step(weft_garment *garment);
 
+/* Steps `count` garments in one call (a crowd: many characters per frame). Each garment gets
+ * exactly what weft_garment_step would give it, bit for bit: CCD post-process, NaN check, and
+ * its state unchanged when its own step fails. Garments of method MODEL made from the same
+ * context, model and precision run their temporal transformer as one stacked GEMM per layer
+ * (up to 64 garments per stack), so its weights are read once per stack instead of once per
+ * character; other garments are stepped one by one.
+ *
+ * A failing garment does not stop the others: every garment is attempted, the result is the
+ * first failure in array order (weft_last_error() names its index), and the garments that
+ * succeeded have advanced (their weft_garment_stats().frame went up by one). NULL entries,
+ * count 0 or a garment listed twice fail with WEFT_ERROR_INVALID_ARGUMENT before any step.
+ * The step_ms of a garment stepped in a group is its even share of the group's forward pass
+ * plus its own NaN check and CCD.
+ *
+ * Memory: the stacked scratch belongs to the first garment of each group (in array order) and
+ * is allocated on its first call with that many garments or more, then kept until that garment
+ * is destroyed; calls with the same or smaller groups allocate nothing. Why not a separate
+ * batch object: the scratch is tied to one model's sizes, and garments are already the unit the
+ * host owns per thread, so a crowd needs no extra object to create and keep in step. If that
+ * allocation fails, the group is stepped one garment at a time (same results, no error).
+ * Threads: the garments of one call must not be used elsewhere during it. */
+WEFT_API weft_result weft_garments_step(weft_garment *const *garments, uint32_t count);
+
 /* Current positions (vertex_count * 3), valid until the next step, set_state or destroy. */
 WEFT_API const float *weft_garment_positions(const weft_garment *garment);
 WEFT_API uint32_t weft_garment_vertex_count(const weft_garment *garment);

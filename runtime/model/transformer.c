@@ -171,6 +171,12 @@ static weft_result need_linear(const weft_model *m, const char *prefix, uint32_t
     }
     l->out = out;
     l->in = in;
+    size_t n = strlen(prefix);
+    if (n >= sizeof l->name) {
+        n = sizeof l->name - 1; /* names are far shorter; cut rather than overflow */
+    }
+    memcpy(l->name, prefix, n);
+    l->name[n] = '\0';
     return WEFT_OK;
 }
 
@@ -317,6 +323,17 @@ typedef struct ct_buf {
     size_t floats;
 } ct_buf;
 
+/* Stacked temporal-stream scratch for weft__ct_step_group, kept by the garment that led a group
+ * and sized for `capacity` members (grown, never shrunk, until the garment is destroyed). */
+typedef struct ct_batch {
+    uint32_t capacity;
+    float *x, *xln, *xq, *xk, *xv, *xa;  /* capacity hk x D */
+    float *xr, *xg;                      /* capacity K x D */
+    float *wide, *wide2;                 /* capacity hk x ffn */
+    float *qa_store, *qa_scale;          /* int8 activations: capacity hk rows x padded K */
+    size_t hkd, kd, hkf, qa_floats, rows;
+} ct_batch;
+
 typedef struct ct_state {
     weft_ct_config c;
     weft_ct_weights w;
@@ -361,6 +378,13 @@ typedef struct ct_state {
     float *out3;                        /* N x 3 */
     float *attn_scratch;
     size_t attn_scratch_floats;
+    /* Calibration observer (weft__ct_set_observer) and its packing scratch: obs_rows rows of
+     * obs_cols floats each for the input and for the layer's own output. */
+    weft_ct_observer_fn *observer;
+    void *observer_user;
+    float *obs_in, *obs_out;
+    size_t obs_floats;
+    ct_batch *batch;                    /* NULL until this garment heads a batched step */
     ct_buf bufs[40];
     uint32_t buf_count;
 } ct_state;
@@ -414,6 +438,32 @@ static void linear_chunk(uint32_t begin, uint32_t end, uint32_t worker, void *jo
 #define CT_PARALLEL_MIN_ROWS 256u
 #define CT_PARALLEL_CHUNK 128u
 
+/* Shows the observer a layer's input and its own output, both packed (stride = width). A layer
+ * that accumulated into a residual is run a second time without the residual, so the normal
+ * path's bits and cost are untouched; rows are independent, so the rerun gives the same
+ * per-row values the residual received. */
+static void observe(const ct_state *s, uint32_t rows, const weft_ct_linear *l, const float *A, uint32_t lda,
+                    const float *C, uint32_t ldc, weft_activation act, bool accumulate)
+{
+    const float *in = A, *out = C;
+    if (lda != l->in) {
+        for (uint32_t r = 0; r < rows; ++r) {
+            memcpy(s->obs_in + (size_t)r * l->in, A + (size_t)r * lda, l->in * sizeof(float));
+        }
+        in = s->obs_in;
+    }
+    if (accumulate) {
+        linear_rows(s, rows, l, A, lda, s->obs_out, l->out, act, false, s->qa, s->qa_scale);
+        out = s->obs_out;
+    } else if (ldc != l->out) {
+        for (uint32_t r = 0; r < rows; ++r) {
+            memcpy(s->obs_out + (size_t)r * l->out, C + (size_t)r * ldc, l->out * sizeof(float));
+        }
+        out = s->obs_out;
+    }
+    s->observer(l->name, in, rows, l->in, out, l->out, s->observer_user);
+}
+
 static void linear(const ct_state *s, uint32_t rows, const weft_ct_linear *l, const float *A, uint32_t lda,
                    float *C, uint32_t ldc, weft_activation act, bool accumulate)
 {
@@ -425,6 +475,75 @@ static void linear(const ct_state *s, uint32_t rows, const weft_ct_linear *l, co
         weft__parallel_for(s->ctx, linear_chunk, rows, CT_PARALLEL_CHUNK, &job);
     } else {
         linear_rows(s, rows, l, A, lda, C, ldc, act, accumulate, s->qa, s->qa_scale);
+    }
+    if (s->observer) {
+        observe(s, rows, l, A, lda, C, ldc, act, accumulate);
+    }
+}
+
+/* Up to three layers reading the same rows of A (k and v; q, k and v; gate and up), no
+ * activation, no residual. On the int8 path the rows are quantised once and every layer's GEMM
+ * reads the same int8 rows: the same bits as quantising per layer (the quantisation is a
+ * function of the row alone), at a third or half the cost. */
+typedef struct shared_job {
+    const ct_state *s;
+    const weft_ct_linear *const *l;
+    uint32_t count;
+    const float *A;
+    float *const *C;
+    uint32_t lda;
+} shared_job;
+
+static bool shares_q8(const weft_ct_linear *const *l, uint32_t count)
+{
+    for (uint32_t i = 0; i < count; ++i) {
+        if (!l[i]->q8.packed || l[i]->q8.Kp != l[0]->q8.Kp || l[i]->in != l[0]->in) {
+            return false;
+        }
+    }
+    return true;
+}
+
+static void shared_rows(const shared_job *j, uint32_t begin, uint32_t end)
+{
+    const ct_state *s = j->s;
+    const uint32_t kp = j->l[0]->q8.Kp, rows = end - begin;
+    int8_t *qa = s->qa + (size_t)begin * kp;
+    float *qs = s->qa_scale + begin;
+    s->qk->quantize_rows(j->A + (size_t)begin * j->lda, rows, j->l[0]->in, j->lda, qa, kp, qs);
+    for (uint32_t i = 0; i < j->count; ++i) {
+        const weft_ct_linear *l = j->l[i];
+        s->qk->gemm_q8(rows, qa, kp, qs, &l->q8, l->b, j->C[i] + (size_t)begin * l->out, l->out, WEFT_ACT_NONE, false);
+    }
+}
+
+static void shared_chunk(uint32_t begin, uint32_t end, uint32_t worker, void *job_ptr)
+{
+    (void)worker;
+    shared_rows(job_ptr, begin, end);
+}
+
+/* C[i] = A W_i^T + b_i for each layer; C[i] has stride l[i]->out. */
+static void linear_shared(const ct_state *s, uint32_t rows, uint32_t count, const weft_ct_linear *const *l,
+                          const float *A, uint32_t lda, float *const *C)
+{
+    if (rows == 0) {
+        return;
+    }
+    if (s->prec != WEFT_PRECISION_INT8 || !shares_q8(l, count)) {
+        for (uint32_t i = 0; i < count; ++i) {
+            linear(s, rows, l[i], A, lda, C[i], l[i]->out, WEFT_ACT_NONE, false);
+        }
+        return;
+    }
+    shared_job job = {s, l, count, A, C, lda};
+    if (rows >= CT_PARALLEL_MIN_ROWS && s->ctx->parallel_for) {
+        weft__parallel_for(s->ctx, shared_chunk, rows, CT_PARALLEL_CHUNK, &job);
+    } else {
+        shared_rows(&job, 0, rows);
+    }
+    for (uint32_t i = 0; s->observer && i < count; ++i) {
+        observe(s, rows, l[i], A, lda, C[i], l[i]->out, WEFT_ACT_NONE, false);
     }
 }
 
@@ -470,18 +589,31 @@ static void ct_attention(ct_state *s, const float *Q, const float *K, const floa
     }
     const weft_qkernels *q = s->qk;
     for (uint32_t h = 0; h < H; ++h) {
-        for (uint32_t j = 0; j < nk; ++j) {
+        /* keys transposed in blocks of rows that stay in L1 (a plain copy: no rounding) */
+        for (uint32_t j0 = 0; j0 < nk; j0 += 64) {
+            const uint32_t j1 = nk - j0 < 64 ? nk : j0 + 64;
             for (uint32_t d = 0; d < dh; ++d) {
-                s->att_kt[(size_t)d * nk + j] = K[(size_t)j * D + h * dh + d];
+                float *dst = s->att_kt + (size_t)d * nk;
+                const float *src = K + h * dh + d;
+                for (uint32_t j = j0; j < j1; ++j) {
+                    dst[j] = src[(size_t)j * D];
+                }
             }
         }
         q->gemm_det(nq, nk, dh, Q + h * dh, D, s->att_kt, nk, NULL, s->att_s, nk, WEFT_ACT_NONE, false);
         const size_t n = (size_t)nq * nk;
-        for (size_t i = 0; i < n; ++i) {
-            s->att_s[i] = mask && !mask[i] ? -INFINITY : s->att_s[i] * scale;
+        float *sc = s->att_s;
+        if (mask) {
+            for (size_t i = 0; i < n; ++i) {
+                sc[i] = mask[i] ? sc[i] * scale : -INFINITY;
+            }
+        } else {
+            for (size_t i = 0; i < n; ++i) { /* branch-free: vectorises */
+                sc[i] *= scale;
+            }
         }
-        q->softmax_rows_det(s->att_s, nq, nk, nk);
-        q->gemm_det(nq, dh, nk, s->att_s, nk, V + h * dh, D, NULL, out + h * dh, D, WEFT_ACT_NONE, false);
+        q->softmax_rows_det(sc, nq, nk, nk);
+        q->gemm_det(nq, dh, nk, sc, nk, V + h * dh, D, NULL, out + h * dh, D, WEFT_ACT_NONE, false);
     }
 }
 
@@ -542,12 +674,31 @@ static bool add_buf(weft_garment *g, ct_state *s, float **ptr, size_t floats)
     return *ptr != NULL;
 }
 
+static void batch_free(const weft_context *ctx, ct_batch *b)
+{
+    if (!b) {
+        return;
+    }
+    float **big[6] = {&b->x, &b->xln, &b->xq, &b->xk, &b->xv, &b->xa};
+    for (int i = 0; i < 6; ++i) {
+        weft__free(ctx, *big[i], b->hkd * sizeof(float));
+    }
+    weft__free(ctx, b->xr, b->kd * sizeof(float));
+    weft__free(ctx, b->xg, b->kd * sizeof(float));
+    weft__free(ctx, b->wide, b->hkf * sizeof(float));
+    weft__free(ctx, b->wide2, b->hkf * sizeof(float));
+    weft__free(ctx, b->qa_store, b->qa_floats * sizeof(float));
+    weft__free(ctx, b->qa_scale, b->rows * sizeof(float));
+    weft__free(ctx, b, sizeof *b);
+}
+
 static void ct_destroy(weft_garment *g)
 {
     ct_state *s = state_of(g);
     if (!s) {
         return;
     }
+    batch_free(g->ctx, s->batch);
     for (uint32_t i = 0; i < s->buf_count; ++i) {
         weft__free(g->ctx, *s->bufs[i].ptr, s->bufs[i].floats * sizeof(float));
     }
@@ -556,6 +707,8 @@ static void ct_destroy(weft_garment *g)
     weft__free(g->ctx, s->rowptr, ((size_t)s->N + 1) * sizeof(uint32_t));
     weft__free(g->ctx, s->col, s->col_count * sizeof(uint32_t));
     weft__free(g->ctx, s->arena, s->arena_bytes);
+    weft__free(g->ctx, s->obs_in, s->obs_floats * sizeof(float));
+    weft__free(g->ctx, s->obs_out, s->obs_floats * sizeof(float));
     weft__free(g->ctx, s, sizeof *s);
     g->method_state = NULL;
 }
@@ -864,8 +1017,9 @@ static void cross_block(ct_state *s, const weft_ct_xattn *a, const float *qp, ui
 {
     const uint32_t D = s->c.D, H = s->c.H, dh = D / H;
     norm(s, &a->ln_kv, y, yln, ny, D, s->c.ln_eps);
-    linear(s, ny, &a->k, yln, D, yk, D, WEFT_ACT_NONE, false);
-    linear(s, ny, &a->v, yln, D, yv, D, WEFT_ACT_NONE, false);
+    const weft_ct_linear *kv[2] = {&a->k, &a->v};
+    float *const kv_out[2] = {yk, yv};
+    linear_shared(s, ny, 2, kv, yln, D, kv_out);
     ct_attention(s, qp, yk, yv, nq, ny, 1.0f / sqrtf((float)dh), NULL, att);
     linear(s, nq, &a->o, att, D, x, D, WEFT_ACT_NONE, true);
     norm(s, &a->ln_ff, x, xln, nq, D, s->c.ln_eps);
@@ -948,13 +1102,12 @@ static uint32_t collider_features(weft_garment *g, ct_state *s, const float cent
     return kept;
 }
 
-static weft_result ct_step(weft_garment *g)
+/* Encoder: X_t, V_t and the collider at t+1 into Z_t, then the temporal stream's input
+ * s->x = [Z_{t-h+1..t}] + time embeddings (s->hist_new holds the window, committed on success). */
+static void ct_encode(weft_garment *g, ct_state *s)
 {
-    ct_state *s = state_of(g);
     const weft_ct_config *c = &s->c;
-    const uint32_t N = s->N, D = c->D, K = c->K, F = c->nfreq, H = c->H, dh = D / H;
-    const uint32_t hk = c->history * K;
-    const float eps = c->ln_eps;
+    const uint32_t N = s->N, D = c->D, K = c->K, F = c->nfreq;
     const weft_ct_weights *w = &s->w;
 
     /* ---- encoder: cloth vertex tokens ---- */
@@ -1011,26 +1164,87 @@ static weft_result ct_step(weft_garment *g)
             }
         }
     }
+}
+
+/* The temporal transformer's working rows for `count` garments stacked: member i owns rows
+ * [i hk, (i + 1) hk) of x, xln, xk, xv and, in the last layer, rows [i K, (i + 1) K) of the
+ * compact newest-frame buffers. One garment uses its own scratch (xr, xg unused). */
+typedef struct ct_stream {
+    float *x, *xln, *xq, *xk, *xv, *xa;     /* count hk x D */
+    float *xr, *xg;                         /* count K x D: newest-frame residual and normed rows */
+    float *wide, *wide2;                    /* count hk x ffn */
+} ct_stream;
+
+/* Runs the temporal layers over the stacked windows of `count` garments that share the model
+ * and precision. Every linear runs once over all members' rows with `first`'s weights (identical
+ * in every member: the same model built at the same precision), so weights are read once per
+ * batch; attention runs per member on its own window. Rows are independent in every kernel, so
+ * each member gets the bits it would get alone. z_next[i] receives member i's Z_{t+1}. */
+static void ct_temporal(const ct_state *first, ct_state *const *members, uint32_t count, const ct_stream *st,
+                        const float **z_next)
+{
+    const weft_ct_config *c = &first->c;
+    const uint32_t D = c->D, K = c->K, H = c->H, dh = D / H, hk = c->history * K;
+    const uint32_t R = count * hk;
+    const float eps = c->ln_eps;
     const float scale = 1.0f / sqrtf((float)dh);
     for (uint32_t l = 0; l < c->L; ++l) {
-        const weft_ct_layer *ly = &w->layers[l];
+        const weft_ct_layer *ly = &first->w.layers[l];
         /* Only the newest frame's tokens are read after the last layer: its queries suffice. */
         const bool last = l + 1 == c->L;
         const uint32_t r0 = last ? hk - K : 0, nq = last ? K : hk;
-        norm(s, &ly->ln1, s->x, s->xln, hk, D, eps);
-        linear(s, nq, &ly->q, s->xln + (size_t)r0 * D, D, s->xq, D, WEFT_ACT_NONE, false);
-        linear(s, hk, &ly->k, s->xln, D, s->xk, D, WEFT_ACT_NONE, false);
-        linear(s, hk, &ly->v, s->xln, D, s->xv, D, WEFT_ACT_NONE, false);
-        ct_attention(s, s->xq, s->xk, s->xv, nq, hk, scale, last ? NULL : s->tmask, s->xa);
-        float *xr = s->x + (size_t)r0 * D;
-        linear(s, nq, &ly->o, s->xa, D, xr, D, WEFT_ACT_NONE, true);
-        norm(s, &ly->ln2, xr, s->xln, nq, D, eps);
-        linear(s, nq, &ly->gate, s->xln, D, s->wide, c->ffn, WEFT_ACT_NONE, false);
-        linear(s, nq, &ly->up, s->xln, D, s->wide2, c->ffn, WEFT_ACT_NONE, false);
-        ct_swiglu(s, s->wide, s->wide2, s->wide, (size_t)nq * c->ffn);
-        linear(s, nq, &ly->down, s->wide, c->ffn, xr, D, WEFT_ACT_NONE, true);
+        norm(first, &ly->ln1, st->x, st->xln, R, D, eps);
+        const float *qin = st->xln;
+        float *xr = st->x;
+        if (last && count == 1) {
+            qin = st->xln + (size_t)r0 * D;
+            xr = st->x + (size_t)r0 * D;
+        } else if (last && r0 > 0) {
+            for (uint32_t i = 0; i < count; ++i) {
+                const size_t src = ((size_t)i * hk + r0) * D, dst = (size_t)i * K * D;
+                memcpy(st->xg + dst, st->xln + src, (size_t)K * D * sizeof(float));
+                memcpy(st->xr + dst, st->x + src, (size_t)K * D * sizeof(float));
+            }
+            qin = st->xg;
+            xr = st->xr;
+        }
+        const uint32_t Q = count * nq;
+        const weft_ct_linear *qkv[3] = {&ly->k, &ly->v, &ly->q};
+        float *const qkv_out[3] = {st->xk, st->xv, st->xq};
+        if (Q == R) { /* every row has a query: one quantisation for q, k and v */
+            linear_shared(first, R, 3, qkv, st->xln, D, qkv_out);
+        } else {
+            linear(first, Q, &ly->q, qin, D, st->xq, D, WEFT_ACT_NONE, false);
+            linear_shared(first, R, 2, qkv, st->xln, D, qkv_out);
+        }
+        for (uint32_t i = 0; i < count; ++i) {
+            const size_t qo = (size_t)i * nq * D, ko = (size_t)i * hk * D;
+            ct_attention(members[i], st->xq + qo, st->xk + ko, st->xv + ko, nq, hk, scale,
+                         last ? NULL : members[i]->tmask, st->xa + qo);
+        }
+        linear(first, Q, &ly->o, st->xa, D, xr, D, WEFT_ACT_NONE, true);
+        norm(first, &ly->ln2, xr, st->xln, Q, D, eps);
+        const weft_ct_linear *gu[2] = {&ly->gate, &ly->up};
+        float *const gu_out[2] = {st->wide, st->wide2};
+        linear_shared(first, Q, 2, gu, st->xln, D, gu_out);
+        ct_swiglu(first, st->wide, st->wide2, st->wide, (size_t)Q * c->ffn);
+        linear(first, Q, &ly->down, st->wide, c->ffn, xr, D, WEFT_ACT_NONE, true);
+        if (last) {
+            for (uint32_t i = 0; i < count; ++i) {
+                z_next[i] = xr + (size_t)i * nq * D;
+            }
+        }
     }
-    const float *z_next = s->x + (size_t)(hk - K) * D;
+}
+
+/* Decoder and output: X_{t+1} into g->x_next from Z_{t+1}; commits the latent history when the
+ * result is finite. */
+static weft_result ct_decode(weft_garment *g, ct_state *s, const float *z_next)
+{
+    const weft_ct_config *c = &s->c;
+    const uint32_t N = s->N, D = c->D, K = c->K;
+    const float eps = c->ln_eps;
+    const weft_ct_weights *w = &s->w;
 
     /* ---- decoder: rest-shape queries read the predicted latents ---- */
     memcpy(s->dh, s->rest_tok, (size_t)N * D * sizeof(float));
@@ -1059,6 +1273,139 @@ static weft_result ct_step(weft_garment *g)
     s->hist = s->hist_new;
     s->hist_new = t;
     s->hist_empty = false;
+    return WEFT_OK;
+}
+
+static weft_result ct_step(weft_garment *g)
+{
+    ct_state *s = state_of(g);
+    if (s->observer) {
+        /* The constant layers (rest tokens, query projections) are recomputed, bit for bit, so
+         * the observer sees every layer once per step. */
+        precompute(g, s);
+    }
+    ct_encode(g, s);
+    const ct_stream st = {s->x, s->xln, s->xq, s->xk, s->xv, s->xa, NULL, NULL, s->wide, s->wide2};
+    const float *z_next = NULL;
+    ct_temporal(s, &s, 1, &st, &z_next);
+    return ct_decode(g, s, z_next);
+}
+
+/* The first garment's batch scratch for n members; false (nothing changed) when it cannot be
+ * allocated. */
+static bool batch_reserve(weft_garment *g, ct_state *s, uint32_t n)
+{
+    if (s->batch && s->batch->capacity >= n) {
+        return true;
+    }
+    const weft_ct_config *c = &s->c;
+    const size_t hk = (size_t)c->history * c->K;
+    ct_batch *b = weft__alloc(g->ctx, sizeof *b);
+    if (!b) {
+        return false;
+    }
+    b->capacity = n;
+    b->rows = n * hk;
+    b->hkd = b->rows * c->D;
+    b->kd = (size_t)n * c->K * c->D;
+    b->hkf = b->rows * c->ffn;
+    b->qa_floats = 1;
+    bool ok = true;
+    float **big[6] = {&b->x, &b->xln, &b->xq, &b->xk, &b->xv, &b->xa};
+    for (int i = 0; i < 6; ++i) {
+        ok = ok && (*big[i] = weft__alloc(g->ctx, b->hkd * sizeof(float))) != NULL;
+    }
+    ok = ok && (b->xr = weft__alloc(g->ctx, b->kd * sizeof(float))) != NULL &&
+         (b->xg = weft__alloc(g->ctx, b->kd * sizeof(float))) != NULL &&
+         (b->wide = weft__alloc(g->ctx, b->hkf * sizeof(float))) != NULL &&
+         (b->wide2 = weft__alloc(g->ctx, b->hkf * sizeof(float))) != NULL;
+    if (ok && s->prec == WEFT_PRECISION_INT8) {
+        const size_t kp = weft_q8_pad_k((uint32_t)max_sz(c->D, c->ffn));
+        b->qa_floats = (b->rows * kp + 3) / 4;
+        ok = (b->qa_store = weft__alloc(g->ctx, b->qa_floats * sizeof(float))) != NULL &&
+             (b->qa_scale = weft__alloc(g->ctx, b->rows * sizeof(float))) != NULL;
+    }
+    if (!ok) {
+        batch_free(g->ctx, b);
+        return false;
+    }
+    batch_free(g->ctx, s->batch);
+    s->batch = b;
+    return true;
+}
+
+bool weft__ct_batchable(const weft_garment *g)
+{
+    return g && g->method == WEFT_METHOD_MODEL && g->method_state && !((const ct_state *)g->method_state)->observer;
+}
+
+void weft__ct_step_group(weft_garment *const *garments, uint32_t count, weft_result *results)
+{
+    ct_state *first = count > 0 ? state_of(garments[0]) : NULL;
+    if (count < 2 || count > WEFT_CT_GROUP_MAX || !batch_reserve(garments[0], first, count)) {
+        /* one member, or no scratch for the stack: the same result garment by garment */
+        for (uint32_t i = 0; i < count; ++i) {
+            results[i] = ct_step(garments[i]);
+        }
+        return;
+    }
+    const ct_batch *b = first->batch;
+    const size_t hkd = (size_t)first->c.history * first->c.K * first->c.D;
+    ct_state *members[WEFT_CT_GROUP_MAX];
+    for (uint32_t i = 0; i < count; ++i) {
+        members[i] = state_of(garments[i]);
+        ct_encode(garments[i], members[i]);
+        memcpy(b->x + i * hkd, members[i]->x, hkd * sizeof(float));
+    }
+    /* The first garment's tables and weights with the batch's int8 activation scratch. */
+    ct_state stacked = *first;
+    stacked.qa = (int8_t *)b->qa_store;
+    stacked.qa_scale = b->qa_scale;
+    const ct_stream st = {b->x, b->xln, b->xq, b->xk, b->xv, b->xa, b->xr, b->xg, b->wide, b->wide2};
+    const float *z_next[WEFT_CT_GROUP_MAX];
+    ct_temporal(&stacked, members, count, &st, z_next);
+    for (uint32_t i = 0; i < count; ++i) {
+        results[i] = ct_decode(garments[i], members[i], z_next[i]);
+    }
+}
+
+weft_result weft__ct_set_observer(weft_garment *g, weft_ct_observer_fn *fn, void *user)
+{
+    if (!g || g->method != WEFT_METHOD_MODEL || !g->method_state) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft__ct_set_observer: the garment is not of method 'model'");
+    }
+    ct_state *s = state_of(g);
+    if (!fn) {
+        weft__free(g->ctx, s->obs_in, s->obs_floats * sizeof(float));
+        weft__free(g->ctx, s->obs_out, s->obs_floats * sizeof(float));
+        s->obs_in = s->obs_out = NULL;
+        s->obs_floats = 0;
+        s->observer = NULL;
+        s->observer_user = NULL;
+        return WEFT_OK;
+    }
+    if (!s->obs_in) {
+        weft_ct_linear *lin[CT_MAX_LINEARS];
+        const uint32_t n = all_linears(&s->w, &s->c, lin);
+        size_t width = 1;
+        for (uint32_t i = 0; i < n; ++i) {
+            width = max_sz(width, max_sz(lin[i]->in, lin[i]->out));
+        }
+        const size_t rows = max_sz(max_sz((size_t)s->N + s->M, (size_t)s->c.history * s->c.K), 1);
+        const size_t floats = rows * width;
+        float *in = weft__alloc(g->ctx, floats * sizeof(float));
+        float *out = weft__alloc(g->ctx, floats * sizeof(float));
+        if (!in || !out) {
+            weft__free(g->ctx, in, floats * sizeof(float));
+            weft__free(g->ctx, out, floats * sizeof(float));
+            return WEFT_ERROR_OUT_OF_MEMORY;
+        }
+        s->obs_in = in;
+        s->obs_out = out;
+        s->obs_floats = floats;
+    }
+    s->observer = fn;
+    s->observer_user = user;
     return WEFT_OK;
 }
 

@@ -25,7 +25,11 @@ typedef struct weft_ct_config {
     uint32_t vertex_count;              /* 0: any garment; else the one mesh it was trained for */
 } weft_ct_config;
 
+/* Longest layer name ("enc_xattn.ff.fc1", "tmp.63.gate", ...) with room to spare. */
+#define WEFT_CT_NAME_MAX 48u
+
 typedef struct weft_ct_linear {
+    char name[WEFT_CT_NAME_MAX];        /* the weight's tensor name without ".weight" */
     const float *w, *b;                 /* w[out][in], b[out]; w is NULL until built when the file
                                            stores the weight in int8 or fp16 */
     uint32_t out, in;
@@ -84,6 +88,33 @@ weft_result weft__ct_bind(const weft_model *model, weft_ct_config *out_config, w
 
 /* Load-time hook for the architecture table: weft__ct_bind without outputs. */
 weft_result weft__ct_validate(const weft_model *model);
+
+/* Called after every linear layer of the forward pass (fp32 activations, before any fused
+ * residual add is visible to the caller: `in` is the layer input, `out` its output). `name` is
+ * the weight tensor's name in the model file without ".weight" (e.g. "layers.0.q"). */
+typedef void weft_ct_observer_fn(const char *name, const float *in, uint32_t rows, uint32_t in_cols,
+                                 const float *out, uint32_t out_cols, void *user);
+/* (This architecture names its layers as tools/train/model.py does: "enc_cloth.fc1",
+ * "enc_gnn.0.mlp.fc2", "enc_xattn.k", "tmp.0.q", "tmp.1.gate", "dec_head", ... Layers constant
+ * for a garment, such as "dec_rest.fc1" and the cross-attention query projections, are run
+ * again at each observed step so that every layer is seen once per step; `out` includes the
+ * layer's activation, e.g. GELU after "*.fc1".) */
+/* Installs (fn != NULL) or removes the observer of a garment of method MODEL; returns
+ * WEFT_ERROR_INVALID_ARGUMENT for other methods. Not for per-frame use in games (calibration). */
+weft_result weft__ct_set_observer(weft_garment *g, weft_ct_observer_fn *fn, void *user);
+
+/* Batched stepping (weft_garments_step). Garments of method MODEL that share model, precision
+ * and context are stepped together: their temporal transformers run as one stack of rows per
+ * linear layer. */
+#define WEFT_CT_GROUP_MAX 64u
+/* Method MODEL, created, and no observer installed (observed garments are stepped alone). */
+bool weft__ct_batchable(const weft_garment *g);
+/* The method step of each of `count` (<= WEFT_CT_GROUP_MAX) batchable garments sharing model,
+ * precision and context, each with its collider set: writes g->x_next and results[i] exactly as
+ * weft__method_model.step would, bit for bit. The first garment keeps the stacked scratch
+ * (allocated on its first group of this size or larger); when that allocation fails the
+ * garments are stepped one by one instead. */
+void weft__ct_step_group(weft_garment *const *garments, uint32_t count, weft_result *results);
 
 /* The garment method (registered in runtime/garment/methods.c). */
 extern const weft_method_ops weft__method_model;

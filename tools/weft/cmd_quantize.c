@@ -1,42 +1,113 @@
-/* weft quantize: fp32 model -> int8 or fp16 model, with a per-tensor error report. */
+/* weft quantize: fp32 model -> int8 or fp16 model, with calibration, optional SmoothQuant, a
+ * per-layer error report and the end-to-end MVE change on a validation sequence. */
 #include "quant.h"
 
+#include <errno.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
 
 int weft_cmd_quantize(int argc, char **argv); /* the CLI registry declares it in main.c */
 extern const char weft_cmd_quantize_help[];
-const char weft_cmd_quantize_help[] = "quantise an fp32 model to int8 or fp16 (per-tensor error report)";
+const char weft_cmd_quantize_help[] = "quantise an fp32 model to int8 or fp16 (calibration, per-layer error report)";
+
+#define MAX_LIST 64
 
 static void usage(FILE *out)
 {
-    fprintf(out, "usage: weft quantize --in MODEL.safetensors --out OUT.safetensors [--format int8|fp16]\n"
-                 "                     [--min-dim N] [--keep TENSOR]... [--report REPORT.json]\n"
-                 "Weights with both dimensions >= min-dim (default 16) are quantised; biases, norms, small\n"
-                 "layers and tensors named by --keep or the model's \"keep_fp32\" metadata stay fp32.\n"
-                 "On any error nothing is written.\n");
+    fprintf(out,
+            "usage: weft quantize IN.safetensors OUT.safetensors [--format int8|fp16]\n"
+            "                     [--calib SEQ_DIR|FOLDER|SPLIT_LIST]... [--calib-split train|val|test]\n"
+            "                     [--calib-frames N] [--smoothquant ALPHA] [--max-layer-error E]\n"
+            "                     [--val SEQ_DIR | --no-val] [--val-frames N] [--min-dim N] [--keep TENSOR]...\n"
+            "                     [--report REPORT.json]\n"
+            "       (--in IN and --out OUT are accepted too)\n"
+            "Weights with both dimensions >= min-dim (default 16) are quantised; biases, norms, small layers\n"
+            "and tensors named by --keep or the model's \"keep_fp32\" metadata stay fp32.\n"
+            "--calib rolls the fp32 model out autoregressively over simgen sequences (a sequence folder, a\n"
+            "folder of them filtered by --calib-split, or a split list file), records every layer's input\n"
+            "range and measures its quantised output error; layers above --max-layer-error (default %.3g)\n"
+            "stay fp32. --calib-frames (default %u) frames are recorded in total.\n"
+            "--smoothquant ALPHA in [0, 1] migrates activation outliers into the weights through the\n"
+            "preceding LayerNorm, kept per norm only where it lowers the measured error.\n"
+            "--val runs the fp32 and the quantised model on a sequence (default: %s) and reports the MVE\n"
+            "ratio. Each layer's decision is written as metadata \"quant.layer.<name>\".\n"
+            "On any error nothing is written.\n",
+            WEFT_QUANT_DEFAULT_MAX_LAYER_ERROR, WEFT_QUANT_DEFAULT_CALIB_FRAMES, weft_quant_default_val_dir());
+}
+
+static bool parse_u32(const char *v, uint32_t lo, uint32_t hi, uint32_t *out)
+{
+    char *end;
+    errno = 0;
+    unsigned long n = strtoul(v, &end, 10);
+    if (errno || end == v || *end || v[0] == '-' || n < lo || n > hi) {
+        return false;
+    }
+    *out = (uint32_t)n;
+    return true;
+}
+
+static bool parse_double(const char *v, double *out)
+{
+    char *end;
+    errno = 0;
+    double d = strtod(v, &end);
+    if (errno || end == v || *end || !isfinite(d)) {
+        return false;
+    }
+    *out = d;
+    return true;
+}
+
+static bool is_dir(const char *p)
+{
+    struct stat st;
+    return stat(p, &st) == 0 && S_ISDIR(st.st_mode);
 }
 
 int weft_cmd_quantize(int argc, char **argv)
 {
-    const char *in = NULL, *out = NULL, *report_path = NULL;
-    const char *keep[64] = {0};
-    int nkeep = 0;
+    const char *in = NULL, *out = NULL, *report_path = NULL, *val = NULL;
+    bool no_val = false;
+    const char *keep[MAX_LIST + 1] = {0}, *calib[MAX_LIST + 1] = {0};
+    int nkeep = 0, ncalib = 0;
     weft_quant_def def = weft_default_quant_def();
     for (int i = 1; i < argc; ++i) {
         const char *a = argv[i];
         const char *v = i + 1 < argc ? argv[i + 1] : NULL;
+        double d;
         if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
             usage(stdout);
             return 0;
-        } else if (strcmp(a, "--in") == 0 && v) {
+        } else if (strcmp(a, "--no-val") == 0) {
+            no_val = true;
+        } else if (a[0] != '-' || a[1] == '\0') {
+            if (!in) {
+                in = a;
+            } else if (!out) {
+                out = a;
+            } else {
+                fprintf(stderr, "weft quantize: unexpected argument '%s'\n", a);
+                return 2;
+            }
+        } else if (!v) {
+            fprintf(stderr, "weft quantize: %s needs a value\n", a);
+            usage(stderr);
+            return 2;
+        } else if (strcmp(a, "--in") == 0) {
             in = v, ++i;
-        } else if (strcmp(a, "--out") == 0 && v) {
+        } else if (strcmp(a, "--out") == 0) {
             out = v, ++i;
-        } else if (strcmp(a, "--report") == 0 && v) {
+        } else if (strcmp(a, "--report") == 0) {
             report_path = v, ++i;
-        } else if (strcmp(a, "--format") == 0 && v) {
+        } else if (strcmp(a, "--val") == 0) {
+            val = v, ++i;
+        } else if (strcmp(a, "--calib-split") == 0) {
+            def.calib_split = v, ++i;
+        } else if (strcmp(a, "--format") == 0) {
             if (strcmp(v, "int8") == 0) {
                 def.format = WEFT_QUANT_INT8;
             } else if (strcmp(v, "fp16") == 0) {
@@ -46,16 +117,40 @@ int weft_cmd_quantize(int argc, char **argv)
                 return 2;
             }
             ++i;
-        } else if (strcmp(a, "--min-dim") == 0 && v) {
-            char *end;
-            long n = strtol(v, &end, 10);
-            if (*end || n < 1 || n > 1 << 20) {
+        } else if (strcmp(a, "--min-dim") == 0) {
+            if (!parse_u32(v, 1, 1u << 20, &def.min_dim)) {
                 fprintf(stderr, "weft quantize: bad --min-dim '%s'\n", v);
                 return 2;
             }
-            def.min_dim = (uint32_t)n, ++i;
-        } else if (strcmp(a, "--keep") == 0 && v && nkeep < 63) {
+            ++i;
+        } else if (strcmp(a, "--calib-frames") == 0) {
+            if (!parse_u32(v, 1, 1u << 24, &def.calib_frames)) {
+                fprintf(stderr, "weft quantize: bad --calib-frames '%s' (1 or more)\n", v);
+                return 2;
+            }
+            ++i;
+        } else if (strcmp(a, "--val-frames") == 0) {
+            if (!parse_u32(v, 0, 1u << 24, &def.val_frames)) {
+                fprintf(stderr, "weft quantize: bad --val-frames '%s'\n", v);
+                return 2;
+            }
+            ++i;
+        } else if (strcmp(a, "--smoothquant") == 0) {
+            if (!parse_double(v, &d) || d < 0.0 || d > 1.0) {
+                fprintf(stderr, "weft quantize: --smoothquant takes an alpha in [0, 1], not '%s'\n", v);
+                return 2;
+            }
+            def.smoothquant_alpha = (float)d, ++i;
+        } else if (strcmp(a, "--max-layer-error") == 0) {
+            if (!parse_double(v, &d) || d <= 0.0) {
+                fprintf(stderr, "weft quantize: --max-layer-error takes a positive number, not '%s'\n", v);
+                return 2;
+            }
+            def.max_layer_error = d, ++i;
+        } else if (strcmp(a, "--keep") == 0 && nkeep < MAX_LIST) {
             keep[nkeep++] = v, ++i;
+        } else if (strcmp(a, "--calib") == 0 && ncalib < MAX_LIST) {
+            calib[ncalib++] = v, ++i;
         } else {
             fprintf(stderr, "weft quantize: unexpected argument '%s'\n", a);
             usage(stderr);
@@ -66,7 +161,16 @@ int weft_cmd_quantize(int argc, char **argv)
         usage(stderr);
         return 2;
     }
+    if (def.smoothquant_alpha >= 0.0f && ncalib == 0) {
+        fprintf(stderr, "weft quantize: --smoothquant needs --calib\n");
+        return 2;
+    }
     def.keep = keep;
+    def.calib = ncalib ? calib : NULL;
+    if (!no_val) {
+        /* The committed sample sequence when it is there (running from a source tree). */
+        def.val = val ? val : (is_dir(weft_quant_default_val_dir()) ? weft_quant_default_val_dir() : NULL);
+    }
     weft_context_def cdef = weft_default_context_def();
     weft_context *ctx;
     weft_result r = weft_context_create(&cdef, &ctx);
@@ -81,15 +185,7 @@ int weft_cmd_quantize(int argc, char **argv)
         fprintf(stderr, "weft quantize: %s: %s (nothing written)\n", weft_result_string(r), weft_last_error());
         return 1;
     }
-    printf("%-48s %-28s %10s %12s %12s\n", "tensor", "scheme", "elements", "rel_rms_err", "max_abs_err");
-    for (uint32_t i = 0; i < report.tensor_count; ++i) {
-        const weft_quant_tensor_report *t = &report.tensors[i];
-        printf("%-48s %-28s %10llu %12.3e %12.3e\n", t->name, t->scheme, (unsigned long long)t->count, t->rel_error,
-               t->error_max);
-    }
-    printf("%u of %u tensors quantised, %llu -> %llu bytes (%.2fx smaller)\n", report.quantized_count,
-           report.tensor_count, (unsigned long long)report.bytes_in, (unsigned long long)report.bytes_out,
-           (double)report.bytes_in / (double)report.bytes_out);
+    weft_quant_report_print(&report, stdout);
     if (report_path) {
         FILE *f = fopen(report_path, "w");
         if (!f) {
@@ -98,7 +194,11 @@ int weft_cmd_quantize(int argc, char **argv)
             return 1;
         }
         weft_quant_report_write_json(&report, def.format, f);
-        fclose(f);
+        if (fclose(f) != 0) {
+            fprintf(stderr, "weft quantize: cannot write report '%s'\n", report_path);
+            weft_quant_report_free(&report);
+            return 1;
+        }
     }
     weft_quant_report_free(&report);
     return 0;

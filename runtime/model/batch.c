@@ -1,0 +1,131 @@
+/* weft_garments_step: many garments in one call. Garments of method MODEL that share context,
+ * model and precision are stepped as one group (runtime/model/transformer.c stacks their
+ * temporal transformers); every other garment goes through weft_garment_step. The per-garment
+ * tail (NaN check, CCD post-process, buffer rotation) is the one of weft_garment_step in
+ * runtime/garment/garment.c, applied to each member of a group. */
+#include "ccd/ccd_internal.h"
+#include "garment/garment.h"
+#include "model/transformer.h"
+
+#include <stdio.h>
+#include <string.h>
+
+typedef struct batch_status {
+    weft_result first;
+    uint32_t first_index;
+    char message[400];
+} batch_status;
+
+/* Keeps the failure of the lowest index (groups are stepped when their first member comes up,
+ * so failures do not arrive in array order). */
+static void note(batch_status *st, uint32_t index, weft_result r)
+{
+    if (r != WEFT_OK && (st->first == WEFT_OK || index < st->first_index)) {
+        st->first = r;
+        st->first_index = index;
+        snprintf(st->message, sizeof st->message, "%s", weft_last_error());
+    }
+}
+
+/* What weft_garment_step does after the method's step succeeded. */
+static weft_result finish(weft_garment *g, weft_result r, double forward_ms)
+{
+    if (r != WEFT_OK) {
+        return r;
+    }
+    const double t0 = weft__now_ms();
+    if (!weft__all_finite(g->x_next, (size_t)g->vertex_count * 3)) {
+        return weft__fail(WEFT_ERROR_NOT_FINITE, "weft_garment_step: method '%s' produced NaN or infinity; state kept",
+                          g->ops->name);
+    }
+    weft__ccd_postprocess_garment(g);
+    float *old_prev = g->x_prev;
+    g->x_prev = g->x;
+    g->x = g->x_next;
+    g->x_next = old_prev;
+    if (g->collider_vertex_count > 0) {
+        float *c = g->collider_prev;
+        g->collider_prev = g->collider_next;
+        g->collider_next = c;
+        g->collider_next_set = false;
+    }
+    g->stats.frame++;
+    g->stats.step_ms = forward_ms + (weft__now_ms() - t0);
+    return WEFT_OK;
+}
+
+static void run_group(weft_garment *const *group, const uint32_t *index, uint32_t n, batch_status *st)
+{
+    weft_result results[WEFT_CT_GROUP_MAX];
+    const double t0 = weft__now_ms();
+    weft__ct_step_group(group, n, results);
+    const double per = (weft__now_ms() - t0) / n; /* the shared forward pass, split evenly */
+    for (uint32_t k = 0; k < n; ++k) {
+        note(st, index[k], finish(group[k], results[k], per));
+    }
+}
+
+static bool same_group(const weft_garment *a, const weft_garment *b)
+{
+    return a->ctx == b->ctx && a->model == b->model && a->precision == b->precision;
+}
+
+weft_result weft_garments_step(weft_garment *const *garments, uint32_t count)
+{
+    if (!garments || count == 0) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_garments_step: garments and a count >= 1 are required");
+    }
+    for (uint32_t i = 0; i < count; ++i) {
+        if (!garments[i]) {
+            return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_garments_step: garments[%u] is NULL", i);
+        }
+        for (uint32_t j = 0; j < i; ++j) {
+            if (garments[j] == garments[i]) {
+                return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
+                                  "weft_garments_step: garments[%u] and garments[%u] are the same garment", j, i);
+            }
+        }
+    }
+    batch_status st = {WEFT_OK, 0, {0}};
+    weft_garment *group[WEFT_CT_GROUP_MAX];
+    uint32_t index[WEFT_CT_GROUP_MAX];
+    for (uint32_t i = 0; i < count; ++i) {
+        weft_garment *g = garments[i];
+        if (!weft__ct_batchable(g)) {
+            note(&st, i, weft_garment_step(g));
+            continue;
+        }
+        /* Garment i heads its group unless an earlier garment of the group already did. */
+        bool led = false;
+        for (uint32_t j = 0; j < i && !led; ++j) {
+            led = weft__ct_batchable(garments[j]) && same_group(garments[j], g);
+        }
+        if (led) {
+            continue;
+        }
+        uint32_t n = 0;
+        for (uint32_t j = i; j < count; ++j) {
+            weft_garment *m = garments[j];
+            if (!weft__ct_batchable(m) || !same_group(m, g)) {
+                continue;
+            }
+            if (m->collider_vertex_count > 0 && !m->collider_next_set) {
+                note(&st, j, weft_garment_step(m)); /* fails with its usual message, state kept */
+                continue;
+            }
+            group[n] = m;
+            index[n++] = j;
+            if (n == WEFT_CT_GROUP_MAX) {
+                run_group(group, index, n, &st);
+                n = 0;
+            }
+        }
+        if (n > 0) {
+            run_group(group, index, n, &st);
+        }
+    }
+    if (st.first != WEFT_OK) {
+        return weft__fail(st.first, "weft_garments_step: garments[%u]: %s", st.first_index, st.message);
+    }
+    return WEFT_OK;
+}

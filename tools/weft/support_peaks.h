@@ -1,0 +1,25 @@
+/* Peak throughput probes for benchmarks: the register-resident fp32 FMA and int8 dot-product
+ * loops of runtime/kernels (peak_*.c), timed, and the pair that matches an int8 kernel variant. */
+#ifndef WEFT_SUPPORT_PEAKS_H
+#define WEFT_SUPPORT_PEAKS_H
+
+#include <stdint.h>
+
+/* A probe: runs `iters` iterations and returns the multiply-accumulates it performed. */
+typedef uint64_t peak_fn(uint64_t iters);
+
+/* Monotonic seconds. */
+double bench_now_s(void);
+/* CPU seconds of the calling thread (on a shared machine: only this thread's own work). */
+double bench_cpu_now_s(void);
+
+/* Multiply-accumulates per thread-CPU second of a probe: best of 3 rounds of at least min_time
+ * seconds. */
+double bench_peak_rate(peak_fn *fn, double min_time);
+
+/* The int8 dot-product probe (NULL when the variant has none, e.g. "scalar") and the fp32 FMA
+ * probe of the ISA level that a weft_qkernels variant ("avx512-vnni", "avx-vnni",
+ * "avx2-maddubs", "neon-sdot", "scalar") runs at. */
+void bench_variant_peaks(const char *variant, peak_fn **dot, peak_fn **fma);
+
+#endif
