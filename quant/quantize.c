@@ -998,6 +998,99 @@ void weft_quant_report_print(const weft_quant_report *report, FILE *out)
         }
         fprintf(out, ", max layer error %.3g\n", report->max_layer_error);
     }
+    if (report->e2e.measured) {
+        cJSON_AddStringToObject(e2e, "val", report->e2e.val);
+        cJSON_AddNumberToObject(e2e, "frames", report->e2e.frames);
+        cJSON_AddNumberToObject(e2e, "mve_fp32_cm", report->e2e.mve_fp32_cm);
+        cJSON_AddNumberToObject(e2e, "mve_quant_cm", report->e2e.mve_quant_cm);
+        cJSON_AddNumberToObject(e2e, "ratio", report->e2e.ratio);
+    }
+    cJSON *layers = cJSON_AddArrayToObject(root, "layers");
+    for (uint32_t i = 0; i < report->layer_count; ++i) {
+        const weft_quant_layer_report *L = &report->layers[i];
+        cJSON *o = cJSON_CreateObject();
+        cJSON_AddStringToObject(o, "name", L->name);
+        cJSON_AddNumberToObject(o, "out", L->out);
+        cJSON_AddNumberToObject(o, "in", L->in);
+        cJSON_AddStringToObject(o, "decision", L->decision);
+        cJSON_AddNumberToObject(o, "weight_error", L->weight_error);
+        add_opt_number(o, "act_error", L->act_error);
+        add_opt_number(o, "act_error_plain", L->act_error_plain);
+        cJSON_AddNumberToObject(o, "rows", (double)L->rows);
+        add_opt_number(o, "absmax", L->absmax);
+        add_opt_number(o, "p999", L->p999);
+        add_opt_number(o, "channel_ratio", L->channel_ratio);
+        cJSON_AddStringToObject(o, "smoothquant", L->smooth);
+        if (L->channel_absmax) {
+            cJSON *ch = cJSON_AddArrayToObject(o, "channel_absmax");
+            for (uint32_t k = 0; k < L->in; ++k) {
+                cJSON_AddItemToArray(ch, cJSON_CreateNumber(L->channel_absmax[k]));
+            }
+        }
+        cJSON_AddItemToArray(layers, o);
+    }
+    cJSON *list = cJSON_AddArrayToObject(root, "tensors");
+    for (uint32_t i = 0; i < report->tensor_count; ++i) {
+        const weft_quant_tensor_report *t = &report->tensors[i];
+        cJSON *o = cJSON_CreateObject();
+        cJSON_AddStringToObject(o, "name", t->name);
+        cJSON_AddStringToObject(o, "scheme", t->scheme);
+        cJSON_AddNumberToObject(o, "count", (double)t->count);
+        cJSON_AddNumberToObject(o, "weight_rms", t->weight_rms);
+        cJSON_AddNumberToObject(o, "error_rms", t->error_rms);
+        cJSON_AddNumberToObject(o, "error_max", t->error_max);
+        cJSON_AddNumberToObject(o, "rel_error", t->rel_error);
+        cJSON_AddItemToArray(list, o);
+    }
+    char *text = cJSON_Print(root);
+    if (text) {
+        fprintf(out, "%s\n", text);
+    }
+    free(text);
+    cJSON_Delete(root);
+}
+
+static void put_opt(FILE *out, double v)
+{
+    if (v >= 0) {
+        fprintf(out, " %9.4f", v);
+    } else {
+        fprintf(out, " %9s", "-");
+    }
+}
+
+void weft_quant_report_print(const weft_quant_report *report, FILE *out)
+{
+    fprintf(out, "%-22s %9s %-18s %9s %9s %9s %9s %9s %7s  %s\n", "layer", "out x in", "decision", "w_err", "act_err",
+            "act_plain", "absmax", "p99.9", "ch_max/", "smoothquant");
+    fprintf(out, "%-22s %9s %-18s %9s %9s %9s %9s %9s %7s\n", "", "", "", "", "", "", "", "", "median");
+    for (uint32_t i = 0; i < report->layer_count; ++i) {
+        const weft_quant_layer_report *L = &report->layers[i];
+        char shape[24];
+        snprintf(shape, sizeof shape, "%ux%u", L->out, L->in);
+        fprintf(out, "%-22s %9s %-18s %9.4f", L->name, shape, L->decision, L->weight_error);
+        put_opt(out, L->act_error);
+        put_opt(out, L->act_error_plain);
+        put_opt(out, L->absmax);
+        put_opt(out, L->p999);
+        if (L->channel_ratio >= 0) {
+            fprintf(out, " %7.1f", L->channel_ratio);
+        } else {
+            fprintf(out, " %7s", "-");
+        }
+        fprintf(out, "  %s\n", L->smooth);
+    }
+    fprintf(out, "%u of %u tensors quantised, %llu -> %llu bytes (%.2fx smaller)\n", report->quantized_count,
+            report->tensor_count, (unsigned long long)report->bytes_in, (unsigned long long)report->bytes_out,
+            report->bytes_out ? (double)report->bytes_in / (double)report->bytes_out : 0.0);
+    if (report->calib_frames) {
+        fprintf(out, "calibration: %u sequences, %u frames (autoregressive fp32, ccd off)", report->calib_sequences,
+                report->calib_frames);
+        if (report->smoothquant_alpha >= 0) {
+            fprintf(out, ", SmoothQuant alpha %.2f", (double)report->smoothquant_alpha);
+        }
+        fprintf(out, ", max layer error %.3g\n", report->max_layer_error);
+    }
     uint32_t unhonoured = 0;
     for (uint32_t i = 0; i < report->layer_count; ++i) {
         const weft_quant_layer_report *L = &report->layers[i];

@@ -177,6 +177,10 @@ static weft_result need_linear(const weft_model *m, const char *prefix, uint32_t
     }
     memcpy(l->name, prefix, n);
     l->name[n] = '\0';
+    char key[CT_NAME + 16];
+    snprintf(key, sizeof key, "quant.layer.%s", prefix);
+    const char *decision = weft__model_metadata(m, key);
+    l->keep_f32 = decision && strncmp(decision, "fp32", 4) == 0;
     return WEFT_OK;
 }
 
@@ -784,7 +788,11 @@ static uint32_t all_linears(weft_ct_weights *w, const weft_ct_config *c, weft_ct
 
 static size_t align64(size_t n) { return (n + 63u) & ~(size_t)63u; }
 
-static bool q8_eligible(const weft_ct_linear *l) { return l->in >= WEFT_CT_Q8_MIN_DIM && l->out >= WEFT_CT_Q8_MIN_DIM; }
+/* Runs in int8 (fp16) on those paths: wide enough, and not kept in fp32 by the file. */
+static bool q8_eligible(const weft_ct_linear *l)
+{
+    return !l->keep_f32 && l->in >= WEFT_CT_Q8_MIN_DIM && l->out >= WEFT_CT_Q8_MIN_DIM;
+}
 
 /* Whether a layer needs an fp32 copy of its weight built: its file form is int8 or fp16 and
  * the garment's precision reads fp32 (fp32 itself, the fp16 path's small layers, the int8

@@ -33,6 +33,9 @@ typedef struct weft_ct_linear {
     const float *w, *b;                 /* w[out][in], b[out]; w is NULL until built when the file
                                            stores the weight in int8 or fp16 */
     uint32_t out, in;
+    /* The quantiser's per-layer decision ("quant.layer.<name>" = "fp32:...") keeps this layer in
+     * fp32 at every precision (its int8 error was too large, or it was asked for). */
+    bool keep_f32;
     /* The weight as stored in a quantised file (`weft quantize`): int8 "<name>.q8" + "<name>.scale",
      * or fp16 "<name>" (at most one is set; neither for fp32 files). */
     const int8_t *src_q8;
