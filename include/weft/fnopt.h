@@ -81,6 +81,14 @@ typedef struct weft_fnopt_def {
     /* Evaluate the loss once more after the last iteration so weft_fnopt_stats.loss_final is
      * filled (costs one extra gradient evaluation per step). Default false. */
     bool report_loss;
+    /* LEARNED: arithmetic of the FNO's 1x1 layers, converted from the fp32 model at creation.
+     * FP16: fp16 weights, fp32 accumulation. INT8: int8 weights and per-row int8 activations in
+     * the wide layers (lifting 256 -> 64, skips, projection 64 -> 64), int32 accumulation. Both run
+     * on the deterministic kernels with the tanh form of GELU fused in, so a step gives the
+     * same bits on every ISA. The spectral convolution and the loss stay fp32/double. Default
+     * FP32. docs/FNOPT.md has the accuracy bound and the speed of each (on an AVX-512 CPU fp32
+     * is the fastest; int8 is faster at the AVX2 level). */
+    weft_precision precision;
     uint32_t internal_cookie;           /* set by weft_default_fnopt_def(); do not touch */
 } weft_fnopt_def;
 

@@ -125,6 +125,9 @@ weft_result weft_fnopt_create(weft_context *ctx, const weft_fnopt_def *def, weft
     if ((unsigned)def->optimizer >= WEFT_FNOPT_OPTIMIZER_COUNT) {
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "%s: optimizer %d out of range", fn, (int)def->optimizer);
     }
+    if ((unsigned)def->precision >= WEFT_PRECISION_COUNT) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "%s: precision %d out of range", fn, (int)def->precision);
+    }
     if (def->iterations < 1 || def->iterations > 100000) {
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "%s: iterations must be in [1, 100000] (got %u)", fn,
                           def->iterations);
@@ -187,7 +190,7 @@ weft_result weft_fnopt_create(weft_context *ctx, const weft_fnopt_def *def, weft
     }
     r = fnopt__loss_init(ctx, &f->loss, f->h, f->w);
     if (r == WEFT_OK && def->optimizer == WEFT_FNOPT_LEARNED) {
-        r = fnopt__learned_init(ctx, &f->learned, &wt, f->h, f->w);
+        r = fnopt__learned_init(ctx, &f->learned, &wt, f->h, f->w, def->precision);
     }
     if (r == WEFT_OK && def->optimizer != WEFT_FNOPT_LEARNED) {
         r = fnopt__classic_init(ctx, &f->classic, def->optimizer, 3 * f->n, def->lbfgs_history, def->learning_rate,

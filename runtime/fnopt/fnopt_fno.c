@@ -1,9 +1,11 @@
-/* The FNO of the learned optimizer (docs/FNOPT.md, "Network"), fp32.
+/* The FNO of the learned optimizer (docs/FNOPT.md, "Network"), in fp32, fp16 or int8.
  *
  * Activations are pixel-major, channels fastest: row (s*n + p) of a [batch*n][C] matrix is
  * pixel p of sample s, so every 1x1 convolution is one gemm through the context's kernels.
  * The spectral convolution keeps only 8 x 5 Fourier modes, so it is computed as direct DFT
- * sums against twiddle tables built at creation (no FFT), separably: along W, then along H. */
+ * sums against twiddle tables built at creation (no FFT), separably: along W, then along H.
+ * At FP16 / INT8 the 1x1 layers run through the deterministic quantisation kernels (qkernels.h)
+ * with weights converted once here; everything else is the same code in every precision. */
 #include "fnopt/fnopt_internal.h"
 #include "model/model.h"
 
@@ -13,38 +15,23 @@
 
 #define TWO_PI 6.283185307179586476925
 
-/* erf as a rational function of x^2 on [-4, 4] (odd numerator of degree 13, denominator of
- * degree 8; erf(4) is 1 to float precision). Branch-free, so the GELU loop vectorizes, which
- * calls to libm's erff prevent. Checked against libm's erf in tests. */
-static inline float erf_fast(float x)
+/* The spectral convolution and the erf GELU by kernel level (fnopt_simd_body.h): the same
+ * operations in the same order in every twin, so the choice changes speed, not bits. */
+static const fnopt_simd *simd_for(weft_isa isa)
 {
-    x = x < -4.0f ? -4.0f : (x > 4.0f ? 4.0f : x);
-    const float x2 = x * x;
-    float p = -2.72614225801306e-10f;
-    p = p * x2 + 2.77068142495902e-08f;
-    p = p * x2 - 2.10102402082508e-06f;
-    p = p * x2 - 5.69250639462346e-05f;
-    p = p * x2 - 7.34990630326855e-04f;
-    p = p * x2 - 2.95459980854025e-03f;
-    p = p * x2 - 1.60960333262415e-02f;
-    float q = -1.45660718464996e-05f;
-    q = q * x2 - 2.13374055278905e-04f;
-    q = q * x2 - 1.68282697438203e-03f;
-    q = q * x2 - 7.37332916720468e-03f;
-    q = q * x2 - 1.42647390514189e-02f;
-    return x * p / q;
-}
-
-float fnopt__erf(float x) { return erf_fast(x); }
-
-/* Exact GELU, x * Phi(x) with erf, as torch.nn.functional.gelu's default; the kernels' GELU is
- * the tanh approximation, which the trained weights were not fitted to. */
-static void gelu_erf(float *x, size_t count)
-{
-    for (size_t i = 0; i < count; ++i) {
-        x[i] = 0.5f * x[i] * (1.0f + erf_fast(x[i] * 0.70710678118654752f));
+#if defined(__x86_64__) || defined(_M_X64)
+    if (isa == WEFT_ISA_AVX512) {
+        return &fnopt__simd_avx512;
     }
+    if (isa == WEFT_ISA_AVX2) {
+        return &fnopt__simd_avx2;
+    }
+#endif
+    (void)isa;
+    return &fnopt__simd_generic;
 }
+
+float fnopt__erf(float x) { return fnopt__simd_generic.erf(x); }
 
 static size_t fno_floats(uint32_t h, uint32_t w, uint32_t batch, const fnopt_weights *wt, size_t *parts)
 {
@@ -63,12 +50,183 @@ static size_t fno_floats(uint32_t h, uint32_t w, uint32_t batch, const fnopt_wei
            2 * parts[7] + 4 * parts[8] + parts[9];
 }
 
+/* fp32 weights, bias and shape of 1x1 layer `id`. */
+static void dense_source(const fnopt_weights *wt, uint32_t id, const float **W, const float **b, uint32_t *n_out,
+                         uint32_t *k_in)
+{
+    const uint32_t C = wt->width;
+    switch (id) {
+    case FNOPT_L_LIFT0: *W = wt->lift0_w, *b = wt->lift0_b, *n_out = wt->lifting, *k_in = wt->in_channels + 2; break;
+    case FNOPT_L_LIFT1: *W = wt->lift1_w, *b = wt->lift1_b, *n_out = C, *k_in = wt->lifting; break;
+    case FNOPT_L_PROJ0: *W = wt->proj0_w, *b = wt->proj0_b, *n_out = wt->projection, *k_in = C; break;
+    case FNOPT_L_PROJ1: *W = wt->proj1_w, *b = wt->proj1_b, *n_out = 1, *k_in = wt->projection; break;
+    case FNOPT_L_HEAD: *W = wt->head_w, *b = wt->head_b, *n_out = 1, *k_in = C; break;
+    default: *W = wt->skip_w[id - FNOPT_L_SKIP0], *b = wt->spec_b[id - FNOPT_L_SKIP0], *n_out = C, *k_in = C; break;
+    }
+}
+
+/* INT8 quantises the wide layers (lifting 256 -> 64, the skips, projection 64 -> 64: 96 % of the
+ * 1x1 multiply-adds). The first lifting layer stays fp32: its input mixes the soft-clipped
+ * optimizer channels (up to 10) with the grid embedding in [0, 1], which one per-row int8 scale
+ * would resolve to 13 levels; the two 1-output layers are negligible. */
+static bool dense_is_int8(uint32_t id) { return id == FNOPT_L_LIFT1 || id == FNOPT_L_PROJ0 || id >= FNOPT_L_SKIP0; }
+
+static void dense_free(const weft_context *ctx, fnopt_layer *l)
+{
+    const size_t N = l->n_out, K = l->k_in, Np = weft_q8_pad_n(l->n_out), Kp = weft_q8_pad_k(l->k_in);
+    weft__free(ctx, l->w16, N * K * sizeof(uint16_t));
+    weft__free(ctx, l->w32t, N * K * sizeof(float));
+    weft__free(ctx, l->q8_packed, Np * Kp);
+    weft__free(ctx, l->q8_scale, Np * sizeof(float));
+    weft__free(ctx, l->q8_wsum, Np * sizeof(int32_t));
+    memset(l, 0, sizeof *l);
+}
+
+/* Converts layer `id` for F->prec; returns the bytes it holds, 0 when out of memory. */
+static size_t dense_convert(fnopt_fno *F, uint32_t id)
+{
+    const weft_context *ctx = F->ctx;
+    fnopt_layer *l = &F->dense[id];
+    const float *W = NULL;
+    dense_source(&F->wt, id, &W, &l->bias, &l->n_out, &l->k_in);
+    const size_t N = l->n_out, K = l->k_in;
+    if (F->prec == WEFT_PRECISION_FP16) {
+        /* gemm_f16 reads B[K][N]; weights outside fp16's range become inf and are caught below */
+        if (!(l->w16 = weft__alloc(ctx, N * K * sizeof(uint16_t)))) {
+            return 0;
+        }
+        for (size_t o = 0; o < N; ++o) {
+            for (size_t k = 0; k < K; ++k) {
+                l->w16[k * N + o] = weft_f32_to_f16(W[o * K + k]);
+            }
+        }
+        return N * K * sizeof(uint16_t);
+    }
+    if (!dense_is_int8(id)) {
+        if (!(l->w32t = weft__alloc(ctx, N * K * sizeof(float)))) {
+            return 0;
+        }
+        for (size_t o = 0; o < N; ++o) {
+            for (size_t k = 0; k < K; ++k) {
+                l->w32t[k * N + o] = W[o * K + k];
+            }
+        }
+        return N * K * sizeof(float);
+    }
+    const size_t Np = weft_q8_pad_n(l->n_out), Kp = weft_q8_pad_k(l->k_in);
+    int8_t *wq = weft__alloc(ctx, N * K);
+    float *sc = weft__alloc(ctx, N * sizeof(float));
+    l->q8_packed = weft__alloc(ctx, Np * Kp);
+    l->q8_scale = weft__alloc(ctx, Np * sizeof(float));
+    l->q8_wsum = weft__alloc(ctx, Np * sizeof(int32_t));
+    bool ok = wq && sc && l->q8_packed && l->q8_scale && l->q8_wsum &&
+              weft_q8_quantize_weights(W, l->n_out, l->k_in, wq, sc);
+    if (ok) {
+        weft_q8_pack(wq, sc, l->n_out, l->k_in, l->q8_packed, l->q8_scale, l->q8_wsum);
+        l->q8 = (weft_q8_weights){.N = l->n_out, .K = l->k_in, .Np = (uint32_t)Np, .Kp = (uint32_t)Kp,
+                                  .packed = l->q8_packed, .scale = l->q8_scale, .wsum = l->q8_wsum};
+    }
+    weft__free(ctx, wq, N * K);
+    weft__free(ctx, sc, N * sizeof(float));
+    return ok ? Np * Kp + Np * (sizeof(float) + sizeof(int32_t)) : 0;
+}
+
+static void dense_free_all(fnopt_fno *F)
+{
+    for (uint32_t id = 0; id < FNOPT_MAX_DENSE; ++id) {
+        dense_free(F->ctx, &F->dense[id]);
+    }
+    if (F->qa) {
+        weft__free(F->ctx, F->qa, (size_t)F->batch * F->n * F->qa_ld);
+        weft__free(F->ctx, F->qa_scale, (size_t)F->batch * F->n * sizeof(float));
+    }
+    F->qa = NULL;
+    F->qa_scale = NULL;
+}
+
+static weft_result dense_init(fnopt_fno *F)
+{
+    if (F->prec == WEFT_PRECISION_FP32) {
+        return WEFT_OK;
+    }
+    F->qk = weft_qkernels_for_isa(F->ctx->isa);
+    if (!F->qk) {
+        return weft__fail(WEFT_ERROR_UNSUPPORTED, "weft_fnopt_create: no fp16/int8 kernels for ISA %s",
+                          weft_isa_name(F->ctx->isa));
+    }
+    const uint32_t count = FNOPT_L_SKIP0 + F->wt.layers;
+    for (uint32_t id = 0; id < count; ++id) {
+        size_t b = dense_convert(F, id);
+        if (!b) {
+            dense_free_all(F);
+            return weft__fail(WEFT_ERROR_OUT_OF_MEMORY, "weft_fnopt_create: out of memory converting the FNO weights");
+        }
+        F->dense_bytes += b;
+        if (F->dense[id].w16) {
+            for (size_t i = 0; i < (size_t)F->dense[id].n_out * F->dense[id].k_in; ++i) {
+                if (!isfinite(weft_f16_to_f32(F->dense[id].w16[i]))) {
+                    dense_free_all(F);
+                    return weft__fail(WEFT_ERROR_NOT_FINITE,
+                                      "weft_fnopt_create: an FNO weight exceeds the fp16 range (65504)");
+                }
+            }
+        }
+    }
+    if (F->prec == WEFT_PRECISION_INT8) {
+        const uint32_t kmax = F->wt.lifting > F->wt.width ? F->wt.lifting : F->wt.width;
+        F->qa_ld = weft_q8_pad_k(kmax > F->wt.projection ? kmax : F->wt.projection);
+        F->qa = weft__alloc(F->ctx, (size_t)F->batch * F->n * F->qa_ld);
+        F->qa_scale = weft__alloc(F->ctx, (size_t)F->batch * F->n * sizeof(float));
+        if (!F->qa || !F->qa_scale) {
+            dense_free_all(F);
+            return weft__fail(WEFT_ERROR_OUT_OF_MEMORY, "weft_fnopt_create: out of memory for int8 activations");
+        }
+        F->dense_bytes += (size_t)F->batch * F->n * (F->qa_ld + sizeof(float));
+    }
+    return WEFT_OK;
+}
+
+/* C[M][N] = act(A W_id^T + b (+ C)) at the object's precision, act = GELU when `gelu`. FP32
+ * applies the exact (erf) GELU the network was trained with, as a second pass. FP16 / INT8 fuse
+ * the deterministic kernels' tanh-form GELU (at most 4.7e-4 from the exact one) into the
+ * product's epilogue, which saves that pass over the activations (the 256-wide lifting ones
+ * are the largest tensor of the forward). */
+static void dense(const fnopt_fno *F, uint32_t id, uint32_t M, const float *A, uint32_t lda, float *C, uint32_t ldc,
+                  bool accumulate, bool gelu)
+{
+    if (F->prec == WEFT_PRECISION_FP32) {
+        const float *W = NULL, *b = NULL;
+        uint32_t N = 0, K = 0;
+        dense_source(&F->wt, id, &W, &b, &N, &K);
+        F->ctx->kernels->gemm(M, N, K, A, lda, W, K, b, C, ldc, WEFT_ACT_NONE, accumulate);
+        if (gelu) {
+            for (uint32_t m = 0; m < M; ++m) {
+                F->simd->gelu(C + (size_t)m * ldc, N);
+            }
+        }
+        return;
+    }
+    const fnopt_layer *l = &F->dense[id];
+    const weft_activation act = gelu ? WEFT_ACT_GELU : WEFT_ACT_NONE;
+    if (l->q8_packed) {
+        F->qk->quantize_rows(A, M, l->k_in, lda, F->qa, F->qa_ld, F->qa_scale);
+        F->qk->gemm_q8(M, F->qa, F->qa_ld, F->qa_scale, &l->q8, l->bias, C, ldc, act, accumulate);
+    } else if (l->w16) {
+        F->qk->gemm_f16(M, l->n_out, l->k_in, A, lda, l->w16, l->n_out, l->bias, C, ldc, act, accumulate);
+    } else {
+        F->qk->gemm_det(M, l->n_out, l->k_in, A, lda, l->w32t, l->n_out, l->bias, C, ldc, act, accumulate);
+    }
+}
+
 weft_result fnopt__fno_init(const weft_context *ctx, fnopt_fno *F, const fnopt_weights *wt, uint32_t h,
-                            uint32_t w, uint32_t batch)
+                            uint32_t w, uint32_t batch, weft_precision prec)
 {
     memset(F, 0, sizeof *F);
     if (!ctx->kernels || !ctx->kernels->gemm) {
         return weft__fail(WEFT_ERROR_UNSUPPORTED, "weft_fnopt_create: the context's kernel table has no gemm");
+    }
+    if ((unsigned)prec >= WEFT_PRECISION_COUNT) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_fnopt_create: precision %d out of range", (int)prec);
     }
     if (w < 2 * FNOPT_MODES_W || h < FNOPT_MODES_H + 2) {
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
@@ -81,6 +239,8 @@ weft_result fnopt__fno_init(const weft_context *ctx, fnopt_fno *F, const fnopt_w
     F->w = w;
     F->n = h * w;
     F->batch = batch;
+    F->prec = prec;
+    F->simd = simd_for(ctx->isa);
     size_t parts[10];
     size_t total = fno_floats(h, w, batch, wt, parts);
     F->bytes = total * sizeof(float);
@@ -106,14 +266,14 @@ weft_result fnopt__fno_init(const weft_context *ctx, fnopt_fno *F, const fnopt_w
     F->feat = p;
 
     const uint32_t C = wt->width, half = FNOPT_MODES_H / 2;
-    /* spectral weights [in][out][m][ky][2] -> [layer][mode][out][in], contiguous over `in` */
+    /* spectral weights [in][out][m][ky][2] -> [layer][mode][in][out], contiguous over `out` */
     for (uint32_t l = 0; l < wt->layers; ++l) {
         const float *src = wt->spec_w[l];
         for (uint32_t i = 0; i < C; ++i) {
             for (uint32_t o = 0; o < C; ++o) {
                 for (uint32_t md = 0; md < FNOPT_MODES; ++md) {
                     size_t s = (((size_t)i * C + o) * FNOPT_MODES + md) * 2;
-                    size_t d = (((size_t)l * FNOPT_MODES + md) * C + o) * C + i;
+                    size_t d = (((size_t)l * FNOPT_MODES + md) * C + i) * C + o;
                     F->spec_re[d] = src[s];
                     F->spec_im[d] = src[s + 1];
                 }
@@ -144,109 +304,27 @@ weft_result fnopt__fno_init(const weft_context *ctx, fnopt_fno *F, const fnopt_w
             F->grid[2 * ((size_t)i * w + j) + 1] = (float)((double)j / (double)(w - 1));
         }
     }
-    return WEFT_OK;
+    weft_result r = dense_init(F);
+    if (r != WEFT_OK) {
+        weft__free(ctx, F->spec_re, F->bytes);
+        memset(F, 0, sizeof *F);
+    }
+    return r;
 }
 
 void fnopt__fno_free(fnopt_fno *F)
 {
+    if (F->ctx) {
+        dense_free_all(F);
+    }
     if (F->ctx && F->spec_re) {
         weft__free(F->ctx, F->spec_re, F->bytes);
     }
     memset(F, 0, sizeof *F);
 }
 
-/* out[n][C] = SpectralConv_l(x[n][C]) for one sample (overwrites out). */
-static void spectral(fnopt_fno *F, uint32_t l, const float *x, float *out)
-{
-    const uint32_t h = F->h, w = F->w, C = F->wt.width;
-    const uint32_t MW = FNOPT_MODES_W, MH = FNOPT_MODES_H;
-    float *ar = F->fa, *ai = F->fa + (size_t)h * MW * C;              /* [h][ky][C] */
-    float *xr = F->fx, *xi = F->fx + (size_t)FNOPT_MODES * C;         /* [m][ky][C] */
-    float *yr = F->fy, *yi = F->fy + (size_t)FNOPT_MODES * C;
-    /* forward along W: A[i][ky] = sum_j x[i][j] e^{-2 pi i ky j / w} */
-    memset(F->fa, 0, 2 * (size_t)h * MW * C * sizeof(float));
-    for (uint32_t i = 0; i < h; ++i) {
-        for (uint32_t ky = 0; ky < MW; ++ky) {
-            float *r = ar + ((size_t)i * MW + ky) * C, *im = ai + ((size_t)i * MW + ky) * C;
-            for (uint32_t j = 0; j < w; ++j) {
-                const float c = F->tw_w_c[ky * w + j], s = F->tw_w_s[ky * w + j];
-                const float *xp = x + ((size_t)i * w + j) * C;
-                for (uint32_t ch = 0; ch < C; ++ch) {
-                    r[ch] += c * xp[ch];
-                    im[ch] -= s * xp[ch];
-                }
-            }
-        }
-    }
-    /* forward along H with norm="forward" (1/(h w)): X[m][ky] = sum_i A[i][ky] e^{-2 pi i kx i / h} */
-    const float norm = 1.0f / (float)((size_t)h * w);
-    memset(F->fx, 0, 2 * (size_t)FNOPT_MODES * C * sizeof(float));
-    for (uint32_t m = 0; m < MH; ++m) {
-        for (uint32_t i = 0; i < h; ++i) {
-            const float c = F->tw_h_c[m * h + i] * norm, s = F->tw_h_s[m * h + i] * norm;
-            for (uint32_t ky = 0; ky < MW; ++ky) {
-                const float *r = ar + ((size_t)i * MW + ky) * C, *im = ai + ((size_t)i * MW + ky) * C;
-                float *orr = xr + ((size_t)m * MW + ky) * C, *oi = xi + ((size_t)m * MW + ky) * C;
-                for (uint32_t ch = 0; ch < C; ++ch) {
-                    orr[ch] += r[ch] * c + im[ch] * s;
-                    oi[ch] += im[ch] * c - r[ch] * s;
-                }
-            }
-        }
-    }
-    /* channel mixing per mode: Y[o] = sum_i X[i] W[i][o] (complex) */
-    const float *wr = F->spec_re + (size_t)l * FNOPT_MODES * C * C, *wi = F->spec_im + (size_t)l * FNOPT_MODES * C * C;
-    for (uint32_t md = 0; md < FNOPT_MODES; ++md) {
-        const float *pr = xr + (size_t)md * C, *pi = xi + (size_t)md * C;
-        for (uint32_t o = 0; o < C; ++o) {
-            const float *wro = wr + ((size_t)md * C + o) * C, *wio = wi + ((size_t)md * C + o) * C;
-            float sr = 0.0f, si = 0.0f;
-            for (uint32_t i = 0; i < C; ++i) {
-                sr += pr[i] * wro[i] - pi[i] * wio[i];
-                si += pr[i] * wio[i] + pi[i] * wro[i];
-            }
-            yr[(size_t)md * C + o] = sr;
-            yi[(size_t)md * C + o] = si;
-        }
-    }
-    /* inverse along H: B[i][ky] = sum_m Y[m][ky] e^{+2 pi i kx i / h} (reuses the A buffer) */
-    memset(F->fa, 0, 2 * (size_t)h * MW * C * sizeof(float));
-    for (uint32_t i = 0; i < h; ++i) {
-        for (uint32_t m = 0; m < MH; ++m) {
-            const float c = F->tw_h_c[m * h + i], s = F->tw_h_s[m * h + i];
-            for (uint32_t ky = 0; ky < MW; ++ky) {
-                const float *r = yr + ((size_t)m * MW + ky) * C, *im = yi + ((size_t)m * MW + ky) * C;
-                float *br = ar + ((size_t)i * MW + ky) * C, *bi = ai + ((size_t)i * MW + ky) * C;
-                for (uint32_t ch = 0; ch < C; ++ch) {
-                    br[ch] += r[ch] * c - im[ch] * s;
-                    bi[ch] += r[ch] * s + im[ch] * c;
-                }
-            }
-        }
-    }
-    /* inverse along W, complex-to-real: out = sum_ky c_ky Re(B e^{+2 pi i ky j / w}), c_0 = 1,
-     * c_ky = 2 otherwise; the imaginary part of the ky = 0 column drops out */
-    for (uint32_t i = 0; i < h; ++i) {
-        for (uint32_t j = 0; j < w; ++j) {
-            float *op = out + ((size_t)i * w + j) * C;
-            const float *br0 = ar + (size_t)i * MW * C;
-            for (uint32_t ch = 0; ch < C; ++ch) {
-                op[ch] = br0[ch];
-            }
-            for (uint32_t ky = 1; ky < MW; ++ky) {
-                const float c = 2.0f * F->tw_w_c[ky * w + j], s = 2.0f * F->tw_w_s[ky * w + j];
-                const float *br = ar + ((size_t)i * MW + ky) * C, *bi = ai + ((size_t)i * MW + ky) * C;
-                for (uint32_t ch = 0; ch < C; ++ch) {
-                    op[ch] += br[ch] * c - bi[ch] * s;
-                }
-            }
-        }
-    }
-}
-
 void fnopt__fno_forward(fnopt_fno *F, const float *z, float *u, float *d)
 {
-    const weft_kernels *K = F->ctx->kernels;
     const fnopt_weights *wt = &F->wt;
     const uint32_t n = F->n, B = F->batch, C = wt->width, cin = wt->in_channels + 2;
     const uint32_t M = B * n;
@@ -262,21 +340,15 @@ void fnopt__fno_forward(fnopt_fno *F, const float *z, float *u, float *d)
             row[wt->in_channels + 1] = F->grid[2 * p + 1];
         }
     }
-    K->gemm(M, wt->lifting, cin, F->in, cin, wt->lift0_w, cin, wt->lift0_b, F->big, wt->lifting, WEFT_ACT_NONE,
-            false);
-    gelu_erf(F->big, (size_t)M * wt->lifting);
-    K->gemm(M, C, wt->lifting, F->big, wt->lifting, wt->lift1_w, wt->lifting, wt->lift1_b, F->hA, C, WEFT_ACT_NONE,
-            false);
+    dense(F, FNOPT_L_LIFT0, M, F->in, cin, F->big, wt->lifting, false, true);
+    dense(F, FNOPT_L_LIFT1, M, F->big, wt->lifting, F->hA, C, false, false);
     float *h = F->hA, *o = F->hB;
     for (uint32_t l = 0; l < wt->layers; ++l) {
         for (uint32_t s = 0; s < B; ++s) {
-            spectral(F, l, h + (size_t)s * n * C, o + (size_t)s * n * C);
+            F->simd->spectral(F, l, h + (size_t)s * n * C, o + (size_t)s * n * C);
         }
         /* o += h Wskip^T + bias (the skip has no bias of its own; the spectral bias rides here) */
-        K->gemm(M, C, C, h, C, wt->skip_w[l], C, wt->spec_b[l], o, C, WEFT_ACT_NONE, true);
-        if (l + 1 < wt->layers) {
-            gelu_erf(o, (size_t)M * C);
-        }
+        dense(F, FNOPT_L_SKIP0 + l, M, h, C, o, C, true, l + 1 < wt->layers);
         if (l == wt->scale_layer) {
             for (uint32_t s = 0; s < B; ++s) {
                 float *f = F->feat + (size_t)s * C;
@@ -295,11 +367,9 @@ void fnopt__fno_forward(fnopt_fno *F, const float *z, float *u, float *d)
         h = o;
         o = t;
     }
-    K->gemm(M, wt->projection, C, h, C, wt->proj0_w, C, wt->proj0_b, F->big, wt->projection, WEFT_ACT_NONE, false);
-    gelu_erf(F->big, (size_t)M * wt->projection);
-    K->gemm(M, 1, wt->projection, F->big, wt->projection, wt->proj1_w, wt->projection, wt->proj1_b, u, 1,
-            WEFT_ACT_NONE, false);
-    K->gemm(B, 1, C, F->feat, C, wt->head_w, C, wt->head_b, d, 1, WEFT_ACT_NONE, false);
+    dense(F, FNOPT_L_PROJ0, M, h, C, F->big, wt->projection, false, true);
+    dense(F, FNOPT_L_PROJ1, M, F->big, wt->projection, u, 1, false, false);
+    dense(F, FNOPT_L_HEAD, B, F->feat, C, d, 1, false, false);
 }
 
 /* ---- binding an "fnopt" model ----------------------------------------------------------- */
@@ -377,11 +447,11 @@ weft_result fnopt__weights_from_model(const weft_model *model, fnopt_weights *wt
 /* ---- the learned-optimizer wrapper ------------------------------------------------------- */
 
 weft_result fnopt__learned_init(const weft_context *ctx, fnopt_learned *Lo, const fnopt_weights *wt, uint32_t h,
-                                uint32_t w)
+                                uint32_t w, weft_precision prec)
 {
     memset(Lo, 0, sizeof *Lo);
     size_t n = (size_t)h * w;
-    weft_result r = fnopt__fno_init(ctx, &Lo->fno, wt, h, w, 3);
+    weft_result r = fnopt__fno_init(ctx, &Lo->fno, wt, h, w, 3, prec);
     if (r != WEFT_OK) {
         return r;
     }

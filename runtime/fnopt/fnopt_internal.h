@@ -4,6 +4,7 @@
 #define WEFT_FNOPT_INTERNAL_H
 
 #include "core/core.h"
+#include "kernels/qkernels.h"
 #include "weft/fnopt.h"
 
 /* ---- physics loss (fnopt_loss.c) -------------------------------------------------------- */
@@ -59,11 +60,51 @@ typedef struct fnopt_weights {
     float initial_scale;
 } fnopt_weights;
 
-typedef struct fnopt_fno {
+/* A 1x1 layer at reduced precision, converted at creation: fp16 weights as [K][N] for gemm_f16,
+ * int8 weights packed for gemm_q8, or fp32 [K][N] for gemm_det (the small layers that the int8
+ * path keeps in fp32). Exactly one of the three is set. */
+typedef struct fnopt_layer {
+    uint32_t n_out, k_in;
+    const float *bias;
+    uint16_t *w16;
+    float *w32t;
+    weft_q8_weights q8;
+    int8_t *q8_packed;
+    float *q8_scale;
+    int32_t *q8_wsum;
+} fnopt_layer;
+
+enum { FNOPT_L_LIFT0, FNOPT_L_LIFT1, FNOPT_L_PROJ0, FNOPT_L_PROJ1, FNOPT_L_HEAD, FNOPT_L_SKIP0 };
+#define FNOPT_MAX_DENSE (FNOPT_L_SKIP0 + FNOPT_MAX_LAYERS)
+
+typedef struct fnopt_fno fnopt_fno;
+
+/* Per-level twins of the FNO's spectral convolution and GELU (fnopt_simd_body.h). */
+typedef struct fnopt_simd {
+    /* out[n][C] = SpectralConv_l(x[n][C]) for one sample (overwrites out) */
+    void (*spectral)(const fnopt_fno *F, uint32_t l, const float *x, float *out);
+    void (*gelu)(float *x, size_t count);   /* exact (erf) GELU in place */
+    float (*erf)(float x);                  /* the erf approximation the GELU uses */
+} fnopt_simd;
+
+extern const fnopt_simd fnopt__simd_generic;
+#if defined(__x86_64__) || defined(_M_X64)
+extern const fnopt_simd fnopt__simd_avx2, fnopt__simd_avx512;
+#endif
+
+struct fnopt_fno {
     const weft_context *ctx;
+    const fnopt_simd *simd;
     fnopt_weights wt;
     uint32_t h, w, n, batch;            /* batch = samples per forward (3: x, y, z) */
-    float *spec_re, *spec_im;           /* per layer [mode][out][in], rearranged at creation */
+    weft_precision prec;
+    const weft_qkernels *qk;            /* FP16 / INT8: the deterministic kernels */
+    fnopt_layer dense[FNOPT_MAX_DENSE]; /* FP16 / INT8: converted 1x1 layers */
+    int8_t *qa;                         /* INT8: quantised activations [batch*n][qa_ld] */
+    float *qa_scale;                    /* INT8: [batch*n] */
+    uint32_t qa_ld;
+    size_t dense_bytes;                 /* bytes of the conversions above (for the report) */
+    float *spec_re, *spec_im;           /* per layer [mode][in][out], rearranged at creation */
     float *tw_h_c, *tw_h_s;             /* [8][h]: cos/sin(2 pi kx i / h), kx = m - 4 */
     float *tw_w_c, *tw_w_s;             /* [5][w]: cos/sin(2 pi ky j / w) */
     float *grid;                        /* [n][2]: i/(h-1), j/(w-1) */
@@ -73,11 +114,14 @@ typedef struct fnopt_fno {
     float *fa, *fx, *fy;                /* spectral scratch: [h][5][width] x2 (re, im), [40][width] x2 */
     float *feat;                        /* [batch][width] amax features */
     size_t bytes;
-} fnopt_fno;
+};
 
-/* Checks shapes from the model's tensors and copies the spectral weights into compute layout. */
+/* Checks shapes from the model's tensors and copies the spectral weights into compute layout.
+ * prec FP16: every 1x1 layer with fp16 weights (gemm_f16); INT8: the lifting's second layer, the
+ * skips and the first projection layer with int8 weights and activations (gemm_q8), the rest in
+ * deterministic fp32 (gemm_det). The spectral convolution stays fp32 in every precision. */
 weft_result fnopt__fno_init(const weft_context *ctx, fnopt_fno *F, const fnopt_weights *wt, uint32_t h,
-                            uint32_t w, uint32_t batch);
+                            uint32_t w, uint32_t batch, weft_precision prec);
 void fnopt__fno_free(fnopt_fno *F);
 /* z: [batch][n][in_channels] (pixel-major, channel fastest). u: [batch][n], d: [batch]. */
 void fnopt__fno_forward(fnopt_fno *F, const float *z, float *u, float *d);
@@ -94,7 +138,7 @@ typedef struct fnopt_learned {
 } fnopt_learned;
 
 weft_result fnopt__learned_init(const weft_context *ctx, fnopt_learned *Lo, const fnopt_weights *wt,
-                                uint32_t h, uint32_t w);
+                                uint32_t h, uint32_t w, weft_precision prec);
 void fnopt__learned_free(const weft_context *ctx, fnopt_learned *Lo);
 void fnopt__learned_reset(fnopt_learned *Lo);
 /* One update: reads grad (3n, AoS xyz), adds the step to acc (3n). */

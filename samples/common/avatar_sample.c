@@ -41,6 +41,7 @@ void weft_avatar_sample_default_options(weft_avatar_sample_options *o)
     o->pitch = 8.0f;
     o->speed = 1.0f;
     o->write_frames = true;
+    o->cape_model = "tools/fnopt/models/fnopt_32.safetensors";
 }
 
 void weft_avatar_sample_usage(FILE *out, const char *program)
@@ -63,8 +64,24 @@ void weft_avatar_sample_usage(FILE *out, const char *program)
             "  --speed S               procedural motion speed (default 1)\n"
             "  --start SECONDS         start this far into the motion (default 0)\n"
             "  --deterministic         render with softpipe (reproducible bytes, slower) instead of llvmpipe\n"
-            "  --no-frames             write only the contact sheet\n",
+            "  --no-frames             write only the contact sheet\n"
+            "  --cape                  add a 24x40 cape stepped by FNOpt, pinned behind the shoulders (no body collision)\n"
+            "  --cape-model FILE       its FNOpt weights (default tools/fnopt/models/fnopt_32.safetensors)\n"
+            "  --cape-precision P      fp32 | fp16 | int8: its FNO arithmetic (default fp32)\n",
             program);
+    weft_avatar_sample_crowd_usage(out);
+}
+
+static bool cape_parse_precision(const char *s, weft_precision *out)
+{
+    static const char *const names[WEFT_PRECISION_COUNT] = {"fp32", "fp16", "int8"};
+    for (int p = 0; p < WEFT_PRECISION_COUNT; ++p) {
+        if (strcmp(s, names[p]) == 0) {
+            *out = (weft_precision)p;
+            return true;
+        }
+    }
+    return false;
 }
 
 static bool parse_u32(const char *s, uint32_t lo, uint32_t hi, uint32_t *out)
@@ -104,10 +121,20 @@ int weft_avatar_sample_parse(int argc, char **argv, int first, weft_avatar_sampl
         } else if (strcmp(a, "--deterministic") == 0) {
             o->deterministic = true;
             takes = false;
+        } else if (strcmp(a, "--cape") == 0) {
+            o->cape = true;
+            takes = false;
+        } else if (weft_avatar_sample_is_crowd_option(a)) {
+            if (!v) {
+                fprintf(stderr, "option %s needs a value\n", a);
+                return 2;
+            }
+            ok = weft_avatar_sample_crowd_option(a, v, o);
         } else if (!v) {
             static const char *const valued[] = {"--motion", "--garment", "--resolution", "--method", "--model",
                                                  "--frames", "--settle",  "--out",        "--size",   "--sheet",
-                                                 "--yaw",    "--pitch",   "--start",      "--speed"};
+                                                 "--yaw",    "--pitch",   "--start",      "--speed",
+                                                 "--cape-model", "--cape-precision"};
             bool known = false;
             for (size_t k = 0; k < sizeof valued / sizeof valued[0]; ++k) {
                 known |= strcmp(a, valued[k]) == 0;
@@ -147,6 +174,10 @@ int weft_avatar_sample_parse(int argc, char **argv, int first, weft_avatar_sampl
             ok = parse_float(v, 0.0f, 100000.0f, &o->start);
         } else if (strcmp(a, "--speed") == 0) {
             ok = parse_float(v, 0.05f, 8.0f, &o->speed);
+        } else if (strcmp(a, "--cape-model") == 0) {
+            o->cape_model = v;
+        } else if (strcmp(a, "--cape-precision") == 0) {
+            ok = cape_parse_precision(v, &o->cape_precision);
         } else {
             fprintf(stderr, "unknown option '%s'\n", a);
             return 2;
@@ -283,10 +314,14 @@ typedef struct sample_state {
     sample_motion motion;
     float *body_verts, *cloth_verts;
     uint8_t *tiles;
+    weft_sample_cape *cape;
+    uint32_t cape_mesh;
+    double cape_ms;
 } sample_state;
 
 static void sample_free(sample_state *s)
 {
+    weft_sample_cape_destroy(s->cape);
     weft_garment_destroy(s->garment);
     weft_model_destroy(s->model);
     weft_cloth_destroy(s->cloth);
@@ -369,8 +404,56 @@ static void camera_box(const weft_body *body, const weft_pose *pose, float lo[3]
     hi[2] = b[2] + pose->translation[2];
 }
 
+/* The optional FNOpt cape (--cape): built on the bind-pose body, drawn as a second cloth mesh. */
+static int cape_setup(const weft_avatar_sample_options *o, sample_state *s)
+{
+    if (!o->cape) {
+        return 0;
+    }
+    enum { ACROSS = 24, DOWN = 40 };
+    weft_result r = weft_sample_cape_create(s->ctx, s->body, o->cape_model, o->cape_precision, ACROSS, DOWN, &s->cape);
+    if (r != WEFT_OK) {
+        fprintf(stderr, "avatar_render: cape with '%s': %s: %s\n", o->cape_model, weft_result_string(r),
+                weft_last_error());
+        return 1;
+    }
+    uint32_t tc = 0;
+    const uint32_t *tris = weft_sample_cape_triangles(s->cape, &tc);
+    if (weft_renderer_add_mesh(s->renderer, weft_sample_cape_positions(s->cape), weft_sample_cape_vertex_count(s->cape),
+                               tris, tc, WEFT_RENDER_CLOTH, &s->cape_mesh) != WEFT_OK) {
+        fprintf(stderr, "avatar_render: adding the cape mesh: %s\n", weft_last_error());
+        return 1;
+    }
+    const float lc = weft_sample_cape_units_per_metre(s->cape);
+    printf("cape: %ux%u FNOpt grid (%.2f x %.2f m), %s FNO, one step per frame; no body collision\n", ACROSS, DOWN,
+           (double)((ACROSS - 1) / lc), (double)((DOWN - 1) / lc),
+           o->cape_precision == WEFT_PRECISION_FP16 ? "fp16" : (o->cape_precision == WEFT_PRECISION_INT8 ? "int8" : "fp32"));
+    return 0;
+}
+
+/* One cape step with the pins at `pose`; a non-finite step keeps the previous state. */
+static int cape_frame(sample_state *s, const weft_pose *pose, uint32_t k)
+{
+    if (!s->cape) {
+        return 0;
+    }
+    double t0 = weft__now_ms();
+    weft_result r = weft_sample_cape_step(s->cape, s->body, pose);
+    s->cape_ms += weft__now_ms() - t0;
+    if (r == WEFT_ERROR_NOT_FINITE) {
+        printf("cape: step %u was not finite; the cape kept its previous state\n", k);
+    } else if (r != WEFT_OK) {
+        fprintf(stderr, "avatar_render: cape step %u: %s\n", k, weft_last_error());
+        return 1;
+    }
+    return 0;
+}
+
 int weft_avatar_sample_run(const weft_avatar_sample_options *o)
 {
+    if (o->crowd > 0) {
+        return weft_avatar_sample_crowd(o); /* crowd.c */
+    }
     sample_state s;
     memset(&s, 0, sizeof s);
     weft_context_def cdef = weft_default_context_def();
@@ -478,6 +561,10 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
         return fail_msg(&s, "adding the garment mesh");
     }
     weft_renderer_set_ground(s.renderer, true, 0.0f);
+    if (cape_setup(o, &s) != 0) {
+        sample_free(&s);
+        return 1;
+    }
     if (!make_dirs(o->out_dir)) {
         fprintf(stderr, "avatar_render: cannot create the output folder '%s': %s\n", o->out_dir, strerror(errno));
         sample_free(&s);
@@ -498,7 +585,7 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
     if (motion_pose(&s.motion, o->start, &first) != WEFT_OK) {
         return fail_msg(&s, "sampling the motion");
     }
-    uint32_t settle = simulated ? o->settle_frames : 0;
+    uint32_t settle = simulated || o->cape ? o->settle_frames : 0;
     double sums[4] = {0, 0, 0, 0};
     char path[1200];
     uint32_t tile_next = 0;
@@ -530,6 +617,10 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
             }
             cloth = s.cloth_verts;
         }
+        if (cape_frame(&s, &pose, k) != 0) {
+            sample_free(&s);
+            return 1;
+        }
         double t2 = weft__now_ms();
         if (k < settle) {
             continue;
@@ -538,6 +629,9 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
         if (weft_renderer_update_mesh(s.renderer, body_mesh, s.body_verts) != WEFT_OK ||
             (cloth && weft_renderer_update_mesh(s.renderer, cloth_mesh, cloth) != WEFT_OK)) {
             return fail_msg(&s, "updating the render meshes");
+        }
+        if (s.cape && weft_renderer_update_mesh(s.renderer, s.cape_mesh, weft_sample_cape_positions(s.cape)) != WEFT_OK) {
+            return fail_msg(&s, "updating the cape mesh");
         }
         float lo[3], hi[3];
         camera_box(s.body, &pose, lo, hi);
@@ -589,6 +683,10 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
     double n = o->frames;
     printf("mean per frame: pose %.2f ms, cloth(%s) %.2f ms, render %.2f ms, png %.2f ms\n", sums[0] / n, method_used,
            sums[1] / n, sums[2] / n, sums[3] / n);
+    if (s.cape) {
+        printf("cape (FNOpt): %.2f ms per step over %u steps (included in the cloth column), %u non-finite steps\n",
+               s.cape_ms / (settle + o->frames), settle + o->frames, weft_sample_cape_failed_steps(s.cape));
+    }
     printf("wrote %s%s\n", o->write_frames ? "frames and " : "", path);
     sample_free(&s);
     return 0;

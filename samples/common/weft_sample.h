@@ -27,6 +27,13 @@ typedef struct weft_avatar_sample_options {
     bool write_frames;          /* write frame_NNNN.png (default true) */
     bool deterministic;         /* softpipe (reproducible) instead of llvmpipe (faster) (default false) */
     float start;                /* seconds into the motion to start at (default 0) */
+    uint32_t crowd;             /* --crowd N: N avatars at mixed levels of detail (crowd.c); 0 = off (default) */
+    const char *lod_table;      /* --lod-table: the measured LOD table for --crowd (default docs/lod.csv) */
+    float crowd_mve;            /* --crowd-mve: the front row's accuracy target in cm; 0 = the best level's */
+    float crowd_budget;         /* --crowd-budget: per-character ms budget for --crowd; 0 = none */
+    bool cape;                  /* add the FNOpt cape (cape.c) (default false) */
+    const char *cape_model;     /* its FNOpt weights (default tools/fnopt/models/fnopt_32.safetensors) */
+    weft_precision cape_precision; /* its FNO arithmetic (default fp32) */
 } weft_avatar_sample_options;
 
 void weft_avatar_sample_default_options(weft_avatar_sample_options *options);
@@ -40,6 +47,36 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *options);
 /* Renders the documentation contact sheet: rows = no garment, T-shirt, skirt, dress; columns =
  * bind pose and poses from the procedural motions, garments skinned to the pose. */
 int weft_avatar_sample_docs_sheet(const char *path, uint32_t tile_size);
+
+/* Crowd mode (crowd.c): N avatars in a grid, each garment at the level the measured LOD table
+ * picks for its distance; prints total and per-level cloth ms/frame, writes OUT/crowd.png. */
+int weft_avatar_sample_crowd(const weft_avatar_sample_options *options);
+/* Its options (--crowd, --lod-table, --crowd-mve, --crowd-budget) for weft_avatar_sample_parse:
+ * whether `name` is one, and parsing its value (false on a bad value). */
+bool weft_avatar_sample_is_crowd_option(const char *name);
+bool weft_avatar_sample_crowd_option(const char *name, const char *value, weft_avatar_sample_options *options);
+void weft_avatar_sample_crowd_usage(FILE *out);
+
+#if WEFT_RENDER_HAVE_SAMPLE
+#include "weft/body.h"
+
+/* The FNOpt cape (cape.c): an across x down grid cloth stepped by weft/fnopt.h, its top row
+ * pinned on a curve behind the shoulders and neck of `body` (bind pose), the pins skinned with
+ * the body every step. No body collision (FNOpt has none); see cape.c. */
+typedef struct weft_sample_cape weft_sample_cape;
+
+weft_result weft_sample_cape_create(weft_context *context, const weft_body *body, const char *model_path,
+                                    weft_precision precision, uint32_t across, uint32_t down,
+                                    weft_sample_cape **out_cape);
+/* One 1/60 s step with the pins at `pose`. On failure the cape keeps its previous state. */
+weft_result weft_sample_cape_step(weft_sample_cape *cape, const weft_body *body, const weft_pose *pose);
+const float *weft_sample_cape_positions(const weft_sample_cape *cape); /* world metres */
+uint32_t weft_sample_cape_vertex_count(const weft_sample_cape *cape);
+const uint32_t *weft_sample_cape_triangles(const weft_sample_cape *cape, uint32_t *count);
+float weft_sample_cape_units_per_metre(const weft_sample_cape *cape);
+uint32_t weft_sample_cape_failed_steps(const weft_sample_cape *cape);
+void weft_sample_cape_destroy(weft_sample_cape *cape);
+#endif
 
 /* ---------------------------------------------------------------------------------------- */
 /* Sequence contact sheets (seqview.c, `weft render --seq DIR --sheet OUT.png`)              */

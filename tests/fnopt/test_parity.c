@@ -41,7 +41,7 @@ static void test_per_iteration(void)
     fnopt_loss L;
     fnopt_learned lo;
     CHECK_RESULT(fnopt__loss_init(ctx, &L, h, w), WEFT_OK);
-    CHECK_RESULT(fnopt__learned_init(ctx, &lo, &wt, h, w), WEFT_OK);
+    CHECK_RESULT(fnopt__learned_init(ctx, &lo, &wt, h, w, WEFT_PRECISION_FP32), WEFT_OK);
     float *x = malloc(n3 * sizeof(float)), *v = calloc(n3, sizeof(float)), *acc = malloc(n3 * sizeof(float));
     float *grad = malloc(n3 * sizeof(float)), *bcv = calloc(n3, sizeof(float));
     uint8_t *mask = calloc(n, 1);

@@ -6,16 +6,21 @@
 #   tools/fnopt/eval.sh build/bin/weft [table ...]
 #   tables: baselines sweep motions iters speed handles res lbfgsref
 #
+# FNOPT_MODEL=path evaluates other weights (default: the shipped ones), FNOPT_EVAL_OUT=dir
+# writes the CSVs elsewhere (default data/fnopt/eval), FNOPT_PRECISION=fp16|int8 runs the
+# learned optimizer at reduced precision.
+#
 # Then: /usr/bin/python3 tools/fnopt/tables.py data/fnopt/eval > docs tables.
 set -e
 WEFT=${1:-build/bin/weft}
 shift || true
 TABLES=${*:-"baselines sweep motions iters speed handles res lbfgsref"}
-OUT=data/fnopt/eval
+OUT=${FNOPT_EVAL_OUT:-data/fnopt/eval}
 mkdir -p "$OUT"
 # material: the best point of `weft fnopt fit` inside the training ranges (docs/FNOPT.md, "Material fit")
 MAT=${FNOPT_MATERIAL:-100,3,5}
-run() { nice -n 10 "$WEFT" fnopt run --gt --material "$MAT" "$@" > /dev/null; }
+run() { nice -n 10 "$WEFT" fnopt run --gt --material "$MAT" ${FNOPT_MODEL:+--model "$FNOPT_MODEL"} \
+          ${FNOPT_PRECISION:+--precision "$FNOPT_PRECISION"} "$@" > /dev/null; }
 
 for t in $TABLES; do
   case $t in

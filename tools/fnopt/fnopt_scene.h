@@ -37,6 +37,7 @@ typedef struct fnopt_run_opts {
     float Y, S, B;
     float repulsion;
     bool report_loss;            /* one extra loss evaluation per step (not in ms_per_frame) */
+    weft_precision precision;    /* the learned optimizer's FNO arithmetic (FP32) */
 } fnopt_run_opts;
 
 typedef struct fnopt_run_result {
@@ -52,6 +53,8 @@ weft_result fnopt_scene_make(const fnopt_scene_opts *o, fnopt_scene *s);
 void fnopt_scene_free(fnopt_scene *s);
 /* XPBD ground truth, frames * n * 3 floats (world), cached under data/fnopt/gt/. */
 weft_result fnopt_scene_ground_truth(weft_context *ctx, const fnopt_scene *s, float **out);
+/* "fp32", "fp16" or "int8"; false for anything else. */
+bool fnopt_parse_precision(const char *s, weft_precision *out);
 /* Runs FNOpt on the scene; gt may be NULL (timing only). positions_out (frames*n*3, world) may
  * be NULL. */
 weft_result fnopt_scene_run(weft_context *ctx, const fnopt_scene *s, const fnopt_run_opts *r, const float *gt,

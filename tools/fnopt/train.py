@@ -10,6 +10,7 @@ then copy the export to tools/fnopt/models/ and rerun tools/fnopt/make_golden.py
 """
 import argparse
 import csv
+import json
 import math
 import os
 import sys
@@ -35,9 +36,12 @@ def rot_matrix(yaw, pitch, roll):
 class Pool:
     """dataset_size cloth environments that share one iterations-per-timestep value."""
 
-    def __init__(self, size, h, w, ips, rng, seq_len, batch_size, gravity=0.125):
+    def __init__(self, size, h, w, ips, rng, seq_len, batch_size, gravity=(0.125, 0.125), speed=(1.0, 1.0)):
         self.n, self.h, self.w, self.ips, self.rng = size, h, w, ips, rng
-        self.gravity = gravity
+        # gravity magnitude and handle-speed factor, log-uniform per reset: gravity in grid units grows
+        # with resolution and frame rate, handle speeds in grid units grow with resolution
+        self.gravity, self.speed = gravity, speed
+        self.batch_size = batch_size
         z3 = lambda: torch.zeros(size, 3, h, w)  # noqa: E731
         self.x, self.v, self.a, self.bc, self.bc_orig = z3(), z3(), z3(), z3(), z3()
         self.g_prev, self.s_prev = z3(), z3()
@@ -78,12 +82,14 @@ class Pool:
         self.bc_orig[i] = x0 * m
         self.bc[i] = x0 * m
         G = rot_matrix(*rng.uniform(-2 * math.pi, 2 * math.pi, 3))
-        self.f[i] = (G @ torch.tensor([0.0, 0.0, -self.gravity])).reshape(3, 1, 1)
+        lu = lambda r: float(math.exp(rng.uniform(math.log(r[0]), math.log(r[1]))))  # noqa: E731
+        self.f[i] = (G @ torch.tensor([0.0, 0.0, -lu(self.gravity)])).reshape(3, 1, 1)
         self.moving[i] = rng.random() < 0.8
-        self.drot[i] = rng.uniform(-0.0628, 0.0628, 3)
-        self.freq[i] = torch.tensor(rng.uniform(-0.2, 0.2, 3), dtype=torch.float32).reshape(3, 1, 1)
+        sp = lu(self.speed)
+        self.drot[i] = sp * rng.uniform(-0.0628, 0.0628, 3)
+        self.freq[i] = torch.tensor(sp * rng.uniform(-0.2, 0.2, 3), dtype=torch.float32).reshape(3, 1, 1)
         self.amp[i] = torch.tensor(rng.uniform(-10, 10, 3), dtype=torch.float32).reshape(3, 1, 1)
-        self.pinch[i] = rng.uniform(-0.2, 0.2)
+        self.pinch[i] = sp * rng.uniform(-0.2, 0.2)
         self.T[i] = 0
         self.iters[i] = 0
         self.g_prev[i] = 0
@@ -114,11 +120,11 @@ class Pool:
                 self.Y[idx], self.S[idx], self.B[idx])
 
 
-def train_step(net, pools, batch_size, rng):
+def train_step(net, pools, rng):
     total = 0.0
     terms = []
     for p in pools:
-        idx = torch.tensor(rng.choice(p.n, batch_size, replace=False))
+        idx = torch.tensor(rng.choice(p.n, p.batch_size, replace=False))
         x, v, _, f, m, bc, Y, S, B = p.args(idx)
         g, _ = ft.loss_grad(x, v, p.a[idx], f, m, bc, Y, S, B)
         b = len(idx)
@@ -153,6 +159,11 @@ def main():
     ap.add_argument('--dataset-size', type=int, default=20, help='environments per pool')
     ap.add_argument('--batch-size', type=int, default=4, help='environments per pool per step')
     ap.add_argument('--ips', default='1,3,10,30', help='iterations per time step, one pool each')
+    ap.add_argument('--extra-pools', default='', help='more pools as res:ips:batch, comma separated '
+                    '(e.g. 64:10:2 adds a 64 x 64 pool at 10 iterations drawing 2 environments per step)')
+    ap.add_argument('--gravity', default='0.125', help='gravity magnitude in grid units/step^2, or lo:hi '
+                    'drawn log-uniform at every reset')
+    ap.add_argument('--speed', default='1', help='handle-motion speed factor, or lo:hi drawn log-uniform at every reset')
     ap.add_argument('--epochs', type=int, default=20)
     ap.add_argument('--batches', type=int, default=250, help='optimizer steps per epoch')
     ap.add_argument('--seq-len', type=int, default=1000, help='average time steps per environment')
@@ -169,17 +180,28 @@ def main():
     ckpt_path = os.path.join(args.out, 'checkpoint.pt')
     log_path = os.path.join(args.out, 'loss_log.csv')
     ips_list = [int(s) for s in args.ips.split(',')]
+    specs = [(args.res, ips, args.batch_size) for ips in ips_list]
+    for e in filter(None, args.extra_pools.split(',')):
+        r, i, b = (int(t) for t in e.split(':'))
+        specs.append((r, i, b))
+
+    def rng_pair(text):
+        v = [float(t) for t in text.split(':')]
+        return (v[0], v[-1])
+    gravity, speed = rng_pair(args.gravity), rng_pair(args.speed)
 
     torch.manual_seed(args.seed)
     rng = np.random.default_rng(args.seed)
     net = ft.FNO()
+    init_batches = 0
     if args.init_from and not os.path.exists(ckpt_path):
-        net = ft.import_model(args.init_from)[0]
+        net, init_meta = ft.import_model(args.init_from)
+        init_batches = int(init_meta.get('batches_done', 0)) + int(init_meta.get('init_batches', 0))
         print(f'starting from the weights in {args.init_from} (fresh optimizer and pool)')
     opt = torch.optim.AdamW(net.parameters(), lr=args.lr)
     ms = [args.epochs // 4, args.epochs // 2, 3 * args.epochs // 4]
     sched = torch.optim.lr_scheduler.MultiStepLR(opt, milestones=ms, gamma=0.5)
-    pools = [Pool(args.dataset_size, args.res, args.res, ips, rng, args.seq_len, args.batch_size) for ips in ips_list]
+    pools = [Pool(args.dataset_size, r, r, ips, rng, args.seq_len, b, gravity, speed) for r, ips, b in specs]
     epoch, batch = 0, 0
     if os.path.exists(ckpt_path):
         st = torch.load(ckpt_path)
@@ -187,6 +209,11 @@ def main():
         opt.load_state_dict(st['optimizer'])
         sched.load_state_dict(st['scheduler'])
         pools = st['pools']
+        init_batches = st.get('init_batches', 0)
+        for p in pools:  # checkpoints written before the gravity/speed ranges existed
+            if not hasattr(p, 'batch_size'):
+                p.batch_size, p.speed = args.batch_size, (1.0, 1.0)
+                p.gravity = (p.gravity, p.gravity)
         rng = st['rng']
         for p in pools:
             p.rng = rng
@@ -198,22 +225,25 @@ def main():
         tmp = ckpt_path + '.tmp'
         torch.save(dict(model=net.state_dict(), optimizer=opt.state_dict(), scheduler=sched.state_dict(),
                         pools=pools, rng=rng, torch_rng=torch.get_rng_state(), epoch=epoch, batch=batch,
-                        args=vars(args)), tmp)
+                        init_batches=init_batches, args=vars(args)), tmp)
         os.replace(tmp, ckpt_path)
         if args.export:
-            ft.export_model(net, args.export, extra=dict(train_res=args.res, epochs_done=epoch,
-                                                         batches_done=epoch * args.batches + batch))
+            ft.export_model(net, args.export, extra=dict(
+                train_res=args.res, epochs_done=epoch, batches_done=epoch * args.batches + batch,
+                init_batches=init_batches, pools=' '.join(f'{r}:{i}:{b}' for r, i, b in specs),
+                gravity=args.gravity, speed=args.speed))
 
     new_log = not os.path.exists(log_path)
     logf = open(log_path, 'a', newline='')
     log = csv.writer(logf)
     if new_log:
-        log.writerow(['epoch', 'batch', 'loss'] + [f'loss_ips{i}' for i in ips_list] + ['lr', 'seconds'])
+        names = [f'loss_ips{i}' if r == args.res else f'loss_r{r}_ips{i}' for r, i, _ in specs]
+        log.writerow(['epoch', 'batch', 'loss'] + names + ['lr', 'seconds'])
     t0 = time.time()
     last_save = time.time()
     while epoch < args.epochs:
         while batch < args.batches:
-            total, terms = train_step(net, pools, args.batch_size, rng)
+            total, terms = train_step(net, pools, rng)
             opt.zero_grad()
             total.backward()
             torch.nn.utils.clip_grad_norm_(net.parameters(), 1.0)

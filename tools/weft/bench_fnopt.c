@@ -1,8 +1,10 @@
-/* weft bench fnopt: ms per frame of FNOpt's learned optimizer and of the classical baselines on
- * the handle scene (xy translation, corner handles), at several resolutions and iteration
- * counts. CSV on stdout; docs/FNOPT.md records the figures. */
+/* weft bench fnopt: ms per frame of FNOpt's learned optimizer (at fp32, fp16 and int8) and of
+ * the classical baselines on the handle scene (xy translation, corner handles), at several
+ * resolutions and iteration counts, with the e3D of each run against the fp32 learned run and,
+ * with --gt, against the XPBD reference. CSV on stdout; docs/FNOPT.md records the figures. */
 #include "../fnopt/fnopt_scene.h"
 
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -23,7 +25,25 @@ static bool next_u32(const char **p, uint32_t *out)
     return true;
 }
 
-const char weft_bench_fnopt_help[] = "FNOpt ms/frame: learned optimizer vs GD/Adam/L-BFGS at 32/64/100";
+/* e3D (docs/FNOPT.md) of `frames` frames of positions against a reference trajectory, both in
+ * world metres with the origin at the cloth's initial centre; NaN without frames. */
+static double traj_e3d(const float *pos, const float *ref, uint32_t frames, size_t n3)
+{
+    double sum = 0.0;
+    for (uint32_t f = 0; f < frames; ++f) {
+        double num = 0.0, den = 0.0;
+        for (size_t q = 0; q < n3; ++q) {
+            double d = (double)pos[(size_t)f * n3 + q] - ref[(size_t)f * n3 + q];
+            num += d * d;
+            den += (double)ref[(size_t)f * n3 + q] * ref[(size_t)f * n3 + q];
+        }
+        sum += sqrt(num) / sqrt(den > 0 ? den : 1e-30);
+    }
+    return frames ? sum / frames : NAN;
+}
+
+const char weft_bench_fnopt_help[] =
+    "FNOpt ms/frame and e3D: learned optimizer (fp32/fp16/int8) vs GD/Adam/L-BFGS at 32/64/100";
 
 int weft_bench_fnopt(int argc, char **argv)
 {
@@ -31,7 +51,9 @@ int weft_bench_fnopt(int argc, char **argv)
     uint32_t frames = 20;
     const char *res_list = "32,64,100";
     const char *iters_list = "10";
-    bool classical = true;
+    bool classical = true, with_gt = false;
+    const char *prec_list = "fp32";
+    float Y = 1000.0f, S = 8.0f, B = 0.5f;
     for (int i = 1; i < argc; ++i) {
         const char *v = i + 1 < argc ? argv[i + 1] : NULL;
         if (strcmp(argv[i], "--model") == 0 && v) {
@@ -44,11 +66,36 @@ int weft_bench_fnopt(int argc, char **argv)
             iters_list = v, ++i;
         } else if (strcmp(argv[i], "--learned-only") == 0) {
             classical = false;
+        } else if (strcmp(argv[i], "--precision") == 0 && v) {
+            prec_list = v, ++i;
+        } else if (strcmp(argv[i], "--gt") == 0) {
+            with_gt = true;
+        } else if (strcmp(argv[i], "--material") == 0 && v && sscanf(v, "%f,%f,%f", &Y, &S, &B) == 3) {
+            ++i;
         } else {
-            printf("usage: weft bench fnopt [--res 32,64,100] [--iters 10,100] [--frames 20] [--model PATH]"
-                   " [--learned-only]\n");
+            printf("usage: weft bench fnopt [--res 32,64,100] [--iters 10,100] [--frames 20] [--model PATH]\n"
+                   "                        [--learned-only] [--precision fp32,fp16,int8] [--material Y,S,B] [--gt]\n"
+                   "  e3d_vs_fp32: against the fp32 learned run at the same res and iters (run first)\n"
+                   "  e3d_xpbd:    against the XPBD reference (--gt; cached under data/fnopt/gt/)\n");
             return strcmp(argv[i], "--help") == 0 ? 0 : 2;
         }
+    }
+    weft_precision precs[WEFT_PRECISION_COUNT];
+    uint32_t prec_count = 0;
+    for (const char *p = prec_list; *p && prec_count < WEFT_PRECISION_COUNT;) {
+        char name[8] = {0};
+        size_t len = strcspn(p, ",");
+        if (len >= sizeof name) {
+            len = sizeof name - 1;
+        }
+        memcpy(name, p, len);
+        if (!fnopt_parse_precision(name, &precs[prec_count])) {
+            fprintf(stderr, "weft bench fnopt: unknown precision '%s' (fp32, fp16, int8)\n", name);
+            return 2;
+        }
+        ++prec_count;
+        p += strcspn(p, ",");
+        p += *p == ',';
     }
     weft_context_def cd = weft_default_context_def();
     weft_context *ctx = NULL;
@@ -61,7 +108,9 @@ int weft_bench_fnopt(int argc, char **argv)
     printf("# %s\n", weft_config_string());
     /* wall time is what a game sees; process CPU time is also printed because a shared machine
      * inflates wall time */
-    printf("res,optimizer,iters,frames,ms_per_frame,cpu_ms_per_frame,ms_per_iteration\n");
+    printf("res,optimizer,precision,iters,frames,ms_per_frame,cpu_ms_per_frame,ms_per_iteration,e3d_vs_fp32,"
+           "e3d_xpbd\n");
+    static const char *prec_names[WEFT_PRECISION_COUNT] = {"fp32", "fp16", "int8"};
     const char *rp = res_list;
     uint32_t res = 0;
     while (next_u32(&rp, &res)) {
@@ -71,25 +120,49 @@ int weft_bench_fnopt(int argc, char **argv)
         if (fnopt_scene_make(&so, &s) != WEFT_OK) {
             continue;
         }
+        float *gt = NULL;
+        if (with_gt && fnopt_scene_ground_truth(ctx, &s, &gt) != WEFT_OK) {
+            fprintf(stderr, "weft bench fnopt: no XPBD reference at %u: %s\n", res, weft_last_error());
+        }
+        const size_t traj_floats = (size_t)s.frames * s.n * 3;
+        float *ref = malloc(traj_floats * sizeof(float)), *pos = malloc(traj_floats * sizeof(float));
         const char *ip = iters_list;
         uint32_t iters = 0;
-        while (next_u32(&ip, &iters)) {
+        while (ref && pos && next_u32(&ip, &iters)) {
+            bool have_ref = false;
             const weft_fnopt_optimizer kinds[4] = {WEFT_FNOPT_LEARNED, WEFT_FNOPT_GD, WEFT_FNOPT_ADAM, WEFT_FNOPT_LBFGS};
             const char *names[4] = {"learned", "gd", "adam", "lbfgs"};
-            for (int k = 0; k < (classical ? 4 : 1); ++k) {
+            /* the learned optimizer once per precision (fp32 first when listed), then the classical ones */
+            for (uint32_t run = 0; run < prec_count + (classical ? 3u : 0u); ++run) {
+                const int k = run < prec_count ? 0 : (int)(run - prec_count) + 1;
+                const weft_precision prec = run < prec_count ? precs[run] : WEFT_PRECISION_FP32;
                 fnopt_run_opts ro = {.optimizer = kinds[k], .model = model, .iterations = iters,
                                      .learning_rate = kinds[k] == WEFT_FNOPT_LBFGS ? 1.0f : 0.01f,
-                                     .Y = 1000.0f, .S = 8.0f, .B = 0.5f};
+                                     .Y = Y, .S = S, .B = B, .precision = prec};
                 fnopt_run_result r;
                 clock_t c0 = clock();
-                if (fnopt_scene_run(ctx, &s, &ro, NULL, &r, NULL) == WEFT_OK) {
-                    double cpu = 1e3 * (double)(clock() - c0) / CLOCKS_PER_SEC / (r.frames ? r.frames : 1);
-                    printf("%u,%s,%u,%u,%.3f,%.3f,%.4f\n", so.res, names[k], iters, r.frames, r.ms_per_frame, cpu,
-                           r.ms_per_frame / iters);
-                    fflush(stdout);
+                if (fnopt_scene_run(ctx, &s, &ro, NULL, &r, pos) != WEFT_OK) {
+                    continue;
                 }
+                double cpu = 1e3 * (double)(clock() - c0) / CLOCKS_PER_SEC / (r.frames ? r.frames : 1);
+                double e_ref = NAN, e_gt = NAN;
+                if (k == 0 && prec == WEFT_PRECISION_FP32 && !r.diverged) {
+                    memcpy(ref, pos, traj_floats * sizeof(float));
+                    have_ref = true;
+                } else if (have_ref && !r.diverged) {
+                    e_ref = traj_e3d(pos, ref, r.frames, (size_t)s.n * 3);
+                }
+                if (gt && !r.diverged) {
+                    e_gt = traj_e3d(pos, gt, r.frames, (size_t)s.n * 3);
+                }
+                printf("%u,%s,%s,%u,%u,%.3f,%.3f,%.4f,%.4g,%.4g\n", so.res, names[k], prec_names[prec], iters, r.frames,
+                       r.ms_per_frame, cpu, r.ms_per_frame / iters, e_ref, e_gt);
+                fflush(stdout);
             }
         }
+        free(ref);
+        free(pos);
+        free(gt);
         fnopt_scene_free(&s);
     }
     weft_model_destroy(model);

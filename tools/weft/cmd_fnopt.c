@@ -446,6 +446,7 @@ weft_result fnopt_scene_run(weft_context *ctx, const fnopt_scene *s, const fnopt
     def.bend = ro->B;
     def.repulsion = ro->repulsion;
     def.report_loss = ro->report_loss;
+    def.precision = ro->precision;
     def.gravity[0] = def.gravity[1] = 0.0f;
     def.gravity[2] = -weft_fnopt_acceleration(9.81f, s->o.res, s->o.size_m, s->o.fps);
     weft_fnopt *f = NULL;
@@ -519,6 +520,18 @@ typedef struct cli {
     bool gt;
 } cli;
 
+bool fnopt_parse_precision(const char *s, weft_precision *out)
+{
+    static const char *names[WEFT_PRECISION_COUNT] = {"fp32", "fp16", "int8"};
+    for (int p = 0; p < WEFT_PRECISION_COUNT; ++p) {
+        if (strcmp(s, names[p]) == 0) {
+            *out = (weft_precision)p;
+            return true;
+        }
+    }
+    return false;
+}
+
 static const char *optimizer_name(weft_fnopt_optimizer o)
 {
     static const char *names[] = {"learned", "gd", "adam", "lbfgs"};
@@ -541,6 +554,7 @@ static void usage(void)
            "  --model PATH       FNOpt weights (tools/fnopt/models/fnopt_32.safetensors)\n"
            "  --material Y,S,B   energy coefficients in grid units (1000,8,0.5)\n"
            "  --repulsion K      self-repulsion weight (0)\n"
+           "  --precision P      fp32 fp16 int8: the learned optimizer's FNO arithmetic (fp32)\n"
            "  --gt               score against the XPBD reference (e3D, Chamfer)\n"
            "  --loss             also report the mean final loss per step\n"
            "  --csv FILE         append the result row to FILE\n"
@@ -581,6 +595,11 @@ static int parse(int argc, char **argv, cli *c)
             c->model_path = v;
         } else if (ARG("--repulsion")) {
             c->run.repulsion = (float)atof(v);
+        } else if (ARG("--precision")) {
+            if (!fnopt_parse_precision(v, &c->run.precision)) {
+                fprintf(stderr, "weft fnopt: --precision wants fp32, fp16 or int8\n");
+                return 2;
+            }
         } else if (ARG("--csv")) {
             c->csv = v;
         } else if (ARG("--out")) {

@@ -1,0 +1,83 @@
+/* The render sample's FNOpt cape (samples/common/cape.c): argument checks, pins that follow the
+ * body, a cloth that hangs below them, and a finite state over a few steps of a walk. */
+#include "fnopt_test_util.h"
+#include "weft_sample.h"
+
+#if WEFT_RENDER_HAVE_SAMPLE
+
+static void test_cape_follows_body(void)
+{
+    weft_context *ctx = fnopt_test_context();
+    weft_avatar_def ad = weft_default_avatar_def();
+    ad.target_vertices = 2000; /* the smallest mesh: the cape only reads its shape */
+    weft_body *body = NULL;
+    CHECK_RESULT(weft_avatar_create(ctx, &ad, &body), WEFT_OK);
+    if (!body) {
+        weft_context_destroy(ctx);
+        return;
+    }
+    weft_sample_cape *cape = NULL;
+    CHECK_RESULT(weft_sample_cape_create(ctx, body, FNOPT_MODEL_PATH, WEFT_PRECISION_FP32, 9, 40, &cape),
+                 WEFT_ERROR_INVALID_ARGUMENT);
+    CHECK(cape == NULL);
+    CHECK(weft_sample_cape_create(ctx, body, FNOPT_DATA("no_such_file.safetensors"), WEFT_PRECISION_FP32, 12, 16,
+                                  &cape) != WEFT_OK);
+    CHECK(cape == NULL);
+    const uint32_t across = 12, down = 16;
+    CHECK_RESULT(weft_sample_cape_create(ctx, body, FNOPT_MODEL_PATH, WEFT_PRECISION_FP32, across, down, &cape),
+                 WEFT_OK);
+    if (!cape) {
+        weft_body_destroy(body);
+        weft_context_destroy(ctx);
+        return;
+    }
+    CHECK_EQ_INT(weft_sample_cape_vertex_count(cape), across * down);
+    uint32_t tc = 0;
+    const uint32_t *tris = weft_sample_cape_triangles(cape, &tc);
+    CHECK_EQ_INT(tc, 2 * (across - 1) * (down - 1));
+    bool in_range = true;
+    for (uint32_t t = 0; t < 3 * tc; ++t) {
+        in_range &= tris[t] < across * down;
+    }
+    CHECK(in_range);
+    const float lc = weft_sample_cape_units_per_metre(cape);
+    CHECK(lc > 5.0f && lc < 500.0f);
+
+    weft_pose pose;
+    weft_body_bind_pose(body, &pose);
+    const float *p = weft_sample_cape_positions(cape);
+    const float x0 = p[0];
+    for (int s = 0; s < 4; ++s) {
+        /* the body walks sideways 1 cm per step: the pinned top row must go with it */
+        pose.translation[0] += 0.01f;
+        CHECK_RESULT(weft_sample_cape_step(cape, body, &pose), WEFT_OK);
+    }
+    p = weft_sample_cape_positions(cape);
+    CHECK_NEAR(p[0] - x0, 0.04, 1e-4);
+    bool finite = true;
+    for (uint32_t q = 0; q < 3 * across * down; ++q) {
+        finite &= isfinite(p[q]);
+    }
+    CHECK(finite);
+    /* the top row keeps the rest spacing (one grid unit), the bottom row hangs below it */
+    for (uint32_t i = 0; i + 1 < across; ++i) {
+        const float *a = p + 3 * (size_t)i * down, *b = p + 3 * (size_t)(i + 1) * down;
+        float d = sqrtf((a[0] - b[0]) * (a[0] - b[0]) + (a[1] - b[1]) * (a[1] - b[1]) + (a[2] - b[2]) * (a[2] - b[2]));
+        CHECK_NEAR(d * lc, 1.0, 0.05);
+        CHECK(p[3 * ((size_t)i * down + down - 1) + 1] < a[1] - 0.5f * (float)(down - 1) / lc);
+    }
+    CHECK_EQ_INT(weft_sample_cape_failed_steps(cape), 0);
+    weft_sample_cape_destroy(cape);
+    weft_body_destroy(body);
+    weft_context_destroy(ctx);
+}
+
+TEST_MAIN(TEST_CASE(test_cape_follows_body))
+
+#else
+
+static void test_no_sample(void) { printf("no body runtime in this build: the cape is not built\n"); }
+
+TEST_MAIN(TEST_CASE(test_no_sample))
+
+#endif
