@@ -1,0 +1,109 @@
+/* `weft bench lod` end to end on the committed sample sequence: the run writes a lod.csv that
+ * weft_lod_table_load_file accepts, with one level per candidate (LBS with and without CCD,
+ * XPBD at the substeps asked for, the `game` model at three precisions with and without CCD),
+ * finite measured numbers, and a LOD.md with the generated table between its markers.
+ * argv: weft binary, data folder, models folder, output folder. Exits 77 (skipped) without a
+ * sample sequence. */
+#define _POSIX_C_SOURCE 200809L /* posix_spawn, symlink */
+#include "test.h"
+#include "weft/lod.h"
+
+#include <errno.h>
+#include <spawn.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+extern char **environ;
+
+static const char *g_exe, *g_data, *g_models, *g_out;
+
+static int run(const char *const argv[])
+{
+    pid_t pid;
+    if (posix_spawn(&pid, argv[0], NULL, NULL, (char *const *)argv, environ) != 0) {
+        return -1;
+    }
+    int status = 0;
+    if (waitpid(pid, &status, 0) < 0) {
+        return -1;
+    }
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+static void bench_writes_loadable_table(void)
+{
+    /* Only the `game` model (linked into a folder of its own) keeps the run short. */
+    char models[1024], link_path[1200], target[1200];
+    snprintf(models, sizeof models, "%s/models", g_out);
+    mkdir(g_out, 0755);
+    mkdir(models, 0755);
+    static const char *const files[] = {"game.safetensors", "game.int8.safetensors", "game.fp16.safetensors"};
+    for (size_t i = 0; i < sizeof files / sizeof files[0]; ++i) {
+        snprintf(link_path, sizeof link_path, "%s/%s", models, files[i]);
+        snprintf(target, sizeof target, "%s/%s", g_models, files[i]);
+        unlink(link_path);
+        CHECK_MSG(symlink(target, link_path) == 0, "symlink %s: %s", link_path, strerror(errno));
+    }
+    char md[1200], csv[1200];
+    snprintf(md, sizeof md, "%s/LOD.md", g_out);
+    snprintf(csv, sizeof csv, "%s/lod.csv", g_out);
+    unlink(md);
+    unlink(csv);
+    const char *argv[] = {g_exe,  "bench", "lod",      "--data", g_data,  "--split", "all", "--frames", "3",
+                          "--xpbd", "1",   "--models", models,   "--out", g_out,     "--no-scale", NULL};
+    CHECK_EQ_INT(run(argv), 0);
+
+    weft_context_def cd = weft_default_context_def();
+    weft_context *ctx = NULL;
+    CHECK_RESULT(weft_context_create(&cd, &ctx), WEFT_OK);
+    weft_lod_table *t = NULL;
+    CHECK_RESULT(weft_lod_table_load_file(ctx, csv, &t), WEFT_OK);
+    if (t) {
+        CHECK_EQ_INT(weft_lod_table_count(t), 9);
+        static const char *const names[] = {"lbs",           "lbs-noccd",     "xpbd-1",
+                                            "game-fp32",     "game-fp32-noccd", "game-fp16",
+                                            "game-fp16-noccd", "game-int8",   "game-int8-noccd"};
+        for (size_t i = 0; i < sizeof names / sizeof names[0]; ++i) {
+            uint32_t idx = 0;
+            CHECK_RESULT(weft_lod_table_find(t, names[i], &idx), WEFT_OK);
+            const weft_lod_level *l = weft_lod_table_level(t, idx);
+            CHECK(l && l->frames == 3 && l->sequences == 1 && l->ms_per_frame > 0.0 && isfinite(l->mve_cm));
+        }
+        uint32_t lv = 0;
+        CHECK(weft_lod_pick(t, INFINITY, 1e6, &lv) == WEFT_LOD_PICK_OK);
+        weft_lod_table_destroy(t);
+    }
+    weft_context_destroy(ctx);
+    FILE *f = fopen(md, "r");
+    CHECK_MSG(f != NULL, "cannot open %s", md);
+    if (f) {
+        static char text[65536];
+        size_t n = fread(text, 1, sizeof text - 1, f);
+        text[n] = '\0';
+        fclose(f);
+        CHECK(strstr(text, "<!-- lod:table -->") != NULL && strstr(text, "<!-- /lod:table -->") != NULL);
+        CHECK(strstr(text, "| game-int8 | model game | int8 |") != NULL);
+    }
+}
+
+int main(int argc, char **argv)
+{
+    if (argc != 5) {
+        fprintf(stderr, "usage: %s WEFT DATA MODELS OUT\n", argv[0]);
+        return 2;
+    }
+    g_exe = argv[1];
+    g_data = argv[2];
+    g_models = argv[3];
+    g_out = argv[4];
+    char probe[1024];
+    snprintf(probe, sizeof probe, "%s/sample_seq/meta.json", g_data);
+    struct stat st;
+    if (stat(probe, &st) != 0) {
+        printf("skipped: no %s\n", probe);
+        return 77;
+    }
+    static const test_case_ cases[] = {TEST_CASE(bench_writes_loadable_table)};
+    return test_run_(cases, 1, 1, argv);
+}
