@@ -2,57 +2,14 @@
  * weft_garment_step (fp32, fp16, int8; int8 also across ISA levels), mixed methods and
  * precisions in one call, failures confined to the failing garment, and no allocation after
  * the first call. */
+#include "model_data.h"
 #include "test.h"
 #include "weft.h"
 
 #include <stdbool.h>
 #include <stdint.h>
 
-#define DATA WEFT_SOURCE_DIR "/tests/model/data/"
 #define GAME WEFT_SOURCE_DIR "/tools/train/models/game.safetensors"
-
-static void *load_npy(const char *name, size_t *count, size_t *rows)
-{
-    char path[512];
-    snprintf(path, sizeof path, "%s%s.npy", DATA, name);
-    FILE *f = fopen(path, "rb");
-    if (!f) {
-        return NULL;
-    }
-    unsigned char pre[10];
-    char header[1024] = {0};
-    void *data = NULL;
-    size_t hlen = 0;
-    if (fread(pre, 1, 10, f) == 10 && memcmp(pre, "\x93NUMPY", 6) == 0 && pre[6] == 1) {
-        hlen = (size_t)pre[8] | (size_t)pre[9] << 8;
-    }
-    if (hlen > 0 && hlen < sizeof header && fread(header, 1, hlen, f) == hlen) {
-        const char *sh = strstr(header, "'shape': (");
-        size_t n = 1, first = 0;
-        for (const char *p = sh ? sh + 10 : NULL; p && *p && *p != ')';) {
-            char *end;
-            size_t v = (size_t)strtoull(p, &end, 10);
-            if (end == p) {
-                break;
-            }
-            first = first ? first : v;
-            n *= v;
-            p = end;
-            while (*p == ',' || *p == ' ') {
-                p++;
-            }
-        }
-        data = sh ? malloc(n * 4) : NULL;
-        if (data && fread(data, 4, n, f) != n) {
-            free(data);
-            data = NULL;
-        }
-        *count = n;
-        *rows = first;
-    }
-    fclose(f);
-    return data;
-}
 
 typedef struct fixture {
     float *rest, *cpos, *gt;
