@@ -691,23 +691,9 @@ int weft_bench_lod(int argc, char **argv)
         o.nxpbd = 3;
     }
     char exe[1024];
-    if (!bench_self_exe(exe, sizeof exe)) {
-        fprintf(stderr, "weft bench lod: cannot find the running weft binary (/proc/self/exe)\n");
-        return 1;
-    }
-    if (!bench_mkdirs(o.out)) {
-        fprintf(stderr, "weft bench lod: cannot create %s\n", o.out);
-        return 1;
-    }
     bench_seq *seqs = NULL;
     size_t nseq = 0;
-    if (!bench_list_sequences(o.data, strcmp(o.split, "all") == 0 ? NULL : o.split, &seqs, &nseq)) {
-        fprintf(stderr, "weft bench lod: cannot read %s\n", o.data);
-        return 1;
-    }
-    if (nseq == 0) {
-        fprintf(stderr, "weft bench lod: no %s sequences (meta.json + cloth_pos.npy) under %s\n", o.split, o.data);
-        free(seqs);
+    if (!bench_start("lod", o.data, o.split, o.out, exe, sizeof exe, &seqs, &nseq)) {
         return 1;
     }
     if (o.max_seqs && nseq > o.max_seqs) {

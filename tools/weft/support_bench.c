@@ -455,3 +455,29 @@ size_t bench_parse_substeps(const char *v, unsigned *out, size_t cap)
     }
     return n;
 }
+
+bool bench_start(const char *tool, const char *data, const char *split, const char *out, char *exe, size_t exe_cap,
+                 bench_seq **seqs, size_t *nseq)
+{
+    *seqs = NULL;
+    *nseq = 0;
+    if (!bench_self_exe(exe, exe_cap)) {
+        fprintf(stderr, "weft bench %s: cannot find the running weft binary (/proc/self/exe)\n", tool);
+        return false;
+    }
+    if (!bench_mkdirs(out)) {
+        fprintf(stderr, "weft bench %s: cannot create %s\n", tool, out);
+        return false;
+    }
+    if (!bench_list_sequences(data, strcmp(split, "all") == 0 ? NULL : split, seqs, nseq)) {
+        fprintf(stderr, "weft bench %s: cannot read %s\n", tool, data);
+        return false;
+    }
+    if (*nseq == 0) {
+        fprintf(stderr, "weft bench %s: no %s sequences (meta.json + cloth_pos.npy) under %s\n", tool, split, data);
+        free(*seqs);
+        *seqs = NULL;
+        return false;
+    }
+    return true;
+}

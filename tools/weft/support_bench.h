@@ -47,6 +47,13 @@ bool bench_mkdirs(const char *path);
  * root's manifest.json, else simgen's name hash. *out is malloc'd; the caller frees. */
 bool bench_list_sequences(const char *root, const char *split, bench_seq **out, size_t *count);
 
+/* The common start of a harness benchmark: the running binary's path into exe, the output
+ * folder created, and the sequences of `split` ("all": every one) under data into *seqs
+ * (malloc'd; the caller frees). Prints "weft bench <tool>: ..." and returns false on failure,
+ * including when no sequence is found. */
+bool bench_start(const char *tool, const char *data, const char *split, const char *out, char *exe, size_t exe_cap,
+                 bench_seq **seqs, size_t *nseq);
+
 /* Collapses a stderr line into something safe for one CSV / markdown cell. */
 void bench_sanitize(char *s);
 
