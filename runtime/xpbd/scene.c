@@ -1,4 +1,5 @@
 /* Procedural geometry and kinematics for the drop and gripper scenarios. */
+#include "weft/ccd.h"
 #include "xpbd/scene.h"
 
 #include <stdio.h>
@@ -717,6 +718,40 @@ static bool bind_band(xscene *sc)
     return true;
 }
 
+/* Whether the garment mesh (at the bind pose) intersects the body or itself at the bind pose
+ * (exact triangle tests). *out is the answer; the result reports failures to check. */
+static weft_result garment_intersects(weft_context *ctx, const weft_cloth_mesh *mesh, const weft_body *body,
+                                      bool *out)
+{
+    const uint32_t bnv = weft_body_vertex_count(body), bnt = weft_body_triangle_count(body);
+    float *bp = malloc(sizeof(float) * 3 * bnv);
+    if (!bp) {
+        return weft__fail(WEFT_ERROR_OUT_OF_MEMORY, "simgen: out of memory");
+    }
+    weft_pose bind;
+    weft_body_bind_pose(body, &bind);
+    weft_result res = weft_body_pose(body, &bind, bp, NULL);
+    weft_ccd_world_def wd = weft_default_ccd_world_def();
+    wd.cloth_triangles = mesh->triangles;
+    wd.cloth_triangle_count = mesh->triangle_count;
+    wd.cloth_vertex_count = mesh->vertex_count;
+    wd.collider_triangles = weft_body_triangles(body);
+    wd.collider_triangle_count = bnt;
+    wd.collider_vertex_count = bnv;
+    weft_ccd_world *w = NULL;
+    if (res == WEFT_OK) {
+        res = weft_ccd_world_create(ctx, &wd, &w);
+    }
+    weft_ccd_intersections in = {0};
+    if (res == WEFT_OK) {
+        res = weft_ccd_intersect_frame(w, mesh->positions, bp, &in);
+    }
+    *out = in.cloth_cloth + in.cloth_collider > 0;
+    weft_ccd_world_destroy(w);
+    free(bp);
+    return res;
+}
+
 static weft_result build_garment(weft_context *ctx, xscene *sc, const weft_sim_sequence_def *def, xrng *r)
 {
     weft_avatar_def ad = weft_default_avatar_def();
@@ -736,9 +771,30 @@ static weft_result build_garment(weft_context *ctx, xscene *sc, const weft_sim_s
     cd.target_vertices = def->cloth_vertices;
     weft_cloth_mesh *mesh = NULL;
     res = weft_cloth_create(ctx, &cd, sc->body, &mesh);
+    /* A coarse garment's flat triangles can cut into the curved body although its vertices
+     * keep their clearance (a 256-vertex T-shirt around the armpits): widen the clearance
+     * until the bind-pose garment is intersection-free, so every sequence starts clean. */
+    for (int widen = 0; res == WEFT_OK && widen < 6; ++widen) {
+        bool hits = false;
+        res = garment_intersects(ctx, mesh, sc->body, &hits);
+        if (res != WEFT_OK || !hits) {
+            break;
+        }
+        weft_cloth_destroy(mesh);
+        mesh = NULL;
+        cd.clearance *= 1.5f;
+        if (cd.clearance > 0.1f) {
+            return weft__fail(WEFT_ERROR_DEGENERATE_MESH,
+                              "simgen: the %u-vertex %s intersects the avatar at every clearance up to 10 cm",
+                              def->cloth_vertices, weft_cloth_kind_name(kind));
+        }
+        res = weft_cloth_create(ctx, &cd, sc->body, &mesh);
+    }
     if (res != WEFT_OK) {
+        weft_cloth_destroy(mesh);
         return res;
     }
+    sc->garment_clearance = cd.clearance;
     bool ok = reserve(&sc->cloth, mesh->vertex_count, mesh->triangle_count);
     if (ok) {
         memcpy(sc->cloth.pos, mesh->positions, sizeof(float) * 3 * mesh->vertex_count);

@@ -61,6 +61,7 @@ typedef struct xscene {
     weft_motion_def motion;
     weft_pose bind_pose, start_pose;
     uint32_t preroll;
+    float garment_clearance;     /* the wardrobe clearance the garment was made with */
     /* Waistband (skirts, dresses): the garment's top ring rides on the body like an elastic
      * band. Each band vertex keeps its bind-pose offset in the frame of its closest body
      * triangle (barycentric point + offset along the edge, bitangent and normal). */

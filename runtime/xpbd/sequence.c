@@ -359,6 +359,7 @@ static bool write_meta(const char *dir, const xscene *sc, const weft_sim_sequenc
                                 "the body blends from its bind pose to the motion's first pose over the first half of "
                                 "the pre-roll and holds it for the second half; recording starts after it");
         cJSON_AddNumberToObject(gm, "waistband_vertices", sc->band_count);
+        cJSON_AddNumberToObject(gm, "clearance_m", sc->garment_clearance);
         if (sc->band_count) {
             cJSON_AddStringToObject(gm, "waistband",
                                     "the top ring is pinned to the body (bind-pose offset in the closest body "
