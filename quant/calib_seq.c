@@ -5,6 +5,7 @@
 
 #include "assets/npz.h"
 #include "core/core.h"
+#include "weft/sim.h"
 
 #include <cjson/cJSON.h>
 #include <dirent.h>
@@ -222,18 +223,6 @@ static bool list_push(str_list *l, const char *s)
     return true;
 }
 
-/* The name hash `weft simgen` splits by (FNV-1a, then a splitmix64 finaliser), as in
- * tools/weft/cmd_eval.c and tools/train/data.py. */
-static uint64_t split_hash(const char *name)
-{
-    uint64_t h = 1469598103934665603ull ^ 0x5b11u;
-    for (const char *c = name; *c; ++c) {
-        h = (h ^ (unsigned char)*c) * 1099511628211ull;
-    }
-    h = (h ^ (h >> 30)) * 0xBF58476D1CE4E5B9ull;
-    h = (h ^ (h >> 27)) * 0x94D049BB133111EBull;
-    return h ^ (h >> 31);
-}
 
 static const char *json_split(const cJSON *obj)
 {
@@ -269,8 +258,7 @@ static bool in_split(const char *path, const char *name, const cJSON *manifest, 
     if (s) {
         match = strcmp(s, split) == 0;
     } else {
-        uint64_t h = split_hash(name) % 10;
-        match = strcmp(split, h < 8 ? "train" : (h == 8 ? "val" : "test")) == 0;
+        match = strcmp(split, weft_sim_split_of(name)) == 0;
     }
     cJSON_Delete(meta);
     free(text);

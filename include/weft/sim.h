@@ -98,6 +98,11 @@ typedef struct weft_sim_sequence_result {
 } weft_sim_sequence_result;
 
 WEFT_API weft_sim_sequence_def weft_sim_default_sequence_def(void);
+/* The split of a sequence from its name alone: "train", "val" or "test" in the ratio 8:1:1
+ * (FNV-1a of the name, a splitmix64 finaliser, modulo 10), so a sequence never changes split
+ * when the set grows. `weft simgen` writes it into the manifest; tools/train/data.py computes the
+ * same. NULL name: "train". */
+WEFT_API const char *weft_sim_split_of(const char *sequence_name);
 WEFT_API const char *weft_sim_scenario_name(weft_sim_scenario scenario);
 
 /* Simulates one sequence and writes it into out_dir (created if missing): meta.json plus

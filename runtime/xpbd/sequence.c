@@ -48,6 +48,18 @@ weft_sim_sequence_def weft_sim_default_sequence_def(void)
     return d;
 }
 
+const char *weft_sim_split_of(const char *name)
+{
+    uint64_t h = 1469598103934665603ull ^ 0x5b11u;
+    for (const char *c = name ? name : ""; *c; ++c) {
+        h = (h ^ (unsigned char)*c) * 1099511628211ull;
+    }
+    h = (h ^ (h >> 30)) * 0xBF58476D1CE4E5B9ull;
+    h = (h ^ (h >> 27)) * 0x94D049BB133111EBull;
+    h = (h ^ (h >> 31)) % 10;
+    return h < 8 ? "train" : (h == 8 ? "val" : "test");
+}
+
 const char *weft_sim_scenario_name(weft_sim_scenario s)
 {
     static const char *const names[] = {"drop", "gripper", "garment"};

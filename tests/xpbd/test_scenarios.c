@@ -164,4 +164,23 @@ static void test_gripper_speed(void)
     weft_context_destroy(ctx);
 }
 
-TEST_MAIN(TEST_CASE(test_drop_deterministic), TEST_CASE(test_gripper_lifts), TEST_CASE(test_gripper_speed))
+/* The name-hash split: values that earlier manifests recorded, and the 8:1:1 ratio. */
+static void test_split(void)
+{
+    CHECK(strcmp(weft_sim_split_of("gripper_v256_0000"), "train") == 0);
+    CHECK(strcmp(weft_sim_split_of("gripper_v256_0012"), "val") == 0);
+    CHECK(strcmp(weft_sim_split_of("gripper_v256_0026"), "test") == 0);
+    CHECK(strcmp(weft_sim_split_of(NULL), weft_sim_split_of("")) == 0);
+    uint32_t n[3] = {0, 0, 0};
+    for (uint32_t i = 0; i < 10000; ++i) {
+        char name[32];
+        snprintf(name, sizeof name, "drop_1k_%04u", i);
+        const char *s = weft_sim_split_of(name);
+        n[strcmp(s, "train") == 0 ? 0 : strcmp(s, "val") == 0 ? 1 : 2]++;
+    }
+    CHECK_MSG(n[0] > 7800 && n[0] < 8200 && n[1] > 900 && n[1] < 1100 && n[2] > 900 && n[2] < 1100,
+              "split %u / %u / %u", n[0], n[1], n[2]);
+}
+
+TEST_MAIN(TEST_CASE(test_drop_deterministic), TEST_CASE(test_gripper_lifts), TEST_CASE(test_gripper_speed),
+          TEST_CASE(test_split))

@@ -12,6 +12,7 @@
 #define _POSIX_C_SOURCE 200809L /* opendir, stat */
 #include "weft.h"
 #include "weft/ccd.h"
+#include "weft/sim.h"
 #include "assets/npz.h"
 
 #include <cjson/cJSON.h>
@@ -429,18 +430,6 @@ static bool is_file(const char *dir, const char *name)
     return path_join(p, sizeof p, dir, name) && stat(p, &st) == 0 && S_ISREG(st.st_mode);
 }
 
-/* The name hash `weft simgen` splits by (FNV-1a, then a splitmix64 finaliser); also in
- * tools/train/data.py. */
-static uint64_t split_hash(const char *name)
-{
-    uint64_t h = 1469598103934665603ull ^ 0x5b11u;
-    for (const char *c = name; *c; ++c) {
-        h = (h ^ (unsigned char)*c) * 1099511628211ull;
-    }
-    h = (h ^ (h >> 30)) * 0xBF58476D1CE4E5B9ull;
-    h = (h ^ (h >> 27)) * 0x94D049BB133111EBull;
-    return h ^ (h >> 31);
-}
 
 /* The sequence's split: meta.json "split", else `weft simgen`'s manifest.json in the root folder
  * (its "sequences" list), else the simgen name hash mod 10 (< 8 train, 8 val, 9 test). */
@@ -472,8 +461,7 @@ static bool in_split(const char *dir, const char *name, const cJSON *manifest, c
     if (s) {
         match = strcmp(s, split) == 0;
     } else {
-        uint64_t h = split_hash(name) % 10;
-        match = strcmp(split, h < 8 ? "train" : (h == 8 ? "val" : "test")) == 0;
+        match = strcmp(split, weft_sim_split_of(name)) == 0;
     }
     cJSON_Delete(j);
     free(text);

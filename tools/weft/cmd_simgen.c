@@ -44,13 +44,6 @@ static uint64_t seq_seed(uint64_t seed0, const char *name)
     return mix64(h);
 }
 
-/* 8:1:1 split from a hash of the name, so it never changes when the set grows. */
-static const char *split_of(const char *name)
-{
-    uint64_t h = seq_seed(0x5b11u, name) % 10;
-    return h < 8 ? "train" : (h == 8 ? "val" : "test");
-}
-
 static bool file_exists(const char *path)
 {
     struct stat st;
@@ -141,7 +134,7 @@ static int write_manifest(const char *out, const plan_item *plan, uint32_t n)
         cJSON_AddNumberToObject(e, "substeps", cJSON_GetNumberValue(cJSON_GetObjectItem(meta, "substeps")));
         cJSON_AddNumberToObject(e, "frames", cJSON_GetNumberValue(cJSON_GetObjectItem(meta, "frames")));
         cJSON_AddBoolToObject(e, "accepted", accepted);
-        const char *split = accepted ? split_of(plan[i].name) : "rejected";
+        const char *split = accepted ? weft_sim_split_of(plan[i].name) : "rejected";
         cJSON_AddStringToObject(e, "split", split);
         cJSON_AddItemToArray(seqs, e);
         int k = accepted ? (strcmp(split, "train") == 0 ? 0 : (strcmp(split, "val") == 0 ? 1 : 2)) : 3;

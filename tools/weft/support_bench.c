@@ -3,6 +3,7 @@
  * table, not the whole run, and every figure comes from the same code path users run. */
 #define _POSIX_C_SOURCE 200809L /* posix_spawn, readlink, mkstemp, opendir */
 #include "support_bench.h"
+#include "weft/sim.h"
 
 #include <cjson/cJSON.h>
 #include <dirent.h>
@@ -254,17 +255,6 @@ bool bench_eval(const char *exe, const char *seq_dir, const char *const extra[],
     return r->ok;
 }
 
-/* Same hash as `weft simgen` / `weft eval` split by (FNV-1a, splitmix64 finaliser). */
-static uint64_t split_hash(const char *name)
-{
-    uint64_t h = 1469598103934665603ull ^ 0x5b11u;
-    for (const char *c = name; *c; ++c) {
-        h = (h ^ (unsigned char)*c) * 1099511628211ull;
-    }
-    h = (h ^ (h >> 30)) * 0xBF58476D1CE4E5B9ull;
-    h = (h ^ (h >> 27)) * 0x94D049BB133111EBull;
-    return h ^ (h >> 31);
-}
 
 static int cmp_seq(const void *a, const void *b)
 {
@@ -338,8 +328,7 @@ bool bench_list_sequences(const char *root, const char *split, bench_seq **out, 
             if (which) {
                 keep = strcmp(which, split) == 0;
             } else {
-                uint64_t h = split_hash(s.name) % 10;
-                keep = strcmp(split, h < 8 ? "train" : (h == 8 ? "val" : "test")) == 0;
+                keep = strcmp(split, weft_sim_split_of(s.name)) == 0;
             }
         }
         cJSON_Delete(meta);
