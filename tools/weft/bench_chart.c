@@ -112,6 +112,8 @@ static bool run_fnopt(const char *exe, const chart_opts *o, const chart_method *
     argv[n++] = "fnopt";
     argv[n++] = "run";
     argv[n++] = "--gt";
+    argv[n++] = "--material";
+    argv[n++] = BENCH_FNOPT_MATERIAL;
     argv[n++] = "--motion";
     argv[n++] = motion;
     argv[n++] = "--optimizer";

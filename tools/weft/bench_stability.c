@@ -222,6 +222,8 @@ static void score_fnopt(const char *exe, const st_opts *o, const st_method *m, c
         argv[n++] = "fnopt";
         argv[n++] = "run";
         argv[n++] = "--gt";
+        argv[n++] = "--material";
+        argv[n++] = BENCH_FNOPT_MATERIAL;
         argv[n++] = "--speed";
         argv[n++] = speed;
         argv[n++] = "--motion";

@@ -54,6 +54,11 @@ bool bench_list_sequences(const char *root, const char *split, bench_seq **out, 
 bool bench_start(const char *tool, const char *data, const char *split, const char *out, char *exe, size_t exe_cap,
                  bench_seq **seqs, size_t *nseq);
 
+/* The FNOpt energy's coefficients (Y, S, B in grid units) fitted to the reference simulator's
+ * material by `weft fnopt fit` (docs/FNOPT.md, "Material fit"); every FNOpt scene of the
+ * harness benchmarks runs with them, as the FNOpt evaluation tables do. */
+#define BENCH_FNOPT_MATERIAL "100,3,5"
+
 /* Collapses a stderr line into something safe for one CSV / markdown cell. */
 void bench_sanitize(char *s);
 
