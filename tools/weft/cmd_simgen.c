@@ -190,8 +190,8 @@ static void usage(FILE *f)
             "  --no-garments    leave the garment scenario out of --all (it is the slowest)\n"
             "  --speed X        scale the avatar's motion and the gripper's schedule (0.1..10, default 1;\n"
             "                   the stability suite's speed axis); same draws as at speed 1\n"
-            "  --garment-substeps S  first attempt of a garment sequence (default 80: at 40 the\n"
-            "                   motion start is rejected, docs/REFSIM.md)\n"
+            "  --garment-substeps S  first attempt of a garment sequence when above --substeps\n"
+            "                   (default: none, garments start at --substeps like the others)\n"
             "  --shard I/N      only sequences whose plan index is I modulo N (job arrays)\n"
             "  --limit N        stop after generating N new sequences\n"
             "Finished sequences (DIR/<name>/meta.json present) are skipped, so a run resumes.\n"
@@ -202,7 +202,7 @@ int weft_cmd_simgen(int argc, char **argv)
 {
     const char *out = NULL, *scenario = NULL;
     bool all = false, manifest_only = false, validate = true, garments = true;
-    uint32_t garment_substeps = 80;
+    uint32_t garment_substeps = 0;
     float motion_speed = 1.0f;
     uint32_t count = 10, vertices = 1024, frames = 240, substeps = 40, max_substeps = 80, shard_i = 0, shard_n = 1;
     uint32_t limit = UINT32_MAX;
