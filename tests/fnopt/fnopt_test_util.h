@@ -51,4 +51,27 @@ static inline double fnopt_max_diff(const float *a, const float *b, size_t n, do
     return d;
 }
 
+/* A counting allocator for the context's allocator hook: the step paths must allocate nothing. */
+typedef struct counting {
+    size_t allocs, live;
+} counting;
+
+static inline void *count_alloc(size_t size, size_t alignment, void *user)
+{
+    counting *c = user;
+    c->allocs++;
+    c->live++;
+    return aligned_alloc(alignment, (size + alignment - 1) / alignment * alignment);
+}
+
+static inline void count_free(void *ptr, size_t size, void *user)
+{
+    (void)size;
+    counting *c = user;
+    if (ptr) {
+        c->live--;
+    }
+    free(ptr);
+}
+
 #endif

@@ -2,26 +2,6 @@
  * at equal iterations, handles land on their targets, and stepping allocates nothing. */
 #include "fnopt_test_util.h"
 
-typedef struct counting {
-    size_t allocs, live;
-} counting;
-
-static void *count_alloc(size_t size, size_t alignment, void *user)
-{
-    counting *c = user;
-    c->allocs++;
-    c->live++;
-    return aligned_alloc(alignment, (size + alignment - 1) / alignment * alignment);
-}
-
-static void count_free(void *ptr, size_t size, void *user)
-{
-    (void)size;
-    counting *c = user;
-    c->live--;
-    free(ptr);
-}
-
 /* One step of a 16 x 16 sheet whose two top corners jump 2 units sideways; returns the
  * final loss, fills first. */
 static double solve(weft_context *ctx, weft_fnopt_optimizer kind, float lr, uint32_t iters, double *first,

@@ -228,28 +228,6 @@ static void test_same_bits_on_every_isa(void)
     }
 }
 
-typedef struct counting {
-    size_t allocs, live;
-} counting;
-
-static void *count_alloc(size_t size, size_t alignment, void *user)
-{
-    counting *c = user;
-    c->allocs++;
-    c->live++;
-    return aligned_alloc(alignment, (size + alignment - 1) / alignment * alignment);
-}
-
-static void count_free(void *ptr, size_t size, void *user)
-{
-    (void)size;
-    counting *c = user;
-    if (ptr) {
-        c->live--;
-    }
-    free(ptr);
-}
-
 static void test_no_allocation_and_bad_precision(void)
 {
     counting cnt = {0, 0};
