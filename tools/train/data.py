@@ -6,7 +6,8 @@ Array names accepted (the first present wins):
   cloth triangles   faces.npy / cloth_faces.npy   [F, 3] int
   collider          collider_pos.npy / obst_pos.npy / body_pos.npy   [T, Vc, 3] (optional)
   collider tris     collider_faces.npy / obst_faces.npy / body_faces.npy [Fc, 3] (optional)
-A `topology.npz` with rest_pos / faces is read as well. meta.json may carry "scenario" and "split";
+A `topology.npz` with rest_pos / faces is read as well. Packed sequences (`*.wpk.npz`, written by
+pack.py) are found below the roots too. meta.json may carry "scenario" and "split";
 otherwise the split comes from the root's manifest.json / splits/*.txt (weft simgen), else from a
 hash of the folder name (default_split, the rule weft simgen uses).
 """
@@ -131,12 +132,25 @@ def manifest_splits(roots):
     return out
 
 
+def find_packs(roots):
+    """Packed sequences (tools/train/pack.py) below the given roots."""
+    out = []
+    for r in roots:
+        out += sorted(glob.glob(os.path.join(r, "**", "*.wpk.npz"), recursive=True))
+    return out
+
+
 def load_sequences(roots, split=None, min_frames=8):
     seqs = []
     named = manifest_splits(roots)
-    for d in find_sequences(roots):
+    packs = find_packs(roots)
+    for d in find_sequences(roots) + packs:
         try:
-            s = Sequence(d)
+            if d.endswith(".wpk.npz"):
+                from pack import PackedSequence  # noqa: E402 (pack imports this module)
+                s = PackedSequence(d)
+            else:
+                s = Sequence(d)
         except (ValueError, FileNotFoundError, KeyError) as e:
             print(f"skipping {d}: {e}")
             continue

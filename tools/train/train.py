@@ -184,6 +184,9 @@ def main():
     ap.add_argument("--lambda-ccd", type=float, default=1.0)
     ap.add_argument("--stage", choices=["pretrain", "ccd"], default="pretrain")
     ap.add_argument("--max-minutes", type=float, default=0.0, help="stop (with a checkpoint) after this")
+    ap.add_argument("--budget-minutes", type=float, default=0.0,
+                    help="schedule (lr decay, rollout curriculum) by training time instead of steps: "
+                         "the run ends after this many minutes in all, resumes included")
     ap.add_argument("--ckpt-every", type=int, default=200)
     ap.add_argument("--eval-every", type=int, default=500)
     ap.add_argument("--eval-frames", type=int, default=60)
@@ -210,7 +213,10 @@ def main():
 
     state = None
     if a.resume and os.path.exists(ckpt_path):
-        state = torch.load(ckpt_path, map_location="cpu")
+        try:  # torch >= 2.6 defaults to weights_only loading; our checkpoints hold RNG states
+            state = torch.load(ckpt_path, map_location="cpu", weights_only=False)
+        except TypeError:
+            state = torch.load(ckpt_path, map_location="cpu")
         cfg = state["config"]
     else:
         cfg = dict(PRESETS[a.preset])
@@ -266,10 +272,20 @@ def main():
     out_scale = cfg["out_scale"]
     run_avg = None
     while step < a.steps:
-        lr = a.lr * min(1.0, (step + 1) / warm) * (0.1 + 0.9 * 0.5 * (1 + math.cos(math.pi * step / a.steps)))
+        if a.budget_minutes > 0:
+            progress = (elapsed_before + time.time() - t_start) / (60.0 * a.budget_minutes)
+            if ddp:  # every rank follows rank 0's clock, so all stop at the same step
+                pt = torch.tensor([progress], dtype=torch.float64)
+                dist.broadcast(pt, 0)
+                progress = float(pt.item())
+            if progress >= 1.0:
+                break
+        else:
+            progress = step / a.steps
+        lr = a.lr * min(1.0, (step + 1) / warm) * (0.1 + 0.9 * 0.5 * (1 + math.cos(math.pi * progress)))
         for gparam in opt.param_groups:
             gparam["lr"] = lr
-        R = 1 + min(a.rollout_max - 1, int((a.rollout_max) * step / max(1, 0.7 * a.steps)))
+        R = 1 + min(a.rollout_max - 1, int(a.rollout_max * progress / 0.7))
         seq = random.choice(train)
         h = cfg["history"]
         need = (h - 1) + R + 2
@@ -315,7 +331,7 @@ def main():
             log.writerow([step, f"{float(loss):.6g}", f"{mse_cm:.5f}", f"{float(contact) / len(preds):.5g}",
                           f"{float(ccd_l):.5g}", R, f"{lr:.3g}", f"{elapsed:.1f}", val_mve])
         if rank == 0 and (tty or step % 50 == 0 or val_mve):
-            frac = step / a.steps
+            frac = min(1.0, max(step / a.steps, progress))
             bar = "#" * int(30 * frac) + "-" * (30 - int(30 * frac))
             msg = (f"[{bar}] {step}/{a.steps} rms {run_avg:.3f} cm R={R} lr {lr:.2g} "
                    f"{elapsed / 60:.1f} min" + (f" val MVE {val_mve} cm" if val_mve else ""))
@@ -335,6 +351,12 @@ def main():
                 print(f"\nstopped at step {step} (--max-minutes); rerun with --resume", file=sys.stderr)
             break
     if rank == 0:
+        if a.budget_minutes > 0:  # the budget ended the loop between checkpoints: save the last step
+            save_ckpt(ckpt_path, {"model": net.state_dict(), "opt": opt.state_dict(), "step": step,
+                                  "config": cfg, "elapsed": elapsed_before + time.time() - t_start,
+                                  "py_rng": random.getstate(), "torch_rng": torch.get_rng_state()})
+            if val:
+                print(f"\nfinal val MVE {evaluate(net, val, mc, device, a.eval_frames):.4f} cm", file=sys.stderr)
         print(f"\ndone: step {step}, checkpoint {ckpt_path}", file=sys.stderr)
     if ddp:
         dist.destroy_process_group()
