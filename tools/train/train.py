@@ -47,8 +47,14 @@ class MeshCache:
     def get(self, seq):
         c = self.cache.get(seq.folder)
         if c is None:
+            f = np.asarray(seq.faces, dtype=np.int64)
+            e = np.concatenate([f[:, [0, 1]], f[:, [1, 2]], f[:, [2, 0]]])
+            e = np.unique(np.sort(e, axis=1), axis=0)
+            rest_len = np.linalg.norm(seq.rest[e[:, 0]] - seq.rest[e[:, 1]], axis=1)
             c = {
                 "adj": mean_adjacency(seq.faces, seq.rest.shape[0]).to(self.device),
+                "edges": torch.from_numpy(e).to(self.device),
+                "rest_len": torch.from_numpy(np.maximum(rest_len, 1e-6).astype(np.float32)).to(self.device),
                 "rest": torch.from_numpy(seq.rest).to(self.device).unsqueeze(0),
                 "ctri": None if seq.cfaces is None else torch.from_numpy(seq.cfaces).to(self.device),
             }
@@ -89,6 +95,12 @@ def contact_penalty(x, c_next, ctri, max_depth=0.05):
     s = ((x - g(cen)) * g(n)).sum(-1)
     d = torch.clamp(s, max=0.0) * (s > -max_depth)
     return (d.abs() * 100.0).pow(3).mean()
+
+
+def strain_penalty(x, edges, rest_len):
+    """Mean squared edge strain (|e| / |e0| - 1)^2 of predicted positions (B, V, 3)."""
+    d = x[:, edges[:, 0]] - x[:, edges[:, 1]]
+    return ((d.norm(dim=-1) / rest_len - 1.0) ** 2).mean()
 
 
 class Rollout(torch.nn.Module):
@@ -182,6 +194,11 @@ def main():
     ap.add_argument("--rollout-max", type=int, default=5)
     ap.add_argument("--lambda-contact", type=float, default=0.05)
     ap.add_argument("--lambda-ccd", type=float, default=1.0)
+    ap.add_argument("--lambda-strain", type=float, default=0.0,
+                    help="weight of the mean squared edge strain of the predictions")
+    ap.add_argument("--noise-std", type=float, default=0.0,
+                    help="Gaussian noise (m) added to the ground-truth input frames of each window, so "
+                         "the model learns to correct states off the data manifold (rollout drift)")
     ap.add_argument("--stage", choices=["pretrain", "ccd"], default="pretrain")
     ap.add_argument("--max-minutes", type=float, default=0.0, help="stop (with a checkpoint) after this")
     ap.add_argument("--budget-minutes", type=float, default=0.0,
@@ -191,6 +208,9 @@ def main():
     ap.add_argument("--eval-every", type=int, default=500)
     ap.add_argument("--eval-frames", type=int, default=60)
     ap.add_argument("--resume", action="store_true")
+    ap.add_argument("--init-from", default=None,
+                    help="start from this checkpoint's weights and config (fine-tuning: fresh optimiser, "
+                         "step 0, new schedule); ignored when --resume finds OUT/ckpt.pt")
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--cuda", action="store_true", help="use a CUDA GPU when present")
     ap.add_argument("--seed", type=int, default=0)
@@ -212,7 +232,16 @@ def main():
         sys.exit(f"no training sequences under {a.data}")
 
     state = None
-    if a.resume and os.path.exists(ckpt_path):
+    init = None
+    if a.init_from and not (a.resume and os.path.exists(ckpt_path)):
+        try:
+            init = torch.load(a.init_from, map_location="cpu", weights_only=False)
+        except TypeError:
+            init = torch.load(a.init_from, map_location="cpu")
+    if init is not None:
+        cfg = dict(init["config"])
+        cfg.update(json.loads(a.config))
+    elif a.resume and os.path.exists(ckpt_path):
         try:  # torch >= 2.6 defaults to weights_only loading; our checkpoints hold RNG states
             state = torch.load(ckpt_path, map_location="cpu", weights_only=False)
         except TypeError:
@@ -232,6 +261,8 @@ def main():
     opt = torch.optim.AdamW(net.parameters(), lr=a.lr, weight_decay=0.01)
     step = 0
     elapsed_before = 0.0
+    if init is not None:
+        net.load_state_dict(init["model"])
     if state is not None:
         net.load_state_dict(state["model"])
         step = state["step"]
@@ -261,7 +292,7 @@ def main():
     logf = open(log_path, "w" if new_log else "a", newline="") if rank == 0 else None
     log = csv.writer(logf) if logf else None
     if log and new_log:
-        log.writerow(["step", "loss", "mse_cm", "contact", "ccd", "rollout", "lr", "elapsed_s", "val_mve_cm"])
+        log.writerow(["step", "loss", "mse_cm", "contact", "ccd", "rollout", "lr", "elapsed_s", "val_mve_cm", "strain"])
     if rank == 0:
         with open(os.path.join(a.out, "config.json"), "w") as f:
             json.dump({"config": cfg, "args": vars(a), "train_sequences": len(train)}, f, indent=1)
@@ -294,6 +325,10 @@ def main():
         starts = [random.randrange(0, seq.frames - need + 1) for _ in range(a.batch)]
         xs, cs = zip(*[seq.window(s0, need) for s0 in starts])
         xa = torch.from_numpy(np.stack(xs)).to(device)
+        if a.noise_std > 0:  # only the frames the rollout starts from are inputs; targets stay clean
+            base_in = rollout_base(cfg, True) + 2
+            xin = xa[:, :base_in] + a.noise_std * torch.randn_like(xa[:, :base_in])
+            xa = torch.cat([xin, xa[:, base_in:]], dim=1)
         ca = None if cs[0] is None else torch.from_numpy(np.stack(cs)).to(device)
         mesh = mc.get(seq)
         predt = model(xa, ca, mesh["rest"], mesh["adj"], mesh["ctri"], R, True)
@@ -302,12 +337,15 @@ def main():
         mse = 0.0
         contact = 0.0
         ccd_l = torch.zeros(())
+        strain = torch.zeros((), device=device)
         ctri = mc.get(seq)["ctri"]
         for i, p in enumerate(preds):
             gt = xa[:, base + 2 + i]
             mse = mse + (((p - gt) / out_scale) ** 2).sum(-1).mean()
             if ca is not None:
                 contact = contact + contact_penalty(p, ca[:, base + 2 + i], ctri)
+            if a.lambda_strain > 0:
+                strain = strain + strain_penalty(p, mesh["edges"], mesh["rest_len"])
             if ccd is not None:
                 world = ccd_worlds.get(seq.folder)
                 if world is None:
@@ -315,7 +353,7 @@ def main():
                     ccd_worlds[seq.folder] = world
                 prev = xa[:, base + 1 + i] if i == 0 else preds[i - 1]
                 ccd_l = ccd_l + ccd_loss(world, prev, p, out_scale)
-        loss = (mse + a.lambda_contact * contact + a.lambda_ccd * ccd_l) / len(preds)
+        loss = (mse + a.lambda_contact * contact + a.lambda_ccd * ccd_l + a.lambda_strain * strain) / len(preds)
         opt.zero_grad(set_to_none=True)
         loss.backward()
         torch.nn.utils.clip_grad_norm_(net.parameters(), 1.0)
@@ -329,7 +367,7 @@ def main():
             val_mve = f"{evaluate(net, val, mc, device, a.eval_frames):.4f}"
         if log:
             log.writerow([step, f"{float(loss):.6g}", f"{mse_cm:.5f}", f"{float(contact) / len(preds):.5g}",
-                          f"{float(ccd_l):.5g}", R, f"{lr:.3g}", f"{elapsed:.1f}", val_mve])
+                          f"{float(ccd_l):.5g}", R, f"{lr:.3g}", f"{elapsed:.1f}", val_mve, f"{float(strain) / len(preds):.5g}"])
         if rank == 0 and (tty or step % 50 == 0 or val_mve):
             frac = min(1.0, max(step / a.steps, progress))
             bar = "#" * int(30 * frac) + "-" * (30 - int(30 * frac))
