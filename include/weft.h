@@ -191,6 +191,18 @@ typedef enum weft_method {
     WEFT_METHOD_COUNT
 } weft_method;
 
+/* Which collider triangles a learned model turns into encoder tokens (WEFT_METHOD_MODEL). Each
+ * kept triangle costs a token in the encoder, so on an avatar the crop decides most of a step's
+ * cost: a level-of-detail lever. */
+typedef enum weft_collider_crop {
+    WEFT_COLLIDER_CROP_BOX = 0,     /* as the model was trained: triangles whose box at t+1 overlaps
+                                       the garment's box at t grown by the margin */
+    WEFT_COLLIDER_CROP_CELLS,       /* finer: triangles within the margin of the tight box of an
+                                       occupied cell of a coarse grid (cells >= one margin, at most
+                                       16 per axis) over the garment's vertices; a subset of BOX */
+    WEFT_COLLIDER_CROP_COUNT
+} weft_collider_crop;
+
 typedef struct weft_garment_def {
     weft_method method;
     const weft_model *model;            /* WEFT_METHOD_MODEL only */
@@ -216,6 +228,18 @@ typedef struct weft_garment_def {
 
     uint32_t substeps;                  /* WEFT_METHOD_XPBD: substeps per frame (default 10) */
     bool ccd;                           /* run CCD post-processing after each step (default true) */
+
+    /* WEFT_METHOD_MODEL: collider cropping (ignored by other methods, but still validated).
+     * collider_crop_margin: metres; 0 (default) means the model's own crop_margin (0.15 m for
+     * the shipped models). Must be finite and >= 0. A smaller margin keeps fewer triangles.
+     * collider_crop: WEFT_COLLIDER_CROP_BOX (default) or WEFT_COLLIDER_CROP_CELLS.
+     * max_collider_tokens: 0 (default) keeps every triangle the crop selects; otherwise at most
+     * this many, those whose centroid is nearest to a garment vertex (exact within a quarter of
+     * the margin; farther ones rank after, approximately), ties to the lower triangle index (the
+     * same set on every kernel ISA). Bounds the encoder's cost. */
+    float collider_crop_margin;
+    weft_collider_crop collider_crop;
+    uint32_t max_collider_tokens;
     uint32_t internal_cookie;           /* set by weft_default_garment_def(); do not touch */
 } weft_garment_def;
 
@@ -225,6 +249,7 @@ typedef struct weft_step_stats {
     uint32_t ccd_iterations;            /* CCD post-process passes in the last step */
     uint32_t ccd_vertices_moved;        /* vertices the CCD post-process moved back */
     bool ccd_fallback;                  /* CCD did not converge; unresolved vertices were held */
+    uint32_t collider_tokens;           /* collider triangles the last model step turned into tokens */
 } weft_step_stats;
 
 WEFT_API weft_garment_def weft_default_garment_def(void);

@@ -2,7 +2,8 @@
  * weft/lod.h — level of detail: model no more than a scene needs.
  *
  * A level is one way of stepping a garment: the method (learned model, XPBD, LBS), the model and
- * its precision, the XPBD substeps, CCD post-processing on or off, and the garment resolution.
+ * its precision and collider crop, the XPBD substeps, CCD post-processing on or off, and the
+ * garment resolution.
  * `weft bench lod` runs every candidate level over a held-out split and writes the measured
  * table (ms per frame and mean vertex error) as CSV; the runtime loads that CSV, picks the
  * cheapest level that meets a per-frame budget and an accuracy target, and switches a live
@@ -36,8 +37,19 @@
  *   sequences        sequences measured (>= 1)
  *   frames           frames measured (>= 1)
  *
+ * Optional columns (the collider crop of a model level: weft_garment_def's collider_crop_margin,
+ * collider_crop and max_collider_tokens; "-" for other methods, and what an absent column means):
+ *
+ *   crop_cm              crop margin in cm, in (0, 10000]; "-": the model's own (15 cm for the
+ *                        shipped models)
+ *   collider_crop        box | cells; "-": box (the rule the models were trained with)
+ *   max_collider_tokens  cap on kept collider triangles, >= 1; "-": no cap
+ *
+ *   (a row of a table with all three, from `weft bench lod --crops model,5:cells,model@3000`)
+ *   game-int8-noccd-cells5,model,game,int8,-,off,1,4.02397,6.39549,1.53334,3,180,5,cells,-
+ *
  * Columns may come in any order; unknown columns are an error (a misspelt name would otherwise
- * silently drop a measurement).
+ * silently drop a measurement). Tables written before the crop columns existed load unchanged.
  */
 #ifndef WEFT_LOD_H
 #define WEFT_LOD_H
@@ -60,6 +72,10 @@ typedef struct weft_lod_level {
     uint32_t substeps;                  /* XPBD only (0 otherwise) */
     bool ccd;
     uint32_t resolution;                /* 1: the measured garment meshes */
+    /* MODEL only: the collider crop (weft_garment_def.collider_crop_*). */
+    double crop_cm;                     /* 0: the model's own margin */
+    weft_collider_crop collider_crop;   /* BOX unless the table says cells */
+    uint32_t max_collider_tokens;       /* 0: no cap */
     double ms_per_frame;
     double mve_cm;
     double max_edge_strain;

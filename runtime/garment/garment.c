@@ -96,6 +96,17 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_garment_create: substeps %u outside [1, 1000]",
                           def->substeps);
     }
+    /* Checked for every method so that a level table or a host passing a bad crop hears of it
+     * whatever the method of the moment. */
+    if (!isfinite(def->collider_crop_margin) || def->collider_crop_margin < 0.0f) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
+                          "weft_garment_create: collider_crop_margin %g is not a finite number >= 0 (0: the model's)",
+                          (double)def->collider_crop_margin);
+    }
+    if ((unsigned)def->collider_crop >= WEFT_COLLIDER_CROP_COUNT) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_garment_create: collider_crop %u is not a weft_collider_crop",
+                          (unsigned)def->collider_crop);
+    }
     weft_result r = check_mesh("garment rest mesh", def->rest_positions, def->vertex_count, def->triangles,
                                def->triangle_count);
     if (r != WEFT_OK) {
@@ -129,6 +140,9 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
     g->precision = def->precision;
     g->substeps = def->substeps;
     g->ccd = def->ccd;
+    g->crop_margin = def->collider_crop_margin;
+    g->crop_rule = def->collider_crop;
+    g->max_collider_tokens = def->max_collider_tokens;
     g->vertex_count = def->vertex_count;
     g->triangle_count = def->triangle_count;
     g->collider_vertex_count = def->collider_vertex_count;

@@ -17,6 +17,9 @@ struct weft_garment {
     weft_precision precision;
     uint32_t substeps;
     bool ccd;
+    float crop_margin;                  /* model collider crop: metres, 0 = the model's own */
+    weft_collider_crop crop_rule;
+    uint32_t max_collider_tokens;       /* 0: no cap */
     void *ccd_state;                    /* runtime/ccd world when ccd is set (weft__ccd_garment_create) */
 
     uint32_t vertex_count, triangle_count;

@@ -86,7 +86,27 @@ typedef struct weft_qkernels {
      * fixed range reduction and polynomial, so it too is identical on every ISA. */
     void (*posembed_det)(const float *x, uint32_t n, uint32_t dims, const float *freq, uint32_t nfreq, float *out,
                          uint32_t ldo);
+
+    /* Deterministic multi-head attention, bit-identical to composing the kernels above per head
+     * (head h uses columns [h dh, (h + 1) dh) of Q, K, V and out):
+     *   s[i][j] = (fma chain over d = 0..dh-1 in order of Q[i][d] K[j][d], from 0) * scale,
+     *             -inf where mask[i * nk + j] == 0 (mask may be NULL);
+     *   p = softmax_rows_det(s) (a fully masked row gives p = 0);
+     *   out[i][d] = fma chain over j = 0..nk-1 in order of p[i][j] V[j][d], from 0.
+     * Lanes run along 16 or 32 queries at a time, so the per-query chains are those of the
+     * composed form; no transposes, no nq x nk score matrix.
+     * scratch: weft_qk_attention_scratch(nk, dh) floats. */
+    void (*attention_det)(const float *Q, uint32_t ldq, const float *K, uint32_t ldk, const float *V, uint32_t ldv,
+                          uint32_t nq, uint32_t nk, uint32_t H, uint32_t dh, float scale, const uint8_t *mask,
+                          float *out, uint32_t ldo, float *scratch);
 } weft_qkernels;
+
+/* The most queries per block of attention_det (its lanes), and the floats of scratch it needs. */
+#define WEFT_QK_ATT_QB 32u
+static inline size_t weft_qk_attention_scratch(uint32_t nk, uint32_t dh)
+{
+    return (size_t)WEFT_QK_ATT_QB * ((size_t)nk + 16u + 2u * dh);
+}
 
 /* The table for a level (the best int8 variant the CPU has within it); NULL if unavailable. */
 const weft_qkernels *weft_qkernels_for_isa(weft_isa isa);

@@ -9,6 +9,18 @@
 #include <string.h>
 
 static inline V v_load_h(const uint16_t *p) { return _mm256_cvtph_ps(_mm_loadu_si128((const __m128i *)p)); }
+
+/* The canonical tree over the 16 partial sums (t[j] += t[j + w], w = 8, 4, 2, 1) in registers:
+ * acc[0] holds t[0..7], acc[1] t[8..15]. */
+#define QK_HAVE_TREE16 1
+static inline float qk_tree16_v(const V *acc)
+{
+    const V t = _mm256_add_ps(acc[0], acc[1]);
+    __m128 u = _mm_add_ps(_mm256_castps256_ps128(t), _mm256_extractf128_ps(t, 1));
+    u = _mm_add_ps(u, _mm_permute_ps(u, _MM_SHUFFLE(1, 0, 3, 2)));
+    u = _mm_add_ps(u, _mm_permute_ps(u, _MM_SHUFFLE(2, 3, 0, 1)));
+    return _mm_cvtss_f32(u);
+}
 static inline V v_load_h_n(const uint16_t *p, size_t n)
 {
     uint16_t t[8] = {0};

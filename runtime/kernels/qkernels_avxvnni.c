@@ -8,12 +8,33 @@
 #include <string.h>
 
 static inline V v_load_h(const uint16_t *p) { return _mm256_cvtph_ps(_mm_loadu_si128((const __m128i *)p)); }
+
+/* The canonical tree over the 16 partial sums (t[j] += t[j + w], w = 8, 4, 2, 1) in registers:
+ * acc[0] holds t[0..7], acc[1] t[8..15]. */
+#define QK_HAVE_TREE16 1
+static inline float qk_tree16_v(const V *acc)
+{
+    const V t = _mm256_add_ps(acc[0], acc[1]);
+    __m128 u = _mm_add_ps(_mm256_castps256_ps128(t), _mm256_extractf128_ps(t, 1));
+    u = _mm_add_ps(u, _mm_permute_ps(u, _MM_SHUFFLE(1, 0, 3, 2)));
+    u = _mm_add_ps(u, _mm_permute_ps(u, _MM_SHUFFLE(2, 3, 0, 1)));
+    return _mm_cvtss_f32(u);
+}
 static inline V v_load_h_n(const uint16_t *p, size_t n)
 {
     uint16_t t[8] = {0};
     memcpy(t, p, (n < 8 ? n : 8) * sizeof(uint16_t));
     return v_load_h(t);
 }
+
+/* c += dot(u as unsigned bytes, w as signed bytes) per 32-bit lane. As in the AVX-512 twin, gcc
+ * 12 at -O3 copies loop-carried accumulators of the intrinsic around every k step; the
+ * one-instruction statement (VEX-encoded: the CPU may lack AVX-512) keeps them in place. */
+#if defined(__GNUC__) && !defined(__clang__)
+#define Q8_DPV(c, u, w) __asm__("%{vex%} vpdpbusd %2, %1, %0" : "+x"(c) : "x"(u), "x"(w))
+#else
+#define Q8_DPV(c, u, w) ((c) = _mm256_dpbusd_avx_epi32((c), (u), (w)))
+#endif
 
 static inline void q8_block(const int8_t *Q, uint32_t ldq, uint32_t rows, const int8_t *block, uint32_t kgroups,
                             const int32_t *wsum, float out[4][32], uint32_t col)
@@ -34,8 +55,8 @@ static inline void q8_block(const int8_t *Q, uint32_t ldq, uint32_t rows, const 
             int32_t x;
             memcpy(&x, a[r] + 4 * g, 4);
             __m256i u = _mm256_xor_si256(_mm256_set1_epi32(x), flip);
-            acc[r][0] = _mm256_dpbusd_avx_epi32(acc[r][0], u, w0);
-            acc[r][1] = _mm256_dpbusd_avx_epi32(acc[r][1], u, w1);
+            Q8_DPV(acc[r][0], u, w0);
+            Q8_DPV(acc[r][1], u, w1);
         }
     }
     __m256i c0 = _mm256_slli_epi32(_mm256_loadu_si256((const __m256i *)wsum), 7);

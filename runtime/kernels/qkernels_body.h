@@ -113,24 +113,64 @@ static inline void qk_sincos(V x, V *s_out, V *c_out)
     *c_out = c;
 }
 
+/* sin and cos of cnt arguments (lanes are independent: any lane arrangement gives these bits). */
+static inline void qk_sincos_n(const float *arg, size_t cnt, float *sbuf, float *cbuf)
+{
+    for (size_t t = 0; t < cnt; t += VW) {
+        V sv, cv;
+        qk_sincos(v_load_n(arg + t, cnt - t), &sv, &cv);
+        v_store(sbuf + t, sv);
+        v_store(cbuf + t, cv);
+    }
+}
+
 static void posembed_det(const float *x, uint32_t n, uint32_t dims, const float *freq, uint32_t nfreq, float *out,
                          uint32_t ldo)
 {
-    /* Lanes run along the frequencies of one coordinate; sin/cos are interleaved on store. */
-    float sbuf[VW], cbuf[VW];
-    for (uint32_t i = 0; i < n; ++i) {
-        for (uint32_t d = 0; d < dims; ++d) {
-            const V xv = v_set1(x[(size_t)i * dims + d]);
-            float *o = out + (size_t)i * ldo + (size_t)d * nfreq * 2;
-            for (uint32_t f = 0; f < nfreq; f += VW) {
-                size_t w = nfreq - f < VW ? nfreq - f : VW;
-                V s, c;
-                qk_sincos(v_mul(xv, v_load_n(freq + f, w)), &s, &c);
-                v_store(sbuf, s);
-                v_store(cbuf, c);
-                for (size_t j = 0; j < w; ++j) {
-                    o[2 * (f + j)] = sbuf[j];
-                    o[2 * (f + j) + 1] = cbuf[j];
+    /* Lanes run along the (coordinate, frequency) arguments of as many whole points as fit in 64
+     * (an argument is x * freq, one rounding, whatever lane it lands in); sin/cos are interleaved
+     * on store, each point's row being contiguous. */
+    enum { CH = 64 };
+    float arg[CH], sbuf[CH + VW], cbuf[CH + VW];
+    const uint32_t per = dims * nfreq;
+    if (per == 0) {
+        return;
+    }
+#if defined(QK_HAVE_POSEMBED_PACKED)
+    const size_t total = (size_t)n * per;
+    if (ldo == 2 * per && nfreq <= 16 && total < ((size_t)1 << 22)) {
+        for (size_t t0 = 0; t0 < total; t0 += VW) {
+            V sv, cv;
+            qk_sincos(qk_posembed_args(x, (size_t)n * dims, freq, nfreq, t0), &sv, &cv);
+            qk_store_sincos(out + 2 * t0, sv, cv, total - t0 < VW ? total - t0 : VW);
+        }
+        return;
+    }
+#endif
+    const uint32_t pts = per <= CH ? CH / per : 1;
+    for (uint32_t i0 = 0; i0 < n; i0 += pts) {
+        const uint32_t np = n - i0 < pts ? n - i0 : pts;
+        for (uint32_t r0 = 0; r0 < per; r0 += CH) { /* one pass unless a point has > 64 arguments */
+            const uint32_t nr = per - r0 < CH ? per - r0 : CH;
+            size_t t = 0;
+            for (uint32_t p = 0; p < np; ++p) {
+                const float *xp = x + (size_t)(i0 + p) * dims;
+                uint32_t d = r0 / nfreq, f = r0 % nfreq;
+                for (uint32_t r = 0; r < nr; ++r) {
+                    arg[t++] = xp[d] * freq[f];
+                    if (++f == nfreq) {
+                        f = 0;
+                        ++d;
+                    }
+                }
+            }
+            qk_sincos_n(arg, t, sbuf, cbuf);
+            for (uint32_t p = 0; p < np; ++p) {
+                float *o = out + (size_t)(i0 + p) * ldo + (size_t)r0 * 2;
+                const float *sp = sbuf + (size_t)p * nr, *cp = cbuf + (size_t)p * nr;
+                for (uint32_t r = 0; r < nr; ++r) {
+                    o[2 * r] = sp[r];
+                    o[2 * r + 1] = cp[r];
                 }
             }
         }
@@ -141,6 +181,9 @@ static void posembed_det(const float *x, uint32_t n, uint32_t dims, const float 
 
 static inline float qk_tree16(const V *acc)
 {
+#if defined(QK_HAVE_TREE16)
+    return qk_tree16_v(acc); /* the same additions, in registers */
+#else
     float t[16];
     for (int g = 0; g < QK_GROUPS; ++g) {
         v_store(t + g * VW, acc[g]);
@@ -151,6 +194,7 @@ static inline float qk_tree16(const V *acc)
         }
     }
     return t[0];
+#endif
 }
 
 /* Lanes past n are 0 and contribute "+ 0.0f", which the oracle mirrors. */
@@ -291,10 +335,10 @@ static void softmax_rows_det(float *X, uint32_t rows, uint32_t cols, uint32_t ld
 static inline V qk_epilogue(V acc, const float *bias, const float *c_old, size_t n, weft_activation act)
 {
     if (bias) {
-        acc = v_add(acc, v_load_n(bias, n));
+        acc = v_add(acc, n >= VW ? v_load(bias) : v_load_n(bias, n));
     }
     if (c_old) {
-        acc = v_add(acc, v_load_n(c_old, n));
+        acc = v_add(acc, n >= VW ? v_load(c_old) : v_load_n(c_old, n));
     }
     return qk_act(acc, act);
 }
@@ -306,17 +350,18 @@ static inline V qk_epilogue(V acc, const float *bias, const float *c_old, size_t
 #else
 #define QK_UNROLL _Pragma("GCC unroll 16")
 #endif
+#define QK_NO_UNROLL /* for loops with a run-time trip count (clang rejects a full unroll of them) */
 
 /* One template for the fp32 and fp16 B operands: lanes along N, k in order. The tile body is
  * instantiated twice, with the ISA's register-tile height (WEFT_MR rows x 2 vectors) as a
  * compile-time constant so the accumulators live in registers, and with a run-time height for
  * the last rows. Tiling does not change any result: each output is one in-order fma chain. */
-#define QK_GEMM_TILE(NAME, BTYPE, LOADB, LOADB_N, ROWS)                                                 \
+#define QK_GEMM_TILE(NAME, BTYPE, LOADB, LOADB_N, ROWS, UNROLL_ROWS)                                    \
     {                                                                                                   \
         size_t w0 = N - n0 < VW ? N - n0 : VW;                                                          \
         size_t w1 = N - n0 > VW ? (N - n0 - VW < VW ? N - n0 - VW : VW) : 0;                            \
         V acc[WEFT_MR][2];                                                                              \
-        QK_UNROLL for (uint32_t r = 0; r < (ROWS); ++r)                                                 \
+        QK_UNROLL for (uint32_t r = 0; r < WEFT_MR; ++r)                                                \
         {                                                                                               \
             acc[r][0] = v_zero();                                                                       \
             acc[r][1] = v_zero();                                                                       \
@@ -326,7 +371,7 @@ static inline V qk_epilogue(V acc, const float *bias, const float *c_old, size_t
             for (uint32_t k = 0; k < K; ++k) {                                                          \
                 const BTYPE *b = B + (size_t)k * ldb + n0;                                              \
                 const V b0 = LOADB(b), b1 = LOADB(b + VW);                                              \
-                QK_UNROLL for (uint32_t r = 0; r < (ROWS); ++r)                                         \
+                UNROLL_ROWS for (uint32_t r = 0; r < (ROWS); ++r)                                         \
                 {                                                                                       \
                     const V a = v_set1(a0[(size_t)r * lda + k]);                                        \
                     acc[r][0] = v_fma(a, b0, acc[r][0]);                                                \
@@ -338,7 +383,7 @@ static inline V qk_epilogue(V acc, const float *bias, const float *c_old, size_t
                 const BTYPE *b = B + (size_t)k * ldb + n0;                                              \
                 V b0 = w0 == VW ? LOADB(b) : LOADB_N(b, w0);                                            \
                 V b1 = w1 ? LOADB_N(b + VW, w1) : v_zero();                                             \
-                QK_UNROLL for (uint32_t r = 0; r < (ROWS); ++r)                                         \
+                UNROLL_ROWS for (uint32_t r = 0; r < (ROWS); ++r)                                         \
                 {                                                                                       \
                     V a = v_set1(a0[(size_t)r * lda + k]);                                              \
                     acc[r][0] = v_fma(a, b0, acc[r][0]);                                                \
@@ -346,44 +391,120 @@ static inline V qk_epilogue(V acc, const float *bias, const float *c_old, size_t
                 }                                                                                       \
             }                                                                                           \
         }                                                                                               \
+        /* accumulators leave through a tile in L1: indexing them by a loop variable would keep \
+         * them in memory during the k loop */                                                         \
+        float tile[WEFT_MR][2 * VW];                                                                    \
+        UNROLL_ROWS for (uint32_t r = 0; r < (ROWS); ++r)                                                 \
+        {                                                                                               \
+            v_store(tile[r], acc[r][0]);                                                                \
+            v_store(tile[r] + VW, acc[r][1]);                                                           \
+        }                                                                                               \
         for (uint32_t r = 0; r < (ROWS); ++r) {                                                         \
             float *c = C + (size_t)(m0 + r) * ldc + n0;                                                 \
             const float *bb = bias ? bias + n0 : NULL;                                                  \
-            v_store_n(c, qk_epilogue(acc[r][0], bb, accumulate ? c : NULL, w0, act), w0);               \
+            v_store_n(c, qk_epilogue(v_load(tile[r]), bb, accumulate ? c : NULL, w0, act), w0);         \
             if (w1) {                                                                                   \
                 v_store_n(c + VW,                                                                       \
-                          qk_epilogue(acc[r][1], bb ? bb + VW : NULL, accumulate ? c + VW : NULL, w1, act), \
+                          qk_epilogue(v_load(tile[r] + VW), bb ? bb + VW : NULL, accumulate ? c + VW : NULL, \
+                                      w1, act),                                                         \
                           w1);                                                                          \
             }                                                                                           \
         }                                                                                               \
     }
 
+/* Three full vectors of columns (48 on AVX-512: the model's narrow layers) by QK_MR3 rows, so no
+ * accumulator idles on a half-empty second vector. Same chains as the tile above. */
+#define QK_MR3 (WEFT_MR * 2 / 3 > 0 ? WEFT_MR * 2 / 3 : 1)
+#define QK_GEMM_TILE3(BTYPE, LOADB)                                                                     \
+    {                                                                                                   \
+        V acc[QK_MR3][3];                                                                               \
+        QK_UNROLL for (uint32_t r = 0; r < QK_MR3; ++r)                                                 \
+        {                                                                                               \
+            acc[r][0] = acc[r][1] = acc[r][2] = v_zero();                                               \
+        }                                                                                               \
+        const float *a0 = A + (size_t)m0 * lda;                                                         \
+        for (uint32_t k = 0; k < K; ++k) {                                                              \
+            const BTYPE *b = B + (size_t)k * ldb + n0;                                                  \
+            const V b0 = LOADB(b), b1 = LOADB(b + VW), b2 = LOADB(b + 2 * VW);                          \
+            QK_UNROLL for (uint32_t r = 0; r < QK_MR3; ++r)                                             \
+            {                                                                                           \
+                const V a = v_set1(a0[(size_t)r * lda + k]);                                            \
+                acc[r][0] = v_fma(a, b0, acc[r][0]);                                                    \
+                acc[r][1] = v_fma(a, b1, acc[r][1]);                                                    \
+                acc[r][2] = v_fma(a, b2, acc[r][2]);                                                    \
+            }                                                                                           \
+        }                                                                                               \
+        float tile[QK_MR3][3 * VW];                                                                     \
+        QK_UNROLL for (uint32_t r = 0; r < QK_MR3; ++r)                                                 \
+        {                                                                                               \
+            v_store(tile[r], acc[r][0]);                                                                \
+            v_store(tile[r] + VW, acc[r][1]);                                                           \
+            v_store(tile[r] + 2 * VW, acc[r][2]);                                                       \
+        }                                                                                               \
+        for (uint32_t r = 0; r < QK_MR3; ++r) {                                                         \
+            float *c = C + (size_t)(m0 + r) * ldc + n0;                                                 \
+            for (uint32_t v = 0; v < 3; ++v) {                                                          \
+                const float *bb = bias ? bias + n0 + v * VW : NULL;                                     \
+                v_store(c + v * VW, qk_epilogue(v_load(tile[r] + v * VW), bb, accumulate ? c + v * VW : NULL, VW, \
+                                                act));                                                  \
+            }                                                                                           \
+        }                                                                                               \
+    }
+
 #define QK_DEFINE_GEMM(NAME, BTYPE, LOADB, LOADB_N)                                                   \
+    static void NAME##_wide(uint32_t m0, uint32_t n0, uint32_t K, const float *A, uint32_t lda,         \
+                            const BTYPE *B, uint32_t ldb, const float *bias, float *C, uint32_t ldc,    \
+                            weft_activation act, bool accumulate)                                       \
+        QK_GEMM_TILE3(BTYPE, LOADB)                                                                     \
     static void NAME##_full(uint32_t m0, uint32_t n0, uint32_t N, uint32_t K, const float *A, uint32_t lda, \
                             const BTYPE *B, uint32_t ldb, const float *bias, float *C, uint32_t ldc,    \
                             weft_activation act, bool accumulate)                                       \
-        QK_GEMM_TILE(NAME, BTYPE, LOADB, LOADB_N, WEFT_MR)                                              \
+        QK_GEMM_TILE(NAME, BTYPE, LOADB, LOADB_N, WEFT_MR, QK_UNROLL)                                   \
     static void NAME##_rest(uint32_t rows, uint32_t m0, uint32_t n0, uint32_t N, uint32_t K,            \
                             const float *A, uint32_t lda, const BTYPE *B, uint32_t ldb, const float *bias, \
                             float *C, uint32_t ldc, weft_activation act, bool accumulate)               \
-        QK_GEMM_TILE(NAME, BTYPE, LOADB, LOADB_N, rows)                                                 \
+        QK_GEMM_TILE(NAME, BTYPE, LOADB, LOADB_N, rows, QK_NO_UNROLL)                                   \
     static void NAME(uint32_t M, uint32_t N, uint32_t K, const float *A, uint32_t lda, const BTYPE *B,  \
                      uint32_t ldb, const float *bias, float *C, uint32_t ldc, weft_activation act,      \
                      bool accumulate)                                                                   \
     {                                                                                                   \
-        for (uint32_t n0 = 0; n0 < N; n0 += 2 * VW) {                                                   \
-            uint32_t m0 = 0;                                                                            \
-            for (; m0 + WEFT_MR <= M; m0 += WEFT_MR) {                                                  \
-                NAME##_full(m0, n0, N, K, A, lda, B, ldb, bias, C, ldc, act, accumulate);               \
+        uint32_t n0 = 0, mw = 0;                                                                        \
+        if (N >= 3 * VW) { /* 3-vector column panels over whole row tiles; the rest below */            \
+            for (; mw + QK_MR3 <= M; mw += QK_MR3) {                                                    \
+                for (uint32_t nw = 0; nw + 3 * VW <= N; nw += 3 * VW) {                                 \
+                    NAME##_wide(mw, nw, K, A, lda, B, ldb, bias, C, ldc, act, accumulate);              \
+                }                                                                                       \
             }                                                                                           \
-            if (m0 < M) {                                                                               \
-                NAME##_rest(M - m0, m0, n0, N, K, A, lda, B, ldb, bias, C, ldc, act, accumulate);       \
+            n0 = N / (3 * VW) * (3 * VW);                                                               \
+        }                                                                                               \
+        /* rows >= mw for the 3-vector panels, every row for the columns past them */                   \
+        for (uint32_t p = 0; p < 2; ++p) {                                                              \
+            const uint32_t nb = p == 0 ? 0 : n0, ne = p == 0 ? n0 : N, mb = p == 0 ? mw : 0;            \
+            for (uint32_t nc = nb; nc < ne; nc += 2 * VW) {                                             \
+                uint32_t m0 = mb;                                                                       \
+                for (; m0 + WEFT_MR <= M; m0 += WEFT_MR) {                                              \
+                    NAME##_full(m0, nc, ne, K, A, lda, B, ldb, bias, C, ldc, act, accumulate);          \
+                }                                                                                       \
+                if (m0 < M) {                                                                           \
+                    NAME##_rest(M - m0, m0, nc, ne, K, A, lda, B, ldb, bias, C, ldc, act, accumulate);  \
+                }                                                                                       \
             }                                                                                           \
         }                                                                                               \
     }
 
 QK_DEFINE_GEMM(gemm_det, float, v_load, v_load_n)
 QK_DEFINE_GEMM(gemm_f16, uint16_t, v_load_h, v_load_h_n)
+
+#ifndef QK_HAVE_STORE_I8
+static inline void qk_store_i8(int8_t *q, V v, size_t n)
+{
+    float t[VW];
+    v_store(t, v);
+    for (size_t j = 0; j < n; ++j) {
+        q[j] = (int8_t)(int)t[j];
+    }
+}
+#endif
 
 static void quantize_rows(const float *X, uint32_t M, uint32_t K, uint32_t ldx, int8_t *Q, uint32_t ldq,
                           float *scales)
@@ -396,41 +517,307 @@ static void quantize_rows(const float *X, uint32_t M, uint32_t K, uint32_t ldx, 
         float inv = amax > 0.0f ? 127.0f / amax : 0.0f;
         scales[m] = amax / 127.0f;
         const V vinv = v_set1(inv), hi = v_set1(127.0f), lo = v_set1(-127.0f);
-        float t[VW];
-        for (uint32_t i = 0; i < K; i += VW) {
-            size_t n = K - i < VW ? K - i : VW;
-            V v = v_min(v_max(v_round(v_mul(v_load_n(x + i, n), vinv)), lo), hi);
-            v_store(t, v);
-            for (size_t j = 0; j < n; ++j) {
-                q[i + j] = (int8_t)(int)t[j];
-            }
+        uint32_t i = 0;
+        for (; i + VW <= K; i += VW) {
+            qk_store_i8(q + i, v_min(v_max(v_round(v_mul(v_load(x + i), vinv)), lo), hi), VW);
         }
-        memset(q + K, 0, Kp - K);
+        if (i < K) {
+            const size_t n = K - i;
+            qk_store_i8(q + i, v_min(v_max(v_round(v_mul(v_load_n(x + i, n), vinv)), lo), hi), n);
+        }
+        for (uint32_t k = K; k < Kp; ++k) { /* at most 3 bytes of padding */
+            q[k] = 0;
+        }
     }
 }
+
+/* Row tile and channel blocks per tile; an ISA file may widen them (its q8_tile then takes
+ * out[QK_Q8_MR][QK_Q8_NB * 16]). */
+#ifndef QK_Q8_MR
+#define QK_Q8_MR 4
+#define QK_Q8_NB 2
+#endif
+#ifndef QK_Q8_ROWSUM
+static inline void q8_rowsums(const int8_t *Q, uint32_t ldq, uint32_t rows, uint32_t Kp, int32_t *rsum)
+{
+    (void)Q, (void)ldq, (void)rows, (void)Kp, (void)rsum;
+}
+#endif
 
 static void gemm_q8(uint32_t M, const int8_t *Q, uint32_t ldq, const float *qscale, const weft_q8_weights *W,
                     const float *bias, float *C, uint32_t ldc, weft_activation act, bool accumulate)
 {
     const uint32_t kgroups = W->Kp / WEFT_Q8_KB;
-    float out[QK_MR][2 * WEFT_Q8_NB];
-    for (uint32_t nb = 0; nb < W->Np; nb += 2 * WEFT_Q8_NB) {
-        const int8_t *block = W->packed + (size_t)nb * W->Kp;
-        uint32_t nblocks = W->Np - nb >= 2 * WEFT_Q8_NB ? 2 : 1;
-        uint32_t ncols = W->N - nb < nblocks * WEFT_Q8_NB ? W->N - nb : nblocks * WEFT_Q8_NB;
-        for (uint32_t m0 = 0; m0 < M; m0 += QK_MR) {
-            uint32_t rows = M - m0 < QK_MR ? M - m0 : QK_MR;
-            q8_tile(Q + (size_t)m0 * ldq, ldq, rows, block, nblocks, W->Kp, kgroups, W->wsum + nb, out);
+    float out[QK_Q8_MR][QK_Q8_NB * WEFT_Q8_NB];
+    int32_t rsum[QK_Q8_MR];
+    for (uint32_t m0 = 0; m0 < M; m0 += QK_Q8_MR) {
+        const uint32_t rows = M - m0 < QK_Q8_MR ? M - m0 : QK_Q8_MR;
+        const int8_t *q = Q + (size_t)m0 * ldq;
+        q8_rowsums(q, ldq, rows, W->Kp, rsum);
+        for (uint32_t nb = 0; nb < W->Np; nb += QK_Q8_NB * WEFT_Q8_NB) {
+            const int8_t *block = W->packed + (size_t)nb * W->Kp;
+            const uint32_t left = (W->Np - nb) / WEFT_Q8_NB;
+            const uint32_t nblocks = left < QK_Q8_NB ? left : QK_Q8_NB;
+            const uint32_t ncols = W->N - nb < nblocks * WEFT_Q8_NB ? W->N - nb : nblocks * WEFT_Q8_NB;
+#if defined(QK_Q8_ROWSUM)
+            q8_tile(q, ldq, rows, block, nblocks, W->Kp, kgroups, rsum, out);
+#else
+            q8_tile(q, ldq, rows, block, nblocks, W->Kp, kgroups, W->wsum + nb, out);
+#endif
             for (uint32_t r = 0; r < rows; ++r) {
                 const V sr = v_set1(qscale[m0 + r]);
                 float *c = C + (size_t)(m0 + r) * ldc + nb;
-                for (uint32_t j = 0; j < ncols; j += VW) {
-                    size_t n = ncols - j < VW ? ncols - j : VW;
-                    V s = v_mul(sr, v_load(W->scale + nb + j));
-                    V y = v_mul(v_load(out[r] + j), s);
+                uint32_t j = 0;
+                for (; j + VW <= ncols; j += VW) { /* full vectors: no masks */
+                    const V y = v_mul(v_load(out[r] + j), v_mul(sr, v_load(W->scale + nb + j)));
+                    v_store(c + j, qk_epilogue(y, bias ? bias + nb + j : NULL, accumulate ? c + j : NULL, VW, act));
+                }
+                if (j < ncols) {
+                    const size_t n = ncols - j;
+                    const V y = v_mul(v_load(out[r] + j), v_mul(sr, v_load(W->scale + nb + j)));
                     v_store_n(c + j, qk_epilogue(y, bias ? bias + nb + j : NULL, accumulate ? c + j : NULL, n, act),
                               n);
                 }
+            }
+        }
+    }
+}
+
+/* ---- deterministic attention ------------------------------------------------------------- */
+
+/* Lanes run along a block of QK_QB queries (QK_QV vectors), so every score, the softmax of every
+ * query and every output are the per-query chains of the composed form (see qkernels.h):
+ *   pass 1: S[j][l] = (Q K^T chain) * scale for JB keys at a time (independent chains);
+ *   pass 2: e = qk_exp(S - max), summed into 16 partials by key index mod 16, the canonical tree;
+ *   pass 3: out = sum_j (e_j * inv) V[j], d in register chunks of a compile-time width.
+ * S (nk x QK_QB floats) is the only large scratch. The block width changes no result. */
+#ifndef QK_QB
+#define QK_QB 16 /* queries per block; AVX-512 takes 32 (each broadcast key or value feeds 2 FMAs) */
+#endif
+#if QK_QB > 32 || QK_QB % 16 != 0
+#error "attention_det blocks are 16 or 32 queries (WEFT_QK_ATT_QB sizes the scratch for 32)"
+#endif
+#define QK_QV (QK_QB / VW)
+#ifndef QK_ATT_ACC
+#define QK_ATT_ACC 12 /* accumulator registers one P.V step may use (16-register ISAs) */
+#endif
+#define QK_ATT_JB (8 / QK_QV > 0 ? 8 / QK_QV : 1)
+
+/* m < s ? s : m: the oracle's in-order running maximum, also for signed zeros and NaN. */
+static inline V qk_max_ordered(V m, V s) { return v_sel(m_lt(m, s), s, m); }
+
+static void att_scores(const float *qt, const float *K, uint32_t ldk, uint32_t nk, uint32_t dh, float scale,
+                       float *S, V *mx)
+{
+    const V vs = v_set1(scale);
+    V m[QK_QV];
+    for (int v = 0; v < QK_QV; ++v) {
+        m[v] = v_set1(-INFINITY);
+    }
+    uint32_t j = 0;
+    for (; j + QK_ATT_JB <= nk; j += QK_ATT_JB) {
+        V acc[QK_ATT_JB][QK_QV];
+        QK_UNROLL for (int b = 0; b < QK_ATT_JB; ++b)
+        {
+            QK_UNROLL for (int v = 0; v < QK_QV; ++v) { acc[b][v] = v_zero(); }
+        }
+        const float *k0 = K + (size_t)j * ldk;
+        for (uint32_t d = 0; d < dh; ++d) {
+            V q[QK_QV];
+            QK_UNROLL for (int v = 0; v < QK_QV; ++v) { q[v] = v_load(qt + (size_t)d * QK_QB + v * VW); }
+            QK_UNROLL for (int b = 0; b < QK_ATT_JB; ++b)
+            {
+                const V kv = v_set1(k0[(size_t)b * ldk + d]);
+                QK_UNROLL for (int v = 0; v < QK_QV; ++v) { acc[b][v] = v_fma(q[v], kv, acc[b][v]); }
+            }
+        }
+        QK_UNROLL for (int b = 0; b < QK_ATT_JB; ++b)
+        {
+            QK_UNROLL for (int v = 0; v < QK_QV; ++v)
+            {
+                const V sv = v_mul(acc[b][v], vs);
+                v_store(S + (size_t)(j + (uint32_t)b) * QK_QB + v * VW, sv);
+                m[v] = qk_max_ordered(m[v], sv);
+            }
+        }
+    }
+    for (; j < nk; ++j) {
+        V acc[QK_QV];
+        QK_UNROLL for (int v = 0; v < QK_QV; ++v) { acc[v] = v_zero(); }
+        const float *k0 = K + (size_t)j * ldk;
+        for (uint32_t d = 0; d < dh; ++d) {
+            const V kv = v_set1(k0[d]);
+            QK_UNROLL for (int v = 0; v < QK_QV; ++v)
+            {
+                acc[v] = v_fma(v_load(qt + (size_t)d * QK_QB + v * VW), kv, acc[v]);
+            }
+        }
+        QK_UNROLL for (int v = 0; v < QK_QV; ++v)
+        {
+            const V sv = v_mul(acc[v], vs);
+            v_store(S + (size_t)j * QK_QB + v * VW, sv);
+            m[v] = qk_max_ordered(m[v], sv);
+        }
+    }
+    for (int v = 0; v < QK_QV; ++v) {
+        mx[v] = m[v];
+    }
+}
+
+/* e = exp(S - max) in place; returns 1 / sum per lane (0 for a fully masked query). */
+static void att_softmax(float *S, uint32_t nk, const V *m, V *inv)
+{
+    V part[16][QK_QV];
+    VM dead[QK_QV];
+    for (int v = 0; v < QK_QV; ++v) {
+        dead[v] = m_eq(m[v], v_set1(-INFINITY));
+        for (int u = 0; u < 16; ++u) {
+            part[u][v] = v_zero();
+        }
+    }
+    uint32_t j = 0;
+    for (; j + 16 <= nk; j += 16) {
+        QK_UNROLL for (int u = 0; u < 16; ++u)
+        {
+            float *s = S + (size_t)(j + (uint32_t)u) * QK_QB;
+            QK_UNROLL for (int v = 0; v < QK_QV; ++v)
+            {
+                const V e = v_sel(dead[v], v_zero(), qk_exp(v_sub(v_load(s + v * VW), m[v])));
+                v_store(s + v * VW, e);
+                part[u][v] = v_add(part[u][v], e);
+            }
+        }
+    }
+    for (int u = 0; j < nk; ++j, ++u) {
+        float *s = S + (size_t)j * QK_QB;
+        for (int v = 0; v < QK_QV; ++v) {
+            const V e = v_sel(dead[v], v_zero(), qk_exp(v_sub(v_load(s + v * VW), m[v])));
+            v_store(s + v * VW, e);
+            part[u][v] = v_add(part[u][v], e);
+        }
+    }
+    for (int w = 8; w >= 1; w /= 2) {
+        for (int u = 0; u < w; ++u) {
+            for (int v = 0; v < QK_QV; ++v) {
+                part[u][v] = v_add(part[u][v], part[u + w][v]);
+            }
+        }
+    }
+    for (int v = 0; v < QK_QV; ++v) {
+        inv[v] = v_sel(dead[v], v_zero(), v_div(v_set1(1.0f), part[0][v]));
+    }
+}
+
+/* stage[dd][l] = sum_j (e[j][l] * inv) V[j][dd] for DC columns of V, keys in order. */
+#define QK_ATT_PV(DC)                                                                                   \
+    static void att_pv_##DC(const float *S, const V *inv, const float *Vm, uint32_t ldv, uint32_t nk,    \
+                            float *stage)                                                               \
+    {                                                                                                   \
+        V acc[DC][QK_QV];                                                                               \
+        QK_UNROLL for (int d = 0; d < (DC); ++d)                                                        \
+        {                                                                                               \
+            QK_UNROLL for (int v = 0; v < QK_QV; ++v) { acc[d][v] = v_zero(); }                         \
+        }                                                                                               \
+        for (uint32_t j = 0; j < nk; ++j) {                                                             \
+            V p[QK_QV];                                                                                 \
+            QK_UNROLL for (int v = 0; v < QK_QV; ++v) { p[v] = v_mul(v_load(S + (size_t)j * QK_QB + v * VW), inv[v]); } \
+            const float *vr = Vm + (size_t)j * ldv;                                                     \
+            QK_UNROLL for (int d = 0; d < (DC); ++d)                                                    \
+            {                                                                                           \
+                const V vv = v_set1(vr[d]);                                                             \
+                QK_UNROLL for (int v = 0; v < QK_QV; ++v) { acc[d][v] = v_fma(p[v], vv, acc[d][v]); }   \
+            }                                                                                           \
+        }                                                                                               \
+        for (int d = 0; d < (DC); ++d) {                                                                \
+            for (int v = 0; v < QK_QV; ++v) {                                                           \
+                v_store(stage + (size_t)d * QK_QB + v * VW, acc[d][v]);                                    \
+            }                                                                                           \
+        }                                                                                               \
+    }
+
+QK_ATT_PV(24)
+QK_ATT_PV(12)
+QK_ATT_PV(8)
+QK_ATT_PV(6)
+QK_ATT_PV(4)
+QK_ATT_PV(2)
+QK_ATT_PV(1)
+
+/* The widest chunk that fits the accumulator budget and what is left of the head. */
+static uint32_t att_pv(const float *S, const V *inv, const float *Vm, uint32_t ldv, uint32_t nk, uint32_t left,
+                       float *stage)
+{
+    const uint32_t cap = QK_ATT_ACC / QK_QV > 0 ? QK_ATT_ACC / QK_QV : 1;
+    if (cap >= 24 && left >= 24) {
+        att_pv_24(S, inv, Vm, ldv, nk, stage);
+        return 24;
+    }
+    if (cap >= 12 && left >= 12) {
+        att_pv_12(S, inv, Vm, ldv, nk, stage);
+        return 12;
+    }
+    if (cap >= 8 && left >= 8) {
+        att_pv_8(S, inv, Vm, ldv, nk, stage);
+        return 8;
+    }
+    if (cap >= 6 && left >= 6) {
+        att_pv_6(S, inv, Vm, ldv, nk, stage);
+        return 6;
+    }
+    if (cap >= 4 && left >= 4) {
+        att_pv_4(S, inv, Vm, ldv, nk, stage);
+        return 4;
+    }
+    if (cap >= 2 && left >= 2) {
+        att_pv_2(S, inv, Vm, ldv, nk, stage);
+        return 2;
+    }
+    att_pv_1(S, inv, Vm, ldv, nk, stage);
+    return 1;
+}
+
+static void attention_det(const float *Q, uint32_t ldq, const float *K, uint32_t ldk, const float *Vm, uint32_t ldv,
+                          uint32_t nq, uint32_t nk, uint32_t H, uint32_t dh, float scale, const uint8_t *mask,
+                          float *out, uint32_t ldo, float *scratch)
+{
+    float *S = scratch, *qt = S + (size_t)nk * QK_QB, *stage = qt + (size_t)dh * QK_QB;
+    for (uint32_t h = 0; h < H; ++h) {
+        const size_t hc = (size_t)h * dh;
+        for (uint32_t i0 = 0; i0 < nq; i0 += QK_QB) {
+            const uint32_t nl = nq - i0 < QK_QB ? nq - i0 : QK_QB;
+            for (uint32_t d = 0; d < dh; ++d) { /* the block's queries, transposed; idle lanes 0 */
+                for (uint32_t l = 0; l < QK_QB; ++l) {
+                    qt[(size_t)d * QK_QB + l] = l < nl ? Q[(size_t)(i0 + l) * ldq + hc + d] : 0.0f;
+                }
+            }
+            V m[QK_QV], inv[QK_QV];
+            att_scores(qt, K + hc, ldk, nk, dh, scale, S, m);
+            if (mask) {
+                for (uint32_t l = 0; l < nl; ++l) {
+                    const uint8_t *mr = mask + (size_t)(i0 + l) * nk;
+                    for (uint32_t j = 0; j < nk; ++j) {
+                        if (!mr[j]) {
+                            S[(size_t)j * QK_QB + l] = -INFINITY;
+                        }
+                    }
+                }
+                for (int v = 0; v < QK_QV; ++v) {
+                    m[v] = v_set1(-INFINITY);
+                    for (uint32_t j = 0; j < nk; ++j) {
+                        m[v] = qk_max_ordered(m[v], v_load(S + (size_t)j * QK_QB + v * VW));
+                    }
+                }
+            }
+            att_softmax(S, nk, m, inv);
+            for (uint32_t d0 = 0; d0 < dh;) {
+                const uint32_t dc = att_pv(S, inv, Vm + hc + d0, ldv, nk, dh - d0, stage);
+                for (uint32_t l = 0; l < nl; ++l) {
+                    float *o = out + (size_t)(i0 + l) * ldo + hc + d0;
+                    for (uint32_t d = 0; d < dc; ++d) {
+                        o[d] = stage[(size_t)d * QK_QB + l];
+                    }
+                }
+                d0 += dc;
             }
         }
     }
@@ -449,4 +836,5 @@ const weft_qkernels QK_TABLE = {
     .activate_det = activate_det,
     .swiglu_det = swiglu_det,
     .posembed_det = posembed_det,
+    .attention_det = attention_det,
 };

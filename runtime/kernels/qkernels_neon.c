@@ -60,4 +60,5 @@ static inline void q8_tile(const int8_t *Q, uint32_t ldq, uint32_t rows, const i
 #define QK_TABLE weft__qkernels_neon
 #define QK_ISA WEFT_ISA_NEON
 #define QK_VARIANT "neon-sdot"
+#define QK_ATT_ACC 24 /* 32 vector registers */
 #include "kernels/qkernels_body.h"

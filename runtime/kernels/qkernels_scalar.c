@@ -288,6 +288,33 @@ static void o_gemm_q8(uint32_t M, const int8_t *Q, uint32_t ldq, const float *qs
     }
 }
 
+/* Per head and query: the score row in scratch, then the softmax oracle, then P V in key order. */
+static void o_attention(const float *Q, uint32_t ldq, const float *K, uint32_t ldk, const float *V, uint32_t ldv,
+                        uint32_t nq, uint32_t nk, uint32_t H, uint32_t dh, float scale, const uint8_t *mask,
+                        float *out, uint32_t ldo, float *scratch)
+{
+    for (uint32_t h = 0; h < H; ++h) {
+        const size_t hc = (size_t)h * dh;
+        for (uint32_t i = 0; i < nq; ++i) {
+            for (uint32_t j = 0; j < nk; ++j) {
+                float acc = 0.0f;
+                for (uint32_t d = 0; d < dh; ++d) {
+                    acc = fmaf(Q[(size_t)i * ldq + hc + d], K[(size_t)j * ldk + hc + d], acc);
+                }
+                scratch[j] = mask && !mask[(size_t)i * nk + j] ? -INFINITY : acc * scale;
+            }
+            o_softmax(scratch, 1, nk, nk);
+            for (uint32_t d = 0; d < dh; ++d) {
+                float acc = 0.0f;
+                for (uint32_t j = 0; j < nk; ++j) {
+                    acc = fmaf(scratch[j], V[(size_t)j * ldv + hc + d], acc);
+                }
+                out[(size_t)i * ldo + hc + d] = acc;
+            }
+        }
+    }
+}
+
 const weft_qkernels weft__qkernels_scalar = {
     .isa = WEFT_ISA_SCALAR,
     .variant = "scalar",
@@ -301,4 +328,5 @@ const weft_qkernels weft__qkernels_scalar = {
     .activate_det = o_activate,
     .swiglu_det = o_swiglu,
     .posembed_det = o_posembed,
+    .attention_det = o_attention,
 };

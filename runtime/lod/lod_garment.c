@@ -91,6 +91,9 @@ static weft_result make_garment(weft_lod_garment *lg, const weft_lod_level *lv, 
     if (lv->method == WEFT_METHOD_MODEL) {
         d.model = find_model(lg->models, lg->model_count, lv);
         d.precision = lv->precision;
+        d.collider_crop_margin = (float)(lv->crop_cm / 100.0);
+        d.collider_crop = lv->collider_crop;
+        d.max_collider_tokens = lv->max_collider_tokens;
         if (!d.model) {
             return weft__fail(WEFT_ERROR_NO_MODEL, "lod level '%s': no model named '%s' among the %u given", lv->name,
                               lv->model, lg->model_count);

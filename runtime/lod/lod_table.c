@@ -24,12 +24,21 @@ enum lod_column {
     COL_STRAIN,
     COL_SEQUENCES,
     COL_FRAMES,
+    COL_REQUIRED, /* the columns after this one are optional */
+    COL_CROP_CM = COL_REQUIRED,
+    COL_CROP_RULE,
+    COL_CROP_TOKENS,
     COL_COUNT
 };
 
 static const char *const column_names[COL_COUNT] = {
-    "level", "method", "model", "precision", "substeps", "ccd", "resolution", "ms_per_frame", "mve_cm",
-    "max_edge_strain", "sequences", "frames"};
+    "level",     "method",    "model",  "precision", "substeps",      "ccd",
+    "resolution", "ms_per_frame", "mve_cm", "max_edge_strain", "sequences", "frames",
+    "crop_cm",   "collider_crop", "max_collider_tokens"};
+
+/* What an absent optional column means: the model's own crop. */
+static const char *const column_defaults[COL_COUNT] = {[COL_CROP_CM] = "-", [COL_CROP_RULE] = "-",
+                                                       [COL_CROP_TOKENS] = "-"};
 
 /* One line split at commas into trimmed cells (no quoting: no field needs a comma). */
 typedef struct lod_line {
@@ -235,6 +244,34 @@ static weft_result parse_level(char cells[COL_COUNT][LOD_CELL_CAP], uint32_t ln,
         return weft__fail(WEFT_ERROR_FORMAT, "lod table line %u column 'frames': '%s' is not an integer >= 1", ln,
                           cells[COL_FRAMES]);
     }
+
+    /* Collider crop: model levels only; '-' is the model's own. */
+    for (int k = COL_CROP_CM; k <= COL_CROP_TOKENS; ++k) {
+        if (!is_model && strcmp(cells[k], "-") != 0) {
+            return weft__fail(WEFT_ERROR_FORMAT, "lod table line %u column '%s': '-' expected for method %s, got '%s'",
+                              ln, column_names[k], cells[COL_METHOD], cells[k]);
+        }
+    }
+    c = cells[COL_CROP_CM];
+    if (strcmp(c, "-") != 0 && (!parse_f64(c, &lv->crop_cm) || !(lv->crop_cm > 0.0) || lv->crop_cm > 10000.0)) {
+        return weft__fail(WEFT_ERROR_FORMAT,
+                          "lod table line %u column 'crop_cm': '%s' is not '-' (the model's own) or a number in (0, 10000]",
+                          ln, c);
+    }
+    c = cells[COL_CROP_RULE];
+    lv->collider_crop = WEFT_COLLIDER_CROP_BOX;
+    if (strcmp(c, "cells") == 0) {
+        lv->collider_crop = WEFT_COLLIDER_CROP_CELLS;
+    } else if (strcmp(c, "-") != 0 && strcmp(c, "box") != 0) {
+        return weft__fail(WEFT_ERROR_FORMAT, "lod table line %u column 'collider_crop': '%s' is not -, box or cells",
+                          ln, c);
+    }
+    c = cells[COL_CROP_TOKENS];
+    if (strcmp(c, "-") != 0 && !parse_u32(c, 1, UINT32_MAX, &lv->max_collider_tokens)) {
+        return weft__fail(WEFT_ERROR_FORMAT,
+                          "lod table line %u column 'max_collider_tokens': '%s' is not '-' (no cap) or an integer >= 1",
+                          ln, c);
+    }
     return WEFT_OK;
 }
 
@@ -256,7 +293,7 @@ weft_result weft_lod_table_load_memory(weft_context *ctx, const char *text, size
     }
     int map[COL_COUNT]; /* canonical column -> position in the file */
     bool have_header = false;
-    uint32_t count = 0, line_no = 0;
+    uint32_t count = 0, line_no = 0, header_count = 0;
     weft_result r = WEFT_OK;
     const char *p = text, *end = text + size;
     char cells[COL_COUNT][LOD_CELL_CAP];
@@ -282,9 +319,10 @@ weft_result weft_lod_table_load_memory(weft_context *ctx, const char *text, size
             for (int k = 0; k < COL_COUNT; ++k) {
                 map[k] = -1;
             }
-            if (line->count != COL_COUNT) {
-                r = weft__fail(WEFT_ERROR_FORMAT, "lod table line %u: header has %u columns, expected %u (%s, ...)",
-                               line_no, line->count, COL_COUNT, column_names[0]);
+            if (line->count < COL_REQUIRED || line->count > COL_COUNT) {
+                r = weft__fail(WEFT_ERROR_FORMAT,
+                               "lod table line %u: header has %u columns, expected %u to %u (%s, ...)", line_no,
+                               line->count, COL_REQUIRED, COL_COUNT, column_names[0]);
                 break;
             }
             for (uint32_t i = 0; i < line->count && r == WEFT_OK; ++i) {
@@ -301,13 +339,20 @@ weft_result weft_lod_table_load_memory(weft_context *ctx, const char *text, size
                     map[k] = (int)i;
                 }
             }
+            for (int k = 0; k < COL_REQUIRED && r == WEFT_OK; ++k) {
+                if (map[k] < 0) {
+                    r = weft__fail(WEFT_ERROR_FORMAT, "lod table line %u: header lacks the column '%s'", line_no,
+                                   column_names[k]);
+                }
+            }
+            header_count = line->count;
             have_header = true;
             p = next;
             continue;
         }
-        if (line->count != COL_COUNT) {
+        if (line->count != header_count) {
             r = weft__fail(WEFT_ERROR_FORMAT, "lod table line %u: %u columns, the header has %u", line_no, line->count,
-                           COL_COUNT);
+                           header_count);
             break;
         }
         if (count == WEFT_LOD_MAX_LEVELS) {
@@ -315,7 +360,11 @@ weft_result weft_lod_table_load_memory(weft_context *ctx, const char *text, size
             break;
         }
         for (int k = 0; k < COL_COUNT; ++k) {
-            memcpy(cells[k], line->cells[map[k]], LOD_CELL_CAP);
+            if (map[k] >= 0) {
+                memcpy(cells[k], line->cells[map[k]], LOD_CELL_CAP);
+            } else {
+                snprintf(cells[k], LOD_CELL_CAP, "%s", column_defaults[k]);
+            }
         }
         r = parse_level(cells, line_no, &levels[count]);
         for (uint32_t j = 0; r == WEFT_OK && j < count; ++j) {

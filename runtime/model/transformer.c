@@ -3,6 +3,7 @@
  * queries cross-attending to the predicted latents, GNN refinement, displacement head).
  * Mirrors tools/train/model.py operation for operation; see docs/MODEL.md. */
 #include "model/transformer.h"
+#include "model/crop.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -350,10 +351,11 @@ typedef struct ct_state {
     int8_t *qa;                         /* max rows x max padded K (in qa_store) */
     float *qa_store;
     float *qa_scale;                    /* max rows */
-    float *att_s, *att_kt;              /* scores (nq x nk) and one head's keys transposed */
+    float *att_s;                       /* deterministic attention scratch */
     void *arena;
     size_t arena_bytes;
     uint32_t N, M;                      /* cloth vertices, collider triangles */
+    weft_crop crop;                     /* which collider triangles become tokens (model/crop.h) */
     uint32_t *rowptr, *col;             /* CSR mesh adjacency (both directions) */
     size_t col_count;
     uint8_t *tmask;                     /* (history K)^2 block-causal mask, NULL when history = 1 */
@@ -395,6 +397,9 @@ typedef struct ct_state {
 
 static ct_state *state_of(weft_garment *g) { return (ct_state *)g->method_state; }
 
+/* Rows of one int8 quantise-then-multiply step (their int8 activations stay in L1). */
+#define CT_Q8_ROWS 64u
+
 /* C = act(A W^T + b (+ C)) for `rows` rows at the garment's precision. Rows are independent
  * (each output row depends on its input row only, in every precision), so any split of the rows
  * gives the same bits. */
@@ -403,8 +408,12 @@ static void linear_rows(const ct_state *s, uint32_t rows, const weft_ct_linear *
 {
     if (s->prec == WEFT_PRECISION_INT8) {
         if (l->q8.packed) {
-            s->qk->quantize_rows(A, rows, l->in, lda, qa, l->q8.Kp, qa_scale);
-            s->qk->gemm_q8(rows, qa, l->q8.Kp, qa_scale, &l->q8, l->b, C, ldc, act, accumulate);
+            /* a few rows at a time, so their int8 copy is read back from L1 (same bits) */
+            for (uint32_t r0 = 0; r0 < rows; r0 += CT_Q8_ROWS) {
+                const uint32_t n = rows - r0 < CT_Q8_ROWS ? rows - r0 : CT_Q8_ROWS;
+                s->qk->quantize_rows(A + (size_t)r0 * lda, n, l->in, lda, qa, l->q8.Kp, qa_scale);
+                s->qk->gemm_q8(n, qa, l->q8.Kp, qa_scale, &l->q8, l->b, C + (size_t)r0 * ldc, ldc, act, accumulate);
+            }
         } else {
             s->qk->gemm_det(rows, l->out, l->in, A, lda, l->wt, l->out, l->b, C, ldc, act, accumulate);
         }
@@ -496,6 +505,11 @@ typedef struct shared_job {
     const float *A;
     float *const *C;
     uint32_t lda;
+    /* optional LayerNorm in front: Y = LN(X) (then A == Y) is written row block by row block */
+    const weft_ct_norm *ln;
+    const float *X;
+    float *Y;
+    float eps;
 } shared_job;
 
 static bool shares_q8(const weft_ct_linear *const *l, uint32_t count)
@@ -511,13 +525,21 @@ static bool shares_q8(const weft_ct_linear *const *l, uint32_t count)
 static void shared_rows(const shared_job *j, uint32_t begin, uint32_t end)
 {
     const ct_state *s = j->s;
-    const uint32_t kp = j->l[0]->q8.Kp, rows = end - begin;
+    const uint32_t kp = j->l[0]->q8.Kp, in = j->l[0]->in;
     int8_t *qa = s->qa + (size_t)begin * kp;
     float *qs = s->qa_scale + begin;
-    s->qk->quantize_rows(j->A + (size_t)begin * j->lda, rows, j->l[0]->in, j->lda, qa, kp, qs);
-    for (uint32_t i = 0; i < j->count; ++i) {
-        const weft_ct_linear *l = j->l[i];
-        s->qk->gemm_q8(rows, qa, kp, qs, &l->q8, l->b, j->C[i] + (size_t)begin * l->out, l->out, WEFT_ACT_NONE, false);
+    for (uint32_t r0 = begin; r0 < end; r0 += CT_Q8_ROWS) {
+        const uint32_t n = end - r0 < CT_Q8_ROWS ? end - r0 : CT_Q8_ROWS;
+        if (j->ln) { /* lda == in here: the normed rows are packed */
+            s->qk->layernorm_det(j->X + (size_t)r0 * in, j->Y + (size_t)r0 * in, n, in, in, j->ln->g, j->ln->b,
+                                 j->eps);
+        }
+        s->qk->quantize_rows(j->A + (size_t)r0 * j->lda, n, in, j->lda, qa, kp, qs);
+        for (uint32_t i = 0; i < j->count; ++i) {
+            const weft_ct_linear *l = j->l[i];
+            s->qk->gemm_q8(n, qa, kp, qs, &l->q8, l->b, j->C[i] + (size_t)r0 * l->out, l->out, WEFT_ACT_NONE,
+                           false);
+        }
     }
 }
 
@@ -525,6 +547,15 @@ static void shared_chunk(uint32_t begin, uint32_t end, uint32_t worker, void *jo
 {
     (void)worker;
     shared_rows(job_ptr, begin, end);
+}
+
+static void shared_run(const ct_state *s, uint32_t rows, shared_job *job)
+{
+    if (rows >= CT_PARALLEL_MIN_ROWS && s->ctx->parallel_for) {
+        weft__parallel_for(s->ctx, shared_chunk, rows, CT_PARALLEL_CHUNK, job);
+    } else {
+        shared_rows(job, 0, rows);
+    }
 }
 
 /* C[i] = A W_i^T + b_i for each layer; C[i] has stride l[i]->out. */
@@ -540,12 +571,8 @@ static void linear_shared(const ct_state *s, uint32_t rows, uint32_t count, cons
         }
         return;
     }
-    shared_job job = {s, l, count, A, C, lda};
-    if (rows >= CT_PARALLEL_MIN_ROWS && s->ctx->parallel_for) {
-        weft__parallel_for(s->ctx, shared_chunk, rows, CT_PARALLEL_CHUNK, &job);
-    } else {
-        shared_rows(&job, 0, rows);
-    }
+    shared_job job = {s, l, count, A, C, lda, NULL, NULL, NULL, 0.0f};
+    shared_run(s, rows, &job);
     for (uint32_t i = 0; s->observer && i < count; ++i) {
         observe(s, rows, l[i], A, lda, C[i], l[i]->out, WEFT_ACT_NONE, false);
     }
@@ -580,9 +607,25 @@ static void ct_swiglu(const ct_state *s, const float *gate, const float *up, flo
     }
 }
 
-/* Multi-head attention. The int8 path composes it from deterministic pieces (per head: scores
- * = Q K^T by the in-order fma product on transposed keys, scale and mask, canonical softmax,
- * P V), so it is bit-identical on every ISA; the others use the fused fp32 kernel. */
+/* Y = LN(X) (rows x D, packed), then C[i] = Y W_i^T + b_i. On the int8 path without an observer
+ * the norm, the quantisation and the GEMMs run row block by row block, so the normed rows are
+ * read back from L1 (same bits: every step is per row). */
+static void norm_linear_shared(const ct_state *s, const weft_ct_norm *n, const float *X, float *Y, uint32_t rows,
+                               uint32_t count, const weft_ct_linear *const *l, float *const *C)
+{
+    const uint32_t D = s->c.D;
+    if (s->prec != WEFT_PRECISION_INT8 || s->observer || rows == 0 || !shares_q8(l, count) || l[0]->in != D) {
+        norm(s, n, X, Y, rows, D, s->c.ln_eps);
+        linear_shared(s, rows, count, l, Y, D, C);
+        return;
+    }
+    shared_job job = {s, l, count, Y, C, D, n, X, Y, s->c.ln_eps};
+    shared_run(s, rows, &job);
+}
+
+/* Multi-head attention. The int8 path runs the deterministic kernel (the composition of in-order
+ * products and the canonical softmax, fused per block of queries), so it is bit-identical on
+ * every ISA; the others use the fused fp32 kernel. */
 static void ct_attention(ct_state *s, const float *Q, const float *K, const float *V, uint32_t nq, uint32_t nk,
                          float scale, const uint8_t *mask, float *out)
 {
@@ -591,34 +634,7 @@ static void ct_attention(ct_state *s, const float *Q, const float *K, const floa
         s->k->attention(Q, D, K, D, V, D, nq, nk, H, dh, scale, mask, out, D, s->attn_scratch);
         return;
     }
-    const weft_qkernels *q = s->qk;
-    for (uint32_t h = 0; h < H; ++h) {
-        /* keys transposed in blocks of rows that stay in L1 (a plain copy: no rounding) */
-        for (uint32_t j0 = 0; j0 < nk; j0 += 64) {
-            const uint32_t j1 = nk - j0 < 64 ? nk : j0 + 64;
-            for (uint32_t d = 0; d < dh; ++d) {
-                float *dst = s->att_kt + (size_t)d * nk;
-                const float *src = K + h * dh + d;
-                for (uint32_t j = j0; j < j1; ++j) {
-                    dst[j] = src[(size_t)j * D];
-                }
-            }
-        }
-        q->gemm_det(nq, nk, dh, Q + h * dh, D, s->att_kt, nk, NULL, s->att_s, nk, WEFT_ACT_NONE, false);
-        const size_t n = (size_t)nq * nk;
-        float *sc = s->att_s;
-        if (mask) {
-            for (size_t i = 0; i < n; ++i) {
-                sc[i] = mask[i] ? sc[i] * scale : -INFINITY;
-            }
-        } else {
-            for (size_t i = 0; i < n; ++i) { /* branch-free: vectorises */
-                sc[i] *= scale;
-            }
-        }
-        q->softmax_rows_det(sc, nq, nk, nk);
-        q->gemm_det(nq, dh, nk, sc, nk, V + h * dh, D, NULL, out + h * dh, D, WEFT_ACT_NONE, false);
-    }
+    s->qk->attention_det(Q, D, K, D, V, D, nq, nk, H, dh, scale, mask, out, D, s->att_s);
 }
 
 static int cmp_u64(const void *a, const void *b)
@@ -713,6 +729,7 @@ static void ct_destroy(weft_garment *g)
     weft__free(g->ctx, s->arena, s->arena_bytes);
     weft__free(g->ctx, s->obs_in, s->obs_floats * sizeof(float));
     weft__free(g->ctx, s->obs_out, s->obs_floats * sizeof(float));
+    weft__crop_free(g->ctx, &s->crop);
     weft__free(g->ctx, s, sizeof *s);
     g->method_state = NULL;
 }
@@ -969,12 +986,18 @@ static weft_result ct_create(weft_garment *g)
         /* int8 activations: the widest input of any layer, for the most rows any layer sees */
         const size_t rows = max_sz(max_sz(ntok, hk), N);
         const size_t kp = weft_q8_pad_k((uint32_t)max_sz(max_sz(6 * F + 3, 18 * F + 13), max_sz(2 * D, c.ffn)));
-        const size_t dh = D / c.H;
-        const size_t scores = max_sz(max_sz(K * ntok, hk * hk), N * K);
+        const uint32_t dh = (uint32_t)(D / c.H);
+        const size_t scores = weft_qk_attention_scratch((uint32_t)max_sz(ntok, max_sz(hk, K)), dh);
         ok = add_buf(g, s, &s->qa_store, (rows * kp + 3) / 4) && add_buf(g, s, &s->qa_scale, rows) &&
-             add_buf(g, s, &s->att_s, scores) && add_buf(g, s, &s->att_kt, dh * max_sz(ntok, max_sz(hk, K)));
+             add_buf(g, s, &s->att_s, scores);
     }
     s->qa = (int8_t *)s->qa_store;
+    if (ok) {
+        /* The garment's crop overrides the model's margin (a level-of-detail lever). */
+        const float margin = g->crop_margin > 0.0f ? g->crop_margin : c.crop_margin;
+        ok = weft__crop_init(g->ctx, &s->crop, margin, g->crop_rule, g->max_collider_tokens, s->N, s->M) ==
+             WEFT_OK;
+    }
     if (ok) {
         r = build_reduced(g, s);
         ok = r == WEFT_OK;
@@ -1024,10 +1047,9 @@ static void cross_block(ct_state *s, const weft_ct_xattn *a, const float *qp, ui
                         uint32_t ny, float *yln, float *yk, float *yv, float *att, float *xln)
 {
     const uint32_t D = s->c.D, H = s->c.H, dh = D / H;
-    norm(s, &a->ln_kv, y, yln, ny, D, s->c.ln_eps);
     const weft_ct_linear *kv[2] = {&a->k, &a->v};
     float *const kv_out[2] = {yk, yv};
-    linear_shared(s, ny, 2, kv, yln, D, kv_out);
+    norm_linear_shared(s, &a->ln_kv, y, yln, ny, 2, kv, kv_out);
     ct_attention(s, qp, yk, yv, nq, ny, 1.0f / sqrtf((float)dh), NULL, att);
     linear(s, nq, &a->o, att, D, x, D, WEFT_ACT_NONE, true);
     norm(s, &a->ln_ff, x, xln, nq, D, s->c.ln_eps);
@@ -1048,37 +1070,17 @@ static void centroid(const float *p, uint32_t n, float out[3])
     }
 }
 
-/* Collider triangle features for triangles overlapping the grown garment box; returns the count. */
+/* Collider triangle features for the triangles the garment's crop keeps; returns the count. */
 static uint32_t collider_features(weft_garment *g, ct_state *s, const float centre[3])
 {
     const weft_ct_config *c = &s->c;
     const uint32_t F = c->nfreq, ld = 18 * F + 13;
-    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
-    for (uint32_t i = 0; i < s->N; ++i) {
-        for (int d = 0; d < 3; ++d) {
-            float v = g->x[3 * (size_t)i + d];
-            lo[d] = v < lo[d] ? v : lo[d];
-            hi[d] = v > hi[d] ? v : hi[d];
-        }
-    }
-    for (int d = 0; d < 3; ++d) {
-        lo[d] -= c->crop_margin;
-        hi[d] += c->crop_margin;
-    }
     const float *cn = g->collider_next, *cp = g->collider_prev;
+    const uint32_t count = weft__crop_select(&s->crop, g->x, s->N, cn, g->collider_triangles);
     uint32_t kept = 0;
-    for (uint32_t t = 0; t < s->M; ++t) {
-        const uint32_t *tri = g->collider_triangles + 3 * (size_t)t;
+    for (uint32_t k = 0; k < count; ++k) {
+        const uint32_t *tri = g->collider_triangles + 3 * (size_t)s->crop.kept[k];
         const float *p[3] = {cn + 3 * (size_t)tri[0], cn + 3 * (size_t)tri[1], cn + 3 * (size_t)tri[2]};
-        bool overlap = true;
-        for (int d = 0; d < 3 && overlap; ++d) {
-            float tl = fminf(fminf(p[0][d], p[1][d]), p[2][d]);
-            float th = fmaxf(fmaxf(p[0][d], p[1][d]), p[2][d]);
-            overlap = tl <= hi[d] && th >= lo[d];
-        }
-        if (!overlap) {
-            continue;
-        }
         float *row = s->cfeat + (size_t)kept * ld;
         float corners[9];
         for (int j = 0; j < 3; ++j) {
@@ -1142,6 +1144,7 @@ static void ct_encode(weft_garment *g, ct_state *s)
     uint32_t kept = 0;
     if (s->M > 0) {
         kept = collider_features(g, s, centre);
+        g->stats.collider_tokens = kept;
         if (kept > 0) {
             linear(s, kept, &w->enc_coll.fc1, s->cfeat, 18 * F + 13, s->wide, D, WEFT_ACT_GELU, false);
             linear(s, kept, &w->enc_coll.fc2, s->wide, D, s->tok + (size_t)N * D, D, WEFT_ACT_NONE, false);

@@ -87,6 +87,54 @@ static void bench_writes_loadable_table(void)
     }
 }
 
+/* --crops: every model level again at each crop, named by it, and the crop in the CSV. */
+static void bench_measures_crop_levels(void)
+{
+    char models[1024], out[1100];
+    snprintf(models, sizeof models, "%s/models", g_out); /* linked by the case above */
+    snprintf(out, sizeof out, "%s/crops", g_out);
+    mkdir(out, 0755);
+    char csv[1200];
+    snprintf(csv, sizeof csv, "%s/lod.csv", out);
+    unlink(csv);
+    const char *argv[] = {g_exe,    "bench", "lod",   "--data", g_data,       "--split",  "all",
+                          "--frames", "3",   "--xpbd", "1",     "--models",   models,     "--out",
+                          out,      "--no-scale", "--crops", "model,6:cells@40", NULL};
+    CHECK_EQ_INT(run(argv), 0);
+    weft_context_def cd = weft_default_context_def();
+    weft_context *ctx = NULL;
+    CHECK_RESULT(weft_context_create(&cd, &ctx), WEFT_OK);
+    weft_lod_table *t = NULL;
+    CHECK_RESULT(weft_lod_table_load_file(ctx, csv, &t), WEFT_OK);
+    if (t) {
+        CHECK_EQ_INT(weft_lod_table_count(t), 15); /* lbs x2, xpbd-1, game: 3 precisions x CCD x 2 crops */
+        static const struct {
+            const char *name;
+            double cm;
+            weft_collider_crop rule;
+        } want[] = {{"game-fp32", 0.0, WEFT_COLLIDER_CROP_BOX},
+                    {"game-int8-noccd", 0.0, WEFT_COLLIDER_CROP_BOX},
+                    {"game-fp32-cells6-cap40", 6.0, WEFT_COLLIDER_CROP_CELLS},
+                    {"game-fp16-noccd-cells6-cap40", 6.0, WEFT_COLLIDER_CROP_CELLS},
+                    {"game-int8-cells6-cap40", 6.0, WEFT_COLLIDER_CROP_CELLS},
+                    {"lbs", 0.0, WEFT_COLLIDER_CROP_BOX}};
+        for (size_t i = 0; i < sizeof want / sizeof want[0]; ++i) {
+            uint32_t idx = 0;
+            CHECK_RESULT(weft_lod_table_find(t, want[i].name, &idx), WEFT_OK);
+            const weft_lod_level *l = weft_lod_table_level(t, idx);
+            const uint32_t cap = want[i].cm > 0.0 ? 40 : 0;
+            CHECK_MSG(l && l->crop_cm == want[i].cm && l->collider_crop == want[i].rule && l->max_collider_tokens == cap &&
+                          l->frames == 3 && isfinite(l->mve_cm),
+                      "%s", want[i].name);
+        }
+        weft_lod_table_destroy(t);
+    }
+    weft_context_destroy(ctx);
+    /* A malformed list is refused before anything runs. */
+    const char *bad[] = {g_exe, "bench", "lod", "--data", g_data, "--crops", "6,-2", "--out", out, NULL};
+    CHECK_EQ_INT(run(bad), 2);
+}
+
 int main(int argc, char **argv)
 {
     if (argc != 5) {
@@ -104,6 +152,6 @@ int main(int argc, char **argv)
         printf("skipped: no %s\n", probe);
         return 77;
     }
-    static const test_case_ cases[] = {TEST_CASE(bench_writes_loadable_table)};
-    return test_run_(cases, 1, 1, argv);
+    static const test_case_ cases[] = {TEST_CASE(bench_writes_loadable_table), TEST_CASE(bench_measures_crop_levels)};
+    return test_run_(cases, 2, 1, argv);
 }

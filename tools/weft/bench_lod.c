@@ -1,7 +1,7 @@
 /* weft bench lod: the measured level-of-detail table, and the per-character cost of a crowd.
  *
  * 1. Every candidate level (LBS, XPBD at a few substep counts, each model in DIR at fp32/fp16/
- *    int8 with and without CCD) runs over the split's sequences, one `weft eval --json` child per
+ *    int8 with and without CCD, at each collider crop of --crops) runs over the split's sequences, one `weft eval --json` child per
  *    (level, sequence), exactly as `weft bench chart` does. Frame-weighted means go to
  *    <out>/lod.csv, the file weft_lod_table_load_file() reads (include/weft/lod.h), and to the
  *    generated sections of <out>/LOD.md.
@@ -26,8 +26,16 @@
 const char weft_bench_lod_help[] =
     "level-of-detail table: ms/frame and MVE per level (CSV the runtime loads + docs/LOD.md), crowd cost at 1/8/64";
 
-#define LOD_MAX_CANDS 96
+#define LOD_MAX_CANDS 160
 #define LOD_MAX_SCALE 16
+#define LOD_MAX_CROPS 8
+
+/* One collider crop to measure model levels at (weft_garment_def.collider_crop_*). */
+typedef struct lod_crop {
+    double cm;                  /* 0: the model's own margin */
+    bool cells;                 /* WEFT_COLLIDER_CROP_CELLS, else BOX */
+    uint32_t tokens;            /* max_collider_tokens, 0: no cap */
+} lod_crop;
 
 typedef struct lod_cand {
     char name[WEFT_LOD_NAME_CAP];
@@ -38,6 +46,7 @@ typedef struct lod_cand {
     char precision[8];
     unsigned substeps;
     bool ccd;
+    lod_crop crop;              /* model levels only */
     uint32_t sequences, frames, failed, nan_runs;
     double mve_w, ms_w, strain;
     char note[240];
@@ -48,7 +57,10 @@ typedef struct lod_opts {
     uint32_t frames, max_seqs, scale_frames;
     unsigned xpbd[8];
     size_t nxpbd;
-    bool scale, scale_only;
+    lod_crop crops[LOD_MAX_CROPS];
+    size_t ncrops;
+    const char *cost_model;             /* --crop-cost: the model file */
+    bool scale, scale_only, crop_cost;
 } lod_opts;
 
 static void usage(FILE *f)
@@ -56,13 +68,22 @@ static void usage(FILE *f)
     fprintf(f,
             "usage: weft bench lod --data DIR [--split test|val|train|all] [--models DIR] [--out DIR] [--frames N]\n"
             "                      [--max-seqs N] [--xpbd 5,10,20] [--no-scale] [--scale-levels a,b,...]\n"
-            "                      [--scale-frames N] [--scale-res 1k|4k] [--scale-only]\n"
+            "                      [--scale-frames N] [--scale-res 1k|4k] [--scale-only] [--crops model,8,4:cells]\n"
             "  Measures every level (LBS, XPBD at the given substeps, each DIR/*.safetensors model at\n"
             "  fp32/fp16/int8 with and without CCD) on the split through `weft eval --json`, writes OUT/lod.csv\n"
             "  (loadable by weft_lod_table_load_file) and the table in OUT/LOD.md, then measures the\n"
             "  per-character step cost of 1, 8 and 64 walking avatars at the --scale-levels (default: lbs,\n"
             "  xpbd-5, every model at int8 and fp32 with CCD and at fp32 without). Default OUT: docs.\n"
-            "  --scale-only  skip the table: reuse OUT/lod.csv and regenerate only the per-character section\n");
+            "  --scale-only  skip the table: reuse OUT/lod.csv and regenerate only the per-character section\n"
+            "  --crops L     collider crops to measure every model level at (default: model, the model's own):\n"
+            "                'model' or a margin in cm (box rule, as trained), optionally :cells (finer rule) and\n"
+            "                @N (keep at most N triangles, the nearest), e.g. model,8,8:cells,model@3000; at most %d.\n"
+            "                Levels are named <model>-<precision>[-noccd][-cropCM|-cellsCM|-cells][-capN]\n"
+            "  --crop-cost   only measure the step cost of the --crops on the walking default avatar (T-shirt\n"
+            "                --scale-res, --scale-frames timed frames, CCD off, fp32): one garment per crop, stepped\n"
+            "                in turn each frame; prints median and min ms per step and the mean kept tokens.\n"
+            "                --crop-model FILE (default MODELS/game.safetensors)\n",
+            LOD_MAX_CROPS);
 }
 
 static double now_s(void)
@@ -102,6 +123,61 @@ static bool model_meta_name(weft_context *ctx, const char *file, char *out, size
 /* ---------------------------------------------------------------------------------------- */
 /* Part 1: the table                                                                          */
 
+/* "model,8,4:cells,model@3000" into crops; 0 on a malformed list (bad number, duplicate, too
+ * many). */
+static size_t parse_crops(const char *list, lod_crop *out, size_t cap)
+{
+    size_t n = 0;
+    const char *p = list;
+    while (*p) {
+        const char *e = strchr(p, ',');
+        size_t len = e ? (size_t)(e - p) : strlen(p);
+        char item[32];
+        if (len == 0 || len >= sizeof item || n == cap) {
+            return 0;
+        }
+        memcpy(item, p, len);
+        item[len] = '\0';
+        lod_crop c = {0.0, false, 0};
+        char *at = strchr(item, '@');
+        if (at) {
+            char *end;
+            unsigned long v = strtoul(at + 1, &end, 10);
+            if (*end || end == at + 1 || at[1] == '-' || v == 0 || v > 100000000ul) {
+                return 0;
+            }
+            c.tokens = (uint32_t)v;
+            *at = '\0';
+        }
+        char *colon = strchr(item, ':');
+        if (colon) {
+            if (strcmp(colon + 1, "cells") != 0 && strcmp(colon + 1, "box") != 0) {
+                return 0;
+            }
+            c.cells = strcmp(colon + 1, "cells") == 0;
+            *colon = '\0';
+        }
+        if (strcmp(item, "model") != 0) {
+            char *end;
+            c.cm = strtod(item, &end);
+            if (*end || end == item || !(c.cm > 0.0) || c.cm > 10000.0) {
+                return 0;
+            }
+        }
+        for (size_t i = 0; i < n; ++i) {
+            if (out[i].cm == c.cm && out[i].cells == c.cells && out[i].tokens == c.tokens) {
+                return 0;
+            }
+        }
+        out[n++] = c;
+        p = e ? e + 1 : p + len;
+        if (e && !*p) {
+            return 0; /* trailing comma */
+        }
+    }
+    return n;
+}
+
 static size_t build_candidates(weft_context *ctx, const lod_opts *o, lod_cand *c, char skipped[][300], size_t *nskip)
 {
     size_t n = 0;
@@ -128,7 +204,7 @@ static size_t build_candidates(weft_context *ctx, const lod_opts *o, lod_cand *c
         snprintf(skipped[(*nskip)++], 300, "learned models: no `*.safetensors` under `%s`", o->models);
     }
     static const char *const precs[] = {"fp32", "fp16", "int8"};
-    for (size_t i = 0; i < nf && n + 6 <= LOD_MAX_CANDS; ++i) {
+    for (size_t i = 0; i < nf && n + 6 * o->ncrops <= LOD_MAX_CANDS; ++i) {
         char stem[256], base[1300], meta[WEFT_LOD_NAME_CAP];
         snprintf(stem, sizeof stem, "%s", files[i]);
         stem[strlen(stem) - 12] = '\0';
@@ -138,17 +214,43 @@ static size_t build_candidates(weft_context *ctx, const lod_opts *o, lod_cand *c
                      weft_last_error());
             continue;
         }
-        for (int p = 0; p < 3; ++p) {
-            for (int ccd = 1; ccd >= 0; --ccd) {
-                lod_cand *k = &c[n++];
-                memset(k, 0, sizeof *k);
-                snprintf(k->name, sizeof k->name, "%.30s-%s%s", meta, precs[p], ccd ? "" : "-noccd");
-                snprintf(k->method, sizeof k->method, "model");
-                k->family = "model";
-                snprintf(k->model_name, sizeof k->model_name, "%s", meta);
-                snprintf(k->precision, sizeof k->precision, "%s", precs[p]);
-                bench_model_file(o->models, stem, files[i], precs[p], k->model_file, sizeof k->model_file);
-                k->ccd = ccd != 0;
+        for (size_t q = 0; q < o->ncrops; ++q) {
+            const lod_crop *cr = &o->crops[q];
+            char suffix[40] = "";
+            if (cr->cm > 0.0 || cr->cells) {
+                snprintf(suffix, sizeof suffix, "-%s%.4g", cr->cells ? "cells" : "crop", cr->cm);
+                if (cr->cm == 0.0) {
+                    suffix[strlen(suffix) - 1] = '\0'; /* "-cells": the model's margin */
+                }
+            }
+            if (cr->tokens) {
+                const size_t used = strlen(suffix);
+                snprintf(suffix + used, sizeof suffix - used, "-cap%u", cr->tokens);
+            }
+            /* The longest name of this crop ("-fp32-noccd" is the longest middle) must fit. */
+            char full[160];
+            snprintf(full, sizeof full, "%.30s-fp32-noccd%s", meta, suffix);
+            if (strlen(full) >= WEFT_LOD_NAME_CAP) {
+                if (*nskip < 16) {
+                    snprintf(skipped[(*nskip)++], 300, "crop `%.40s` of model `%.40s`: level name over %u characters",
+                             suffix + 1, meta, WEFT_LOD_NAME_CAP - 1);
+                }
+                continue;
+            }
+            for (int p = 0; p < 3; ++p) {
+                for (int ccd = 1; ccd >= 0; --ccd) {
+                    lod_cand *k = &c[n++];
+                    memset(k, 0, sizeof *k);
+                    snprintf(full, sizeof full, "%.30s-%s%s%s", meta, precs[p], ccd ? "" : "-noccd", suffix);
+                    memcpy(k->name, full, strlen(full) + 1); /* fits: checked above */
+                    k->crop = *cr;
+                    snprintf(k->method, sizeof k->method, "model");
+                    k->family = "model";
+                    snprintf(k->model_name, sizeof k->model_name, "%s", meta);
+                    snprintf(k->precision, sizeof k->precision, "%s", precs[p]);
+                    bench_model_file(o->models, stem, files[i], precs[p], k->model_file, sizeof k->model_file);
+                    k->ccd = ccd != 0;
+                }
             }
         }
     }
@@ -161,8 +263,11 @@ static void run_candidates(const char *exe, const lod_opts *o, const bench_seq *
     char frames_arg[16];
     snprintf(frames_arg, sizeof frames_arg, "%u", o->frames);
     for (size_t k = 0; k < nc; ++k) {
+        char crop_arg[32], tokens_arg[16];
+        snprintf(crop_arg, sizeof crop_arg, "%.9g", c[k].crop.cm);
+        snprintf(tokens_arg, sizeof tokens_arg, "%u", c[k].crop.tokens);
         for (size_t s = 0; s < nseq; ++s) {
-            const char *extra[16];
+            const char *extra[24];
             int n = 0;
             extra[n++] = "--method";
             extra[n++] = c[k].method;
@@ -177,6 +282,18 @@ static void run_candidates(const char *exe, const lod_opts *o, const bench_seq *
                 extra[n++] = c[k].model_file;
                 extra[n++] = "--precision";
                 extra[n++] = c[k].precision;
+                if (c[k].crop.cm > 0.0) {
+                    extra[n++] = "--crop-cm";
+                    extra[n++] = crop_arg;
+                }
+                if (c[k].crop.cells) {
+                    extra[n++] = "--crop";
+                    extra[n++] = "cells";
+                }
+                if (c[k].crop.tokens) {
+                    extra[n++] = "--max-collider-tokens";
+                    extra[n++] = tokens_arg;
+                }
             }
             extra[n] = NULL;
             bench_eval_result e;
@@ -212,7 +329,7 @@ static bool write_csv(const char *path, const lod_cand *c, size_t nc, const char
     fprintf(f, "# weft level-of-detail table, measured by: %s\n", command);
     fprintf(f, "# data %s, split %s; build and machine: %s\n", o->data, o->split, weft_config_string());
     fprintf(f, "level,method,model,precision,substeps,ccd,resolution,ms_per_frame,mve_cm,max_edge_strain,sequences,"
-               "frames\n");
+               "frames,crop_cm,collider_crop,max_collider_tokens\n");
     for (size_t k = 0; k < nc; ++k) {
         if (!cand_valid(&c[k])) {
             continue;
@@ -222,9 +339,17 @@ static bool write_csv(const char *path, const lod_cand *c, size_t nc, const char
             snprintf(sub, sizeof sub, "%u", c[k].substeps);
         }
         bool model = strcmp(c[k].family, "model") == 0;
-        fprintf(f, "%s,%s,%s,%s,%s,%s,1,%.6g,%.6g,%.6g,%u,%u\n", c[k].name, c[k].family, model ? c[k].model_name : "-",
-                model ? c[k].precision : "-", sub, c[k].ccd ? "on" : "off", c[k].ms_w / c[k].frames,
-                c[k].mve_w / c[k].frames, c[k].strain, c[k].sequences, c[k].frames);
+        char crop_cm[32] = "-", tokens[16] = "-";
+        if (model && c[k].crop.cm > 0.0) {
+            snprintf(crop_cm, sizeof crop_cm, "%.9g", c[k].crop.cm);
+        }
+        if (model && c[k].crop.tokens) {
+            snprintf(tokens, sizeof tokens, "%u", c[k].crop.tokens);
+        }
+        fprintf(f, "%s,%s,%s,%s,%s,%s,1,%.6g,%.6g,%.6g,%u,%u,%s,%s,%s\n", c[k].name, c[k].family,
+                model ? c[k].model_name : "-", model ? c[k].precision : "-", sub, c[k].ccd ? "on" : "off",
+                c[k].ms_w / c[k].frames, c[k].mve_w / c[k].frames, c[k].strain, c[k].sequences, c[k].frames, crop_cm,
+                model ? (c[k].crop.cells ? "cells" : "box") : "-", tokens);
     }
     fclose(f);
     return true;
@@ -395,9 +520,11 @@ static size_t run_scaling(const lod_opts *o, const char *csv, scale_row *rows, s
         for (uint32_t i = 0; ok && i < weft_lod_table_count(t); ++i) {
             const weft_lod_level *l = weft_lod_table_level(t, i);
             /* fp32 without CCD shows the model step alone, where batching can matter. */
+            /* Crop variants only when asked for by name: 64 avatars per level are slow. */
             bool want = strcmp(l->name, "lbs") == 0 || strcmp(l->name, "xpbd-5") == 0 ||
                         (l->method == WEFT_METHOD_MODEL && l->precision != WEFT_PRECISION_FP16 &&
-                         (l->ccd || l->precision == WEFT_PRECISION_FP32));
+                         (l->ccd || l->precision == WEFT_PRECISION_FP32) && l->crop_cm == 0.0 &&
+                         l->collider_crop == WEFT_COLLIDER_CROP_BOX && l->max_collider_tokens == 0);
             if (want) {
                 size_t len = strlen(list);
                 snprintf(list + len, sizeof list - len, "%s%s", len ? "," : "", l->name);
@@ -443,6 +570,119 @@ static size_t run_scaling(const lod_opts *o, const char *csv, scale_row *rows, s
         weft_context_destroy(ctx);
     }
     return nrows;
+}
+
+/* ---------------------------------------------------------------------------------------- */
+/* --crop-cost: what each crop costs per step on the avatar                                   */
+
+/* One garment per crop on one walking avatar, stepped one after another every frame (the order
+ * rotates per frame), so machine load falls on every crop alike; the median and the minimum of
+ * the per-step times are reported. */
+static int crop_cost(const lod_opts *o)
+{
+    char model_path[1300];
+    if (o->cost_model) {
+        snprintf(model_path, sizeof model_path, "%s", o->cost_model);
+    } else {
+        snprintf(model_path, sizeof model_path, "%s/game.safetensors", o->models);
+    }
+    const size_t n = o->ncrops;
+    const uint32_t frames = o->scale_frames, lead = 4;
+    weft_context_def cd = weft_default_context_def();
+    weft_context *ctx = NULL;
+    weft_body *body = NULL;
+    weft_cloth_mesh *cloth = NULL;
+    weft_model *model = NULL;
+    weft_garment *g[LOD_MAX_CROPS] = {NULL};
+    weft_avatar_def ad = weft_default_avatar_def();
+    weft_cloth_def cl = weft_default_cloth_def(WEFT_CLOTH_TSHIRT);
+    bool ok = weft_context_create(&cd, &ctx) == WEFT_OK && weft_avatar_create(ctx, &ad, &body) == WEFT_OK &&
+              weft_cloth_resolution_from_name(o->scale_res, &cl.resolution) == WEFT_OK &&
+              weft_cloth_create(ctx, &cl, body, &cloth) == WEFT_OK &&
+              weft_model_load_file(ctx, model_path, &model) == WEFT_OK;
+    const uint32_t nb = ok ? weft_body_vertex_count(body) : 0;
+    float *verts = ok ? malloc((size_t)nb * 3 * sizeof(float)) : NULL;
+    double *ms = calloc((size_t)n * frames, sizeof *ms);
+    double tokens[LOD_MAX_CROPS] = {0};
+    ok = ok && verts && ms;
+    for (size_t k = 0; ok && k < n; ++k) {
+        weft_garment_def d = weft_default_garment_def();
+        d.method = WEFT_METHOD_MODEL;
+        d.model = model;
+        d.ccd = false;
+        d.collider_crop_margin = (float)(o->crops[k].cm / 100.0);
+        d.collider_crop = o->crops[k].cells ? WEFT_COLLIDER_CROP_CELLS : WEFT_COLLIDER_CROP_BOX;
+        d.max_collider_tokens = o->crops[k].tokens;
+        d.rest_positions = cloth->positions;
+        d.vertex_count = cloth->vertex_count;
+        d.triangles = cloth->triangles;
+        d.triangle_count = cloth->triangle_count;
+        d.collider_rest_positions = weft_body_rest_vertices(body);
+        d.collider_vertex_count = nb;
+        d.collider_triangles = weft_body_triangles(body);
+        d.collider_triangle_count = weft_body_triangle_count(body);
+        ok = weft_garment_create(ctx, &d, &g[k]) == WEFT_OK;
+    }
+    weft_motion_def md = weft_default_motion_def(WEFT_MOTION_WALK);
+    for (uint32_t f = 0; ok && f < lead + frames; ++f) {
+        weft_pose pose, bind;
+        ok = weft_motion_sample(&md, (double)f / 60.0, &pose) == WEFT_OK;
+        if (ok && f < lead) { /* blend in from the bind pose the garments were made on (untimed) */
+            weft_body_bind_pose(body, &bind);
+            const float u = (float)(f + 1) / (float)lead;
+            for (int j = 0; j < 3 * WEFT_BODY_JOINTS; ++j) {
+                pose.rotations[j] = bind.rotations[j] + u * (pose.rotations[j] - bind.rotations[j]);
+            }
+        }
+        ok = ok && weft_body_pose(body, &pose, verts, NULL) == WEFT_OK;
+        for (size_t i = 0; ok && i < n; ++i) {
+            const size_t k = (i + f) % n;
+            ok = weft_garment_set_collider(g[k], verts) == WEFT_OK && weft_garment_step(g[k]) == WEFT_OK;
+            if (ok && f >= lead) {
+                const weft_step_stats st = weft_garment_stats(g[k]);
+                ms[k * frames + (f - lead)] = st.step_ms;
+                tokens[k] += st.collider_tokens;
+            }
+        }
+    }
+    int rc = 0;
+    if (!ok) {
+        fprintf(stderr, "weft bench lod --crop-cost: %s\n", weft_last_error());
+        rc = 1;
+    } else {
+        printf("crop cost: %s fp32, CCD off, default avatar (%u triangles) walking, T-shirt %s (%u vertices); "
+               "%u timed frames after %u blend-in frames, garments stepped in turn\n",
+               model_path, weft_body_triangle_count(body), o->scale_res, cloth->vertex_count, frames, lead);
+        printf("%-24s %12s %12s %14s\n", "crop", "median ms", "min ms", "tokens/frame");
+        for (size_t k = 0; k < n; ++k) {
+            double *row = ms + k * frames;
+            qsort(row, frames, sizeof *row, cmp_double);
+            const double med = frames % 2 ? row[frames / 2] : 0.5 * (row[frames / 2 - 1] + row[frames / 2]);
+            char name[64];
+            if (o->crops[k].cm > 0.0) {
+                snprintf(name, sizeof name, "%.4g cm %s", o->crops[k].cm, o->crops[k].cells ? "cells" : "box");
+            } else {
+                snprintf(name, sizeof name, "model's, %s", o->crops[k].cells ? "cells" : "box");
+            }
+            if (o->crops[k].tokens) {
+                const size_t used = strlen(name);
+                snprintf(name + used, sizeof name - used, " @%u", o->crops[k].tokens);
+            }
+            printf("%-24s %12.3f %12.3f %14.0f\n", name, med, row[0], tokens[k] / frames);
+        }
+    }
+    for (size_t k = 0; k < n; ++k) {
+        weft_garment_destroy(g[k]);
+    }
+    free(verts);
+    free(ms);
+    weft_model_destroy(model);
+    weft_cloth_destroy(cloth);
+    weft_body_destroy(body);
+    if (ctx) {
+        weft_context_destroy(ctx);
+    }
+    return rc;
 }
 
 /* ---------------------------------------------------------------------------------------- */
@@ -512,8 +752,8 @@ static char *table_block(const lod_cand *c, size_t nc, const char *command, cons
              date, wall, o->data, o->split, o->frames ? ", rollouts cut at --frames" : "", weft_config_string());
     s = append(s, &len, &cap, line);
     s = s ? append(s, &len, &cap,
-                   "| level | method | precision | substeps | CCD | sequences | frames | ms/frame | MVE (cm) | "
-                   "max edge strain | in lod.csv |\n|---|---|---|---|---|---|---|---|---|---|---|\n")
+                   "| level | method | precision | substeps | CCD | collider crop | sequences | frames | ms/frame | "
+                   "MVE (cm) | max edge strain | in lod.csv |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n")
           : NULL;
     /* Cheapest first. */
     bool done[LOD_MAX_CANDS] = {false};
@@ -536,9 +776,21 @@ static char *table_block(const lod_cand *c, size_t nc, const char *command, cons
         if (k->substeps) {
             snprintf(sub, sizeof sub, "%u", k->substeps);
         }
-        snprintf(line, sizeof line, "| %s | %s%s%s | %s | %s | %s | %u | %u | %.3f | %.3f | %.3f | %s |\n", k->name,
-                 k->family, k->model_name[0] ? " " : "", k->model_name, k->precision[0] ? k->precision : "-", sub,
-                 k->ccd ? "on" : "off", k->sequences, k->frames, k->ms_w / w, k->mve_w / w, k->strain,
+        char crop[64] = "-";
+        if (strcmp(k->family, "model") == 0) {
+            if (k->crop.cm > 0.0) {
+                snprintf(crop, sizeof crop, "%.4g cm %s", k->crop.cm, k->crop.cells ? "cells" : "box");
+            } else {
+                snprintf(crop, sizeof crop, "model's, %s", k->crop.cells ? "cells" : "box");
+            }
+            if (k->crop.tokens) {
+                const size_t used = strlen(crop);
+                snprintf(crop + used, sizeof crop - used, ", at most %u", k->crop.tokens);
+            }
+        }
+        snprintf(line, sizeof line, "| %s | %s%s%s | %s | %s | %s | %s | %u | %u | %.3f | %.3f | %.3f | %s |\n",
+                 k->name, k->family, k->model_name[0] ? " " : "", k->model_name, k->precision[0] ? k->precision : "-",
+                 sub, k->ccd ? "on" : "off", crop, k->sequences, k->frames, k->ms_w / w, k->mve_w / w, k->strain,
                  cand_valid(k) ? "yes" : (k->nan_runs ? "no: NaN" : "no: failed"));
         s = append(s, &len, &cap, line);
     }
@@ -633,6 +885,9 @@ int weft_bench_lod(int argc, char **argv)
         } else if (strcmp(a, "--scale-only") == 0) {
             o.scale_only = true;
             continue;
+        } else if (strcmp(a, "--crop-cost") == 0) {
+            o.crop_cost = true;
+            continue;
         } else if (!v) {
             fprintf(stderr, "weft bench lod: %s needs a value\n", a);
             usage(stderr);
@@ -646,10 +901,18 @@ int weft_bench_lod(int argc, char **argv)
             o.models = v;
         } else if (strcmp(a, "--out") == 0) {
             o.out = v;
+        } else if (strcmp(a, "--crop-model") == 0) {
+            o.cost_model = v;
         } else if (strcmp(a, "--scale-levels") == 0) {
             o.scale_levels = v;
         } else if (strcmp(a, "--scale-res") == 0) {
             o.scale_res = v;
+        } else if (strcmp(a, "--crops") == 0) {
+            if ((o.ncrops = parse_crops(v, o.crops, LOD_MAX_CROPS)) == 0) {
+                fprintf(stderr, "weft bench lod: --crops wants up to %d items like model,8,4:cells,model@3000\n",
+                        LOD_MAX_CROPS);
+                return 2;
+            }
         } else if (strcmp(a, "--xpbd") == 0) {
             if ((o.nxpbd = bench_parse_substeps(v, o.xpbd, 8)) == 0) {
                 fprintf(stderr, "weft bench lod: --xpbd wants substep counts like 5,10,20\n");
@@ -676,6 +939,13 @@ int weft_bench_lod(int argc, char **argv)
     if (weft_cloth_resolution_from_name(o.scale_res, &res_check) != WEFT_OK) {
         fprintf(stderr, "weft bench lod: --scale-res must be 1k, 4k, 16k or 40k\n");
         return 2;
+    }
+    if (o.ncrops == 0) {
+        o.crops[0] = (lod_crop){0.0, false, 0};
+        o.ncrops = 1;
+    }
+    if (o.crop_cost) {
+        return crop_cost(&o);
     }
     if (o.scale_only) {
         return scale_only(&o, command);

@@ -35,6 +35,9 @@ typedef struct eval_opts {
     weft_precision precision;
     bool ccd, json;
     uint32_t max_frames;
+    float crop_margin;                  /* m, 0: the model's own */
+    weft_collider_crop crop;
+    uint32_t max_collider_tokens;
 } eval_opts;
 
 typedef struct eval_acc {
@@ -43,6 +46,7 @@ typedef struct eval_acc {
     double coll_sum, self_sum;
     uint32_t metric_frames;
     double ms_sum;
+    double tokens_sum;                  /* collider tokens kept by the model's crop, summed per frame */
     uint32_t frames;
     bool nan;
     double max_strain;
@@ -289,6 +293,9 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
     d.precision = o->precision;
     d.substeps = o->substeps;
     d.ccd = o->ccd;
+    d.collider_crop_margin = o->crop_margin;
+    d.collider_crop = o->crop;
+    d.max_collider_tokens = o->max_collider_tokens;
     d.rest_positions = s.rest;
     d.vertex_count = s.V;
     d.triangles = s.faces;
@@ -365,6 +372,7 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
         double t0 = now_ms();
         r = weft_garment_step(g);
         a.ms_sum += now_ms() - t0;
+        a.tokens_sum += weft_garment_stats(g).collider_tokens;
         if (r == WEFT_ERROR_NOT_FINITE) {
             a.nan = true;
             break;
@@ -396,11 +404,11 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
     }
     int rc = (r == WEFT_OK || a.nan) ? 0 : 1;
     if (print) {
-        printf("%-40s frames %4u  MVE %8.3f cm  coll %6.2f%%  self %6.2f%%  %8.3f ms/frame  strain %.3f%s\n", dir,
-               a.frames, a.vert_frames > 0 ? a.err_sum / a.vert_frames * 100.0 : 0.0,
+        printf("%-40s frames %4u  MVE %8.3f cm  coll %6.2f%%  self %6.2f%%  %8.3f ms/frame  strain %.3f  tokens %.0f%s\n",
+               dir, a.frames, a.vert_frames > 0 ? a.err_sum / a.vert_frames * 100.0 : 0.0,
                a.metric_frames ? a.coll_sum / a.metric_frames : 0.0,
                a.metric_frames ? a.self_sum / a.metric_frames : 0.0, a.frames ? a.ms_sum / a.frames : 0.0,
-               a.max_strain, a.nan ? "  NaN" : "");
+               a.max_strain, a.frames ? a.tokens_sum / a.frames : 0.0, a.nan ? "  NaN" : "");
     }
     total->err_sum += a.err_sum;
     total->vert_frames += a.vert_frames;
@@ -408,6 +416,7 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
     total->self_sum += a.self_sum;
     total->metric_frames += a.metric_frames;
     total->ms_sum += a.ms_sum;
+    total->tokens_sum += a.tokens_sum;
     total->frames += a.frames;
     total->nan = total->nan || a.nan;
     total->max_strain = fmax(total->max_strain, a.max_strain);
@@ -474,6 +483,7 @@ static void usage(FILE *f)
 {
     fprintf(f, "usage: weft eval --seq DIR [--model M] [--method model|lbs|xpbd:S] [--precision fp32|fp16|int8]\n"
                "                 [--ccd on|off] [--split train|val|test] [--frames N] [--json]\n"
+               "                 [--crop-cm X] [--crop box|cells] [--max-collider-tokens N]\n"
                "  DIR is one sequence folder (meta.json + .npy) or a folder of them.\n");
 }
 
@@ -536,6 +546,30 @@ int weft_cmd_eval(int argc, char **argv)
                 fprintf(stderr, "weft eval: unknown precision '%s'\n", v);
                 return 2;
             }
+        } else if (strcmp(a, "--crop-cm") == 0) {
+            /* model collider crop margin in cm (0: the model's own); the library validates it */
+            char *end;
+            o.crop_margin = strtof(v, &end) / 100.0f, ++i;
+            if (*end || end == v) {
+                fprintf(stderr, "weft eval: bad --crop-cm '%s'\n", v);
+                return 2;
+            }
+        } else if (strcmp(a, "--crop") == 0) {
+            ++i;
+            if (strcmp(v, "box") != 0 && strcmp(v, "cells") != 0) {
+                fprintf(stderr, "weft eval: --crop takes box or cells\n");
+                return 2;
+            }
+            o.crop = strcmp(v, "cells") == 0 ? WEFT_COLLIDER_CROP_CELLS : WEFT_COLLIDER_CROP_BOX;
+        } else if (strcmp(a, "--max-collider-tokens") == 0) {
+            char *end;
+            unsigned long n = strtoul(v, &end, 10);
+            ++i;
+            if (*end || end == v || n > UINT32_MAX) {
+                fprintf(stderr, "weft eval: bad --max-collider-tokens '%s'\n", v);
+                return 2;
+            }
+            o.max_collider_tokens = (uint32_t)n;
         } else if (strcmp(a, "--ccd") == 0) {
             ++i;
             if (strcmp(v, "on") != 0 && strcmp(v, "off") != 0) {
@@ -622,14 +656,15 @@ int weft_cmd_eval(int argc, char **argv)
     double coll = total.metric_frames ? total.coll_sum / total.metric_frames : 0.0;
     double self = total.metric_frames ? total.self_sum / total.metric_frames : 0.0;
     double ms = total.frames ? total.ms_sum / total.frames : 0.0;
+    double tokens = total.frames ? total.tokens_sum / total.frames : 0.0;
     if (o.json) {
         printf("{\"mve_cm\": %.6g, \"collision_rate\": %.6g, \"self_collision_rate\": %.6g, \"ms_per_frame\": %.6g, "
-               "\"frames\": %u, \"nan\": %s, \"max_edge_strain\": %.6g}\n",
-               mve, coll, self, ms, total.frames, total.nan ? "true" : "false", total.max_strain);
+               "\"frames\": %u, \"nan\": %s, \"max_edge_strain\": %.6g, \"collider_tokens\": %.6g}\n",
+               mve, coll, self, ms, total.frames, total.nan ? "true" : "false", total.max_strain, tokens);
     } else if (total.sequences > 0) {
         printf("total: %u sequences, %u frames, MVE %.3f cm, collision %.2f%%, self-collision %.2f%%, %.3f ms/frame, "
-               "max edge strain %.3f, nan %s\n",
-               total.sequences, total.frames, mve, coll, self, ms, total.max_strain, total.nan ? "yes" : "no");
+               "max edge strain %.3f, nan %s, collider tokens %.0f/frame\n",
+               total.sequences, total.frames, mve, coll, self, ms, total.max_strain, total.nan ? "yes" : "no", tokens);
     }
     weft_model_destroy(model);
     weft_context_destroy(ctx);
