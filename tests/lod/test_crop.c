@@ -2,6 +2,7 @@
  * some, all, any order; malformed values fail naming the column), and a weft_lod_garment that
  * applies its level's crop at creation and at every switch, giving the same step as a plain
  * garment created with that crop. */
+#include "sheet_floor_scene.h"
 #include "test.h"
 #include "weft.h"
 #include "weft/lod.h"
@@ -113,52 +114,13 @@ static void test_malformed_crop(void)
 /* ---------------------------------------------------------------------------------------- */
 /* A garment at crop levels                                                                   */
 
-typedef struct scene {
-    float rest[3 * 64];
-    uint32_t tris[3 * 98];
-    float floor[3 * 400];
-    uint32_t ftris[3 * 600];
-    uint32_t nv, nt, nf, nft;
-} scene;
+typedef sheet_floor scene;
 
-/* An 8 x 8 sheet 3 cm above a 20 x 20 floor grid (0.05 m spacing): it falls, and the margin
- * decides how much of the floor the model sees. */
+/* The sheet 3 cm above the floor: it falls, and the margin decides how much of the floor the
+ * model sees. */
 static void scene_make(scene *s)
 {
-    s->nv = 0;
-    for (uint32_t j = 0; j < 8; ++j) {
-        for (uint32_t i = 0; i < 8; ++i) {
-            float *p = s->rest + 3 * s->nv++;
-            p[0] = 0.05f * (float)i, p[1] = 0.03f, p[2] = 0.05f * (float)j;
-        }
-    }
-    s->nt = 0;
-    for (uint32_t j = 0; j < 7; ++j) {
-        for (uint32_t i = 0; i < 7; ++i) {
-            const uint32_t a = j * 8 + i;
-            uint32_t *t = s->tris + 3 * s->nt;
-            t[0] = a, t[1] = a + 8, t[2] = a + 1;
-            t[3] = a + 1, t[4] = a + 8, t[5] = a + 9;
-            s->nt += 2;
-        }
-    }
-    s->nf = 0;
-    for (uint32_t j = 0; j < 20; ++j) {
-        for (uint32_t i = 0; i < 20; ++i) {
-            float *p = s->floor + 3 * s->nf++;
-            p[0] = -0.3f + 0.05f * (float)i, p[1] = 0.0f, p[2] = -0.3f + 0.05f * (float)j;
-        }
-    }
-    s->nft = 0;
-    for (uint32_t j = 0; j < 19 && s->nft < 600; ++j) {
-        for (uint32_t i = 0; i < 19 && s->nft < 600; ++i) {
-            const uint32_t a = j * 20 + i;
-            uint32_t *t = s->ftris + 3 * s->nft;
-            t[0] = a, t[1] = a + 20, t[2] = a + 1;
-            t[3] = a + 1, t[4] = a + 20, t[5] = a + 21;
-            s->nft += 2;
-        }
-    }
+    sheet_floor_make(s, 0.03f, 0.0f);
 }
 
 static const char k_levels[] = HEADER ",crop_cm,collider_crop,max_collider_tokens\n"

@@ -9,6 +9,7 @@
  *     values are rejected with nothing created, the step allocates nothing, and a capped int8
  *     garment gives the same bits at every kernel ISA the CPU has. */
 #include "model/crop.h"
+#include "sheet_floor_scene.h"
 #include "test.h"
 #include "weft.h"
 
@@ -276,52 +277,13 @@ static void test_cap_matches_brute_force(void)
 /* ---------------------------------------------------------------------------------------- */
 /* Through a garment                                                                          */
 
-typedef struct scene {
-    float rest[3 * 64];
-    uint32_t tris[3 * 98];
-    float body[3 * 400];
-    uint32_t btris[3 * 600];
-    uint32_t nv, nt, nb, nbt;
-} scene;
+typedef sheet_floor scene;
 
-/* An 8 x 8 sheet (0.35 m) at y = 0 over a 20 x 20 floor grid (0.95 m, 722 triangles capped to 600)
- * 0.05 m below it: a margin decides how much of the floor is in the garment's box. */
+/* The sheet at y = 0 over the floor 0.05 m below it (722 floor triangles capped to 600): a margin
+ * decides how much of the floor is in the garment's box. */
 static void scene_make(scene *s)
 {
-    s->nv = 0;
-    for (uint32_t j = 0; j < 8; ++j) {
-        for (uint32_t i = 0; i < 8; ++i) {
-            float *p = s->rest + 3 * s->nv++;
-            p[0] = 0.05f * (float)i, p[1] = 0.0f, p[2] = 0.05f * (float)j;
-        }
-    }
-    s->nt = 0;
-    for (uint32_t j = 0; j < 7; ++j) {
-        for (uint32_t i = 0; i < 7; ++i) {
-            const uint32_t a = j * 8 + i;
-            uint32_t *t = s->tris + 3 * s->nt;
-            t[0] = a, t[1] = a + 8, t[2] = a + 1;
-            t[3] = a + 1, t[4] = a + 8, t[5] = a + 9;
-            s->nt += 2;
-        }
-    }
-    s->nb = 0;
-    for (uint32_t j = 0; j < 20; ++j) {
-        for (uint32_t i = 0; i < 20; ++i) {
-            float *p = s->body + 3 * s->nb++;
-            p[0] = -0.3f + 0.05f * (float)i, p[1] = -0.05f, p[2] = -0.3f + 0.05f * (float)j;
-        }
-    }
-    s->nbt = 0;
-    for (uint32_t j = 0; j < 19 && s->nbt < 600; ++j) {
-        for (uint32_t i = 0; i < 19 && s->nbt < 600; ++i) {
-            const uint32_t a = j * 20 + i;
-            uint32_t *t = s->btris + 3 * s->nbt;
-            t[0] = a, t[1] = a + 20, t[2] = a + 1;
-            t[3] = a + 1, t[4] = a + 20, t[5] = a + 21;
-            s->nbt += 2;
-        }
-    }
+    sheet_floor_make(s, 0.0f, -0.05f);
 }
 
 static weft_garment_def scene_def(const scene *s, const weft_model *m)
@@ -334,10 +296,10 @@ static weft_garment_def scene_def(const scene *s, const weft_model *m)
     d.vertex_count = s->nv;
     d.triangles = s->tris;
     d.triangle_count = s->nt;
-    d.collider_rest_positions = s->body;
-    d.collider_vertex_count = s->nb;
-    d.collider_triangles = s->btris;
-    d.collider_triangle_count = s->nbt;
+    d.collider_rest_positions = s->floor;
+    d.collider_vertex_count = s->nf;
+    d.collider_triangles = s->ftris;
+    d.collider_triangle_count = s->nft;
     return d;
 }
 
@@ -346,7 +308,7 @@ static uint32_t first_tokens(weft_context *ctx, const scene *s, const weft_garme
 {
     weft_garment *g = NULL;
     uint32_t n = UINT32_MAX;
-    if (weft_garment_create(ctx, d, &g) == WEFT_OK && weft_garment_set_collider(g, s->body) == WEFT_OK &&
+    if (weft_garment_create(ctx, d, &g) == WEFT_OK && weft_garment_set_collider(g, s->floor) == WEFT_OK &&
         weft_garment_step(g) == WEFT_OK) {
         n = weft_garment_stats(g).collider_tokens;
     }
@@ -358,8 +320,8 @@ static uint32_t first_tokens(weft_context *ctx, const scene *s, const weft_garme
 static uint32_t expected_box(const scene *s, float margin)
 {
     uint32_t n = 0;
-    for (uint32_t t = 0; t < s->nbt; ++t) {
-        n += box_rule(s->rest, s->nv, s->body, s->btris + 3 * t, margin);
+    for (uint32_t t = 0; t < s->nft; ++t) {
+        n += box_rule(s->rest, s->nv, s->floor, s->ftris + 3 * t, margin);
     }
     return n;
 }
@@ -474,7 +436,7 @@ static void test_step_allocates_nothing(void)
         CHECK_RESULT(weft_garment_create(ctx, &d, &g), WEFT_OK);
         const size_t before = g_allocs;
         for (int f = 0; g && f < 3; ++f) {
-            CHECK_RESULT(weft_garment_set_collider(g, s.body), WEFT_OK);
+            CHECK_RESULT(weft_garment_set_collider(g, s.floor), WEFT_OK);
             CHECK_RESULT(weft_garment_step(g), WEFT_OK);
         }
         CHECK_EQ_INT(g_allocs - before, 0);
@@ -510,7 +472,7 @@ static void test_capped_int8_same_bits_every_isa(void)
         weft_garment *g = NULL;
         CHECK_RESULT(weft_garment_create(ctx, &d, &g), WEFT_OK);
         for (int f = 0; g && f < 3; ++f) {
-            CHECK_RESULT(weft_garment_set_collider(g, s.body), WEFT_OK);
+            CHECK_RESULT(weft_garment_set_collider(g, s.floor), WEFT_OK);
             CHECK_RESULT(weft_garment_step(g), WEFT_OK);
         }
         if (g) {
