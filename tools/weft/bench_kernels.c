@@ -641,6 +641,8 @@ int weft_bench_kernels(int argc, char **argv)
         }
         printf("\n");
         print_notes(stdout, "");
+        printf("\nThe int8, fp16 and deterministic fp32 kernels of the reduced-precision model paths\n"
+               "(`runtime/kernels/qkernels*.c`) are described and measured in [QKERNELS.md](QKERNELS.md).\n");
     } else {
         printf("%s\n%s\n\n", model, weft_config_string());
         for (int l = 0; l < nlevels; ++l) {
