@@ -490,6 +490,10 @@ static weft_result build_drop(xscene *sc, const weft_sim_sequence_def *def, xrng
 
 static double smooth01(double t) { return t <= 0 ? 0 : (t >= 1 ? 1 : t * t * (3 - 2 * t)); }
 
+/* Height of the grasped patch above its initial height when the gripper has set the sheet
+ * down and lets go (m): room for about ten cloth layers folded beneath it. */
+#define GRIPPER_SET_DOWN 0.02
+
 /* Gripper centre (fingertip midpoint) and jaw gap at frame f. */
 static void gripper_at(const xscene *sc, uint32_t f, double c[3], double *gap)
 {
@@ -508,7 +512,12 @@ static void gripper_at(const xscene *sc, uint32_t f, double c[3], double *gap)
         mv = smooth01((double)(f - sc->f_lifted) / (sc->f_moved - sc->f_lifted));
     }
     if (f >= sc->f_moved) {
-        lift = 1.0 - smooth01((double)(f - sc->f_moved) / (sc->f_lowered - sc->f_moved));
+        /* Set down to GRIPPER_SET_DOWN above the grasp height, not to it: the hanging sheet
+         * lands first and folds under the grasped patch, and pins driven back to their
+         * initial 4 mm would press it into the ground (two layers need 2.5 + 1.5 mm plus
+         * 1.5 mm to the pinned vertex), which no contact can resolve. */
+        const double low = GRIPPER_SET_DOWN / sc->lift;
+        lift = 1.0 - (1.0 - low) * smooth01((double)(f - sc->f_moved) / (sc->f_lowered - sc->f_moved));
     }
     if (f >= sc->f_open) {
         rise = smooth01((double)(f - sc->f_open) / 25.0);

@@ -358,9 +358,12 @@ static weft_result xpbd_create(weft_garment *g)
         }
     }
     uint32_t n = s->n, nc = s->nc;
-    /* Contact capacity: generous per-vertex budget; overflowing pairs are dropped and
-     * counted, which is safe because the bounds alone prevent crossings. */
-    s->self_cap = 24u * n + 64u;
+    /* Contact capacity per vertex. Overflowing pairs are dropped and counted: the bounds
+     * alone still prevent crossings, but a dropped pair gets no repulsion, so its gap can shrink
+     * by a factor 1 - 2 gamma per pass and ends below the validator's 10 um. Cloth
+     * piled up under a gripper produced about 38 self contacts per vertex per pass at 1k
+     * (docs/REFSIM.md, gripper rejections), hence 64. */
+    s->self_cap = 64u * n + 64u;
     s->contact_cap = s->self_cap + 8u * n + 4u * nc + 64u;
     /* Candidate pairs: a generous budget per query primitive; a pass that would overflow it
      * queries the trees directly instead (correct, only slower). */
@@ -1243,10 +1246,11 @@ static weft_result xpbd_step(weft_garment *g)
     /* Chord-safe frames: every pair gets one bound around the frame-start position, except
      * pairs with moving kinematic geometry (collider, pins), which keep windowed passes (a
      * frame-long bound would hold the cloth still while the collider moves into it). */
-    bool moving_pins = false;
-    for (uint32_t i = 0; i < n && !moving_pins; ++i) {
-        moving_pins = s->kin_step[i] > 0.0;
+    double pin_step_max = 0.0;
+    for (uint32_t i = 0; i < n; ++i) {
+        pin_step_max = s->kin_step[i] > pin_step_max ? s->kin_step[i] : pin_step_max;
     }
+    const bool moving_pins = pin_step_max > 0.0;
     const bool split = chord_safe && (cdisp_max > 0.0 || moving_pins), frame_only = chord_safe && !split;
     s->split_moving = split;
     for (uint32_t step = 0; step < S; ++step) {
@@ -1288,9 +1292,20 @@ static weft_result xpbd_step(weft_garment *g)
                 vmax = sp > vmax ? sp : vmax;
             }
             window = frame_only ? S : (S - step < s->p.detect_window ? S - step : s->p.detect_window);
-            /* A fast collider shortens the window: its displacement over the window is taken
-             * off every cloth-collider bound, so keep it under a third of the contact radius. */
-            while (!frame_only && window > 1 && cdisp_max * window > s->p.collider_radius / 3.0) {
+            /* Moving kinematic geometry shortens the window. Its displacement D over the window
+             * is taken off the bounds of the cloth near it, so cloth pushed by it can retreat at
+             * most gamma (d - D) per window: it keeps pace only while d >= D (1 + gamma) / gamma
+             * (3.5 D at gamma = 0.4), else the gap closes window after window until the bound is
+             * zero and the kinematic side passes through. The contact holds cloth at the contact
+             * radius, so D must stay below gamma / (1 + gamma) of it. Pinned vertices (a
+             * gripper's grasped patch pressed into the cloth below it) use 0.8 of that against
+             * the self radius; the collider keeps its third of the collider radius (tightening
+             * it changed no gripper result, where pins and fingers move together and the pin
+             * rule binds first). */
+            const double kin_frac = 0.8 * s->p.bound_gamma / (1.0 + s->p.bound_gamma);
+            while (!frame_only && window > 1 &&
+                   (cdisp_max * window > s->p.collider_radius / 3.0 ||
+                    (s->p.self_collision && pin_step_max * window > kin_frac * s->p.self_radius))) {
                 window--;
             }
             double travel = 0.0;
