@@ -240,6 +240,18 @@ typedef struct weft_garment_def {
     float collider_crop_margin;
     weft_collider_crop collider_crop;
     uint32_t max_collider_tokens;
+
+    /* Tethers (every method; game cloth's "max distance" constraint). After the method's step and
+     * before CCD, each vertex farther than its radius from its skinned position is moved back onto
+     * that sphere. The skinned position is the initial state bound to the collider at creation
+     * (the binding WEFT_METHOD_LBS uses) and carried by the collider of t+1. A learned model that
+     * drifts (a T-shirt sliding off the shoulders) stays on its wearer; radius 0 glues a vertex
+     * (a waistband for a method without pins). Pinned vertices keep their pin targets.
+     * tether_distance: metres, one radius for every vertex; 0 (default) = off. Finite, >= 0.
+     * tether_distances: optional, vertex_count radii (finite, >= 0) replacing tether_distance.
+     * Needs a collider. The binding is made once, at creation; set_state does not rebind. */
+    float tether_distance;
+    const float *tether_distances;
     uint32_t internal_cookie;           /* set by weft_default_garment_def(); do not touch */
 } weft_garment_def;
 
@@ -250,6 +262,7 @@ typedef struct weft_step_stats {
     uint32_t ccd_vertices_moved;        /* vertices the CCD post-process moved back */
     bool ccd_fallback;                  /* CCD did not converge; unresolved vertices were held */
     uint32_t collider_tokens;           /* collider triangles the last model step turned into tokens */
+    uint32_t tether_vertices_clamped;   /* vertices the tethers moved back in the last step */
 } weft_step_stats;
 
 WEFT_API weft_garment_def weft_default_garment_def(void);

@@ -1,5 +1,6 @@
 #include "garment/garment.h"
 #include "ccd/ccd_internal.h"
+#include "xpbd/xpbd.h"
 
 #include <math.h>
 #include <string.h>
@@ -64,6 +65,9 @@ static void free_buffers(weft_garment *g)
     weft__free(ctx, g->x_next, nv3);
     weft__free(ctx, g->pin_indices, (size_t)g->vertex_count * sizeof(uint32_t));
     weft__free(ctx, g->pin_targets, nv3);
+    xskin_destroy(ctx, g->tether_skin);
+    weft__free(ctx, g->tether_radius, (size_t)g->vertex_count * sizeof(float));
+    weft__free(ctx, g->tether_target, nv3);
     weft__free(ctx, g, sizeof *g);
 }
 
@@ -106,6 +110,23 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
     if ((unsigned)def->collider_crop >= WEFT_COLLIDER_CROP_COUNT) {
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_garment_create: collider_crop %u is not a weft_collider_crop",
                           (unsigned)def->collider_crop);
+    }
+    const bool tethers = def->tether_distances || def->tether_distance != 0.0f;
+    if (!isfinite(def->tether_distance) || def->tether_distance < 0.0f) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
+                          "weft_garment_create: tether_distance %g is not a finite number >= 0 (0: no tethers)",
+                          (double)def->tether_distance);
+    }
+    for (uint32_t i = 0; def->tether_distances && i < def->vertex_count; ++i) {
+        if (!isfinite(def->tether_distances[i]) || def->tether_distances[i] < 0.0f) {
+            return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
+                              "weft_garment_create: tether_distances[%u] = %g is not a finite number >= 0", i,
+                              (double)def->tether_distances[i]);
+        }
+    }
+    if (tethers && def->collider_vertex_count == 0) {
+        return weft__fail(WEFT_ERROR_NO_COLLIDER,
+                          "weft_garment_create: tethers follow the collider, and the garment has none");
     }
     weft_result r = check_mesh("garment rest mesh", def->rest_positions, def->vertex_count, def->triangles,
                                def->triangle_count);
@@ -179,6 +200,22 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
         memcpy(g->collider_triangles, def->collider_triangles,
                (size_t)def->collider_triangle_count * 3 * sizeof(uint32_t));
         memcpy(g->collider_prev, def->collider_rest_positions, nc3);
+    }
+    if (tethers) {
+        g->tether_radius = weft__alloc(context, (size_t)def->vertex_count * sizeof(float));
+        g->tether_target = weft__alloc(context, nv3);
+        if (!g->tether_radius || !g->tether_target) {
+            free_buffers(g);
+            return WEFT_ERROR_OUT_OF_MEMORY;
+        }
+        for (uint32_t i = 0; i < def->vertex_count; ++i) {
+            g->tether_radius[i] = def->tether_distances ? def->tether_distances[i] : def->tether_distance;
+        }
+        r = xskin_create(g, "weft_garment_create: tethers", &g->tether_skin);
+        if (r != WEFT_OK) {
+            free_buffers(g);
+            return r;
+        }
     }
     r = weft__ccd_garment_create(g);
     if (r != WEFT_OK) {
@@ -270,23 +307,48 @@ weft_result weft_garment_set_pins(weft_garment *g, const uint32_t *vertex_indice
     return WEFT_OK;
 }
 
-weft_result weft_garment_step(weft_garment *g)
+/* Moves each vertex of x_next farther than its radius from its skinned position back onto the
+ * sphere; pinned vertices keep their targets. */
+static weft_result apply_tethers(weft_garment *g)
 {
-    if (!g) {
-        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_garment_step: garment is NULL");
-    }
-    if (g->collider_vertex_count > 0 && !g->collider_next_set) {
-        return weft__fail(WEFT_ERROR_NO_COLLIDER,
-                          "weft_garment_step: call weft_garment_set_collider with the collider at t+1 first");
-    }
-    double t0 = weft__now_ms();
-    weft_result r = g->ops->step(g);
+    weft_result r = xskin_eval(g->tether_skin, g->collider_triangles, g->collider_next, "weft_garment_step: tethers",
+                               g->tether_target);
     if (r != WEFT_OK) {
         return r;
     }
+    uint32_t clamped = 0;
+    for (uint32_t i = 0; i < g->vertex_count; ++i) {
+        float *x = g->x_next + 3 * (size_t)i;
+        const float *t = g->tether_target + 3 * (size_t)i;
+        const float d[3] = {x[0] - t[0], x[1] - t[1], x[2] - t[2]};
+        const float len = sqrtf(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+        const float radius = g->tether_radius[i];
+        if (len > radius) {
+            const float s = radius / len; /* len > radius >= 0, so len > 0 */
+            for (int k = 0; k < 3; ++k) {
+                x[k] = t[k] + d[k] * s;
+            }
+            ++clamped;
+        }
+    }
+    for (uint32_t k = 0; k < g->pin_count; ++k) {
+        memcpy(g->x_next + 3 * (size_t)g->pin_indices[k], g->pin_targets + 3 * (size_t)k, 3 * sizeof(float));
+    }
+    g->stats.tether_vertices_clamped = clamped;
+    return WEFT_OK;
+}
+
+weft_result weft__garment_finish_step(weft_garment *g)
+{
     if (!weft__all_finite(g->x_next, (size_t)g->vertex_count * 3)) {
         return weft__fail(WEFT_ERROR_NOT_FINITE, "weft_garment_step: method '%s' produced NaN or infinity; state kept",
                           g->ops->name);
+    }
+    if (g->tether_skin) {
+        weft_result r = apply_tethers(g);
+        if (r != WEFT_OK) {
+            return r;
+        }
     }
     weft__ccd_postprocess_garment(g); /* sweeps x -> x_next against the collider and itself */
     /* Rotate: t-1 <- t, t <- t+1 (pointer swaps, no copies). */
@@ -301,6 +363,26 @@ weft_result weft_garment_step(weft_garment *g)
         g->collider_next_set = false;
     }
     g->stats.frame++;
+    return WEFT_OK;
+}
+
+weft_result weft_garment_step(weft_garment *g)
+{
+    if (!g) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_garment_step: garment is NULL");
+    }
+    if (g->collider_vertex_count > 0 && !g->collider_next_set) {
+        return weft__fail(WEFT_ERROR_NO_COLLIDER,
+                          "weft_garment_step: call weft_garment_set_collider with the collider at t+1 first");
+    }
+    double t0 = weft__now_ms();
+    weft_result r = g->ops->step(g);
+    if (r == WEFT_OK) {
+        r = weft__garment_finish_step(g);
+    }
+    if (r != WEFT_OK) {
+        return r;
+    }
     g->stats.step_ms = weft__now_ms() - t0;
     return WEFT_OK;
 }

@@ -22,6 +22,10 @@ struct weft_garment {
     uint32_t max_collider_tokens;       /* 0: no cap */
     void *ccd_state;                    /* runtime/ccd world when ccd is set (weft__ccd_garment_create) */
 
+    struct xskin *tether_skin;          /* NULL: no tethers (runtime/xpbd/lbs.c binding) */
+    float *tether_radius;               /* vertex_count radii (uniform ones expanded) */
+    float *tether_target;               /* vertex_count * 3 scratch: skinned positions at t+1 */
+
     uint32_t vertex_count, triangle_count;
     float *rest;                        /* vertex_count * 3 */
     uint32_t *triangles;                /* triangle_count * 3 */
@@ -56,6 +60,11 @@ struct weft_method_ops {
      * Must not change g->x or g->x_prev; on failure the garment is left as it was. */
     weft_result (*step)(weft_garment *g);
 };
+
+/* The tail of every step, single or batched, once the method wrote g->x_next: NaN check,
+ * tethers, CCD post-process, buffer rotation, frame count. On failure the state is unchanged.
+ * The caller sets stats.step_ms. */
+weft_result weft__garment_finish_step(weft_garment *g);
 
 /* The implementation of a method, or NULL when this build has none. */
 const weft_method_ops *weft__method_ops(weft_method method);

@@ -1,8 +1,8 @@
 /* weft_garments_step: many garments in one call. Garments of method MODEL that share context,
  * model and precision are stepped as one group (runtime/model/transformer.c stacks their
  * temporal transformers); every other garment goes through weft_garment_step. The per-garment
- * tail (NaN check, CCD post-process, buffer rotation) is the one of weft_garment_step in
- * runtime/garment/garment.c, applied to each member of a group. */
+ * tail (NaN check, tethers, CCD post-process, buffer rotation) is weft__garment_finish_step
+ * (runtime/garment/garment.c), applied to each member of a group. */
 #include "ccd/ccd_internal.h"
 #include "garment/garment.h"
 #include "model/transformer.h"
@@ -34,24 +34,11 @@ static weft_result finish(weft_garment *g, weft_result r, double forward_ms)
         return r;
     }
     const double t0 = weft__now_ms();
-    if (!weft__all_finite(g->x_next, (size_t)g->vertex_count * 3)) {
-        return weft__fail(WEFT_ERROR_NOT_FINITE, "weft_garment_step: method '%s' produced NaN or infinity; state kept",
-                          g->ops->name);
+    r = weft__garment_finish_step(g);
+    if (r == WEFT_OK) {
+        g->stats.step_ms = forward_ms + (weft__now_ms() - t0);
     }
-    weft__ccd_postprocess_garment(g);
-    float *old_prev = g->x_prev;
-    g->x_prev = g->x;
-    g->x = g->x_next;
-    g->x_next = old_prev;
-    if (g->collider_vertex_count > 0) {
-        float *c = g->collider_prev;
-        g->collider_prev = g->collider_next;
-        g->collider_next = c;
-        g->collider_next_set = false;
-    }
-    g->stats.frame++;
-    g->stats.step_ms = forward_ms + (weft__now_ms() - t0);
-    return WEFT_OK;
+    return r;
 }
 
 static void run_group(weft_garment *const *group, const uint32_t *index, uint32_t n, batch_status *st)

@@ -2,7 +2,8 @@
  * triangles (closest-point barycentrics plus an offset in the triangle's local frame) and
  * follows them every frame. Blending up to LBS_SLOTS nearby triangles, weighted by inverse
  * distance, smooths the result across triangle borders; a rigid collider motion is
- * reproduced exactly because every binding is rigid-invariant. */
+ * reproduced exactly because every binding is rigid-invariant. The same binding (xskin) gives
+ * the tether targets of every method (weft_garment_def.tether_distance, garment.c). */
 #include "xpbd/xpbd.h"
 
 #include <float.h>
@@ -18,10 +19,10 @@ typedef struct lbs_bind {
     float weight[LBS_SLOTS];
 } lbs_bind;
 
-typedef struct lbs_state {
+struct xskin {
     lbs_bind *bind;
     uint32_t n;
-} lbs_state;
+};
 
 /* Orthonormal frame (t1 along edge 0-1, n the face normal, t2 = n x t1). False if degenerate. */
 static bool tri_frame(const double *a, const double *b, const double *c, double t1[3], double t2[3], double nn[3])
@@ -71,13 +72,13 @@ static bool visit_nearest(uint32_t t, void *user)
     return true;
 }
 
-static weft_result lbs_create(weft_garment *g)
+weft_result xskin_create(const weft_garment *g, const char *who, xskin **out)
 {
     const weft_context *ctx = g->ctx;
     if (g->collider_vertex_count == 0) {
-        return weft__fail(WEFT_ERROR_NO_COLLIDER, "lbs: the skinning baseline needs a collider to bind the garment to");
+        return weft__fail(WEFT_ERROR_NO_COLLIDER, "%s: needs a collider to bind the garment to", who);
     }
-    lbs_state *s = weft__alloc(ctx, sizeof *s);
+    xskin *s = weft__alloc(ctx, sizeof *s);
     if (!s) {
         return WEFT_ERROR_OUT_OF_MEMORY;
     }
@@ -166,7 +167,8 @@ static weft_result lbs_create(weft_garment *g)
             weft__free(ctx, cpos, nc3 * sizeof(double));
             weft__free(ctx, s->bind, s->n * sizeof *s->bind);
             weft__free(ctx, s, sizeof *s);
-            return weft__fail(WEFT_ERROR_DEGENERATE_MESH, "lbs: garment vertex %u found no usable collider triangle", i);
+            return weft__fail(WEFT_ERROR_DEGENERATE_MESH, "%s: garment vertex %u found no usable collider triangle", who,
+                              i);
         }
         for (int k = 0; k < LBS_SLOTS; ++k) {
             b->weight[k] = (float)(b->weight[k] / wsum);
@@ -174,24 +176,20 @@ static weft_result lbs_create(weft_garment *g)
     }
     xbvh_destroy(ctx, &bvh);
     weft__free(ctx, cpos, nc3 * sizeof(double));
-    g->method_state = s;
+    *out = s;
     return WEFT_OK;
 }
 
-static void lbs_destroy(weft_garment *g)
+void xskin_destroy(const weft_context *ctx, xskin *s)
 {
-    lbs_state *s = g->method_state;
     if (s) {
-        weft__free(g->ctx, s->bind, s->n * sizeof *s->bind);
-        weft__free(g->ctx, s, sizeof *s);
+        weft__free(ctx, s->bind, s->n * sizeof *s->bind);
+        weft__free(ctx, s, sizeof *s);
     }
-    g->method_state = NULL;
 }
 
-static weft_result lbs_step(weft_garment *g)
+weft_result xskin_eval(const xskin *s, const uint32_t *collider_triangles, const float *c, const char *who, float *out_pos)
 {
-    const lbs_state *s = g->method_state;
-    const float *c = g->collider_next;
     for (uint32_t i = 0; i < s->n; ++i) {
         const lbs_bind *b = &s->bind[i];
         double out[3] = {0, 0, 0}, wsum = 0.0;
@@ -200,7 +198,7 @@ static weft_result lbs_step(weft_garment *g)
             if (b->weight[k] == 0.0f) {
                 continue;
             }
-            const uint32_t *tri = g->collider_triangles + 3 * (size_t)b->tri[k];
+            const uint32_t *tri = collider_triangles + 3 * (size_t)b->tri[k];
             double a[3], bb[3], cc[3], t1[3], t2[3], nn[3];
             for (int j = 0; j < 3; ++j) {
                 a[j] = c[3 * (size_t)tri[0] + j];
@@ -220,13 +218,34 @@ static weft_result lbs_step(weft_garment *g)
         }
         if (!any || !(wsum > 0.0)) {
             return weft__fail(WEFT_ERROR_DEGENERATE_MESH,
-                              "lbs: every collider triangle bound to garment vertex %u collapsed this frame", i);
+                              "%s: every collider triangle bound to garment vertex %u collapsed this frame", who, i);
         }
         for (int j = 0; j < 3; ++j) {
-            g->x_next[3 * (size_t)i + j] = (float)(out[j] / wsum); /* renormalised if a binding was skipped */
+            out_pos[3 * (size_t)i + j] = (float)(out[j] / wsum); /* renormalised if a binding was skipped */
         }
     }
     return WEFT_OK;
+}
+
+static weft_result lbs_create(weft_garment *g)
+{
+    xskin *s = NULL;
+    weft_result r = xskin_create(g, "lbs (the skinning baseline)", &s);
+    if (r == WEFT_OK) {
+        g->method_state = s;
+    }
+    return r;
+}
+
+static void lbs_destroy(weft_garment *g)
+{
+    xskin_destroy(g->ctx, g->method_state);
+    g->method_state = NULL;
+}
+
+static weft_result lbs_step(weft_garment *g)
+{
+    return xskin_eval(g->method_state, g->collider_triangles, g->collider_next, "lbs", g->x_next);
 }
 
 const weft_method_ops weft__lbs_ops = {

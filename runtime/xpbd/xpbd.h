@@ -169,4 +169,14 @@ extern const weft_method_ops weft__xpbd_ops;
 
 extern const weft_method_ops weft__lbs_ops;
 
+/* The binding behind it: every garment vertex of g->x bound to its nearest collider triangles
+ * of g->collider_rest (rigid-invariant frames). `who` prefixes error messages. */
+typedef struct xskin xskin;
+weft_result xskin_create(const weft_garment *g, const char *who, xskin **out);
+void xskin_destroy(const weft_context *ctx, xskin *skin);
+/* Bound positions for collider vertex positions c (vertex_count * 3 into out_pos); fails only
+ * when every triangle bound to a vertex has collapsed. */
+weft_result xskin_eval(const xskin *skin, const uint32_t *collider_triangles, const float *c, const char *who,
+                       float *out_pos);
+
 #endif

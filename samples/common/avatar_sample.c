@@ -31,6 +31,8 @@ void weft_avatar_sample_default_options(weft_avatar_sample_options *o)
     o->garment = "tshirt";
     o->resolution = "4k";
     o->method = "auto";
+    o->precision = WEFT_PRECISION_INT8;
+    o->tether_cm = -1.0f;
     o->out_dir = "avatar_frames";
     o->frames = 120;
     o->settle_frames = 30;
@@ -53,8 +55,12 @@ void weft_avatar_sample_usage(FILE *out, const char *program)
             "                          with SMPL joint names (default walk)\n"
             "  --garment KIND          tshirt | skirt | dress | none (default tshirt)\n"
             "  --resolution RES        garment mesh 1k | 4k | 16k | 40k (default 4k)\n"
-            "  --method M              auto | model | xpbd | lbs | skin (default auto: model if --model, then xpbd, lbs)\n"
-            "  --model FILE            safetensors model for the model method\n"
+            "  --method M              auto | model | xpbd | lbs | skin (default auto: the learned model, else xpbd, lbs)\n"
+            "  --model FILE            safetensors model for the model method (default: the shipped game model for\n"
+            "                          --precision, tools/train/models/game[.fp16|.int8].safetensors)\n"
+            "  --precision P           fp32 | fp16 | int8: the model's arithmetic (default int8)\n"
+            "  --tether-cm X           tether every garment vertex within X cm of its skinned position (0: off;\n"
+            "                          default 3 for the learned model, off for xpbd)\n"
             "  --frames N              frames to render at 60 Hz (default 120)\n"
             "  --settle N              simulated frames blending from the bind pose into the motion (default 30)\n"
             "  --out DIR               output folder for frame_NNNN.png and contact_sheet.png (default avatar_frames)\n"
@@ -72,7 +78,7 @@ void weft_avatar_sample_usage(FILE *out, const char *program)
     weft_avatar_sample_crowd_usage(out);
 }
 
-static bool cape_parse_precision(const char *s, weft_precision *out)
+static bool parse_precision(const char *s, weft_precision *out)
 {
     static const char *const names[WEFT_PRECISION_COUNT] = {"fp32", "fp16", "int8"};
     for (int p = 0; p < WEFT_PRECISION_COUNT; ++p) {
@@ -132,6 +138,7 @@ int weft_avatar_sample_parse(int argc, char **argv, int first, weft_avatar_sampl
             ok = weft_avatar_sample_crowd_option(a, v, o);
         } else if (!v) {
             static const char *const valued[] = {"--motion", "--garment", "--resolution", "--method", "--model",
+                                                 "--precision", "--tether-cm",
                                                  "--frames", "--settle",  "--out",        "--size",   "--sheet",
                                                  "--yaw",    "--pitch",   "--start",      "--speed",
                                                  "--cape-model", "--cape-precision"};
@@ -152,6 +159,10 @@ int weft_avatar_sample_parse(int argc, char **argv, int first, weft_avatar_sampl
             ok = !strcmp(v, "auto") || !strcmp(v, "model") || !strcmp(v, "xpbd") || !strcmp(v, "lbs") || !strcmp(v, "skin");
         } else if (strcmp(a, "--model") == 0) {
             o->model_path = v;
+        } else if (strcmp(a, "--precision") == 0) {
+            ok = parse_precision(v, &o->precision);
+        } else if (strcmp(a, "--tether-cm") == 0) {
+            ok = parse_float(v, 0.0f, 1000.0f, &o->tether_cm);
         } else if (strcmp(a, "--frames") == 0) {
             ok = parse_u32(v, 1, 100000, &o->frames);
         } else if (strcmp(a, "--settle") == 0) {
@@ -177,7 +188,7 @@ int weft_avatar_sample_parse(int argc, char **argv, int first, weft_avatar_sampl
         } else if (strcmp(a, "--cape-model") == 0) {
             o->cape_model = v;
         } else if (strcmp(a, "--cape-precision") == 0) {
-            ok = cape_parse_precision(v, &o->cape_precision);
+            ok = parse_precision(v, &o->cape_precision);
         } else {
             fprintf(stderr, "unknown option '%s'\n", a);
             return 2;
@@ -449,6 +460,98 @@ static int cape_frame(sample_state *s, const weft_pose *pose, uint32_t k)
     return 0;
 }
 
+/* The shipped game model for a precision (run from the repository root). */
+static const char *shipped_model(weft_precision precision)
+{
+    static const char *const shipped[] = {"tools/train/models/game.safetensors",
+                                          "tools/train/models/game.fp16.safetensors",
+                                          "tools/train/models/game.int8.safetensors"};
+    return shipped[precision < WEFT_PRECISION_COUNT ? precision : WEFT_PRECISION_FP32];
+}
+
+weft_result weft_avatar_sample_garment_create(const weft_avatar_sample_options *o, weft_context *ctx,
+                                              const weft_body *body, const weft_cloth_mesh *cloth,
+                                              weft_model **out_model, weft_garment **out_garment, char *label,
+                                              size_t label_cap)
+{
+    *out_model = NULL;
+    *out_garment = NULL;
+    snprintf(label, label_cap, "skin");
+    if (strcmp(o->method, "skin") == 0) {
+        return WEFT_OK;
+    }
+    /* The shipped game model unless --model names another; a missing default file (the sample
+     * run away from the repository) falls back to XPBD with a note, a named file must load. */
+    const char *model_path = o->model_path ? o->model_path : shipped_model(o->precision);
+    bool want_auto = strcmp(o->method, "auto") == 0;
+    if (want_auto || strcmp(o->method, "model") == 0) {
+        weft_result r = weft_model_load_file(ctx, model_path, out_model);
+        if (r != WEFT_OK && (o->model_path || !want_auto)) {
+            fprintf(stderr, "avatar_render: loading the model %s: %s: %s\n", model_path, weft_result_string(r),
+                    weft_last_error());
+            return r;
+        }
+        if (r != WEFT_OK) {
+            printf("NOTE: the shipped model %s did not load (%s); run from the repository root for the learned "
+                   "model. Trying XPBD.\n",
+                   model_path, weft_last_error());
+        }
+    }
+    /* The best method first; each failure is reported, never hidden. */
+    static const struct {
+        const char *name;
+        weft_method method;
+    } order[] = {{"model", WEFT_METHOD_MODEL}, {"xpbd", WEFT_METHOD_XPBD}, {"lbs", WEFT_METHOD_LBS}};
+    const uint32_t nv = weft_body_vertex_count(body);
+    for (size_t m = 0; m < sizeof order / sizeof order[0] && !*out_garment; ++m) {
+        if (want_auto ? (order[m].method == WEFT_METHOD_MODEL && !*out_model) : strcmp(o->method, order[m].name) != 0) {
+            continue;
+        }
+        weft_garment_def gdef = weft_default_garment_def();
+        gdef.method = order[m].method;
+        gdef.model = *out_model;
+        gdef.precision = o->precision;
+        /* Tethers keep the learned garment on its wearer (docs/MODEL.md: without them the
+         * shipped models' T-shirt slides off within two seconds). */
+        float tether_cm = o->tether_cm >= 0.0f ? o->tether_cm : (order[m].method == WEFT_METHOD_MODEL ? 3.0f : 0.0f);
+        gdef.tether_distance = tether_cm / 100.0f;
+        gdef.rest_positions = cloth->positions;
+        gdef.vertex_count = cloth->vertex_count;
+        gdef.triangles = cloth->triangles;
+        gdef.triangle_count = cloth->triangle_count;
+        gdef.collider_rest_positions = weft_body_rest_vertices(body);
+        gdef.collider_vertex_count = nv;
+        gdef.collider_triangles = weft_body_triangles(body);
+        gdef.collider_triangle_count = weft_body_triangle_count(body);
+        weft_result r = weft_garment_create(ctx, &gdef, out_garment);
+        if (r != WEFT_OK) {
+            fprintf(stderr, "avatar_render: method %s unavailable: %s\n", order[m].name, weft_last_error());
+            continue;
+        }
+        static const char *const prec[] = {"fp32", "fp16", "int8"};
+        if (order[m].method == WEFT_METHOD_MODEL) {
+            snprintf(label, label_cap, "model %s", prec[o->precision]);
+        } else {
+            snprintf(label, label_cap, "%s", order[m].name);
+        }
+        if (tether_cm > 0.0f) {
+            printf("tethers: every garment vertex within %.1f cm of its skinned position\n", (double)tether_cm);
+        }
+    }
+    if (!*out_garment && !want_auto) {
+        fprintf(stderr, "avatar_render: the requested method '%s' could not be created\n", o->method);
+        weft_model_destroy(*out_model);
+        *out_model = NULL;
+        return WEFT_ERROR_UNSUPPORTED;
+    }
+    return WEFT_OK;
+}
+
+void weft_avatar_sample_blend_pose(const weft_pose *a, const weft_pose *b, double u, weft_pose *out)
+{
+    blend_pose(a, b, u, out);
+}
+
 int weft_avatar_sample_run(const weft_avatar_sample_options *o)
 {
     if (o->crowd > 0) {
@@ -477,6 +580,7 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
 
     bool dressed = strcmp(o->garment, "none") != 0;
     const char *method_used = "none";
+    char method_label[32];
     bool simulated = false;
     if (dressed) {
         weft_cloth_kind kind;
@@ -500,44 +604,17 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
         if (!s.cloth_verts) {
             return fail_msg(&s, "out of memory");
         }
-        if (o->model_path && weft_model_load_file(s.ctx, o->model_path, &s.model) != WEFT_OK) {
-            return fail_msg(&s, "loading the model");
+        weft_result gr = weft_avatar_sample_garment_create(o, s.ctx, s.body, s.cloth, &s.model, &s.garment,
+                                                           method_label, sizeof method_label);
+        if (gr != WEFT_OK) {
+            sample_free(&s);
+            return 1;
         }
-        /* The best method first; each failure is reported, never hidden. */
-        static const struct {
-            const char *name;
-            weft_method method;
-        } order[] = {{"model", WEFT_METHOD_MODEL}, {"xpbd", WEFT_METHOD_XPBD}, {"lbs", WEFT_METHOD_LBS}};
-        bool want_auto = strcmp(o->method, "auto") == 0;
-        for (size_t m = 0; m < sizeof order / sizeof order[0] && !s.garment; ++m) {
-            if (want_auto ? (order[m].method == WEFT_METHOD_MODEL && !s.model) : strcmp(o->method, order[m].name) != 0) {
-                continue;
-            }
-            weft_garment_def gdef = weft_default_garment_def();
-            gdef.method = order[m].method;
-            gdef.model = s.model;
-            gdef.rest_positions = s.cloth->positions;
-            gdef.vertex_count = s.cloth->vertex_count;
-            gdef.triangles = s.cloth->triangles;
-            gdef.triangle_count = s.cloth->triangle_count;
-            gdef.collider_rest_positions = weft_body_rest_vertices(s.body);
-            gdef.collider_vertex_count = nv;
-            gdef.collider_triangles = weft_body_triangles(s.body);
-            gdef.collider_triangle_count = weft_body_triangle_count(s.body);
-            weft_result r = weft_garment_create(s.ctx, &gdef, &s.garment);
-            if (r == WEFT_OK) {
-                method_used = order[m].name;
-                simulated = true;
-            } else {
-                fprintf(stderr, "avatar_render: method %s unavailable: %s\n", order[m].name, weft_last_error());
-            }
+        if (s.garment) {
+            method_used = method_label;
+            simulated = true;
         }
         if (!simulated) {
-            if (!want_auto && strcmp(o->method, "skin") != 0) {
-                fprintf(stderr, "avatar_render: the requested method '%s' could not be created\n", o->method);
-                sample_free(&s);
-                return 1;
-            }
             method_used = "skin";
             printf("NOTE: the garment is skinned rigidly with the body (linear blend skinning of its rest mesh); "
                    "no cloth is simulated in this run.\n");

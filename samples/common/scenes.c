@@ -1,5 +1,6 @@
 /* The golden scenes. Every input is fixed (procedural meshes, a hand-set pose, garment rest
- * meshes), so a scene's pixels change only when the renderer, the avatar or the wardrobe do. */
+ * meshes, the shipped int8 model), so a scene's pixels change only when the renderer, the
+ * avatar, the wardrobe or the default cloth path of the render sample do. */
 #define _POSIX_C_SOURCE 200809L
 
 #include "weft_scenes.h"
@@ -10,6 +11,10 @@
 #if WEFT_RENDER_HAVE_AVATAR && WEFT_RENDER_HAVE_ASSETS
 #include "bvh.h"
 #define WEFT_RENDER_CMU_CLIP "/usr/share/assimp/models/BVH/01_01.bvh"
+#endif
+
+#if WEFT_RENDER_HAVE_SAMPLE
+#include "weft_sample.h"
 #endif
 
 #include <math.h>
@@ -215,6 +220,87 @@ static weft_result scene_avatar_cmu(weft_context *ctx, weft_renderer *r)
 }
 #endif
 
+
+#if WEFT_RENDER_HAVE_SAMPLE
+/* The render sample's default cloth, short: the avatar blends from its bind pose into the walk
+ * (20 frames) and walks 20 frames wearing the 1k T-shirt stepped by the sample's default method
+ * (the shipped int8 game model; 3 cm tethers; CCD on). The model is required here: a missing
+ * file fails the scene instead of falling back to XPBD. The int8 forward is bit-exact on every
+ * ISA, so the scene runs on this machine's best kernels (its own context) for speed and draws
+ * the same pixels everywhere. */
+static weft_result scene_avatar_model_int8(weft_context *scalar_ctx, weft_renderer *r)
+{
+    (void)scalar_ctx;
+    weft_context_def cd = weft_default_context_def();
+    weft_context *ctx = NULL;
+    weft_result cr = weft_context_create(&cd, &ctx);
+    if (cr != WEFT_OK) {
+        return cr;
+    }
+    weft_avatar_sample_options o;
+    weft_avatar_sample_default_options(&o);
+    o.method = "model";
+    o.model_path = WEFT_RENDER_GAME_MODEL_INT8;
+    avatar_parts a = {0};
+    weft_model *model = NULL;
+    weft_garment *garment = NULL;
+    weft_avatar_def adef = weft_default_avatar_def();
+    weft_result res = weft_avatar_create(ctx, &adef, &a.body);
+    const uint32_t nv = res == WEFT_OK ? weft_body_vertex_count(a.body) : 0;
+    if (res == WEFT_OK) {
+        weft_cloth_def cdef = weft_default_cloth_def(WEFT_CLOTH_TSHIRT);
+        cdef.resolution = WEFT_CLOTH_RES_1K;
+        res = weft_cloth_create(ctx, &cdef, a.body, &a.cloth);
+    }
+    if (res == WEFT_OK) {
+        a.verts = malloc((size_t)nv * 3 * sizeof(float));
+        res = a.verts ? weft_avatar_sample_garment_create(&o, ctx, a.body, a.cloth, &model, &garment, (char[32]){0}, 32)
+                      : weft__fail(WEFT_ERROR_OUT_OF_MEMORY, "golden scene: out of memory");
+    }
+    weft_motion_def md = weft_default_motion_def(WEFT_MOTION_WALK);
+    weft_pose bind, first, pose;
+    if (res == WEFT_OK) {
+        weft_body_bind_pose(a.body, &bind);
+        res = weft_motion_sample(&md, 0.0, &first);
+    }
+    const uint32_t settle = 20, walk = 20;
+    for (uint32_t k = 0; res == WEFT_OK && k < settle + walk; ++k) {
+        if (k < settle) {
+            double u = (double)(k + 1) / (double)settle;
+            weft_avatar_sample_blend_pose(&bind, &first, u * u * (3.0 - 2.0 * u), &pose);
+        } else {
+            res = weft_motion_sample(&md, (double)(k - settle + 1) / 60.0, &pose);
+        }
+        if (res == WEFT_OK) {
+            res = weft_body_pose(a.body, &pose, a.verts, NULL);
+        }
+        if (res == WEFT_OK) {
+            res = weft_garment_set_collider(garment, a.verts);
+        }
+        if (res == WEFT_OK) {
+            res = weft_garment_step(garment);
+        }
+    }
+    if (res == WEFT_OK) {
+        res = weft_renderer_add_mesh(r, a.verts, nv, weft_body_triangles(a.body), weft_body_triangle_count(a.body),
+                                     WEFT_RENDER_SKIN, NULL);
+    }
+    if (res == WEFT_OK) {
+        res = weft_renderer_add_mesh(r, weft_garment_positions(garment), a.cloth->vertex_count, a.cloth->triangles,
+                                     a.cloth->triangle_count, WEFT_RENDER_CLOTH, NULL);
+    }
+    weft_garment_destroy(garment);
+    weft_model_destroy(model);
+    avatar_parts_free(&a);
+    weft_context_destroy(ctx);
+    if (res != WEFT_OK) {
+        return res;
+    }
+    weft_renderer_set_ground(r, true, 0.0f);
+    return weft_renderer_frame_scene(r, 25.0f, 8.0f);
+}
+#endif
+
 static const golden_scene k_scenes[] = {
     {"sheet_sphere", "a 64x64 cloth sheet draped in closed form over a sphere", scene_sheet_sphere},
 #if WEFT_RENDER_HAVE_AVATAR
@@ -227,6 +313,10 @@ static const golden_scene k_scenes[] = {
 #if WEFT_RENDER_HAVE_WARDROBE
     {"avatar_tshirt", "the avatar in its bind pose wearing the 4k T-shirt rest mesh", scene_avatar_tshirt},
     {"avatar_dress_posed", "the posed avatar with the 4k dress skinned to the pose", scene_avatar_dress_posed},
+#endif
+#if WEFT_RENDER_HAVE_SAMPLE
+    {"avatar_model_int8", "the render sample's default: a 1k T-shirt stepped by the int8 game model, tethered, CCD on",
+     scene_avatar_model_int8},
 #endif
 };
 

@@ -16,7 +16,11 @@ typedef struct weft_avatar_sample_options {
     const char *garment;        /* tshirt | skirt | dress | none (default "tshirt") */
     const char *resolution;     /* garment resolution 1k | 4k | 16k | 40k (default "4k") */
     const char *method;         /* auto | model | xpbd | lbs | skin (default "auto") */
-    const char *model_path;     /* safetensors model for the model method, or NULL */
+    const char *model_path;     /* safetensors model for the model method; NULL (default): the shipped
+                                   game model for `precision`, tools/train/models/game[.fp16|.int8].safetensors */
+    weft_precision precision;   /* the model's arithmetic (default int8) */
+    float tether_cm;            /* tether radius in cm (weft_garment_def.tether_distance); < 0 (default):
+                                   3 cm for the learned model, none for XPBD; 0: none */
     const char *out_dir;        /* frames and the contact sheet go here (default "avatar_frames") */
     uint32_t frames;            /* rendered frames at 60 Hz (default 120) */
     uint32_t settle_frames;     /* simulated frames blending from the bind pose into frame 0 (default 30) */
@@ -43,6 +47,22 @@ int weft_avatar_sample_parse(int argc, char **argv, int first, weft_avatar_sampl
 void weft_avatar_sample_usage(FILE *out, const char *program);
 /* Runs the sample; returns a process exit status (0 on success) and prints per-frame timing. */
 int weft_avatar_sample_run(const weft_avatar_sample_options *options);
+
+#if WEFT_RENDER_HAVE_SAMPLE
+#include "weft/body.h"
+/* The sample's garment: loads the model (o->model_path, else the shipped game model for
+ * o->precision; a missing default file falls back to XPBD with a note) and creates the garment
+ * with the first method that works (o->method "auto": model, xpbd, lbs), tethered as o->tether_cm
+ * says. WEFT_OK with *out_garment NULL means only rigid skinning is left (o->method "skin", or
+ * auto with nothing available); an error means the requested method or model failed (printed).
+ * `label` receives e.g. "model int8". The caller destroys the garment, then the model. */
+weft_result weft_avatar_sample_garment_create(const weft_avatar_sample_options *o, weft_context *ctx,
+                                              const weft_body *body, const weft_cloth_mesh *cloth,
+                                              weft_model **out_model, weft_garment **out_garment, char *label,
+                                              size_t label_cap);
+/* The sample's settle blend between two poses (per-joint slerp), u in [0, 1]. */
+void weft_avatar_sample_blend_pose(const weft_pose *a, const weft_pose *b, double u, weft_pose *out);
+#endif
 
 /* Renders the documentation contact sheet: rows = no garment, T-shirt, skirt, dress; columns =
  * bind pose and poses from the procedural motions, garments skinned to the pose. */

@@ -38,6 +38,7 @@ typedef struct eval_opts {
     float crop_margin;                  /* m, 0: the model's own */
     weft_collider_crop crop;
     uint32_t max_collider_tokens;
+    float tether;                       /* m, 0: no tethers */
 } eval_opts;
 
 typedef struct eval_acc {
@@ -308,8 +309,20 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
         d.collider_triangle_count = s.Fc;
     }
     d.initial_positions = s.pos + nv;
+    /* Tethers: the radius everywhere, 0 on vertices pinned at the start (a skirt's waistband), so
+     * a method without pins keeps the scenario's attachment. */
+    float *radii = NULL;
+    if (o->tether > 0.0f && s.cpos) {
+        radii = malloc((size_t)s.V * sizeof(float));
+        for (uint32_t i = 0; radii && i < s.V; ++i) {
+            radii[i] = s.pinned && s.pinned[(size_t)1 * s.V + i] != 0.0f ? 0.0f : o->tether;
+        }
+        d.tether_distance = o->tether;
+        d.tether_distances = radii;
+    }
     weft_garment *g = NULL;
     weft_result r = weft_garment_create(ctx, &d, &g);
+    free(radii);
     if (r == WEFT_OK) {
         r = weft_garment_set_state(g, s.pos + nv, s.pos);
     }
@@ -483,7 +496,7 @@ static void usage(FILE *f)
 {
     fprintf(f, "usage: weft eval --seq DIR [--model M] [--method model|lbs|xpbd:S] [--precision fp32|fp16|int8]\n"
                "                 [--ccd on|off] [--split train|val|test] [--frames N] [--json]\n"
-               "                 [--crop-cm X] [--crop box|cells] [--max-collider-tokens N]\n"
+               "                 [--crop-cm X] [--crop box|cells] [--max-collider-tokens N] [--tether-cm X]\n"
                "  DIR is one sequence folder (meta.json + .npy) or a folder of them.\n");
 }
 
@@ -552,6 +565,14 @@ int weft_cmd_eval(int argc, char **argv)
             o.crop_margin = strtof(v, &end) / 100.0f, ++i;
             if (*end || end == v) {
                 fprintf(stderr, "weft eval: bad --crop-cm '%s'\n", v);
+                return 2;
+            }
+        } else if (strcmp(a, "--tether-cm") == 0) {
+            /* tethers to the skinned garment, radius in cm (0: off); the library validates it */
+            char *end;
+            o.tether = strtof(v, &end) / 100.0f, ++i;
+            if (*end || end == v) {
+                fprintf(stderr, "weft eval: bad --tether-cm '%s'\n", v);
                 return 2;
             }
         } else if (strcmp(a, "--crop") == 0) {

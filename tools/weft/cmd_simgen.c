@@ -184,12 +184,15 @@ static void usage(FILE *f)
             "usage: weft simgen --out DIR (--all | --scenario drop|gripper|garment [--count N] [--vertices V])\n"
             "                   [--shard I/N] [--frames T] [--substeps S] [--max-substeps S] [--seed X]\n"
             "                   [--garment-substeps S] [--no-validate] [--manifest-only] [--limit N]\n"
-            "                   [--no-garments] [--speed X]\n"
+            "                   [--no-garments] [--speed X] [--resolution-series]\n"
             "  --all            the whole planned set: per scenario (drop, gripper, garment) 150 x 1k,\n"
             "                   30 x 4k and 2 x 16k vertices, smallest first\n"
             "  --no-garments    leave the garment scenario out of --all (it is the slowest)\n"
             "  --speed X        scale the avatar's motion and the gripper's schedule (0.1..10, default 1;\n"
             "                   the stability suite's speed axis); same draws as at speed 1\n"
+            "  --resolution-series  seed each sequence from <scenario>_<index>, not its full name, so the\n"
+            "                   same --scenario/--count/--seed at another --vertices draws the same scene\n"
+            "                   (objects, body, motion, garment type) at another resolution\n"
             "  --garment-substeps S  first attempt of a garment sequence when above --substeps\n"
             "                   (default: none, garments start at --substeps like the others)\n"
             "  --shard I/N      only sequences whose plan index is I modulo N (job arrays)\n"
@@ -201,7 +204,7 @@ static void usage(FILE *f)
 int weft_cmd_simgen(int argc, char **argv)
 {
     const char *out = NULL, *scenario = NULL;
-    bool all = false, manifest_only = false, validate = true, garments = true;
+    bool all = false, manifest_only = false, validate = true, garments = true, resolution_series = false;
     uint32_t garment_substeps = 0;
     float motion_speed = 1.0f;
     uint32_t count = 10, vertices = 1024, frames = 240, substeps = 40, max_substeps = 80, shard_i = 0, shard_n = 1;
@@ -221,6 +224,8 @@ int weft_cmd_simgen(int argc, char **argv)
             motion_speed = strtof(v, NULL), ++i;
         } else if (v && strcmp(a, "--garment-substeps") == 0) {
             garment_substeps = (uint32_t)strtoul(v, NULL, 10), ++i;
+        } else if (strcmp(a, "--resolution-series") == 0) {
+            resolution_series = true;
         } else if (strcmp(a, "--manifest-only") == 0) {
             manifest_only = true;
         } else if (strcmp(a, "--no-validate") == 0) {
@@ -347,7 +352,10 @@ int weft_cmd_simgen(int argc, char **argv)
             }
             weft_sim_sequence_def def = weft_sim_default_sequence_def();
             def.scenario = plan[i].scenario;
-            def.seed = seq_seed(seed0, plan[i].name);
+            /* The plan's names carry the vertex count; a resolution series hashes the name without it. */
+            char scene[96];
+            snprintf(scene, sizeof scene, "%s_%04u", weft_sim_scenario_name(plan[i].scenario), plan[i].index);
+            def.seed = seq_seed(seed0, resolution_series ? scene : plan[i].name);
             def.frames = frames;
             def.substeps = substeps;
             def.max_substeps = max_substeps;
