@@ -1219,19 +1219,47 @@ weft_result weft_ccd_intersect_frame(weft_ccd_world *w, const float *x, const fl
 
 /* ---- metrics ------------------------------------------------------------------------------- */
 
-/* Ray parity against the collider triangles (boxes of the static frame already in col_t): 1 inside,
- * 0 outside, -1 when this ray grazes an edge, a vertex or starts on the surface. */
+/* Whether the segment p + t dir, t in [0, reach], can touch box b (slab test). The box is grown
+ * by a micrometre plus a relative 1e-6 so rounding never drops a triangle the exact crossing test
+ * would count: the traversal may only visit more, never fewer. */
+static bool segment_meets_box(const double p[3], const double dir[3], double reach, const box *b)
+{
+    double t0 = 0.0, t1 = reach;
+    for (int k = 0; k < 3; ++k) {
+        double lo = b->lo[k], hi = b->hi[k];
+        double grow = 1e-6 + 1e-6 * (fabs(lo) + fabs(hi));
+        lo -= grow;
+        hi += grow;
+        if (dir[k] == 0.0) {
+            if (p[k] < lo || p[k] > hi) {
+                return false;
+            }
+            continue;
+        }
+        double inv = 1.0 / dir[k];
+        double ta = (lo - p[k]) * inv, tb = (hi - p[k]) * inv;
+        if (ta > tb) {
+            double tmp = ta;
+            ta = tb;
+            tb = tmp;
+        }
+        t0 = ta > t0 ? ta : t0;
+        t1 = tb < t1 ? tb : t1;
+        if (t0 > t1) {
+            return false;
+        }
+    }
+    return true;
+}
+
+/* Ray parity against the collider triangles at c (boxes of that frame already in col_t): 1 inside,
+ * 0 outside, -1 when the segment p -> p + reach dir grazes an edge, a vertex or starts on the
+ * surface (try another direction). The traversal follows
+ * the segment through the tree (slab tests), not its bounding box: a long diagonal segment's box
+ * covers most of the body and made this test visit nearly every triangle per vertex. */
 static int ray_parity(const weft_ccd_world *w, const float *c, const double p[3], const double dir[3], double reach)
 {
-    double q[3] = {p[0] + reach * dir[0], p[1] + reach * dir[1], p[2] + reach * dir[2]};
-    box rb;
-    for (int k = 0; k < 3; ++k) {
-        /* Clamped before narrowing: a double beyond the float range cannot be converted. */
-        rb.lo[k] = (float)fmax(fmin(p[k], q[k]), -FLT_MAX);
-        rb.hi[k] = (float)fmin(fmax(p[k], q[k]), FLT_MAX);
-        rb.lo[k] = nextafterf(rb.lo[k], -INFINITY);
-        rb.hi[k] = nextafterf(rb.hi[k], INFINITY);
-    }
+    const double q[3] = {p[0] + reach * dir[0], p[1] + reach * dir[1], p[2] + reach * dir[2]};
     const tree *t = &w->col_t;
     uint32_t stack[128];
     uint32_t sp = 0;
@@ -1239,12 +1267,12 @@ static int ray_parity(const weft_ccd_world *w, const float *c, const double p[3]
     int crossings = 0;
     while (sp) {
         const node *n = &t->nodes[stack[--sp]];
-        if (!overlap(&n->b, &rb)) {
+        if (!segment_meets_box(p, dir, reach, &n->b)) {
             continue;
         }
         if (n->count) {
             for (uint32_t s = n->first; s < n->first + n->count; ++s) {
-                if (!overlap(&t->slot_box[s], &rb)) {
+                if (!segment_meets_box(p, dir, reach, &t->slot_box[s])) {
                     continue;
                 }
                 double T[9];

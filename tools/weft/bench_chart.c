@@ -46,6 +46,8 @@ typedef struct chart_method {
     char precision[8];  /* fp32 fp16 int8, "-" for methods without one */
     char model[1024];
     bool ccd;
+    char tether_cm[8];  /* "" or `weft eval --tether-cm` */
+    bool garment_only;  /* tethers bind to the wearer: run on garment sequences only */
 } chart_method;
 
 typedef struct chart_row {
@@ -425,13 +427,20 @@ int weft_bench_chart(int argc, char **argv)
         snprintf(m->precision, sizeof m->precision, "-");
         m->ccd = true;
     }
+    /* Worn garments: the game-engine remedy for drift (tethers to the skinned garment, 3 cm) on the
+     * cheapest XPBD and, below, on each model in int8 (the render sample's default). */
+    m = &methods[nm++];
+    *m = methods[nm - 1 - o.nxpbd]; /* XPBD at the first substep count */
+    snprintf(m->label, sizeof m->label, "XPBD-%u + tethers 3 cm", o.xpbd[0]);
+    snprintf(m->tether_cm, sizeof m->tether_cm, "3");
+    m->garment_only = true;
     static char model_names[32][256];
     size_t nmodels = bench_list_models(o.models, model_names, 32);
     if (nmodels == 0) {
         snprintf(skipped[nskipped++], 300, "learned models: no `*.safetensors` under `%s` yet", o.models);
     }
     static const char *const k_prec[] = {"fp32", "fp16", "int8"};
-    for (size_t i = 0; i < nmodels && nm + 6 <= CHART_MAX_METHODS - 8; ++i) {
+    for (size_t i = 0; i < nmodels && nm + 7 <= CHART_MAX_METHODS - 8; ++i) {
         char stem[256];
         snprintf(stem, sizeof stem, "%s", model_names[i]);
         stem[strlen(stem) - 12] = '\0';
@@ -446,6 +455,11 @@ int weft_bench_chart(int argc, char **argv)
                 m->ccd = c != 0;
             }
         }
+        m = &methods[nm++];
+        *m = methods[nm - 3]; /* int8 with CCD */
+        snprintf(m->label, sizeof m->label, "%.60s int8 + tethers 3 cm", stem);
+        snprintf(m->tether_cm, sizeof m->tether_cm, "3");
+        m->garment_only = true;
     }
     size_t first_fnopt = nm;
     static const char *const k_fnopt_opt[] = {"learned", "gd", "adam", "lbfgs"};
@@ -494,6 +508,9 @@ int weft_bench_chart(int argc, char **argv)
         scen_used[si]++;
         for (size_t k = 0; k < first_fnopt; ++k) {
             const chart_method *mm = &methods[k];
+            if (mm->garment_only && strcmp(seqs[s].scenario, "garment") != 0) {
+                continue;
+            }
             chart_row *r = find_row(rows, &nrows, row_cap, seqs[s].scenario, (int)k);
             if (!r) {
                 continue;
@@ -513,6 +530,10 @@ int weft_bench_chart(int argc, char **argv)
                 extra[n++] = mm->model;
                 extra[n++] = "--precision";
                 extra[n++] = mm->precision;
+            }
+            if (mm->tether_cm[0]) {
+                extra[n++] = "--tether-cm";
+                extra[n++] = mm->tether_cm;
             }
             extra[n] = NULL;
             bench_eval_result e;
