@@ -48,6 +48,7 @@ typedef struct eval_acc {
     uint32_t metric_frames;
     double ms_sum;
     double tokens_sum;                  /* collider tokens kept by the model's crop, summed per frame */
+    double ccd_passes_sum;              /* CCD post-process passes, summed per frame */
     uint32_t frames;
     bool nan;
     double max_strain;
@@ -386,6 +387,7 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
         r = weft_garment_step(g);
         a.ms_sum += now_ms() - t0;
         a.tokens_sum += weft_garment_stats(g).collider_tokens;
+        a.ccd_passes_sum += weft_garment_stats(g).ccd_iterations;
         if (r == WEFT_ERROR_NOT_FINITE) {
             a.nan = true;
             break;
@@ -430,6 +432,7 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
     total->metric_frames += a.metric_frames;
     total->ms_sum += a.ms_sum;
     total->tokens_sum += a.tokens_sum;
+    total->ccd_passes_sum += a.ccd_passes_sum;
     total->frames += a.frames;
     total->nan = total->nan || a.nan;
     total->max_strain = fmax(total->max_strain, a.max_strain);
@@ -678,10 +681,12 @@ int weft_cmd_eval(int argc, char **argv)
     double self = total.metric_frames ? total.self_sum / total.metric_frames : 0.0;
     double ms = total.frames ? total.ms_sum / total.frames : 0.0;
     double tokens = total.frames ? total.tokens_sum / total.frames : 0.0;
+    double passes = total.frames ? total.ccd_passes_sum / total.frames : 0.0;
     if (o.json) {
         printf("{\"mve_cm\": %.6g, \"collision_rate\": %.6g, \"self_collision_rate\": %.6g, \"ms_per_frame\": %.6g, "
-               "\"frames\": %u, \"nan\": %s, \"max_edge_strain\": %.6g, \"collider_tokens\": %.6g}\n",
-               mve, coll, self, ms, total.frames, total.nan ? "true" : "false", total.max_strain, tokens);
+               "\"frames\": %u, \"nan\": %s, \"max_edge_strain\": %.6g, \"collider_tokens\": %.6g, "
+               "\"ccd_passes\": %.6g}\n",
+               mve, coll, self, ms, total.frames, total.nan ? "true" : "false", total.max_strain, tokens, passes);
     } else if (total.sequences > 0) {
         printf("total: %u sequences, %u frames, MVE %.3f cm, collision %.2f%%, self-collision %.2f%%, %.3f ms/frame, "
                "max edge strain %.3f, nan %s, collider tokens %.0f/frame\n",
