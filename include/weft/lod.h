@@ -193,6 +193,44 @@ WEFT_API uint32_t weft_lod_garment_vertex_count(const weft_lod_garment *garment)
  * through weft_lod_garment_set_state, not weft_garment_set_state. */
 WEFT_API weft_garment *weft_lod_garment_current(weft_lod_garment *garment);
 
+/* ---------------------------------------------------------------------------------------- */
+/* Mesh maps: one garment at two resolutions (the resolution lever of level of detail).        */
+/*                                                                                              */
+/* Simulate a coarse mesh of the garment (fewer encoder tokens, constraints and CCD work) and   */
+/* render a fine one from it: each `to` vertex is bound at creation to its nearest `from`       */
+/* triangles in rest space (closest-point barycentrics plus an offset in the triangle's frame,  */
+/* blended over up to 4 nearby triangles by inverse distance: the binding of WEFT_METHOD_LBS),   */
+/* so it follows the coarse surface's stretch, bend and rigid motion. A map the other way       */
+/* (from = fine, to = coarse) samples a fine state onto the coarse mesh, e.g. to start it.      */
+/* Both meshes must be the same garment in the same rest pose (e.g. the wardrobe's 1k and 4k     */
+/* T-shirt on one body). docs/LOD.md measures the accuracy and cost of simulating at 1k for a    */
+/* 4k garment.                                                                                  */
+
+typedef struct weft_mesh_map weft_mesh_map;
+
+typedef struct weft_mesh_map_def {
+    const float *from_rest_positions;   /* from_vertex_count * 3: the mesh that is simulated */
+    uint32_t from_vertex_count;
+    const uint32_t *from_triangles;     /* from_triangle_count * 3 */
+    uint32_t from_triangle_count;
+    const float *to_rest_positions;     /* to_vertex_count * 3: the points that follow it */
+    uint32_t to_vertex_count;
+    uint32_t internal_cookie;           /* set by weft_default_mesh_map_def(); do not touch */
+} weft_mesh_map_def;
+
+WEFT_API weft_mesh_map_def weft_default_mesh_map_def(void);
+/* Validates both inputs as weft_garment_create does (indices, finite values, zero-area triangles)
+ * and binds every `to` vertex. Allocates only here. */
+WEFT_API weft_result weft_mesh_map_create(weft_context *context, const weft_mesh_map_def *def,
+                                          weft_mesh_map **out_map);
+WEFT_API void weft_mesh_map_destroy(weft_mesh_map *map);
+/* to_positions (to_vertex_count * 3) from from_positions (from_vertex_count * 3); no allocation
+ * (the map owns a scratch buffer: one thread at a time per map). NaN/inf input or a frame where
+ * every triangle bound to a vertex has collapsed fails and leaves to_positions untouched. */
+WEFT_API weft_result weft_mesh_map_apply(weft_mesh_map *map, const float *from_positions, float *to_positions);
+WEFT_API uint32_t weft_mesh_map_from_vertex_count(const weft_mesh_map *map);
+WEFT_API uint32_t weft_mesh_map_to_vertex_count(const weft_mesh_map *map);
+
 #ifdef __cplusplus
 }
 #endif

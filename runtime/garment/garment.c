@@ -16,8 +16,7 @@ weft_garment_def weft_default_garment_def(void)
     return def;
 }
 
-/* Indices in range, finite positions, no zero-area triangles. */
-static weft_result check_mesh(const char *what, const float *positions, uint32_t vertex_count,
+weft_result weft__check_mesh(const char *what, const float *positions, uint32_t vertex_count,
                               const uint32_t *triangles, uint32_t triangle_count)
 {
     if (!weft__all_finite(positions, (size_t)vertex_count * 3)) {
@@ -128,13 +127,13 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
         return weft__fail(WEFT_ERROR_NO_COLLIDER,
                           "weft_garment_create: tethers follow the collider, and the garment has none");
     }
-    weft_result r = check_mesh("garment rest mesh", def->rest_positions, def->vertex_count, def->triangles,
+    weft_result r = weft__check_mesh("garment rest mesh", def->rest_positions, def->vertex_count, def->triangles,
                                def->triangle_count);
     if (r != WEFT_OK) {
         return r;
     }
     if (def->collider_vertex_count > 0) {
-        r = check_mesh("collider", def->collider_rest_positions, def->collider_vertex_count, def->collider_triangles,
+        r = weft__check_mesh("collider", def->collider_rest_positions, def->collider_vertex_count, def->collider_triangles,
                        def->collider_triangle_count);
         if (r != WEFT_OK) {
             return r;

@@ -66,6 +66,10 @@ struct weft_method_ops {
  * The caller sets stats.step_ms. */
 weft_result weft__garment_finish_step(weft_garment *g);
 
+/* Indices in range, finite positions, no zero-area triangles; `what` names the mesh in errors. */
+weft_result weft__check_mesh(const char *what, const float *positions, uint32_t vertex_count,
+                             const uint32_t *triangles, uint32_t triangle_count);
+
 /* The implementation of a method, or NULL when this build has none. */
 const weft_method_ops *weft__method_ops(weft_method method);
 

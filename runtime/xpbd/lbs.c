@@ -74,20 +74,27 @@ static bool visit_nearest(uint32_t t, void *user)
 
 weft_result xskin_create(const weft_garment *g, const char *who, xskin **out)
 {
-    const weft_context *ctx = g->ctx;
     if (g->collider_vertex_count == 0) {
         return weft__fail(WEFT_ERROR_NO_COLLIDER, "%s: needs a collider to bind the garment to", who);
     }
+    return xskin_create_points(g->ctx, g->x, g->vertex_count, g->collider_rest, g->collider_vertex_count,
+                               g->collider_triangles, g->collider_triangle_count, who, out);
+}
+
+weft_result xskin_create_points(const weft_context *ctx, const float *points, uint32_t point_count,
+                                const float *surface, uint32_t surface_vertex_count, const uint32_t *triangles,
+                                uint32_t triangle_count, const char *who, xskin **out)
+{
     xskin *s = weft__alloc(ctx, sizeof *s);
     if (!s) {
         return WEFT_ERROR_OUT_OF_MEMORY;
     }
-    s->n = g->vertex_count;
-    size_t nc3 = (size_t)g->collider_vertex_count * 3;
+    s->n = point_count;
+    size_t nc3 = (size_t)surface_vertex_count * 3;
     s->bind = weft__alloc(ctx, s->n * sizeof *s->bind);
     double *cpos = weft__alloc(ctx, nc3 * sizeof(double));
     xbvh bvh;
-    weft_result r = xbvh_create(ctx, &bvh, g->collider_triangles, g->collider_triangle_count, 3);
+    weft_result r = xbvh_create(ctx, &bvh, triangles, triangle_count, 3);
     if (!s->bind || !cpos || r != WEFT_OK) {
         if (r == WEFT_OK) {
             xbvh_destroy(ctx, &bvh);
@@ -98,7 +105,7 @@ weft_result xskin_create(const weft_garment *g, const char *who, xskin **out)
         return WEFT_ERROR_OUT_OF_MEMORY;
     }
     for (size_t i = 0; i < nc3; ++i) {
-        cpos[i] = g->collider_rest[i];
+        cpos[i] = surface[i];
     }
     xbvh_build(&bvh, cpos);
     xbvh_refit(&bvh, cpos, NULL, 0.0);
@@ -109,8 +116,8 @@ weft_result xskin_create(const weft_garment *g, const char *who, xskin **out)
     }
     diag = sqrt(diag);
     for (uint32_t i = 0; i < s->n; ++i) {
-        double p[3] = {g->x[3 * (size_t)i], g->x[3 * (size_t)i + 1], g->x[3 * (size_t)i + 2]};
-        nearest_ctx nc = {.p = p, .cpos = cpos, .ctris = g->collider_triangles};
+        double p[3] = {points[3 * (size_t)i], points[3 * (size_t)i + 1], points[3 * (size_t)i + 2]};
+        nearest_ctx nc = {.p = p, .cpos = cpos, .ctris = triangles};
         /* Grow the search box until it holds the nearest triangle, then widen once so the
          * blend sees the neighbouring triangles too. */
         double r0 = 1e-2;
@@ -140,7 +147,7 @@ weft_result xskin_create(const weft_garment *g, const char *who, xskin **out)
                 b->tri[k] = nc.best[0];
                 continue;
             }
-            const uint32_t *tri = g->collider_triangles + 3 * (size_t)nc.best[k];
+            const uint32_t *tri = triangles + 3 * (size_t)nc.best[k];
             const double *a = cpos + 3 * (size_t)tri[0], *bb = cpos + 3 * (size_t)tri[1], *c = cpos + 3 * (size_t)tri[2];
             double bary[3], t1[3], t2[3], nn[3], q[3], o[3];
             xg_point_triangle_sq(p, a, bb, c, bary);
@@ -167,7 +174,7 @@ weft_result xskin_create(const weft_garment *g, const char *who, xskin **out)
             weft__free(ctx, cpos, nc3 * sizeof(double));
             weft__free(ctx, s->bind, s->n * sizeof *s->bind);
             weft__free(ctx, s, sizeof *s);
-            return weft__fail(WEFT_ERROR_DEGENERATE_MESH, "%s: garment vertex %u found no usable collider triangle", who,
+            return weft__fail(WEFT_ERROR_DEGENERATE_MESH, "%s: vertex %u found no usable triangle to bind to", who,
                               i);
         }
         for (int k = 0; k < LBS_SLOTS; ++k) {
@@ -218,7 +225,7 @@ weft_result xskin_eval(const xskin *s, const uint32_t *collider_triangles, const
         }
         if (!any || !(wsum > 0.0)) {
             return weft__fail(WEFT_ERROR_DEGENERATE_MESH,
-                              "%s: every collider triangle bound to garment vertex %u collapsed this frame", who, i);
+                              "%s: every triangle bound to vertex %u collapsed this frame", who, i);
         }
         for (int j = 0; j < 3; ++j) {
             out_pos[3 * (size_t)i + j] = (float)(out[j] / wsum); /* renormalised if a binding was skipped */

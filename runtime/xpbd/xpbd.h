@@ -173,6 +173,10 @@ extern const weft_method_ops weft__lbs_ops;
  * of g->collider_rest (rigid-invariant frames). `who` prefixes error messages. */
 typedef struct xskin xskin;
 weft_result xskin_create(const weft_garment *g, const char *who, xskin **out);
+/* The same binding for any points onto any triangle surface (surface_vertex_count * 3 positions). */
+weft_result xskin_create_points(const weft_context *ctx, const float *points, uint32_t point_count,
+                                const float *surface, uint32_t surface_vertex_count, const uint32_t *triangles,
+                                uint32_t triangle_count, const char *who, xskin **out);
 void xskin_destroy(const weft_context *ctx, xskin *skin);
 /* Bound positions for collider vertex positions c (vertex_count * 3 into out_pos); fails only
  * when every triangle bound to a vertex has collapsed. */

@@ -12,6 +12,7 @@
 #define _POSIX_C_SOURCE 200809L /* opendir, stat */
 #include "weft.h"
 #include "weft/ccd.h"
+#include "weft/lod.h"
 #include "weft/sim.h"
 #include "assets/npz.h"
 
@@ -39,6 +40,7 @@ typedef struct eval_opts {
     weft_collider_crop crop;
     uint32_t max_collider_tokens;
     float tether;                       /* m, 0: no tethers */
+    const char *sim_mesh;               /* folder with rest_pos.npy + faces.npy: simulate on this mesh */
 } eval_opts;
 
 typedef struct eval_acc {
@@ -289,6 +291,62 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
     if (seq_load(dir, &s) != WEFT_OK) {
         return 1;
     }
+    const size_t nv = (size_t)s.V * 3, nc = (size_t)s.Vc * 3;
+    /* --sim-mesh: the garment is simulated on another mesh of the same garment (e.g. its 1k
+     * version for this 4k sequence) and mapped onto this sequence's mesh, which is what is scored:
+     * `down` samples the ground truth onto the simulated mesh to start it, `up` maps every step
+     * back. Pins are not applied (tethers of radius 0 glue the vertices pinned at the start). */
+    float *sim_rest = NULL, *sim_x1 = NULL, *sim_x0 = NULL, *mapped = NULL;
+    uint32_t *sim_faces = NULL;
+    uint32_t SV = s.V, SF = s.F;
+    weft_mesh_map *down = NULL, *up = NULL;
+    if (o->sim_mesh) {
+        uint64_t sr[3] = {0}, sf[3] = {0};
+        weft_result lr = load_npy(o->sim_mesh, "rest_pos", 2, false, (void **)&sim_rest, sr, false);
+        if (lr == WEFT_OK) {
+            lr = load_npy(o->sim_mesh, "faces", 2, true, (void **)&sim_faces, sf, false);
+        }
+        SV = (uint32_t)sr[0];
+        SF = (uint32_t)sf[0];
+        weft_mesh_map_def md = weft_default_mesh_map_def();
+        md.from_rest_positions = s.rest;
+        md.from_vertex_count = s.V;
+        md.from_triangles = s.faces;
+        md.from_triangle_count = s.F;
+        md.to_rest_positions = sim_rest;
+        md.to_vertex_count = SV;
+        if (lr == WEFT_OK) {
+            lr = weft_mesh_map_create(ctx, &md, &down);
+        }
+        weft_mesh_map_def mu = weft_default_mesh_map_def();
+        mu.from_rest_positions = sim_rest;
+        mu.from_vertex_count = SV;
+        mu.from_triangles = sim_faces;
+        mu.from_triangle_count = SF;
+        mu.to_rest_positions = s.rest;
+        mu.to_vertex_count = s.V;
+        if (lr == WEFT_OK) {
+            lr = weft_mesh_map_create(ctx, &mu, &up);
+        }
+        sim_x1 = malloc((size_t)SV * 3 * sizeof(float));
+        sim_x0 = malloc((size_t)SV * 3 * sizeof(float));
+        mapped = malloc(nv * sizeof(float));
+        if (lr == WEFT_OK && (!sim_x1 || !sim_x0 || !mapped)) {
+            lr = WEFT_ERROR_OUT_OF_MEMORY;
+        }
+        if (lr == WEFT_OK && (lr = weft_mesh_map_apply(down, s.pos + nv, sim_x1)) == WEFT_OK) {
+            lr = weft_mesh_map_apply(down, s.pos, sim_x0);
+        }
+        if (lr != WEFT_OK) {
+            fprintf(stderr, "weft eval: --sim-mesh %s for %s: %s: %s\n", o->sim_mesh, dir, weft_result_string(lr),
+                    weft_last_error());
+            weft_mesh_map_destroy(down);
+            weft_mesh_map_destroy(up);
+            free(sim_rest), free(sim_faces), free(sim_x1), free(sim_x0), free(mapped);
+            seq_free(&s);
+            return 1;
+        }
+    }
     weft_garment_def d = weft_default_garment_def();
     d.method = o->method;
     d.model = model;
@@ -298,25 +356,40 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
     d.collider_crop_margin = o->crop_margin;
     d.collider_crop = o->crop;
     d.max_collider_tokens = o->max_collider_tokens;
-    d.rest_positions = s.rest;
-    d.vertex_count = s.V;
-    d.triangles = s.faces;
-    d.triangle_count = s.F;
-    const size_t nv = (size_t)s.V * 3, nc = (size_t)s.Vc * 3;
+    d.rest_positions = up ? sim_rest : s.rest;
+    d.vertex_count = SV;
+    d.triangles = up ? sim_faces : s.faces;
+    d.triangle_count = SF;
     if (s.cpos) {
         d.collider_rest_positions = s.cpos + nc; /* the collider at frame 1, where the rollout starts */
         d.collider_vertex_count = s.Vc;
         d.collider_triangles = s.cfaces;
         d.collider_triangle_count = s.Fc;
     }
-    d.initial_positions = s.pos + nv;
+    d.initial_positions = up ? sim_x1 : s.pos + nv;
     /* Tethers: the radius everywhere, 0 on vertices pinned at the start (a skirt's waistband), so
-     * a method without pins keeps the scenario's attachment. */
+     * a method without pins keeps the scenario's attachment. On a --sim-mesh a vertex takes the pin
+     * of the nearest vertex of the scored mesh. */
     float *radii = NULL;
     if (o->tether > 0.0f && s.cpos) {
-        radii = malloc((size_t)s.V * sizeof(float));
-        for (uint32_t i = 0; radii && i < s.V; ++i) {
-            radii[i] = s.pinned && s.pinned[(size_t)1 * s.V + i] != 0.0f ? 0.0f : o->tether;
+        radii = malloc((size_t)SV * sizeof(float));
+        for (uint32_t i = 0; radii && i < SV; ++i) {
+            uint32_t src = i;
+            if (up) {
+                double best = INFINITY;
+                for (uint32_t j = 0; j < s.V; ++j) {
+                    double dd = 0.0;
+                    for (int k = 0; k < 3; ++k) {
+                        double e = (double)sim_rest[3 * (size_t)i + k] - s.rest[3 * (size_t)j + k];
+                        dd += e * e;
+                    }
+                    if (dd < best) {
+                        best = dd;
+                        src = j;
+                    }
+                }
+            }
+            radii[i] = s.pinned && s.pinned[(size_t)1 * s.V + src] != 0.0f ? 0.0f : o->tether;
         }
         d.tether_distance = o->tether;
         d.tether_distances = radii;
@@ -325,11 +398,14 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
     weft_result r = weft_garment_create(ctx, &d, &g);
     free(radii);
     if (r == WEFT_OK) {
-        r = weft_garment_set_state(g, s.pos + nv, s.pos);
+        r = up ? weft_garment_set_state(g, sim_x1, sim_x0) : weft_garment_set_state(g, s.pos + nv, s.pos);
     }
     if (r != WEFT_OK) {
         fprintf(stderr, "weft eval: %s: %s: %s\n", dir, weft_result_string(r), weft_last_error());
         weft_garment_destroy(g);
+        weft_mesh_map_destroy(down);
+        weft_mesh_map_destroy(up);
+        free(sim_rest), free(sim_faces), free(sim_x1), free(sim_x0), free(mapped);
         seq_free(&s);
         return 1;
     }
@@ -354,9 +430,14 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
     float *prev = malloc(nv * sizeof(float));
     /* Gripper attachments: pinned vertices follow their ground-truth positions (the scenario's
      * boundary condition) for methods that take pins; the learned method sees only the gripper. */
-    uint32_t *pin_idx = s.pinned ? malloc((size_t)s.V * sizeof(uint32_t)) : NULL;
-    float *pin_pos = s.pinned ? malloc(nv * sizeof(float)) : NULL;
+    uint32_t *pin_idx = s.pinned && !up ? malloc((size_t)s.V * sizeof(uint32_t)) : NULL;
+    float *pin_pos = s.pinned && !up ? malloc(nv * sizeof(float)) : NULL;
     bool pins = pin_idx && pin_pos;
+    /* The scored positions: the garment's own, or its map onto this sequence's mesh. */
+    const float *cur = weft_garment_positions(g);
+    if (up && (r = weft_mesh_map_apply(up, cur, mapped)) == WEFT_OK) {
+        cur = mapped;
+    }
     eval_acc a = {0};
     a.metrics_ok = metrics;
     uint32_t last = s.T - 1;
@@ -364,7 +445,7 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
         last = o->max_frames + 1;
     }
     for (uint32_t t = 1; t < last && edges && prev; ++t) {
-        memcpy(prev, weft_garment_positions(g), nv * sizeof(float));
+        memcpy(prev, cur, nv * sizeof(float));
         if (s.cpos && (r = weft_garment_set_collider(g, s.cpos + (size_t)(t + 1) * nc)) != WEFT_OK) {
             break;
         }
@@ -396,7 +477,12 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
             fprintf(stderr, "weft eval: %s: frame %u: %s: %s\n", dir, t + 1, weft_result_string(r), weft_last_error());
             break;
         }
-        const float *x = weft_garment_positions(g);
+        if (up && (r = weft_mesh_map_apply(up, weft_garment_positions(g), mapped)) != WEFT_OK) {
+            fprintf(stderr, "weft eval: %s: frame %u: mapping onto the scored mesh: %s\n", dir, t + 1, weft_last_error());
+            break;
+        }
+        const float *x = up ? mapped : weft_garment_positions(g);
+        cur = x;
         const float *gt = s.pos + (size_t)(t + 1) * nv;
         for (uint32_t i = 0; i < s.V; ++i) {
             double dx = (double)x[3 * i] - gt[3 * i], dy = (double)x[3 * i + 1] - gt[3 * i + 1],
@@ -444,6 +530,9 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
     free(edges);
     weft_ccd_world_destroy(world);
     weft_garment_destroy(g);
+    weft_mesh_map_destroy(down);
+    weft_mesh_map_destroy(up);
+    free(sim_rest), free(sim_faces), free(sim_x1), free(sim_x0), free(mapped);
     seq_free(&s);
     return rc;
 }
@@ -500,6 +589,7 @@ static void usage(FILE *f)
     fprintf(f, "usage: weft eval --seq DIR [--model M] [--method model|lbs|xpbd:S] [--precision fp32|fp16|int8]\n"
                "                 [--ccd on|off] [--split train|val|test] [--frames N] [--json]\n"
                "                 [--crop-cm X] [--crop box|cells] [--max-collider-tokens N] [--tether-cm X]\n"
+               "                 [--sim-mesh DIR]\n"
                "  DIR is one sequence folder (meta.json + .npy) or a folder of them.\n");
 }
 
@@ -570,6 +660,8 @@ int weft_cmd_eval(int argc, char **argv)
                 fprintf(stderr, "weft eval: bad --crop-cm '%s'\n", v);
                 return 2;
             }
+        } else if (strcmp(a, "--sim-mesh") == 0) {
+            o.sim_mesh = v, ++i; /* rest_pos.npy + faces.npy of the same garment at another resolution */
         } else if (strcmp(a, "--tether-cm") == 0) {
             /* tethers to the skinned garment, radius in cm (0: off); the library validates it */
             char *end;
