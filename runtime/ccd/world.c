@@ -1021,18 +1021,26 @@ weft_result weft_ccd_postprocess(weft_ccd_world *w, const float *x0, float *x1, 
             clean = true;
             break;
         }
+        uint32_t changed = 0;
         for (uint32_t v = 0; v < w->nv; ++v) {
             float s = w->tmin[v];
             if (s < 1.0f) {
                 for (int k = 0; k < 3; ++k) {
                     size_t i = 3 * (size_t)v + k;
                     float moved = x0[i] + s * (x1[i] - x0[i]);
+                    changed += moved != x1[i];
                     w->flag_b[v] |= moved != x1[i];
                     x1[i] = moved;
                 }
             }
         }
         promote_dirty(w);
+        if (changed == 0) {
+            /* Every hit vertex is already back at its start: the next pass would find the same
+             * hits and move nothing again (a collider moving into cloth at rest), so the passes
+             * left could only repeat this one. The fallback below resolves these. */
+            break;
+        }
     }
     if (!clean && w->cv > 0 && c0 && c1) {
         /* Fallback, stage 1: vertices hit by the collider move with it (x0 + its displacement),
