@@ -590,7 +590,10 @@ static void usage(FILE *f)
                "                 [--ccd on|off] [--split train|val|test] [--frames N] [--json]\n"
                "                 [--crop-cm X] [--crop box|cells] [--max-collider-tokens N] [--tether-cm X]\n"
                "                 [--sim-mesh DIR]\n"
-               "  DIR is one sequence folder (meta.json + .npy) or a folder of them.\n");
+               "  DIR is one sequence folder (meta.json + .npy) or a folder of them.\n"
+               "  --tether-cm X   tethers to the skinned garment, radius X cm (0 on vertices pinned at the start)\n"
+               "  --sim-mesh DIR  simulate on DIR's rest_pos.npy + faces.npy (the same garment at another\n"
+               "                  resolution) and score its map onto the sequence's mesh; pins are not applied\n");
 }
 
 int weft_cmd_eval(int argc, char **argv)

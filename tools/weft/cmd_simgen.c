@@ -1,6 +1,7 @@
 /* weft simgen: generate the reference-simulation dataset (see docs/DATASET.md). */
 #define _POSIX_C_SOURCE 200809L
 #include "weft.h"
+#include "support_bench.h"
 #include "weft/sim.h"
 
 #include <cjson/cJSON.h>
@@ -317,7 +318,7 @@ int weft_cmd_simgen(int argc, char **argv)
             snprintf(p->name, sizeof p->name, "%s_v%u_%04u", scenario, vertices, k);
         }
     }
-    mkdir(out, 0777);
+    bench_mkdirs(out); /* parents too: --out data/sets/a works on a fresh checkout */
     if (!file_exists(out)) {
         fprintf(stderr, "simgen: cannot create '%s'\n", out);
         free(plan);
