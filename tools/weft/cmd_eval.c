@@ -371,6 +371,7 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
      * a method without pins keeps the scenario's attachment. On a --sim-mesh a vertex takes the pin
      * of the nearest vertex of the scored mesh. */
     float *radii = NULL;
+    d.tether_distance = o->tether; /* a bad radius, or tethers without a collider, fail in the library */
     if (o->tether > 0.0f && s.cpos) {
         radii = malloc((size_t)SV * sizeof(float));
         for (uint32_t i = 0; radii && i < SV; ++i) {
@@ -391,7 +392,6 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
             }
             radii[i] = s.pinned && s.pinned[(size_t)1 * s.V + src] != 0.0f ? 0.0f : o->tether;
         }
-        d.tether_distance = o->tether;
         d.tether_distances = radii;
     }
     weft_garment *g = NULL;
