@@ -705,9 +705,10 @@ int weft_bench_stability(int argc, char **argv)
     if (o.quick) {
         fprintf(f, "\nThis is the --quick suite: %u-frame cases, a %u-frame long rollout, one sequence per case, FNOpt "
                    "with adam only. The full suite is `weft bench stability` without --quick (240-frame cases, a "
-                   "2400-frame rollout, two sequences per case, all four FNOpt optimizers on three motions). It was "
-                   "not run to the end on a 1k-vertex garment base: one attempt on a shared 2-core machine scored 8 "
-                   "methods of its first case in 50 minutes (every eval with CCD on, three cut lengths each).\n",
+                   "2400-frame rollout, two sequences per case, all four FNOpt optimizers on three motions). Even the "
+                   "quick suite on a 1k-vertex garment base (--scenario garment --base-vertices 1024) did not finish "
+                   "in one session on a shared 2-core machine: about 50 minutes for the four resolution cases, then "
+                   "the 600-frame case stalled in XPBD's CCD.\n",
                 o.frames, o.long_frames);
     }
     fprintf(f, "\nRaw numbers: [stability.csv](stability.csv). Plot drawn by `tools/bench/plot_stability.py`.\n");
