@@ -18,6 +18,7 @@
 
 #if WEFT_RENDER_HAVE_SAMPLE
 #include "weft/body.h"
+#include "weft/lod.h"
 #if WEFT_RENDER_HAVE_ASSETS
 #include "bvh.h"
 #include "gltf.h"
@@ -55,6 +56,8 @@ void weft_avatar_sample_usage(FILE *out, const char *program)
             "                          with SMPL joint names (default walk)\n"
             "  --garment KIND          tshirt | skirt | dress | none (default tshirt)\n"
             "  --resolution RES        garment mesh 1k | 4k | 16k | 40k (default 4k)\n"
+            "  --sim-resolution RES    simulate this mesh of the garment and draw --resolution from it\n"
+            "                          (a mesh map; e.g. 1k for a 4k garment; default: the drawn mesh)\n"
             "  --method M              auto | model | xpbd | lbs | skin (default auto: the learned model, else xpbd, lbs)\n"
             "  --model FILE            safetensors model for the model method (default: the shipped game model for\n"
             "                          --precision, tools/train/models/game[.fp16|.int8].safetensors)\n"
@@ -138,6 +141,7 @@ int weft_avatar_sample_parse(int argc, char **argv, int first, weft_avatar_sampl
             ok = weft_avatar_sample_crowd_option(a, v, o);
         } else if (!v) {
             static const char *const valued[] = {"--motion", "--garment", "--resolution", "--method", "--model",
+                                                 "--sim-resolution",
                                                  "--precision", "--tether-cm",
                                                  "--frames", "--settle",  "--out",        "--size",   "--sheet",
                                                  "--yaw",    "--pitch",   "--start",      "--speed",
@@ -154,6 +158,8 @@ int weft_avatar_sample_parse(int argc, char **argv, int first, weft_avatar_sampl
             o->garment = v;
         } else if (strcmp(a, "--resolution") == 0) {
             o->resolution = v;
+        } else if (strcmp(a, "--sim-resolution") == 0) {
+            o->sim_resolution = v;
         } else if (strcmp(a, "--method") == 0) {
             o->method = v;
             ok = !strcmp(v, "auto") || !strcmp(v, "model") || !strcmp(v, "xpbd") || !strcmp(v, "lbs") || !strcmp(v, "skin");
@@ -319,6 +325,8 @@ typedef struct sample_state {
     weft_context *ctx;
     weft_body *body;
     weft_cloth_mesh *cloth;
+    weft_cloth_mesh *sim_cloth;         /* --sim-resolution: the simulated mesh (cloth is drawn) */
+    weft_mesh_map *sim_map;             /* sim_cloth -> cloth */
     weft_model *model;
     weft_garment *garment;
     weft_renderer *renderer;
@@ -336,6 +344,8 @@ static void sample_free(sample_state *s)
     weft_garment_destroy(s->garment);
     weft_model_destroy(s->model);
     weft_cloth_destroy(s->cloth);
+    weft_mesh_map_destroy(s->sim_map);
+    weft_cloth_destroy(s->sim_cloth);
     if (s->motion.clip) {
         weft_clip_destroy(s->motion.clip);
     }
@@ -604,7 +614,33 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
         if (!s.cloth_verts) {
             return fail_msg(&s, "out of memory");
         }
-        weft_result gr = weft_avatar_sample_garment_create(o, s.ctx, s.body, s.cloth, &s.model, &s.garment,
+        const weft_cloth_mesh *simulated_mesh = s.cloth;
+        if (o->sim_resolution && strcmp(o->sim_resolution, o->resolution) != 0) {
+            weft_cloth_resolution sres;
+            if (weft_cloth_resolution_from_name(o->sim_resolution, &sres) != WEFT_OK) {
+                fprintf(stderr, "avatar_render: --sim-resolution must be 1k, 4k, 16k or 40k\n");
+                sample_free(&s);
+                return 2;
+            }
+            weft_cloth_def sdef = weft_default_cloth_def(kind);
+            sdef.resolution = sres;
+            if (weft_cloth_create(s.ctx, &sdef, s.body, &s.sim_cloth) != WEFT_OK) {
+                return fail_msg(&s, "weft_cloth_create (--sim-resolution)");
+            }
+            /* Both meshes are the same garment on the bind pose: the drawn one follows the simulated. */
+            weft_mesh_map_def md = weft_default_mesh_map_def();
+            md.from_rest_positions = s.sim_cloth->positions;
+            md.from_vertex_count = s.sim_cloth->vertex_count;
+            md.from_triangles = s.sim_cloth->triangles;
+            md.from_triangle_count = s.sim_cloth->triangle_count;
+            md.to_rest_positions = s.cloth->positions;
+            md.to_vertex_count = s.cloth->vertex_count;
+            if (weft_mesh_map_create(s.ctx, &md, &s.sim_map) != WEFT_OK) {
+                return fail_msg(&s, "weft_mesh_map_create");
+            }
+            simulated_mesh = s.sim_cloth;
+        }
+        weft_result gr = weft_avatar_sample_garment_create(o, s.ctx, s.body, simulated_mesh, &s.model, &s.garment,
                                                            method_label, sizeof method_label);
         if (gr != WEFT_OK) {
             sample_free(&s);
@@ -657,6 +693,10 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
     printf("avatar %u vertices; garment %s (%u vertices); motion %s; cloth method %s; %u frames at 60 Hz, %ux%u\n", nv,
            dressed ? o->garment : "none", dressed ? s.cloth->vertex_count : 0, o->motion, method_used, o->frames, o->width,
            o->height);
+    if (s.sim_map && simulated) {
+        printf("simulated at %s (%u vertices), drawn at %s through a mesh map\n", o->sim_resolution,
+               s.sim_cloth->vertex_count, o->resolution);
+    }
     weft_pose bind, first, pose;
     weft_body_bind_pose(s.body, &bind);
     if (motion_pose(&s.motion, o->start, &first) != WEFT_OK) {
@@ -687,6 +727,12 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
                 return fail_msg(&s, what);
             }
             cloth = weft_garment_positions(s.garment);
+            if (s.sim_map) {
+                if (weft_mesh_map_apply(s.sim_map, cloth, s.cloth_verts) != WEFT_OK) {
+                    return fail_msg(&s, "mapping the simulated garment onto the drawn one");
+                }
+                cloth = s.cloth_verts;
+            }
         } else if (dressed) {
             if (weft_body_skin_points(s.body, &pose, s.cloth->positions, s.cloth->weights, s.cloth->vertex_count,
                                       s.cloth_verts) != WEFT_OK) {

@@ -15,6 +15,8 @@ typedef struct weft_avatar_sample_options {
     const char *motion;         /* procedural motion name or "bvh:PATH" (default "walk") */
     const char *garment;        /* tshirt | skirt | dress | none (default "tshirt") */
     const char *resolution;     /* garment resolution 1k | 4k | 16k | 40k (default "4k") */
+    const char *sim_resolution; /* simulate this resolution of the garment and draw `resolution` from it
+                                   through a weft_mesh_map; NULL (default): simulate what is drawn */
     const char *method;         /* auto | model | xpbd | lbs | skin (default "auto") */
     const char *model_path;     /* safetensors model for the model method; NULL (default): the shipped
                                    game model for `precision`, tools/train/models/game[.fp16|.int8].safetensors */
