@@ -35,7 +35,8 @@ static int run_to(const char *const argv[], const char *out_path)
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
-/* The JSON line eval printed, with its "ms_per_frame" value blanked (wall time differs per run). */
+/* The JSON line eval printed, with its "ms_per_frame" value replaced by '#' (wall time differs per
+ * run, in value and in length). */
 static bool json_line(const char *path, char *out, size_t cap)
 {
     FILE *f = fopen(path, "r");
@@ -52,8 +53,12 @@ static bool json_line(const char *path, char *out, size_t cap)
     }
     fclose(f);
     char *ms = found ? strstr(out, "\"ms_per_frame\": ") : NULL;
-    for (char *p = ms ? ms + 16 : NULL; p && *p && *p != ','; ++p) {
-        *p = '#';
+    if (ms) {
+        char *value = ms + 16, *end = strchr(value, ',');
+        if (end) {
+            *value = '#';
+            memmove(value + 1, end, strlen(end) + 1);
+        }
     }
     return found;
 }
