@@ -557,9 +557,11 @@ weft_result weft_avatar_sample_garment_create(const weft_avatar_sample_options *
     return WEFT_OK;
 }
 
-void weft_avatar_sample_blend_pose(const weft_pose *a, const weft_pose *b, double u, weft_pose *out)
+void weft_avatar_sample_settle_pose(const weft_pose *bind, const weft_pose *first, uint32_t k, uint32_t settle,
+                                    weft_pose *out)
 {
-    blend_pose(a, b, u, out);
+    double u = (double)(k + 1) / (double)settle;
+    blend_pose(bind, first, u * u * (3.0 - 2.0 * u), out);
 }
 
 int weft_avatar_sample_run(const weft_avatar_sample_options *o)
@@ -710,8 +712,7 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
     for (uint32_t k = 0; k < settle + o->frames; ++k) {
         double t0 = weft__now_ms();
         if (k < settle) {
-            double u = (double)(k + 1) / (double)settle;
-            blend_pose(&bind, &first, u * u * (3.0 - 2.0 * u), &pose);
+            weft_avatar_sample_settle_pose(&bind, &first, k, settle, &pose);
         } else if (motion_pose(&s.motion, o->start + (double)(k - settle) / 60.0, &pose) != WEFT_OK) {
             return fail_msg(&s, "sampling the motion");
         }

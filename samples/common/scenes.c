@@ -266,8 +266,7 @@ static weft_result scene_avatar_model_int8(weft_context *scalar_ctx, weft_render
     const uint32_t settle = 20, walk = 20;
     for (uint32_t k = 0; res == WEFT_OK && k < settle + walk; ++k) {
         if (k < settle) {
-            double u = (double)(k + 1) / (double)settle;
-            weft_avatar_sample_blend_pose(&bind, &first, u * u * (3.0 - 2.0 * u), &pose);
+            weft_avatar_sample_settle_pose(&bind, &first, k, settle, &pose);
         } else {
             res = weft_motion_sample(&md, (double)(k - settle + 1) / 60.0, &pose);
         }

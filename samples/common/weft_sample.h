@@ -62,8 +62,10 @@ weft_result weft_avatar_sample_garment_create(const weft_avatar_sample_options *
                                               const weft_body *body, const weft_cloth_mesh *cloth,
                                               weft_model **out_model, weft_garment **out_garment, char *label,
                                               size_t label_cap);
-/* The sample's settle blend between two poses (per-joint slerp), u in [0, 1]. */
-void weft_avatar_sample_blend_pose(const weft_pose *a, const weft_pose *b, double u, weft_pose *out);
+/* The sample's settle pose for simulated frame k of `settle` (k < settle): the bind pose blended
+ * into the motion's first pose by a smoothstep of (k + 1) / settle, per-joint slerp. */
+void weft_avatar_sample_settle_pose(const weft_pose *bind, const weft_pose *first, uint32_t k, uint32_t settle,
+                                    weft_pose *out);
 #endif
 
 /* Renders the documentation contact sheet: rows = no garment, T-shirt, skirt, dress; columns =
