@@ -252,6 +252,16 @@ typedef struct weft_garment_def {
      * Needs a collider. The binding is made once, at creation; set_state does not rebind. */
     float tether_distance;
     const float *tether_distances;
+
+    /* Strain limit (every method). After the method's step and the tethers, before CCD: edges
+     * longer than (1 + strain_limit) x their rest length are shortened by strain_limit_iterations
+     * Gauss-Seidel sweeps, each end moving half (pinned vertices and radius-0 tethers stay put). A
+     * learned step or a tether clamp moves vertices one by one; this keeps the cloth from being
+     * torn open for a few sweeps over the edges. CCD runs after it and may still stretch edges
+     * where it holds vertices back. 0 (default) = off; in [0, 10].
+     * strain_limit_iterations: default 8, in [1, 1000] when the limit is on. */
+    float strain_limit;
+    uint32_t strain_limit_iterations;
     uint32_t internal_cookie;           /* set by weft_default_garment_def(); do not touch */
 } weft_garment_def;
 
@@ -263,6 +273,7 @@ typedef struct weft_step_stats {
     bool ccd_fallback;                  /* CCD did not converge; unresolved vertices were held */
     uint32_t collider_tokens;           /* collider triangles the last model step turned into tokens */
     uint32_t tether_vertices_clamped;   /* vertices the tethers moved back in the last step */
+    uint32_t strain_limited_edges;      /* edges over the strain limit before limiting, last step */
 } weft_step_stats;
 
 WEFT_API weft_garment_def weft_default_garment_def(void);

@@ -12,6 +12,7 @@ weft_garment_def weft_default_garment_def(void)
     def.precision = WEFT_PRECISION_FP32;
     def.substeps = 10;
     def.ccd = true;
+    def.strain_limit_iterations = 8;
     def.internal_cookie = WEFT_DEF_COOKIE;
     return def;
 }
@@ -67,6 +68,7 @@ static void free_buffers(weft_garment *g)
     xskin_destroy(ctx, g->tether_skin);
     weft__free(ctx, g->tether_radius, (size_t)g->vertex_count * sizeof(float));
     weft__free(ctx, g->tether_target, nv3);
+    weft__strain_destroy(g);
     weft__free(ctx, g, sizeof *g);
 }
 
@@ -123,6 +125,14 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
                               (double)def->tether_distances[i]);
         }
     }
+    if (!(def->strain_limit >= 0.0f && def->strain_limit <= 10.0f)) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
+                          "weft_garment_create: strain_limit %g is not in [0, 10] (0: off)", (double)def->strain_limit);
+    }
+    if (def->strain_limit > 0.0f && (def->strain_limit_iterations == 0 || def->strain_limit_iterations > 1000)) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_garment_create: strain_limit_iterations %u outside [1, 1000]",
+                          def->strain_limit_iterations);
+    }
     if (tethers && def->collider_vertex_count == 0) {
         return weft__fail(WEFT_ERROR_NO_COLLIDER,
                           "weft_garment_create: tethers follow the collider, and the garment has none");
@@ -163,6 +173,8 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
     g->crop_margin = def->collider_crop_margin;
     g->crop_rule = def->collider_crop;
     g->max_collider_tokens = def->max_collider_tokens;
+    g->strain_limit = def->strain_limit;
+    g->strain_iterations = def->strain_limit_iterations;
     g->vertex_count = def->vertex_count;
     g->triangle_count = def->triangle_count;
     g->collider_vertex_count = def->collider_vertex_count;
@@ -215,6 +227,10 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
             free_buffers(g);
             return r;
         }
+    }
+    if (g->strain_limit > 0.0f && (r = weft__strain_create(g)) != WEFT_OK) {
+        free_buffers(g);
+        return r;
     }
     r = weft__ccd_garment_create(g);
     if (r != WEFT_OK) {
@@ -348,6 +364,9 @@ weft_result weft__garment_finish_step(weft_garment *g)
         if (r != WEFT_OK) {
             return r;
         }
+    }
+    if (g->strain_limit > 0.0f) {
+        weft__strain_limit(g);
     }
     weft__ccd_postprocess_garment(g); /* sweeps x -> x_next against the collider and itself */
     /* Rotate: t-1 <- t, t <- t+1 (pointer swaps, no copies). */

@@ -26,6 +26,13 @@ struct weft_garment {
     float *tether_radius;               /* vertex_count radii (uniform ones expanded) */
     float *tether_target;               /* vertex_count * 3 scratch: skinned positions at t+1 */
 
+    float strain_limit;                 /* 0: off (runtime/garment/strain.c) */
+    uint32_t strain_iterations;
+    uint32_t strain_edge_count;
+    uint32_t *strain_edges;             /* unique edges, 2 per edge */
+    float *strain_rest;                 /* rest length per edge */
+    uint8_t *strain_fixed;              /* vertex_count scratch: pinned or glued this step */
+
     uint32_t vertex_count, triangle_count;
     float *rest;                        /* vertex_count * 3 */
     uint32_t *triangles;                /* triangle_count * 3 */
@@ -65,6 +72,11 @@ struct weft_method_ops {
  * tethers, CCD post-process, buffer rotation, frame count. On failure the state is unchanged.
  * The caller sets stats.step_ms. */
 weft_result weft__garment_finish_step(weft_garment *g);
+
+/* Strain limiting (strain.c): edges and rest lengths made once; the limit applied to x_next. */
+weft_result weft__strain_create(weft_garment *g);
+void weft__strain_destroy(weft_garment *g);
+void weft__strain_limit(weft_garment *g);
 
 /* Indices in range, finite positions, no zero-area triangles; `what` names the mesh in errors. */
 weft_result weft__check_mesh(const char *what, const float *positions, uint32_t vertex_count,

@@ -1,8 +1,8 @@
 #!/usr/bin/python3
 """Draws docs/img/stability.png from the CSV written by `weft bench stability`.
 
-A heat map, methods down, stress cases across: green pass, amber warning (penetrations after CCD
-or MVE drift), red failure (NaN, explosion, run error), grey not measured. Each cell is
+A heat map, methods down, stress cases across: green pass, amber warning (penetrations after CCD,
+MVE drift, or too slow to finish), red failure (NaN, explosion, run error), grey not measured. Each cell is
 annotated with the error (MVE cm, or e3D for FNOpt cells) and the first- and last-quarter MVE.
 """
 import argparse
@@ -16,7 +16,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.colors import ListedColormap  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 
-LEVEL = {"pass": 0, "penetrates": 1, "drifts": 1, "NaN": 2, "exploded": 2, "error": 2}
+LEVEL = {"pass": 0, "penetrates": 1, "drifts": 1, "too slow": 1, "NaN": 2, "exploded": 2, "error": 2}
 COLORS = ["#4caf50", "#ffb300", "#e53935", "#bdbdbd"]
 
 
@@ -81,8 +81,8 @@ def main():
     ax.grid(which="minor", color="white", linewidth=2)
     ax.tick_params(which="minor", length=0)
     ax.legend(handles=[Patch(color=COLORS[0], label="pass"),
-                       Patch(color=COLORS[1], label="penetrates after CCD / MVE drifts"),
-                       Patch(color=COLORS[2], label="NaN / edge strain > 25% / run failed"),
+                       Patch(color=COLORS[1], label="penetrates after CCD / MVE drifts / too slow"),
+                       Patch(color=COLORS[2], label="NaN / >1% of edges strained > 25% / run failed"),
                        Patch(color=COLORS[3], label="not measured")],
               loc="upper center", bbox_to_anchor=(0.5, -0.18), ncol=2, fontsize=8, frameon=False)
     ax.set_title("weft stability: where each method fails (cell: status, MVE, first/last-quarter MVE)", fontsize=10)

@@ -8,7 +8,13 @@
  *   ms_per_frame         wall time of weft_garment_step (includes CCD post-processing when on)
  *   frames               predicted frames scored
  *   nan                  the method produced a non-finite state (the rollout stops there)
- *   max_edge_strain      max over edges and frames of |length / rest length - 1| */
+ *   max_edge_strain      max over edges and frames of |length / rest length - 1|
+ *   overstretched_pct    max over frames of the % of edges strained by more than 25%: one edge at a
+ *                        pinned waistband can pass 25% while the garment is fine; an exploding one
+ *                        overstretches many
+ *   gt_max_edge_strain   the ground truth's own max edge strain over the same frames (context for
+ *                        the two above: the reference stretches too, at pins and tight contacts)
+ *   time_limited         --time-limit stopped the rollout before its last frame */
 #define _POSIX_C_SOURCE 200809L /* opendir, stat */
 #include "weft.h"
 #include "weft/ccd.h"
@@ -40,7 +46,9 @@ typedef struct eval_opts {
     weft_collider_crop crop;
     uint32_t max_collider_tokens;
     float tether;                       /* m, 0: no tethers */
+    float strain_limit;                 /* fraction, 0: off */
     const char *sim_mesh;               /* folder with rest_pos.npy + faces.npy: simulate on this mesh */
+    double time_limit_ms;               /* 0: none; else stop a rollout once stepping took this long */
 } eval_opts;
 
 typedef struct eval_acc {
@@ -53,10 +61,14 @@ typedef struct eval_acc {
     double ccd_passes_sum;              /* CCD post-process passes, summed per frame */
     uint32_t frames;
     bool nan;
-    double max_strain;
+    double max_strain, gt_max_strain;
+    double overstretched_pct;           /* max over frames of % edges strained > EVAL_OVERSTRETCH */
     uint32_t sequences;
     bool metrics_ok;
+    bool time_limited;
 } eval_acc;
+
+#define EVAL_OVERSTRETCH 0.25
 
 typedef struct seq_data {
     float *rest, *pos, *cpos;
@@ -267,9 +279,11 @@ static uint32_t *edges_of(const seq_data *s, uint32_t *count)
     return e;
 }
 
-static double max_strain(const float *x, const float *rest, const uint32_t *e, uint32_t ne)
+/* Max |length / rest - 1| over the edges; *over counts the edges above EVAL_OVERSTRETCH. */
+static double max_strain(const float *x, const float *rest, const uint32_t *e, uint32_t ne, uint32_t *over)
 {
     double m = 0;
+    uint32_t n = 0;
     for (uint32_t i = 0; i < ne; ++i) {
         const float *a = x + 3 * (size_t)e[2 * i], *b = x + 3 * (size_t)e[2 * i + 1];
         const float *ra = rest + 3 * (size_t)e[2 * i], *rb = rest + 3 * (size_t)e[2 * i + 1];
@@ -278,8 +292,13 @@ static double max_strain(const float *x, const float *rest, const uint32_t *e, u
         double r = sqrt((double)(ra[0] - rb[0]) * (ra[0] - rb[0]) + (double)(ra[1] - rb[1]) * (ra[1] - rb[1]) +
                         (double)(ra[2] - rb[2]) * (ra[2] - rb[2]));
         if (r > 0) {
-            m = fmax(m, fabs(l / r - 1.0));
+            double strain = fabs(l / r - 1.0);
+            m = fmax(m, strain);
+            n += strain > EVAL_OVERSTRETCH;
         }
+    }
+    if (over) {
+        *over = n;
     }
     return m;
 }
@@ -372,6 +391,7 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
      * of the nearest vertex of the scored mesh. */
     float *radii = NULL;
     d.tether_distance = o->tether; /* a bad radius, or tethers without a collider, fail in the library */
+    d.strain_limit = o->strain_limit;
     if (o->tether > 0.0f && s.cpos) {
         radii = malloc((size_t)SV * sizeof(float));
         for (uint32_t i = 0; radii && i < SV; ++i) {
@@ -445,6 +465,10 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
         last = o->max_frames + 1;
     }
     for (uint32_t t = 1; t < last && edges && prev; ++t) {
+        if (o->time_limit_ms > 0 && a.ms_sum > o->time_limit_ms) {
+            a.time_limited = true;
+            break;
+        }
         memcpy(prev, cur, nv * sizeof(float));
         if (s.cpos && (r = weft_garment_set_collider(g, s.cpos + (size_t)(t + 1) * nc)) != WEFT_OK) {
             break;
@@ -491,7 +515,10 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
         }
         a.vert_frames += s.V;
         a.frames++;
-        a.max_strain = fmax(a.max_strain, max_strain(x, s.rest, edges, ne));
+        uint32_t over = 0;
+        a.max_strain = fmax(a.max_strain, max_strain(x, s.rest, edges, ne, &over));
+        a.overstretched_pct = fmax(a.overstretched_pct, ne ? 100.0 * over / ne : 0.0);
+        a.gt_max_strain = fmax(a.gt_max_strain, max_strain(gt, s.rest, edges, ne, NULL));
         if (metrics) {
             weft_ccd_metrics m;
             const float *c0 = s.cpos ? s.cpos + (size_t)t * nc : NULL;
@@ -522,6 +549,9 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
     total->frames += a.frames;
     total->nan = total->nan || a.nan;
     total->max_strain = fmax(total->max_strain, a.max_strain);
+    total->gt_max_strain = fmax(total->gt_max_strain, a.gt_max_strain);
+    total->overstretched_pct = fmax(total->overstretched_pct, a.overstretched_pct);
+    total->time_limited = total->time_limited || a.time_limited;
     total->metrics_ok = total->metrics_ok && metrics;
     total->sequences++;
     free(pin_idx);
@@ -589,11 +619,13 @@ static void usage(FILE *f)
     fprintf(f, "usage: weft eval --seq DIR [--model M] [--method model|lbs|xpbd:S] [--precision fp32|fp16|int8]\n"
                "                 [--ccd on|off] [--split train|val|test] [--frames N] [--json]\n"
                "                 [--crop-cm X] [--crop box|cells] [--max-collider-tokens N] [--tether-cm X]\n"
-               "                 [--sim-mesh DIR]\n"
+               "                 [--strain-limit PCT] [--sim-mesh DIR] [--time-limit S]\n"
                "  DIR is one sequence folder (meta.json + .npy) or a folder of them.\n"
                "  --tether-cm X   tethers to the skinned garment, radius X cm (0 on vertices pinned at the start)\n"
+               "  --strain-limit PCT  shorten edges stretched over PCT %% after each step (and in CCD)\n"
                "  --sim-mesh DIR  simulate on DIR's rest_pos.npy + faces.npy (the same garment at another\n"
-               "                  resolution) and score its map onto the sequence's mesh; pins are not applied\n");
+               "                  resolution) and score its map onto the sequence's mesh; pins are not applied\n"
+               "  --time-limit S  stop each rollout once its steps took S seconds (JSON: time_limited, frames)\n");
 }
 
 int weft_cmd_eval(int argc, char **argv)
@@ -663,6 +695,15 @@ int weft_cmd_eval(int argc, char **argv)
                 fprintf(stderr, "weft eval: bad --crop-cm '%s'\n", v);
                 return 2;
             }
+        } else if (strcmp(a, "--time-limit") == 0) {
+            char *end;
+            double sec = strtod(v, &end);
+            ++i;
+            if (*end || end == v || !(sec > 0.0) || sec > 1e6) {
+                fprintf(stderr, "weft eval: bad --time-limit '%s' (seconds > 0)\n", v);
+                return 2;
+            }
+            o.time_limit_ms = sec * 1e3;
         } else if (strcmp(a, "--sim-mesh") == 0) {
             o.sim_mesh = v, ++i; /* rest_pos.npy + faces.npy of the same garment at another resolution */
         } else if (strcmp(a, "--tether-cm") == 0) {
@@ -671,6 +712,14 @@ int weft_cmd_eval(int argc, char **argv)
             o.tether = strtof(v, &end) / 100.0f, ++i;
             if (*end || end == v) {
                 fprintf(stderr, "weft eval: bad --tether-cm '%s'\n", v);
+                return 2;
+            }
+        } else if (strcmp(a, "--strain-limit") == 0) {
+            /* percent over rest length (0: off); the library validates it */
+            char *end;
+            o.strain_limit = strtof(v, &end) / 100.0f, ++i;
+            if (*end || end == v) {
+                fprintf(stderr, "weft eval: bad --strain-limit '%s'\n", v);
                 return 2;
             }
         } else if (strcmp(a, "--crop") == 0) {
@@ -780,12 +829,16 @@ int weft_cmd_eval(int argc, char **argv)
     if (o.json) {
         printf("{\"mve_cm\": %.6g, \"collision_rate\": %.6g, \"self_collision_rate\": %.6g, \"ms_per_frame\": %.6g, "
                "\"frames\": %u, \"nan\": %s, \"max_edge_strain\": %.6g, \"collider_tokens\": %.6g, "
-               "\"ccd_passes\": %.6g}\n",
-               mve, coll, self, ms, total.frames, total.nan ? "true" : "false", total.max_strain, tokens, passes);
+               "\"ccd_passes\": %.6g, \"overstretched_pct\": %.6g, \"gt_max_edge_strain\": %.6g, "
+               "\"time_limited\": %s}\n",
+               mve, coll, self, ms, total.frames, total.nan ? "true" : "false", total.max_strain, tokens, passes,
+               total.overstretched_pct, total.gt_max_strain, total.time_limited ? "true" : "false");
     } else if (total.sequences > 0) {
         printf("total: %u sequences, %u frames, MVE %.3f cm, collision %.2f%%, self-collision %.2f%%, %.3f ms/frame, "
-               "max edge strain %.3f, nan %s, collider tokens %.0f/frame\n",
-               total.sequences, total.frames, mve, coll, self, ms, total.max_strain, total.nan ? "yes" : "no", tokens);
+               "max edge strain %.3f (%.2f%% of edges over %.0f%%, reference %.3f), nan %s, collider tokens %.0f/frame%s\n",
+               total.sequences, total.frames, mve, coll, self, ms, total.max_strain, total.overstretched_pct,
+               EVAL_OVERSTRETCH * 100, total.gt_max_strain, total.nan ? "yes" : "no", tokens,
+               total.time_limited ? ", stopped by --time-limit" : "");
     }
     weft_model_destroy(model);
     weft_context_destroy(ctx);

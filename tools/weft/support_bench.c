@@ -239,6 +239,9 @@ bool bench_eval(const char *exe, const char *seq_dir, const char *const extra[],
         r->self_collision_rate = json_num(j, "self_collision_rate", &ok);
         r->ms_per_frame = json_num(j, "ms_per_frame", &ok);
         r->max_edge_strain = json_num(j, "max_edge_strain", &ok);
+        r->overstretched_pct = json_num(j, "overstretched_pct", &ok);
+        r->gt_max_edge_strain = json_num(j, "gt_max_edge_strain", &ok);
+        r->time_limited = cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(j, "time_limited"));
         double f = json_num(j, "frames", &ok);
         r->frames = ok && f >= 0 && f < 4e9 ? (uint32_t)f : 0;
         r->nan = cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(j, "nan"));

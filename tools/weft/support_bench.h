@@ -12,8 +12,10 @@
 typedef struct bench_eval_result {
     bool ok;
     double mve_cm, collision_rate, self_collision_rate, ms_per_frame, max_edge_strain;
+    double overstretched_pct, gt_max_edge_strain; /* see cmd_eval.c */
     uint32_t frames;
     bool nan;
+    bool time_limited; /* `--time-limit` stopped the rollout early */
     char why[240];
 } bench_eval_result;
 

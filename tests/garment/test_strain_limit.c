@@ -1,0 +1,163 @@
+/* Strain limiting (weft_garment_def.strain_limit): after a step that tears the sheet (a pinned
+ * corner yanked far away in one frame), no edge is longer than (1 + limit) x rest once the sweeps
+ * converge, pins keep their targets, radius-0 tethers stay glued, and bad limits fail at creation. */
+#include "../xpbd/scene.h"
+#include "test.h"
+
+#include <math.h>
+#include <string.h>
+
+typedef struct strain_scene {
+    weft_context *ctx;
+    test_mesh sheet, box;
+} strain_scene;
+
+static void scene_make(strain_scene *s)
+{
+    weft_context_def cd = weft_default_context_def();
+    CHECK_RESULT(weft_context_create(&cd, &s->ctx), WEFT_OK);
+    s->sheet = test_sheet(10, 10, 0.5f, 0.5f, 0.0f, 0.21f, 0.0f);
+    const float lo[3] = {-0.15f, 0.0f, -0.15f}, hi[3] = {0.15f, 0.2f, 0.15f};
+    s->box = test_box(lo, hi);
+}
+
+static void scene_free(strain_scene *s)
+{
+    test_mesh_free(&s->box);
+    test_mesh_free(&s->sheet);
+    weft_context_destroy(s->ctx);
+}
+
+static weft_garment_def scene_def(const strain_scene *s)
+{
+    weft_garment_def gd = weft_default_garment_def();
+    gd.method = WEFT_METHOD_XPBD;
+    gd.substeps = 1; /* one substep cannot follow the yank: the step itself tears the sheet */
+    gd.ccd = false;  /* the limit acts before CCD; this test checks the limit itself */
+    gd.rest_positions = s->sheet.pos;
+    gd.vertex_count = s->sheet.nv;
+    gd.triangles = s->sheet.tris;
+    gd.triangle_count = s->sheet.nt;
+    gd.collider_rest_positions = s->box.pos;
+    gd.collider_vertex_count = s->box.nv;
+    gd.collider_triangles = s->box.tris;
+    gd.collider_triangle_count = s->box.nt;
+    return gd;
+}
+
+/* Largest |length / rest - 1| over the sheet's triangle edges, stretch only. */
+static double max_stretch(const strain_scene *s, const float *x)
+{
+    double worst = 0.0;
+    for (uint32_t t = 0; t < s->sheet.nt; ++t) {
+        for (int k = 0; k < 3; ++k) {
+            uint32_t a = s->sheet.tris[3 * t + k], b = s->sheet.tris[3 * t + (k + 1) % 3];
+            double l = 0.0, r = 0.0;
+            for (int c = 0; c < 3; ++c) {
+                double d = (double)x[3 * a + c] - x[3 * b + c];
+                double e = (double)s->sheet.pos[3 * a + c] - s->sheet.pos[3 * b + c];
+                l += d * d;
+                r += e * e;
+            }
+            worst = fmax(worst, sqrt(l / r) - 1.0);
+        }
+    }
+    return worst;
+}
+
+/* Steps one frame with corner 0 pinned 0.3 m away from where it was. */
+static void yank(const strain_scene *s, weft_garment *g)
+{
+    const uint32_t pin = 0;
+    const float target[3] = {s->sheet.pos[0] - 0.3f, s->sheet.pos[1] + 0.1f, s->sheet.pos[2]};
+    CHECK_RESULT(weft_garment_set_collider(g, s->box.pos), WEFT_OK);
+    CHECK_RESULT(weft_garment_set_pins(g, &pin, target, 1), WEFT_OK);
+    CHECK_RESULT(weft_garment_step(g), WEFT_OK);
+    CHECK_MSG(memcmp(weft_garment_positions(g), target, sizeof target) == 0, "the pinned corner left its target");
+}
+
+static void test_strain_limit_bounds_the_stretch(void)
+{
+    strain_scene s;
+    scene_make(&s);
+    weft_garment_def gd = scene_def(&s);
+    weft_garment *torn = NULL, *limited = NULL;
+    CHECK_RESULT(weft_garment_create(s.ctx, &gd, &torn), WEFT_OK);
+    gd.strain_limit = 0.1f;
+    gd.strain_limit_iterations = 1000; /* Gauss-Seidel needs many sweeps to drag a whole sheet */
+    CHECK_RESULT(weft_garment_create(s.ctx, &gd, &limited), WEFT_OK);
+    yank(&s, torn);
+    yank(&s, limited);
+    double torn_max = max_stretch(&s, weft_garment_positions(torn));
+    double limited_max = max_stretch(&s, weft_garment_positions(limited));
+    CHECK_MSG(torn_max > 0.5, "the yank stretched the sheet only %g: the scene tests nothing", torn_max);
+    CHECK_MSG(limited_max <= 0.1 + 1e-3, "an edge is stretched by %g with a 0.1 limit", limited_max);
+    CHECK_MSG(weft_garment_stats(limited).strain_limited_edges > 0, "no edge was counted over the limit");
+    CHECK_EQ_INT(weft_garment_stats(torn).strain_limited_edges, 0);
+    /* The default 8 sweeps do not converge on this yank, but they shorten the worst edge. */
+    gd.strain_limit_iterations = weft_default_garment_def().strain_limit_iterations;
+    weft_garment *few = NULL;
+    CHECK_RESULT(weft_garment_create(s.ctx, &gd, &few), WEFT_OK);
+    yank(&s, few);
+    double few_max = max_stretch(&s, weft_garment_positions(few));
+    CHECK_MSG(few_max < torn_max, "8 sweeps left the worst edge at %g (unlimited %g)", few_max, torn_max);
+    weft_garment_destroy(few);
+    weft_garment_destroy(torn);
+    weft_garment_destroy(limited);
+    scene_free(&s);
+}
+
+static void test_strain_limit_keeps_glued_vertices(void)
+{
+    strain_scene s;
+    scene_make(&s);
+    weft_garment_def gd = scene_def(&s);
+    float *radii = malloc(sizeof(float) * s.sheet.nv);
+    for (uint32_t i = 0; i < s.sheet.nv; ++i) {
+        radii[i] = i >= 90 ? 0.0f : 1.0f; /* the far row glued to the (still) box */
+    }
+    gd.tether_distances = radii;
+    gd.strain_limit = 0.1f;
+    gd.strain_limit_iterations = 50;
+    weft_garment *g = NULL;
+    CHECK_RESULT(weft_garment_create(s.ctx, &gd, &g), WEFT_OK);
+    yank(&s, g);
+    const float *x = weft_garment_positions(g);
+    double glue = 0.0;
+    for (uint32_t i = 90; i < 100; ++i) {
+        for (int k = 0; k < 3; ++k) {
+            glue = fmax(glue, fabs((double)x[3 * i + k] - s.sheet.pos[3 * i + k]));
+        }
+    }
+    CHECK_MSG(glue < 5e-6, "the glued row moved %g m under the strain limit", glue);
+    free(radii);
+    weft_garment_destroy(g);
+    scene_free(&s);
+}
+
+static void test_strain_limit_bad_input(void)
+{
+    strain_scene s;
+    scene_make(&s);
+    weft_garment_def gd = scene_def(&s);
+    weft_garment *g = NULL;
+    const float bad[] = {-0.01f, NAN, INFINITY, 11.0f};
+    for (size_t k = 0; k < sizeof bad / sizeof bad[0]; ++k) {
+        gd.strain_limit = bad[k];
+        CHECK_RESULT(weft_garment_create(s.ctx, &gd, &g), WEFT_ERROR_INVALID_ARGUMENT);
+        CHECK(g == NULL);
+        CHECK(strstr(weft_last_error(), "strain_limit") != NULL);
+    }
+    gd.strain_limit = 0.1f;
+    gd.strain_limit_iterations = 0;
+    CHECK_RESULT(weft_garment_create(s.ctx, &gd, &g), WEFT_ERROR_INVALID_ARGUMENT);
+    CHECK(g == NULL);
+    CHECK(strstr(weft_last_error(), "strain_limit_iterations") != NULL);
+    gd.strain_limit = 0.0f; /* off: the sweep count is not looked at */
+    CHECK_RESULT(weft_garment_create(s.ctx, &gd, &g), WEFT_OK);
+    weft_garment_destroy(g);
+    scene_free(&s);
+}
+
+TEST_MAIN(TEST_CASE(test_strain_limit_bounds_the_stretch), TEST_CASE(test_strain_limit_keeps_glued_vertices),
+          TEST_CASE(test_strain_limit_bad_input))
