@@ -34,6 +34,7 @@ void weft_avatar_sample_default_options(weft_avatar_sample_options *o)
     o->method = "auto";
     o->precision = WEFT_PRECISION_INT8;
     o->tether_cm = -1.0f;
+    o->strain_pct = -1.0f;
     o->out_dir = "avatar_frames";
     o->frames = 120;
     o->settle_frames = 30;
@@ -64,6 +65,8 @@ void weft_avatar_sample_usage(FILE *out, const char *program)
             "  --precision P           fp32 | fp16 | int8: the model's arithmetic (default int8)\n"
             "  --tether-cm X           tether every garment vertex within X cm of its skinned position (0: off;\n"
             "                          default 3 for the learned model, off for xpbd)\n"
+            "  --strain-limit PCT      shorten garment edges stretched over PCT %% after each step (0: off;\n"
+            "                          default 10 for the learned model, off for xpbd)\n"
             "  --frames N              frames to render at 60 Hz (default 120)\n"
             "  --settle N              simulated frames blending from the bind pose into the motion (default 30)\n"
             "  --out DIR               output folder for frame_NNNN.png and contact_sheet.png (default avatar_frames)\n"
@@ -142,7 +145,7 @@ int weft_avatar_sample_parse(int argc, char **argv, int first, weft_avatar_sampl
         } else if (!v) {
             static const char *const valued[] = {"--motion", "--garment", "--resolution", "--method", "--model",
                                                  "--sim-resolution",
-                                                 "--precision", "--tether-cm",
+                                                 "--precision", "--tether-cm", "--strain-limit",
                                                  "--frames", "--settle",  "--out",        "--size",   "--sheet",
                                                  "--yaw",    "--pitch",   "--start",      "--speed",
                                                  "--cape-model", "--cape-precision"};
@@ -169,6 +172,8 @@ int weft_avatar_sample_parse(int argc, char **argv, int first, weft_avatar_sampl
             ok = parse_precision(v, &o->precision);
         } else if (strcmp(a, "--tether-cm") == 0) {
             ok = parse_float(v, 0.0f, 1000.0f, &o->tether_cm);
+        } else if (strcmp(a, "--strain-limit") == 0) {
+            ok = parse_float(v, 0.0f, 1000.0f, &o->strain_pct);
         } else if (strcmp(a, "--frames") == 0) {
             ok = parse_u32(v, 1, 100000, &o->frames);
         } else if (strcmp(a, "--settle") == 0) {
@@ -525,6 +530,9 @@ weft_result weft_avatar_sample_garment_create(const weft_avatar_sample_options *
          * shipped models' T-shirt slides off within two seconds). */
         float tether_cm = o->tether_cm >= 0.0f ? o->tether_cm : (order[m].method == WEFT_METHOD_MODEL ? 3.0f : 0.0f);
         gdef.tether_distance = tether_cm / 100.0f;
+        /* The strain limit mends the edges the network and the tether clamps tear (docs/MODEL.md). */
+        float strain_pct = o->strain_pct >= 0.0f ? o->strain_pct : (order[m].method == WEFT_METHOD_MODEL ? 10.0f : 0.0f);
+        gdef.strain_limit = strain_pct / 100.0f;
         gdef.rest_positions = cloth->positions;
         gdef.vertex_count = cloth->vertex_count;
         gdef.triangles = cloth->triangles;
@@ -546,6 +554,9 @@ weft_result weft_avatar_sample_garment_create(const weft_avatar_sample_options *
         }
         if (tether_cm > 0.0f) {
             printf("tethers: every garment vertex within %.1f cm of its skinned position\n", (double)tether_cm);
+        }
+        if (strain_pct > 0.0f) {
+            printf("strain limit: garment edges at most %.0f %% over their rest length before CCD\n", (double)strain_pct);
         }
     }
     if (!*out_garment && !want_auto) {

@@ -12,7 +12,11 @@
  * over 25% is common at pins and tight contacts, in the reference too), a rollout too slow to
  * finish under --time-limit, penetrations after CCD (collision_rate), and MVE growth: the last quarter's MVE over the first quarter's. eval reports only a whole-rollout
  * mean, but rollouts are deterministic and a shorter rollout is a prefix of a longer one, so the
- * quarter means follow exactly from runs cut at 1/4, 3/4 and the full length. */
+ * quarter means follow exactly from runs cut at 1/4, 3/4 and the full length.
+ *
+ * Resumable: every eval's result is kept next to its sequence (<seq>/scores/<hash>.json, keyed by
+ * the eval's arguments) and reused by a later run unless --rescore; the tables are rewritten after
+ * every case, so a run stopped part-way leaves what it scored, and the next run goes on from there. */
 #define _POSIX_C_SOURCE 200809L /* opendir, stat */
 #include "weft.h"
 #include "support_bench.h"
@@ -41,6 +45,7 @@ const char weft_bench_stability_help[] = "stability suite: NaN, explosions, pene
 typedef struct st_method {
     char label[96], family[16], method[16], precision[8], model[1024];
     char tether_cm[16]; /* "" or `weft eval --tether-cm` */
+    char strain_pct[16]; /* "" or `weft eval --strain-limit` */
 } st_method;
 
 typedef struct st_case {
@@ -69,7 +74,7 @@ typedef struct st_opts {
     uint32_t time_limit; /* s of stepping per rollout before it counts as too slow */
     unsigned xpbd[8];
     size_t nxpbd;
-    bool quick, plot, fnopt, garment;
+    bool quick, plot, fnopt, garment, rescore;
 } st_opts;
 
 static void usage(FILE *f)
@@ -78,13 +83,14 @@ static void usage(FILE *f)
             "usage: weft bench stability [--data DIR] [--out DIR] [--models DIR] [--scenario gripper|drop|garment]\n"
             "                            [--base-vertices V] [--frames T] [--long-frames T] [--count N]\n"
             "                            [--xpbd 5,10,20,40] [--quick] [--no-plot] [--no-fnopt] [--no-garment]\n"
-            "                            [--fnopt-model PATH] [--time-limit S]\n"
+            "                            [--fnopt-model PATH] [--time-limit S] [--rescore]\n"
             "  Generates the stress cases with weft simgen under DIR (default data/stability; resumable), scores\n"
             "  LBS, XPBD 5/10/20/40 and every DIR/*.safetensors model (fp32/fp16/int8, CCD on) on each, and\n"
             "  writes OUT/stability.csv, OUT/STABILITY.md, OUT/img/stability.png (default OUT: docs).\n"
             "  defaults: V=256 vertices, T=240 frames, long 2400 frames, 2 sequences per case, S=900 s of stepping\n"
             "  per rollout before a method is marked too slow (its prefix is still scored)\n"
-            "  --quick   V=64, T=60, long 480 frames, 1 sequence per case, FNOpt speed axis with adam only, S=300\n");
+            "  --quick   V=64, T=60, long 480 frames, 1 sequence per case, FNOpt speed axis with adam only, S=300\n"
+            "  --rescore ignore the scores kept from earlier runs (<seq>/scores/*.json) and evaluate again\n");
 }
 
 /* When simgen's validator rejected the case, say why from the rejected sequence's meta.json. */
@@ -155,10 +161,90 @@ static bool generate_case(const char *exe, const st_opts *o, st_case *c, char *d
     return true;
 }
 
-/* One eval with the method's arguments, cut at `frames` predicted frames (0: all). */
-static bool eval_method(const char *exe, const st_method *m, const char *seq, uint32_t frames, uint32_t time_limit,
+/* FNV-1a of the eval's arguments: the name of its kept score. */
+static unsigned long long score_hash(const char *const *args)
+{
+    unsigned long long h = 1469598103934665603ull;
+    for (int i = 0; args[i]; ++i) {
+        for (const char *p = args[i]; *p; ++p) {
+            h = (h ^ (unsigned char)*p) * 1099511628211ull;
+        }
+        h = (h ^ 0x1f) * 1099511628211ull; /* separator */
+    }
+    return h;
+}
+
+static bool score_path(const char *seq, const char *const *args, char *out, size_t cap)
+{
+    int n = snprintf(out, cap, "%s/scores/%016llx.json", seq, score_hash(args));
+    return n > 0 && (size_t)n < cap;
+}
+
+/* A score kept by an earlier run with the same arguments (and the same key text, against hash
+ * collisions). */
+static bool score_load(const char *seq, const char *const *args, const char *key, bench_eval_result *e)
+{
+    char path[1400];
+    if (!score_path(seq, args, path, sizeof path)) {
+        return false;
+    }
+    char *text = bench_slurp(path, NULL);
+    cJSON *j = text ? cJSON_Parse(text) : NULL;
+    free(text);
+    const cJSON *k = j ? cJSON_GetObjectItemCaseSensitive(j, "key") : NULL;
+    bool ok = cJSON_IsString(k) && strcmp(k->valuestring, key) == 0;
+    const char *names[] = {"mve_cm", "collision_rate", "self_collision_rate", "ms_per_frame", "max_edge_strain",
+                           "overstretched_pct", "gt_max_edge_strain", "frames"};
+    double v[8];
+    for (int i = 0; ok && i < 8; ++i) {
+        const cJSON *x = cJSON_GetObjectItemCaseSensitive(j, names[i]);
+        ok = cJSON_IsNumber(x);
+        v[i] = ok ? x->valuedouble : 0.0;
+    }
+    if (ok) {
+        memset(e, 0, sizeof *e);
+        e->ok = true;
+        e->mve_cm = v[0], e->collision_rate = v[1], e->self_collision_rate = v[2], e->ms_per_frame = v[3];
+        e->max_edge_strain = v[4], e->overstretched_pct = v[5], e->gt_max_edge_strain = v[6];
+        e->frames = v[7] >= 0 && v[7] < 4e9 ? (uint32_t)v[7] : 0;
+        e->nan = cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(j, "nan"));
+        e->time_limited = cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(j, "time_limited"));
+    }
+    cJSON_Delete(j);
+    return ok;
+}
+
+static void score_save(const char *seq, const char *const *args, const char *key, const bench_eval_result *e)
+{
+    char dir[1200], path[1400];
+    snprintf(dir, sizeof dir, "%s/scores", seq);
+    if (!bench_mkdirs(dir) || !score_path(seq, args, path, sizeof path)) {
+        return;
+    }
+    FILE *f = fopen(path, "w");
+    if (!f) {
+        return;
+    }
+    cJSON *ks = cJSON_CreateString(key);
+    char *kt = ks ? cJSON_PrintUnformatted(ks) : NULL; /* the key, escaped */
+    fprintf(f,
+            "{\"key\": %s, \"mve_cm\": %.9g, \"collision_rate\": %.9g, \"self_collision_rate\": %.9g, "
+            "\"ms_per_frame\": %.9g, \"max_edge_strain\": %.9g, \"overstretched_pct\": %.9g, "
+            "\"gt_max_edge_strain\": %.9g, \"frames\": %u, \"nan\": %s, \"time_limited\": %s}\n",
+            kt ? kt : "\"\"", e->mve_cm, e->collision_rate, e->self_collision_rate, e->ms_per_frame,
+            e->max_edge_strain, e->overstretched_pct, e->gt_max_edge_strain, e->frames, e->nan ? "true" : "false",
+            e->time_limited ? "true" : "false");
+    free(kt);
+    cJSON_Delete(ks);
+    fclose(f);
+}
+
+/* One eval with the method's arguments, cut at `frames` predicted frames (0: all); a score kept
+ * from an earlier run with the same arguments is reused unless --rescore. */
+static bool eval_method(const char *exe, const st_opts *o, const st_method *m, const char *seq, uint32_t frames,
                         bench_eval_result *e)
 {
+    const uint32_t time_limit = o->time_limit;
     char fr[16], tl[16];
     snprintf(fr, sizeof fr, "%u", frames);
     snprintf(tl, sizeof tl, "%u", time_limit);
@@ -184,15 +270,31 @@ static bool eval_method(const char *exe, const st_method *m, const char *seq, ui
         extra[n++] = "--tether-cm";
         extra[n++] = m->tether_cm;
     }
+    if (m->strain_pct[0]) {
+        extra[n++] = "--strain-limit";
+        extra[n++] = m->strain_pct;
+    }
     extra[n] = NULL;
-    return bench_eval(exe, seq, extra, e);
+    char key[2048] = "";
+    for (int i = 0; i < n; ++i) {
+        size_t kl = strlen(key);
+        snprintf(key + kl, sizeof key - kl, "%s%s", i ? " " : "", extra[i]);
+    }
+    if (!o->rescore && score_load(seq, extra, key, e)) {
+        return true;
+    }
+    if (!bench_eval(exe, seq, extra, e)) {
+        return false; /* failures are not kept: the next run tries again */
+    }
+    score_save(seq, extra, key, e);
+    return true;
 }
 
 static void score_sequence(const char *exe, const st_opts *o, const st_method *m, const bench_seq *s, st_cell *cell)
 {
     bench_eval_result full;
     cell->sequences++;
-    if (!eval_method(exe, m, s->dir, 0, o->time_limit, &full)) {
+    if (!eval_method(exe, o, m, s->dir, 0, &full)) {
         cell->failed_runs++;
         if (!cell->note[0]) {
             snprintf(cell->note, sizeof cell->note, "%s", full.why);
@@ -223,7 +325,7 @@ static void score_sequence(const char *exe, const st_opts *o, const st_method *m
     }
     bench_eval_result q1, q3;
     uint32_t f1 = F / 4, f3 = F - F / 4;
-    if (eval_method(exe, m, s->dir, f1, o->time_limit, &q1) && eval_method(exe, m, s->dir, f3, o->time_limit, &q3) &&
+    if (eval_method(exe, o, m, s->dir, f1, &q1) && eval_method(exe, o, m, s->dir, f3, &q3) &&
         !q1.nan && !q3.nan &&
         q1.frames == f1 && q3.frames == f3) {
         cell->q1_sum += q1.mve_cm * f1;
@@ -332,6 +434,221 @@ static void num_or_empty(FILE *f, bool have, double v)
     }
 }
 
+/* Everything a run's tables need; rewritten after every case so a stopped run leaves its scores. */
+typedef struct st_run {
+    const st_opts *o;
+    const char *command, *exe;
+    const st_method *methods;
+    size_t nm, nmodels;
+    const st_case *cases;
+    size_t nc, done; /* cases [done, nc) are not scored yet */
+    st_cell (*cells)[ST_MAX_METHODS];
+    double wall;
+    bool fnopt_weights, garment_scenario;
+} st_run;
+
+static int write_tables(const st_run *run)
+{
+    const st_opts *opts = run->o;
+    const st_opts o = *opts;
+    const char *command = run->command, *exe = run->exe;
+    const st_method *methods = run->methods;
+    const st_case *cases = run->cases;
+    const size_t nm = run->nm, nc = run->nc, nmodels = run->nmodels;
+    st_cell(*cells)[ST_MAX_METHODS] = run->cells;
+    const double wall = run->wall;
+    const bool fnopt_weights = run->fnopt_weights, garment_scenario = run->garment_scenario;
+    /* CSV */
+    char path[1200];
+    snprintf(path, sizeof path, "%s/stability.csv", o.out);
+    FILE *f = fopen(path, "w");
+    if (!f) {
+        fprintf(stderr, "weft bench stability: cannot write %s\n", path);
+        return 1;
+    }
+    fprintf(f, "case,axis,level,method,family,precision,sequences,frames,mve_cm,e3d,mve_first_quarter,"
+               "mve_last_quarter,mve_growth,collision_rate,self_collision_rate,max_edge_strain,overstretched_pct,"
+               "gt_max_edge_strain,ms_per_frame,nan_runs,exploded_runs,slow_runs,failed_runs,status,note\n");
+    for (size_t ci = 0; ci < nc; ++ci) {
+        for (size_t k = 0; k < nm; ++k) {
+            const st_case *cs = &cases[ci];
+            bool fn = strcmp(methods[k].family, "fnopt") == 0;
+            if (fn != cs->fnopt) {
+                continue;
+            }
+            const st_cell *cell = &cells[ci][k];
+            double w = cell->frames ? (double)cell->frames : NAN;
+            bool have = cell->frames > 0;
+            const bool pending = ci >= run->done;
+            double q1 = cell->q1_frames ? cell->q1_sum / cell->q1_frames : NAN;
+            double q4 = cell->q4_frames ? cell->q4_sum / cell->q4_frames : NAN;
+            fprintf(f, "%s,%s,%s,%s,%s,%s,%u,%u", cs->name, cs->axis, cs->level, methods[k].label, methods[k].family,
+                    methods[k].precision, cell->sequences, cell->frames);
+            num_or_empty(f, have && !fn, cell->mve_w / w);
+            num_or_empty(f, have && fn, cell->e3d_w / w);
+            num_or_empty(f, cell->growth_ok, q1);
+            num_or_empty(f, cell->growth_ok, q4);
+            num_or_empty(f, cell->growth_ok && q1 > 0, q4 / q1);
+            num_or_empty(f, have && !fn, cell->coll_w / w);
+            num_or_empty(f, have && !fn, cell->self_w / w);
+            num_or_empty(f, have && !fn, cell->max_strain);
+            num_or_empty(f, have && !fn, cell->overstretched_pct);
+            num_or_empty(f, have && !fn, cell->gt_strain);
+            num_or_empty(f, have, cell->ms_w / w);
+            char note[240];
+            snprintf(note, sizeof note, "%s", cs->available ? cell->note : cs->note);
+            bench_sanitize(note);
+            fprintf(f, ",%u,%u,%u,%u,%s,%s\n", cell->nan_runs, cell->exploded_runs, cell->slow_runs, cell->failed_runs,
+                    pending ? "not scored yet" : cs->available ? cell_status(cell) : "not generated", note);
+        }
+    }
+    fclose(f);
+
+    /* Markdown */
+    snprintf(path, sizeof path, "%s/STABILITY.md", o.out);
+    f = fopen(path, "w");
+    if (!f) {
+        fprintf(stderr, "weft bench stability: cannot write %s\n", path);
+        return 1;
+    }
+    time_t now = time(NULL);
+    char date[64];
+    strftime(date, sizeof date, "%Y-%m-%d %H:%M UTC", gmtime(&now));
+    fprintf(f, "# Stability suite\n\n![pass/fail per method and stress case](img/stability.png)\n\n");
+    fprintf(f, "Generated by `weft bench stability` on %s; this run took %.0f s (cases already generated under `%s` "
+               "and scores kept there by earlier runs of the same command are reused; `--rescore` evaluates "
+               "again):\n\n```\n%s\n```\n\n",
+            date, wall, o.data, command);
+    fprintf(f, "Machine and build: `%s`\n\n", weft_config_string());
+    fprintf(f, "Ground truth: `weft simgen` (validated XPBD reference, scenario `%s`), base %u cloth vertices, %u "
+               "frames, %u sequence(s) per case. Every method runs with CCD post-processing on, from the first two "
+               "ground-truth frames, and then sees only the collider.\n\n",
+            o.scenario, o.base_vertices, o.frames, o.count);
+    fprintf(f, "Status: **NaN** (non-finite state), **exploded** (more than %.0f%% of the edges strained by more than "
+               "%.0f%% in some frame; a single edge over %.0f%% is common at pins and tight contacts, in the reference "
+               "too, so the max strain is shown next to the reference's own), **too slow** (the rollout's steps took more "
+               "than %u s, so it was stopped and only its prefix is scored), **error** (the run "
+               "failed, see note), **penetrates** (more than %.0f%% of cloth vertices in collision per frame after "
+               "CCD), **drifts** (last-quarter MVE > %.0fx first-quarter MVE and >= %.1f cm), else **pass**. MVE growth compares "
+               "the MVE of the last quarter of the rollout with the first quarter's (exact: rollouts are "
+               "deterministic prefixes, scored at 1/4, 3/4 and full length); the ratio is shown only when the "
+               "first quarter is at least %.1f cm, since rollouts start from ground truth.\n\n",
+            ST_OVERSTRETCH_PCT, ST_STRAIN_LIMIT * 100, ST_STRAIN_LIMIT * 100, o.time_limit, ST_COLL_WARN,
+            ST_GROWTH_WARN, ST_GROWTH_FLOOR_CM, ST_RATIO_FLOOR_CM);
+    fprintf(f, "XPBD at 40 substeps matches the reference solver's own setting (simgen: XPBD, 40 substeps, "
+               "double precision), so near-zero errors there are expected; the axes show where fewer substeps, "
+               "LBS and the learned models leave that envelope.\n\n");
+    fprintf(f, "| case | axis | method | status | MVE (cm) | MVE first → last quarter (cm) | collision %% | self %% | "
+               "max strain (reference) | edges > %.0f%% | ms/frame | note |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
+            ST_STRAIN_LIMIT * 100);
+    for (size_t ci = 0; ci < nc; ++ci) {
+        const st_case *cs = &cases[ci];
+        if (ci >= run->done) {
+            fprintf(f, "| %s | %s | all | not scored yet | | | | | | | | the run was stopped before this case |\n",
+                    cs->name, cs->axis);
+            continue;
+        }
+        if (!cs->available) {
+            fprintf(f, "| %s | %s | all | not generated | | | | | | | | %s |\n", cs->name, cs->axis, cs->note);
+            continue;
+        }
+        for (size_t k = 0; k < nm; ++k) {
+            bool fn = strcmp(methods[k].family, "fnopt") == 0;
+            if (fn != cs->fnopt) {
+                continue;
+            }
+            const st_cell *cell = &cells[ci][k];
+            double w = cell->frames ? (double)cell->frames : NAN;
+            double g = cell->growth_ok && cell->q1_sum > 0
+                           ? (cell->q4_sum / cell->q4_frames) / (cell->q1_sum / cell->q1_frames)
+                           : NAN;
+            /* First and last quarter side by side; the ratio only when the first quarter is large enough
+             * for it to mean something (rollouts start from ground truth, so it is often ~0). */
+            char gs[96] = "";
+            if (cell->growth_ok) {
+                double q1 = cell->q1_sum / cell->q1_frames, q4 = cell->q4_sum / cell->q4_frames;
+                int n = snprintf(gs, sizeof gs, "%.3f → %.3f", q1, q4);
+                if (isfinite(g) && q1 >= ST_RATIO_FLOOR_CM && n > 0 && (size_t)n < sizeof gs) {
+                    snprintf(gs + n, sizeof gs - (size_t)n, " (%.1fx)", g);
+                }
+            }
+            if (fn) {
+                fprintf(f, "| %s | %s | %s | %s | e3D %.4f | | | | | | %.2f | %s |\n", cs->name, cs->axis,
+                        methods[k].label, cell_status(cell), cell->e3d_w / w, cell->ms_w / w, cell->note);
+            } else {
+                fprintf(f, "| %s | %s | %s | %s | %.3f | %s | %.2f | %.2f | %.3f (%.3f) | %.2f%% | %.3f | %s |\n",
+                        cs->name, cs->axis, methods[k].label, cell_status(cell), cell->mve_w / w, gs, cell->coll_w / w,
+                        cell->self_w / w, cell->max_strain, cell->gt_strain, cell->overstretched_pct, cell->ms_w / w,
+                        cell->note);
+            }
+        }
+    }
+    fprintf(f, "\n## Not measured in this run\n\n");
+    fprintf(f, "- the speed axis of the simgen methods at x1 is the res_x1 case (same seeds, speed 1); x1.5/x2/x3 "
+               "regenerate the reference with `weft simgen --speed`, which plays the scenario's kinematic motion "
+               "(gripper schedule, avatar motion) faster.\n");
+    if (nmodels == 0) {
+        fprintf(f, "- learned models: no `*.safetensors` under `%s` yet.\n", o.models);
+    }
+    if (o.fnopt && !fnopt_weights) {
+        fprintf(f, "- FNOpt learned optimizer: no weights at `%s`.\n", o.fnopt_model);
+    }
+    if (garment_scenario) {
+        fprintf(f, "- unseen garments: on the garment scenario the unseen_motion case is the new draw (body, motion, "
+                   "garment type and size from a seed outside the training set).\n");
+    } else if (!o.garment) {
+        fprintf(f, "- unseen garments: disabled with --no-garment.\n");
+    }
+    if (!o.fnopt) {
+        fprintf(f, "- FNOpt speed axis: disabled with --no-fnopt.\n");
+    } else if (o.quick) {
+        fprintf(f, "- FNOpt speed axis for the learned FNOpt optimizer, gd and L-BFGS: left out by --quick (adam "
+                   "only, one motion instead of three). Each learned run re-simulates the reference and steps the "
+                   "whole trajectory, minutes per speed on a loaded machine.\n");
+    }
+    for (size_t ci = 0; ci < run->done; ++ci) {
+        if (!cases[ci].available) {
+            fprintf(f, "- %s: %s\n", cases[ci].name, cases[ci].note);
+        }
+    }
+    if (run->done < nc) {
+        fprintf(f, "- %zu of %zu cases are not scored yet: this table was written when the run had scored the "
+                   "first %zu (it is rewritten after every case; running the same command again reuses the kept "
+                   "scores and goes on).\n", nc - run->done, nc, run->done);
+    }
+    if (o.quick) {
+        fprintf(f, "\nThis is the --quick suite: %u-frame cases, a %u-frame long rollout, one sequence per case, FNOpt "
+                   "with adam only. The full suite is `weft bench stability` without --quick (240-frame cases, a "
+                   "2400-frame rollout, two sequences per case, all four FNOpt optimizers on three motions).\n",
+                o.frames, o.long_frames);
+    }
+    fprintf(f, "\nRaw numbers: [stability.csv](stability.csv). Plot drawn by `tools/bench/plot_stability.py`.\n");
+    fclose(f);
+    printf("wrote %s/stability.csv and %s/STABILITY.md (%zu of %zu cases, %.1f s)\n", o.out, o.out, run->done, nc,
+           wall);
+
+    if (o.plot) {
+        char script[1200], png[1200], csv[1200], img[1200];
+        snprintf(img, sizeof img, "%s/img", o.out);
+        snprintf(png, sizeof png, "%s/img/stability.png", o.out);
+        snprintf(csv, sizeof csv, "%s/stability.csv", o.out);
+        if (!bench_mkdirs(img) || !bench_find_script(exe, "plot_stability.py", script, sizeof script)) {
+            fprintf(stderr, "weft bench stability: tools/bench/plot_stability.py not found; no PNG\n");
+            return 0;
+        }
+        const char *pargv[] = {"/usr/bin/python3", script, "--csv", csv, "--out", png, NULL};
+        char *out = NULL, why[240];
+        int rc = bench_spawn(pargv, &out, why, sizeof why);
+        free(out);
+        if (rc != 0) {
+            fprintf(stderr, "weft bench stability: plotting failed: %s\n", why);
+        } else {
+            printf("wrote %s\n", png);
+        }
+    }
+    return 0;
+}
+
 int weft_bench_stability(int argc, char **argv)
 {
     st_opts o = {.data = "data/stability", .out = "docs", .models = "tools/train/models", .scenario = "gripper",
@@ -353,6 +670,8 @@ int weft_bench_stability(int argc, char **argv)
             o.fnopt = false;
         } else if (strcmp(a, "--no-garment") == 0) {
             o.garment = false;
+        } else if (strcmp(a, "--rescore") == 0) {
+            o.rescore = true;
         } else if (!v) {
             fprintf(stderr, "weft bench stability: %s needs a value\n", a);
             return 2;
@@ -461,9 +780,11 @@ int weft_bench_stability(int argc, char **argv)
             bench_model_file(o.models, stem, model_names[i], k_prec[p], methods[nm++].model, 1024);
         }
         if (garment_scenario) {
-            /* Worn garments also get the game-engine remedy for drift: int8 with 3 cm tethers. */
+            /* Worn garments also get the game-engine remedies: int8 with 3 cm tethers (drift) and a 10 %
+             * strain limit (torn edges), the render sample's setting. */
             methods[nm] = methods[nm - 1];
-            snprintf(methods[nm].label, 96, "%.60s int8 + tethers 3 cm", stem);
+            snprintf(methods[nm].label, 96, "%.60s int8 + tethers 3 cm + strain 10%%", stem);
+            snprintf(methods[nm].strain_pct, 16, "10");
             snprintf(methods[nm++].tether_cm, 16, "3");
         }
     }
@@ -552,6 +873,9 @@ int weft_bench_stability(int argc, char **argv)
     clock_gettime(CLOCK_MONOTONIC, &t0);
     static st_cell cells[ST_MAX_CASES][ST_MAX_METHODS];
     memset(cells, 0, sizeof cells);
+    st_run run = {.o = &o, .command = command, .exe = exe, .methods = methods, .nm = nm, .nmodels = nmodels,
+                  .cases = cases, .nc = nc, .cells = cells, .fnopt_weights = fnopt_weights,
+                  .garment_scenario = garment_scenario};
     for (size_t ci = 0; ci < nc; ++ci) {
         st_case *cs = &cases[ci];
         if (cs->fnopt) {
@@ -559,214 +883,43 @@ int weft_bench_stability(int argc, char **argv)
             for (size_t k = first_fnopt; k < nm; ++k) {
                 score_fnopt(exe, &o, &methods[k], cs, &cells[ci][k]);
             }
-            continue;
-        }
-        char dir[1100];
-        cs->available = generate_case(exe, &o, cs, dir, sizeof dir);
-        if (!cs->available) {
-            printf("  %s: %s\n", cs->name, cs->note);
-            continue;
-        }
-        bench_seq *seqs = NULL;
-        size_t ns = 0;
-        bench_list_sequences(dir, NULL, &seqs, &ns);
-        if (ns && seqs[0].vertices) {
-            snprintf(cs->note, sizeof cs->note, "%u cloth vertices, %u frames, %zu sequence(s)", seqs[0].vertices,
-                     seqs[0].frames, ns);
-        }
-        for (size_t s = 0; s < ns; ++s) {
-            for (size_t k = 0; k < first_fnopt; ++k) {
-                st_cell *cell = &cells[ci][k];
-                score_sequence(exe, &o, &methods[k], &seqs[s], cell);
-                double w = cell->frames ? (double)cell->frames : NAN;
-                printf("  %-14s %-22s %-20s MVE %8.3f cm  coll %5.2f%%  strain %.3f (%.2f%% of edges > 25%%, "
-                       "reference %.3f)  %.1f ms/frame  %s\n",
-                       cs->name, seqs[s].name, methods[k].label, cell->mve_w / w, cell->coll_w / w, cell->max_strain,
-                       cell->overstretched_pct, cell->gt_strain, cell->ms_w / w, cell_status(cell));
-                fflush(stdout);
+        } else {
+            char dir[1100];
+            cs->available = generate_case(exe, &o, cs, dir, sizeof dir);
+            if (!cs->available) {
+                printf("  %s: %s\n", cs->name, cs->note);
             }
-        }
-        free(seqs);
-    }
-    clock_gettime(CLOCK_MONOTONIC, &t1);
-    double wall = (double)(t1.tv_sec - t0.tv_sec) + (double)(t1.tv_nsec - t0.tv_nsec) * 1e-9;
-
-    /* CSV */
-    char path[1200];
-    snprintf(path, sizeof path, "%s/stability.csv", o.out);
-    FILE *f = fopen(path, "w");
-    if (!f) {
-        fprintf(stderr, "weft bench stability: cannot write %s\n", path);
-        return 1;
-    }
-    fprintf(f, "case,axis,level,method,family,precision,sequences,frames,mve_cm,e3d,mve_first_quarter,"
-               "mve_last_quarter,mve_growth,collision_rate,self_collision_rate,max_edge_strain,overstretched_pct,"
-               "gt_max_edge_strain,ms_per_frame,nan_runs,exploded_runs,slow_runs,failed_runs,status,note\n");
-    for (size_t ci = 0; ci < nc; ++ci) {
-        for (size_t k = 0; k < nm; ++k) {
-            const st_case *cs = &cases[ci];
-            bool fn = strcmp(methods[k].family, "fnopt") == 0;
-            if (fn != cs->fnopt) {
-                continue;
+            bench_seq *seqs = NULL;
+            size_t ns = 0;
+            if (cs->available) {
+                bench_list_sequences(dir, NULL, &seqs, &ns);
             }
-            const st_cell *cell = &cells[ci][k];
-            double w = cell->frames ? (double)cell->frames : NAN;
-            bool have = cell->frames > 0;
-            double q1 = cell->q1_frames ? cell->q1_sum / cell->q1_frames : NAN;
-            double q4 = cell->q4_frames ? cell->q4_sum / cell->q4_frames : NAN;
-            fprintf(f, "%s,%s,%s,%s,%s,%s,%u,%u", cs->name, cs->axis, cs->level, methods[k].label, methods[k].family,
-                    methods[k].precision, cell->sequences, cell->frames);
-            num_or_empty(f, have && !fn, cell->mve_w / w);
-            num_or_empty(f, have && fn, cell->e3d_w / w);
-            num_or_empty(f, cell->growth_ok, q1);
-            num_or_empty(f, cell->growth_ok, q4);
-            num_or_empty(f, cell->growth_ok && q1 > 0, q4 / q1);
-            num_or_empty(f, have && !fn, cell->coll_w / w);
-            num_or_empty(f, have && !fn, cell->self_w / w);
-            num_or_empty(f, have && !fn, cell->max_strain);
-            num_or_empty(f, have && !fn, cell->overstretched_pct);
-            num_or_empty(f, have && !fn, cell->gt_strain);
-            num_or_empty(f, have, cell->ms_w / w);
-            char note[240];
-            snprintf(note, sizeof note, "%s", cs->available ? cell->note : cs->note);
-            bench_sanitize(note);
-            fprintf(f, ",%u,%u,%u,%u,%s,%s\n", cell->nan_runs, cell->exploded_runs, cell->slow_runs, cell->failed_runs,
-                    cs->available ? cell_status(cell) : "not generated", note);
-        }
-    }
-    fclose(f);
-
-    /* Markdown */
-    snprintf(path, sizeof path, "%s/STABILITY.md", o.out);
-    f = fopen(path, "w");
-    if (!f) {
-        fprintf(stderr, "weft bench stability: cannot write %s\n", path);
-        return 1;
-    }
-    time_t now = time(NULL);
-    char date[64];
-    strftime(date, sizeof date, "%Y-%m-%d %H:%M UTC", gmtime(&now));
-    fprintf(f, "# Stability suite\n\n![pass/fail per method and stress case](img/stability.png)\n\n");
-    fprintf(f, "Generated by `weft bench stability` on %s; scoring took %.0f s (case generation excluded when the "
-               "cases already existed under `%s`):\n\n```\n%s\n```\n\n",
-            date, wall, o.data, command);
-    fprintf(f, "Machine and build: `%s`\n\n", weft_config_string());
-    fprintf(f, "Ground truth: `weft simgen` (validated XPBD reference, scenario `%s`), base %u cloth vertices, %u "
-               "frames, %u sequence(s) per case. Every method runs with CCD post-processing on, from the first two "
-               "ground-truth frames, and then sees only the collider.\n\n",
-            o.scenario, o.base_vertices, o.frames, o.count);
-    fprintf(f, "Status: **NaN** (non-finite state), **exploded** (more than %.0f%% of the edges strained by more than "
-               "%.0f%% in some frame; a single edge over %.0f%% is common at pins and tight contacts, in the reference "
-               "too, so the max strain is shown next to the reference's own), **too slow** (the rollout's steps took more "
-               "than %u s, so it was stopped and only its prefix is scored), **error** (the run "
-               "failed, see note), **penetrates** (more than %.0f%% of cloth vertices in collision per frame after "
-               "CCD), **drifts** (last-quarter MVE > %.0fx first-quarter MVE and >= %.1f cm), else **pass**. MVE growth compares "
-               "the MVE of the last quarter of the rollout with the first quarter's (exact: rollouts are "
-               "deterministic prefixes, scored at 1/4, 3/4 and full length); the ratio is shown only when the "
-               "first quarter is at least %.1f cm, since rollouts start from ground truth.\n\n",
-            ST_OVERSTRETCH_PCT, ST_STRAIN_LIMIT * 100, ST_STRAIN_LIMIT * 100, o.time_limit, ST_COLL_WARN,
-            ST_GROWTH_WARN, ST_GROWTH_FLOOR_CM, ST_RATIO_FLOOR_CM);
-    fprintf(f, "XPBD at 40 substeps matches the reference solver's own setting (simgen: XPBD, 40 substeps, "
-               "double precision), so near-zero errors there are expected; the axes show where fewer substeps, "
-               "LBS and the learned models leave that envelope.\n\n");
-    fprintf(f, "| case | axis | method | status | MVE (cm) | MVE first → last quarter (cm) | collision %% | self %% | "
-               "max strain (reference) | edges > %.0f%% | ms/frame | note |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n",
-            ST_STRAIN_LIMIT * 100);
-    for (size_t ci = 0; ci < nc; ++ci) {
-        const st_case *cs = &cases[ci];
-        if (!cs->available) {
-            fprintf(f, "| %s | %s | all | not generated | | | | | | | %s |\n", cs->name, cs->axis, cs->note);
-            continue;
-        }
-        for (size_t k = 0; k < nm; ++k) {
-            bool fn = strcmp(methods[k].family, "fnopt") == 0;
-            if (fn != cs->fnopt) {
-                continue;
+            if (ns && seqs[0].vertices) {
+                snprintf(cs->note, sizeof cs->note, "%u cloth vertices, %u frames, %zu sequence(s)", seqs[0].vertices,
+                         seqs[0].frames, ns);
             }
-            const st_cell *cell = &cells[ci][k];
-            double w = cell->frames ? (double)cell->frames : NAN;
-            double g = cell->growth_ok && cell->q1_sum > 0
-                           ? (cell->q4_sum / cell->q4_frames) / (cell->q1_sum / cell->q1_frames)
-                           : NAN;
-            /* First and last quarter side by side; the ratio only when the first quarter is large enough
-             * for it to mean something (rollouts start from ground truth, so it is often ~0). */
-            char gs[96] = "";
-            if (cell->growth_ok) {
-                double q1 = cell->q1_sum / cell->q1_frames, q4 = cell->q4_sum / cell->q4_frames;
-                int n = snprintf(gs, sizeof gs, "%.3f → %.3f", q1, q4);
-                if (isfinite(g) && q1 >= ST_RATIO_FLOOR_CM && n > 0 && (size_t)n < sizeof gs) {
-                    snprintf(gs + n, sizeof gs - (size_t)n, " (%.1fx)", g);
+            for (size_t s = 0; s < ns; ++s) {
+                for (size_t k = 0; k < first_fnopt; ++k) {
+                    st_cell *cell = &cells[ci][k];
+                    score_sequence(exe, &o, &methods[k], &seqs[s], cell);
+                    double w = cell->frames ? (double)cell->frames : NAN;
+                    printf("  %-14s %-22s %-20s MVE %8.3f cm  coll %5.2f%%  strain %.3f (%.2f%% of edges > 25%%, "
+                           "reference %.3f)  %.1f ms/frame  %s\n",
+                           cs->name, seqs[s].name, methods[k].label, cell->mve_w / w, cell->coll_w / w,
+                           cell->max_strain, cell->overstretched_pct, cell->gt_strain, cell->ms_w / w,
+                           cell_status(cell));
+                    fflush(stdout);
                 }
             }
-            if (fn) {
-                fprintf(f, "| %s | %s | %s | %s | e3D %.4f | | | | | | %.2f | %s |\n", cs->name, cs->axis,
-                        methods[k].label, cell_status(cell), cell->e3d_w / w, cell->ms_w / w, cell->note);
-            } else {
-                fprintf(f, "| %s | %s | %s | %s | %.3f | %s | %.2f | %.2f | %.3f (%.3f) | %.2f%% | %.3f | %s |\n",
-                        cs->name, cs->axis, methods[k].label, cell_status(cell), cell->mve_w / w, gs, cell->coll_w / w,
-                        cell->self_w / w, cell->max_strain, cell->gt_strain, cell->overstretched_pct, cell->ms_w / w,
-                        cell->note);
-            }
+            free(seqs);
         }
-    }
-    fprintf(f, "\n## Not measured in this run\n\n");
-    fprintf(f, "- the speed axis of the simgen methods at x1 is the res_x1 case (same seeds, speed 1); x1.5/x2/x3 "
-               "regenerate the reference with `weft simgen --speed`, which plays the scenario's kinematic motion "
-               "(gripper schedule, avatar motion) faster.\n");
-    if (nmodels == 0) {
-        fprintf(f, "- learned models: no `*.safetensors` under `%s` yet.\n", o.models);
-    }
-    if (o.fnopt && !fnopt_weights) {
-        fprintf(f, "- FNOpt learned optimizer: no weights at `%s`.\n", o.fnopt_model);
-    }
-    if (garment_scenario) {
-        fprintf(f, "- unseen garments: on the garment scenario the unseen_motion case is the new draw (body, motion, "
-                   "garment type and size from a seed outside the training set).\n");
-    } else if (!o.garment) {
-        fprintf(f, "- unseen garments: disabled with --no-garment.\n");
-    }
-    if (!o.fnopt) {
-        fprintf(f, "- FNOpt speed axis: disabled with --no-fnopt.\n");
-    } else if (o.quick) {
-        fprintf(f, "- FNOpt speed axis for the learned FNOpt optimizer, gd and L-BFGS: left out by --quick (adam "
-                   "only, one motion instead of three). Each learned run re-simulates the reference and steps the "
-                   "whole trajectory, minutes per speed on a loaded machine.\n");
-    }
-    for (size_t ci = 0; ci < nc; ++ci) {
-        if (!cases[ci].available) {
-            fprintf(f, "- %s: %s\n", cases[ci].name, cases[ci].note);
-        }
-    }
-    if (o.quick) {
-        fprintf(f, "\nThis is the --quick suite: %u-frame cases, a %u-frame long rollout, one sequence per case, FNOpt "
-                   "with adam only. The full suite is `weft bench stability` without --quick (240-frame cases, a "
-                   "2400-frame rollout, two sequences per case, all four FNOpt optimizers on three motions). Even the "
-                   "quick suite on a 1k-vertex garment base (--scenario garment --base-vertices 1024) did not finish "
-                   "in one session on a shared 2-core machine: about 50 minutes for the four resolution cases, then "
-                   "the 600-frame case stalled in XPBD's CCD.\n",
-                o.frames, o.long_frames);
-    }
-    fprintf(f, "\nRaw numbers: [stability.csv](stability.csv). Plot drawn by `tools/bench/plot_stability.py`.\n");
-    fclose(f);
-    printf("wrote %s/stability.csv and %s/STABILITY.md (%.1f s)\n", o.out, o.out, wall);
-
-    if (o.plot) {
-        char script[1200], png[1200], csv[1200], img[1200];
-        snprintf(img, sizeof img, "%s/img", o.out);
-        snprintf(png, sizeof png, "%s/img/stability.png", o.out);
-        snprintf(csv, sizeof csv, "%s/stability.csv", o.out);
-        if (!bench_mkdirs(img) || !bench_find_script(exe, "plot_stability.py", script, sizeof script)) {
-            fprintf(stderr, "weft bench stability: tools/bench/plot_stability.py not found; no PNG\n");
-            return 0;
-        }
-        const char *pargv[] = {"/usr/bin/python3", script, "--csv", csv, "--out", png, NULL};
-        char *out = NULL, why[240];
-        int rc = bench_spawn(pargv, &out, why, sizeof why);
-        free(out);
+        /* Tables after every case: a run stopped later still leaves these. */
+        clock_gettime(CLOCK_MONOTONIC, &t1);
+        run.wall = (double)(t1.tv_sec - t0.tv_sec) + (double)(t1.tv_nsec - t0.tv_nsec) * 1e-9;
+        run.done = ci + 1;
+        int rc = write_tables(&run);
         if (rc != 0) {
-            fprintf(stderr, "weft bench stability: plotting failed: %s\n", why);
-        } else {
-            printf("wrote %s\n", png);
+            return rc;
         }
     }
     return 0;
