@@ -30,7 +30,10 @@
  *   precision        fp32 | fp16 | int8 for method model, "-" otherwise
  *   substeps         1..1000 for method xpbd, "-" otherwise
  *   ccd              on | off
- *   resolution       garment resolution relative to the measured meshes; only 1 is supported
+ *   resolution       in (0, 1]: the simulated mesh's vertex count over the drawn mesh's. 1 simulates
+ *                    the garment's own mesh; 0.25 simulates a mesh of the same garment with about a
+ *                    quarter of its vertices (weft_lod_garment_def.sim_meshes) and draws the garment
+ *                    through a mesh map
  *   ms_per_frame     measured mean step time, finite and > 0
  *   mve_cm           measured mean vertex error, finite and >= 0
  *   max_edge_strain  measured max |edge length / rest - 1|, finite and >= 0 (information only)
@@ -71,7 +74,7 @@ typedef struct weft_lod_level {
     weft_precision precision;           /* MODEL only (FP32 otherwise) */
     uint32_t substeps;                  /* XPBD only (0 otherwise) */
     bool ccd;
-    uint32_t resolution;                /* 1: the measured garment meshes */
+    double resolution;                  /* (0, 1]; 1: the garment's own mesh (see the CSV above) */
     /* MODEL only: the collider crop (weft_garment_def.collider_crop_*). */
     double crop_cm;                     /* 0: the model's own margin */
     weft_collider_crop collider_crop;   /* BOX unless the table says cells */
@@ -125,6 +128,17 @@ WEFT_API const char *weft_lod_pick_result_string(weft_lod_pick_result result);
 
 typedef struct weft_lod_garment weft_lod_garment;
 
+/* A coarser mesh of the same garment in the same rest pose (e.g. the wardrobe's 1k T-shirt for the
+ * 4k one), simulated by the levels whose resolution is below 1. */
+typedef struct weft_lod_mesh {
+    const float *rest_positions;        /* vertex_count * 3 */
+    uint32_t vertex_count;
+    const uint32_t *triangles;          /* triangle_count * 3 */
+    uint32_t triangle_count;
+} weft_lod_mesh;
+
+#define WEFT_LOD_MAX_SIM_MESHES 8u
+
 /* The table and the models are referenced, not copied: both must outlive the garment. */
 typedef struct weft_lod_garment_def {
     const weft_lod_table *table;
@@ -151,6 +165,18 @@ typedef struct weft_lod_garment_def {
     /* Past frames kept to warm a learned model's latent history at a switch. 0 means the
      * longest history of any model level in the table that has its model in `models`. */
     uint32_t history_frames;
+
+    /* Resolution levels (resolution < 1). Each level simulates the given mesh whose vertex count
+     * over vertex_count is nearest its resolution (within a factor of 1.5, else the level fails
+     * with WEFT_ERROR_UNSUPPORTED), and the garment is drawn through a mesh map: positions and
+     * vertex_count stay those of the garment's own mesh at every level. Copied at creation; the
+     * maps both ways are made here. At most WEFT_LOD_MAX_SIM_MESHES. Pins are not available at a
+     * resolution level (their indices name the drawn mesh's vertices).
+     * resolution_blend_frames: a switch onto a coarser mesh cannot show the finer mesh's detail;
+     * the difference is faded out over this many frames instead of popping (default 8; 0: none). */
+    const weft_lod_mesh *sim_meshes;
+    uint32_t sim_mesh_count;
+    uint32_t resolution_blend_frames;
     uint32_t internal_cookie;           /* set by weft_default_lod_garment_def(); do not touch */
 } weft_lod_garment_def;
 
@@ -190,7 +216,8 @@ WEFT_API uint32_t weft_lod_garment_vertex_count(const weft_lod_garment *garment)
 /* The garment of the current level, e.g. to step many at once with weft_garments_step, or to
  * read its stats. Valid until the next switch or destroy. Step it only after
  * weft_lod_garment_set_collider so that the past-frame ring stays complete, and change its state
- * through weft_lod_garment_set_state, not weft_garment_set_state. */
+ * through weft_lod_garment_set_state, not weft_garment_set_state. At a resolution level it is the
+ * coarse garment (its own vertex count), and only weft_lod_garment_step updates the drawn mesh. */
 WEFT_API weft_garment *weft_lod_garment_current(weft_lod_garment *garment);
 
 /* ---------------------------------------------------------------------------------------- */

@@ -7,11 +7,18 @@
  * run all along (the outputs of those replay steps are discarded), then installs x_t, x_{t-1},
  * the colliders and the pins. Without that the first step after a switch sees a window filled
  * with copies of one frame, and an inertial method without x_{t-1} would lose the velocity:
- * both show as a pop. */
+ * both show as a pop.
+ *
+ * Resolution levels simulate a coarser mesh of the same garment (def.sim_meshes) and draw the
+ * garment's own mesh through a mesh map; the "drawn" state (positions at t and t-1 on the
+ * garment's mesh) is what the API shows, what the ring records and what a switch carries. A
+ * switch onto a coarse mesh starts it from the drawn state mapped down, and fades the detail the
+ * coarse mesh cannot hold (drawn - up(down(drawn))) out over a few frames. */
 #include "lod/lod_internal.h"
 #include "garment/garment.h"
 #include "model/model.h"
 
+#include <math.h>
 #include <string.h>
 
 typedef struct lod_frame {
@@ -20,6 +27,14 @@ typedef struct lod_frame {
     float *x;                           /* positions at that frame, vertex_count * 3 */
     float *c;                           /* collider at that frame, collider_vertex_count * 3 */
 } lod_frame;
+
+typedef struct lod_mesh {
+    float *rest;
+    uint32_t *tris;
+    uint32_t V, T;
+    weft_mesh_map *up;                  /* this mesh -> the drawn mesh */
+    weft_mesh_map *down;                /* the drawn mesh -> this mesh */
+} lod_mesh;
 
 struct weft_lod_garment {
     weft_context *ctx;
@@ -37,6 +52,18 @@ struct weft_lod_garment {
     size_t ring_store_floats;
     uint64_t last_recorded;
     bool any_recorded;
+
+    float *rest;                        /* the drawn mesh (copied) */
+    uint32_t *tris;
+    uint32_t T;
+    lod_mesh meshes[WEFT_LOD_MAX_SIM_MESHES];
+    uint32_t mesh_count;
+    int mesh;                           /* simulated mesh: -1 the drawn one, else meshes[mesh] */
+    float *drawn_x, *drawn_prev;        /* drawn state at t, t-1 when mesh >= 0 */
+    float *blend;                       /* detail to fade out after a switch onto a coarse mesh */
+    uint32_t blend_frames, blend_left;
+    float *scratch;                     /* largest sim mesh's vertex count * 3 */
+    size_t scratch_floats;
 };
 
 weft_lod_garment_def weft_default_lod_garment_def(void)
@@ -81,7 +108,7 @@ static uint32_t model_history(const weft_model *m)
 }
 
 /* A garment of level lv starting at x0; collider_rest is where LBS binds. */
-static weft_result make_garment(weft_lod_garment *lg, const weft_lod_level *lv, const float *rest,
+static weft_result make_garment(weft_lod_garment *lg, const weft_lod_level *lv, const float *rest, uint32_t nv,
                                 const uint32_t *tris, uint32_t tri_count, const float *collider_rest,
                                 const uint32_t *ctris, uint32_t ctri_count, const float *x0, weft_garment **out)
 {
@@ -103,7 +130,7 @@ static weft_result make_garment(weft_lod_garment *lg, const weft_lod_level *lv, 
         d.substeps = lv->substeps;
     }
     d.rest_positions = rest;
-    d.vertex_count = lg->N;
+    d.vertex_count = nv;
     d.triangles = tris;
     d.triangle_count = tri_count;
     d.collider_rest_positions = collider_rest;
@@ -114,10 +141,69 @@ static weft_result make_garment(weft_lod_garment *lg, const weft_lod_level *lv, 
     return weft_garment_create(lg->ctx, &d, out);
 }
 
+/* The mesh a level simulates: -1 (the drawn mesh) at resolution 1, else the given mesh whose
+ * vertex share is nearest the level's resolution, within a factor of 1.5; -2 when there is none. */
+static int mesh_for(const weft_lod_garment *lg, const weft_lod_level *lv)
+{
+    if (lv->resolution >= 1.0) {
+        return -1;
+    }
+    int best = -2;
+    double best_gap = log(1.5) + 1e-9;
+    for (uint32_t i = 0; i < lg->mesh_count; ++i) {
+        double gap = fabs(log((double)lg->meshes[i].V / lg->N / lv->resolution));
+        if (gap <= best_gap) {
+            best_gap = gap;
+            best = (int)i;
+        }
+    }
+    return best;
+}
+
+static weft_result no_mesh(const weft_lod_garment *lg, const weft_lod_level *lv, const char *fn)
+{
+    return weft__fail(WEFT_ERROR_UNSUPPORTED,
+                      "%s: level '%s' simulates at resolution %g (about %.0f vertices) and none of the %u sim meshes "
+                      "given is within a factor of 1.5 of that",
+                      fn, lv->name, lv->resolution, lv->resolution * lg->N, lg->mesh_count);
+}
+
+/* The drawn state at t and t-1. */
+static const float *drawn_x(const weft_lod_garment *lg) { return lg->mesh >= 0 ? lg->drawn_x : lg->g->x; }
+static const float *drawn_prev(const weft_lod_garment *lg) { return lg->mesh >= 0 ? lg->drawn_prev : lg->g->x_prev; }
+
+/* drawn_x from the coarse garment's positions, plus what is left of the blend. */
+static weft_result update_drawn(weft_lod_garment *lg)
+{
+    weft_result r = weft_mesh_map_apply(lg->meshes[lg->mesh].up, lg->g->x, lg->drawn_x);
+    if (r != WEFT_OK || lg->blend_left == 0) {
+        return r;
+    }
+    const float w = (float)lg->blend_left / (float)lg->blend_frames; /* blend_left <= blend_frames */
+    for (size_t i = 0; i < (size_t)lg->N * 3; ++i) {
+        lg->drawn_x[i] += w * lg->blend[i];
+    }
+    return WEFT_OK;
+}
+
 static void free_lod(weft_lod_garment *lg)
 {
     const weft_context *ctx = lg->ctx;
     weft_garment_destroy(lg->g);
+    for (uint32_t i = 0; i < lg->mesh_count; ++i) {
+        lod_mesh *m = &lg->meshes[i];
+        weft_mesh_map_destroy(m->up);
+        weft_mesh_map_destroy(m->down);
+        weft__free(ctx, m->rest, (size_t)m->V * 3 * sizeof(float));
+        weft__free(ctx, m->tris, (size_t)m->T * 3 * sizeof(uint32_t));
+    }
+    const size_t nx = (size_t)lg->N * 3 * sizeof(float);
+    weft__free(ctx, lg->drawn_x, nx);
+    weft__free(ctx, lg->drawn_prev, nx);
+    weft__free(ctx, lg->blend, nx);
+    weft__free(ctx, lg->scratch, lg->scratch_floats * sizeof(float));
+    weft__free(ctx, lg->rest, nx);
+    weft__free(ctx, lg->tris, (size_t)lg->T * 3 * sizeof(uint32_t));
     weft__free(ctx, lg->ring_store, lg->ring_store_floats * sizeof(float));
     weft__free(ctx, lg->ring, (size_t)lg->ring_cap * sizeof *lg->ring);
     weft__free(ctx, (void *)lg->models, (size_t)lg->model_count * sizeof *lg->models);
@@ -145,8 +231,18 @@ weft_result weft_lod_garment_create(weft_context *ctx, const weft_lod_garment_de
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_lod_garment_create: history_frames %u over 64",
                           def->history_frames);
     }
-    if (!def->rest_positions || def->vertex_count == 0) {
-        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_lod_garment_create: rest_positions are required");
+    if (!def->rest_positions || def->vertex_count == 0 || !def->triangles || def->triangle_count == 0) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
+                          "weft_lod_garment_create: rest_positions and triangles are required");
+    }
+    if (def->sim_mesh_count > WEFT_LOD_MAX_SIM_MESHES || (def->sim_mesh_count > 0 && !def->sim_meshes)) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
+                          "weft_lod_garment_create: sim_mesh_count %u (at most %u, and sim_meshes must be given)",
+                          def->sim_mesh_count, WEFT_LOD_MAX_SIM_MESHES);
+    }
+    if (def->resolution_blend_frames > 1000) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_lod_garment_create: resolution_blend_frames %u over 1000",
+                          def->resolution_blend_frames);
     }
     /* Ring length: the longest model history among levels we can run. */
     uint32_t h = def->history_frames;
@@ -170,7 +266,82 @@ weft_result weft_lod_garment_create(weft_context *ctx, const weft_lod_garment_de
     lg->N = def->vertex_count;
     lg->C = def->collider_vertex_count;
     lg->model_count = def->model_count;
-    bool ok = true;
+    lg->T = def->triangle_count;
+    lg->mesh = -1;
+    lg->blend_frames = def->resolution_blend_frames;
+    const size_t nx = (size_t)lg->N * 3 * sizeof(float);
+    lg->rest = weft__alloc(ctx, nx);
+    lg->tris = weft__alloc(ctx, (size_t)lg->T * 3 * sizeof(uint32_t));
+    bool ok = lg->rest && lg->tris;
+    if (ok) {
+        memcpy(lg->rest, def->rest_positions, nx);
+        memcpy(lg->tris, def->triangles, (size_t)lg->T * 3 * sizeof(uint32_t));
+    }
+    if (ok && def->sim_mesh_count > 0) {
+        lg->drawn_x = weft__alloc(ctx, nx);
+        lg->drawn_prev = weft__alloc(ctx, nx);
+        lg->blend = weft__alloc(ctx, nx);
+        ok = lg->drawn_x && lg->drawn_prev && lg->blend;
+    }
+    weft_result mr = WEFT_OK;
+    for (uint32_t i = 0; ok && mr == WEFT_OK && i < def->sim_mesh_count; ++i) {
+        const weft_lod_mesh *src = &def->sim_meshes[i];
+        lod_mesh *m = &lg->meshes[i];
+        if (!src->rest_positions || !src->triangles || src->vertex_count < 3 || src->triangle_count == 0) {
+            mr = weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
+                            "weft_lod_garment_create: sim_meshes[%u] needs rest positions, at least 3 vertices and "
+                            "a triangle", i);
+            break;
+        }
+        m->V = src->vertex_count;
+        m->T = src->triangle_count;
+        m->rest = weft__alloc(ctx, (size_t)m->V * 3 * sizeof(float));
+        m->tris = weft__alloc(ctx, (size_t)m->T * 3 * sizeof(uint32_t));
+        lg->mesh_count = i + 1;
+        if (!m->rest || !m->tris) {
+            ok = false;
+            break;
+        }
+        memcpy(m->rest, src->rest_positions, (size_t)m->V * 3 * sizeof(float));
+        memcpy(m->tris, src->triangles, (size_t)m->T * 3 * sizeof(uint32_t));
+        /* Both maps validate their meshes (indices, finite values, zero-area triangles). */
+        weft_mesh_map_def up = weft_default_mesh_map_def();
+        up.from_rest_positions = m->rest;
+        up.from_vertex_count = m->V;
+        up.from_triangles = m->tris;
+        up.from_triangle_count = m->T;
+        up.to_rest_positions = lg->rest;
+        up.to_vertex_count = lg->N;
+        weft_mesh_map_def down = weft_default_mesh_map_def();
+        down.from_rest_positions = lg->rest;
+        down.from_vertex_count = lg->N;
+        down.from_triangles = lg->tris;
+        down.from_triangle_count = lg->T;
+        down.to_rest_positions = m->rest;
+        down.to_vertex_count = m->V;
+        mr = weft_mesh_map_create(ctx, &up, &m->up);
+        if (mr == WEFT_OK) {
+            mr = weft_mesh_map_create(ctx, &down, &m->down);
+        }
+        if (mr != WEFT_OK) {
+            weft__fail(mr, "weft_lod_garment_create: sim_meshes[%u]: %s", i, weft_last_error());
+        }
+    }
+    for (uint32_t i = 0; i < lg->mesh_count; ++i) {
+        size_t f = (size_t)lg->meshes[i].V * 3;
+        lg->scratch_floats = f > lg->scratch_floats ? f : lg->scratch_floats;
+    }
+    if (ok && mr == WEFT_OK && lg->scratch_floats > 0) {
+        lg->scratch = weft__alloc(ctx, lg->scratch_floats * sizeof(float));
+        ok = lg->scratch != NULL;
+    }
+    if (mr == WEFT_OK && !ok) {
+        mr = WEFT_ERROR_OUT_OF_MEMORY;
+    }
+    if (mr != WEFT_OK) {
+        free_lod(lg);
+        return mr;
+    }
     if (def->model_count > 0) {
         lg->models = weft__alloc(ctx, (size_t)def->model_count * sizeof *lg->models);
         ok = lg->models != NULL;
@@ -196,9 +367,33 @@ weft_result weft_lod_garment_create(weft_context *ctx, const weft_lod_garment_de
         free_lod(lg);
         return WEFT_ERROR_OUT_OF_MEMORY;
     }
-    weft_result r = make_garment(lg, &def->table->levels[def->level], def->rest_positions, def->triangles,
-                                 def->triangle_count, def->collider_rest_positions, def->collider_triangles,
-                                 def->collider_triangle_count, def->initial_positions, &lg->g);
+    const weft_lod_level *lv = &def->table->levels[def->level];
+    const int mesh = mesh_for(lg, lv);
+    if (mesh == -2) {
+        weft_result r = no_mesh(lg, lv, "weft_lod_garment_create");
+        free_lod(lg);
+        return r;
+    }
+    const float *x0 = def->initial_positions ? def->initial_positions : def->rest_positions;
+    weft_result r;
+    if (mesh < 0) {
+        r = make_garment(lg, lv, lg->rest, lg->N, lg->tris, lg->T, def->collider_rest_positions,
+                         def->collider_triangles, def->collider_triangle_count, x0, &lg->g);
+    } else {
+        /* The coarse garment starts at the initial state mapped down, the drawn one at it exactly. */
+        lod_mesh *m = &lg->meshes[mesh];
+        r = weft_mesh_map_apply(m->down, x0, lg->scratch);
+        if (r == WEFT_OK) {
+            r = make_garment(lg, lv, m->rest, m->V, m->tris, m->T, def->collider_rest_positions,
+                             def->collider_triangles, def->collider_triangle_count, lg->scratch, &lg->g);
+        }
+        if (r == WEFT_OK) {
+            lg->mesh = mesh;
+            memcpy(lg->drawn_x, x0, nx);
+            memcpy(lg->drawn_prev, x0, nx);
+            r = update_drawn(lg); /* what the coarse mesh can show of x0: no blend at creation */
+        }
+    }
     if (r != WEFT_OK) {
         free_lod(lg);
         return r;
@@ -233,7 +428,7 @@ static void record(weft_lod_garment *lg)
     lod_frame *e = &lg->ring[lg->ring_next];
     e->frame = f;
     e->used = true;
-    memcpy(e->x, lg->g->x, (size_t)lg->N * 3 * sizeof(float));
+    memcpy(e->x, drawn_x(lg), (size_t)lg->N * 3 * sizeof(float));
     if (lg->C > 0) {
         memcpy(e->c, lg->g->collider_prev, (size_t)lg->C * 3 * sizeof(float));
     }
@@ -270,7 +465,52 @@ weft_result weft_lod_garment_set_pins(weft_lod_garment *lg, const uint32_t *vert
     if (!lg) {
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_lod_garment_set_pins: garment is NULL");
     }
+    if (lg->mesh >= 0 && count > 0) {
+        return weft__fail(WEFT_ERROR_UNSUPPORTED,
+                          "weft_lod_garment_set_pins: level '%s' simulates a coarser mesh; pins name the drawn "
+                          "mesh's vertices and are not available there", lg->table->levels[lg->level].name);
+    }
     return weft_garment_set_pins(lg->g, vertex_indices, target_positions, count);
+}
+
+/* At a resolution level: the coarse garment gets the state mapped down, the drawn one keeps it
+ * exactly and fades out what the coarse mesh cannot show. */
+static weft_result set_state_coarse(weft_lod_garment *lg, const float *positions, const float *prev_positions)
+{
+    if (!positions) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_lod_garment_set_state: positions are required");
+    }
+    const float *prev = prev_positions ? prev_positions : positions;
+    const size_t nx = (size_t)lg->N * 3;
+    if (!weft__all_finite(positions, nx) || !weft__all_finite(prev, nx)) {
+        return weft__fail(WEFT_ERROR_NOT_FINITE, "weft_lod_garment_set_state: positions contain NaN or infinity");
+    }
+    const lod_mesh *m = &lg->meshes[lg->mesh];
+    /* x_t mapped into the scratch, x_{t-1} into the garment's x_next (set_state does not read it). */
+    weft_result r = weft_mesh_map_apply(m->down, positions, lg->scratch);
+    if (r == WEFT_OK) {
+        r = weft_mesh_map_apply(m->down, prev, lg->g->x_next);
+    }
+    if (r == WEFT_OK) {
+        r = weft_mesh_map_apply(m->up, lg->scratch, lg->blend);
+    }
+    if (r != WEFT_OK) {
+        return r;
+    }
+    r = weft_garment_set_state(lg->g, lg->scratch, lg->g->x_next);
+    if (r != WEFT_OK) {
+        return r;
+    }
+    for (size_t i = 0; i < nx; ++i) {
+        lg->blend[i] = positions[i] - lg->blend[i];
+    }
+    memcpy(lg->drawn_prev, prev, nx * sizeof(float));
+    lg->blend_left = lg->blend_frames;
+    if (lg->blend_frames > 0) {
+        memcpy(lg->drawn_x, positions, nx * sizeof(float));
+        return WEFT_OK;
+    }
+    return update_drawn(lg);
 }
 
 weft_result weft_lod_garment_set_state(weft_lod_garment *lg, const float *positions, const float *prev_positions)
@@ -279,7 +519,12 @@ weft_result weft_lod_garment_set_state(weft_lod_garment *lg, const float *positi
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_lod_garment_set_state: garment is NULL");
     }
     const uint64_t before = current_frame(lg);
-    weft_result r = weft_garment_set_state(lg->g, positions, prev_positions);
+    weft_result r;
+    if (lg->mesh < 0) {
+        r = weft_garment_set_state(lg->g, positions, prev_positions);
+    } else {
+        r = set_state_coarse(lg, positions, prev_positions);
+    }
     if (r == WEFT_OK) {
         /* The garment's frame count restarts at 0: keep absolute frames increasing, and drop
          * the frames recorded before the teleport. */
@@ -301,12 +546,20 @@ weft_result weft_lod_garment_step(weft_lod_garment *lg)
         return weft_garment_step(lg->g); /* reports the missing collider; nothing to record */
     }
     record(lg);
-    return weft_garment_step(lg->g);
+    weft_result r = weft_garment_step(lg->g);
+    if (r != WEFT_OK || lg->mesh < 0) {
+        return r;
+    }
+    float *t = lg->drawn_prev;
+    lg->drawn_prev = lg->drawn_x;
+    lg->drawn_x = t;
+    lg->blend_left -= lg->blend_left > 0;
+    return update_drawn(lg);
 }
 
 /* Replays recorded frames k0..t-1 through ng's method so its latent window is what it would be
  * had it run them. Only the method's own history changes; ng's state is overwritten afterwards. */
-static weft_result warm(const weft_lod_garment *lg, weft_garment *ng, uint32_t history)
+static weft_result warm(const weft_lod_garment *lg, weft_garment *ng, uint32_t history, int mesh)
 {
     const weft_garment *old = lg->g;
     const uint64_t t = current_frame(lg);
@@ -328,8 +581,18 @@ static weft_result warm(const weft_lod_garment *lg, weft_garment *ng, uint32_t h
     for (uint64_t k = k0; k < t; ++k) {
         const lod_frame *fk = ring_find(lg, k);
         const lod_frame *fp = k > 0 ? ring_find(lg, k - 1) : fk; /* frame 0 starts at rest velocity */
-        memcpy(ng->x, fk->x, nx);
-        memcpy(ng->x_prev, fp->x, nx);
+        if (mesh < 0) {
+            memcpy(ng->x, fk->x, nx);
+            memcpy(ng->x_prev, fp->x, nx);
+        } else {
+            weft_result r = weft_mesh_map_apply(lg->meshes[mesh].down, fk->x, ng->x);
+            if (r == WEFT_OK) {
+                r = weft_mesh_map_apply(lg->meshes[mesh].down, fp->x, ng->x_prev);
+            }
+            if (r != WEFT_OK) {
+                return r;
+            }
+        }
         if (lg->C > 0) {
             memcpy(ng->collider_prev, fk->c, nc);
             memcpy(ng->collider_next, k + 1 == t ? old->collider_prev : ring_find(lg, k + 1)->c, nc);
@@ -356,6 +619,15 @@ weft_result weft_lod_garment_switch(weft_lod_garment *lg, uint32_t level)
     }
     const weft_lod_level *lv = &lg->table->levels[level];
     weft_garment *old = lg->g;
+    const int mesh = mesh_for(lg, lv);
+    if (mesh == -2) {
+        return no_mesh(lg, lv, "weft_lod_garment_switch");
+    }
+    if (mesh >= 0 && old->pin_count > 0) {
+        return weft__fail(WEFT_ERROR_UNSUPPORTED,
+                          "weft_lod_garment_switch: level '%s' simulates a coarser mesh and cannot honour the %u pins "
+                          "in use; clear them first", lv->name, old->pin_count);
+    }
     const weft_method_ops *ops = weft__method_ops(lv->method);
     if (old->pin_count > 0 && ops && !ops->supports_pins) {
         return weft__fail(WEFT_ERROR_UNSUPPORTED,
@@ -366,22 +638,58 @@ weft_result weft_lod_garment_switch(weft_lod_garment *lg, uint32_t level)
     /* LBS binds the garment to the collider at creation: bind to the pose of now, not the rest
      * pose, or the cloth would snap back to where it was designed. */
     const float *bind = lv->method == WEFT_METHOD_LBS && lg->C > 0 ? old->collider_prev : old->collider_rest;
+    /* The drawn state carries over: exactly onto the drawn mesh, mapped down onto a coarse one. */
+    const float *X = drawn_x(lg), *Xp = drawn_prev(lg);
+    const lod_mesh *m = mesh >= 0 ? &lg->meshes[mesh] : NULL;
     weft_garment *ng = NULL;
-    weft_result r = make_garment(lg, lv, old->rest, old->triangles, old->triangle_count, bind, old->collider_triangles,
-                                 old->collider_triangle_count, old->x, &ng);
+    weft_result r = m ? weft_mesh_map_apply(m->down, X, lg->scratch) : WEFT_OK;
+    if (r == WEFT_OK) {
+        r = m ? make_garment(lg, lv, m->rest, m->V, m->tris, m->T, bind, old->collider_triangles,
+                             old->collider_triangle_count, lg->scratch, &ng)
+              : make_garment(lg, lv, lg->rest, lg->N, lg->tris, lg->T, bind, old->collider_triangles,
+                             old->collider_triangle_count, X, &ng);
+    }
     if (r != WEFT_OK) {
         return r;
     }
     if (lv->method == WEFT_METHOD_MODEL) {
-        r = warm(lg, ng, model_history(ng->model));
-        if (r != WEFT_OK) {
-            weft_garment_destroy(ng);
-            return r;
-        }
+        r = warm(lg, ng, model_history(ng->model), mesh);
     }
     const size_t nx = (size_t)lg->N * 3 * sizeof(float), nc = (size_t)lg->C * 3 * sizeof(float);
-    memcpy(ng->x, old->x, nx);
-    memcpy(ng->x_prev, old->x_prev, nx);
+    if (r == WEFT_OK && m) {
+        r = weft_mesh_map_apply(m->down, X, ng->x);
+        if (r == WEFT_OK) {
+            r = weft_mesh_map_apply(m->down, Xp, ng->x_prev);
+        }
+        if (r == WEFT_OK) {
+            r = weft_mesh_map_apply(m->up, ng->x, lg->blend); /* what the coarse mesh shows of X */
+        }
+    } else if (r == WEFT_OK) {
+        memcpy(ng->x, X, nx);
+        memcpy(ng->x_prev, Xp, nx);
+    }
+    if (r != WEFT_OK) {
+        weft_garment_destroy(ng);
+        return r;
+    }
+    if (m) {
+        /* Nothing fails past this point. The drawn state stays X; the difference fades out. */
+        for (size_t i = 0; i < (size_t)lg->N * 3; ++i) {
+            lg->blend[i] = X[i] - lg->blend[i];
+        }
+        if (Xp != lg->drawn_prev) {
+            memcpy(lg->drawn_prev, Xp, nx);
+        }
+        if (X != lg->drawn_x) {
+            memcpy(lg->drawn_x, X, nx);
+        }
+        lg->blend_left = lg->blend_frames;
+        if (lg->blend_frames == 0) {
+            weft_mesh_map_apply(m->up, ng->x, lg->drawn_x); /* succeeded just above */
+        }
+    } else {
+        lg->blend_left = 0;
+    }
     if (lg->C > 0) {
         memcpy(ng->collider_prev, old->collider_prev, nc);
         if (old->collider_next_set) {
@@ -399,12 +707,13 @@ weft_result weft_lod_garment_switch(weft_lod_garment *lg, uint32_t level)
     weft_garment_destroy(old);
     lg->g = ng;
     lg->level = level;
+    lg->mesh = mesh;
     return WEFT_OK;
 }
 
 uint32_t weft_lod_garment_level(const weft_lod_garment *lg) { return lg ? lg->level : 0; }
 
-const float *weft_lod_garment_positions(const weft_lod_garment *lg) { return lg ? lg->g->x : NULL; }
+const float *weft_lod_garment_positions(const weft_lod_garment *lg) { return lg ? drawn_x(lg) : NULL; }
 
 uint32_t weft_lod_garment_vertex_count(const weft_lod_garment *lg) { return lg ? lg->N : 0; }
 

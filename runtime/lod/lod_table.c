@@ -216,9 +216,10 @@ static weft_result parse_level(char cells[COL_COUNT][LOD_CELL_CAP], uint32_t ln,
     }
 
     c = cells[COL_RESOLUTION];
-    if (!parse_u32(c, 1, 1, &lv->resolution)) {
+    if (!parse_f64(c, &lv->resolution) || !(lv->resolution > 0.0 && lv->resolution <= 1.0)) {
         return weft__fail(WEFT_ERROR_FORMAT,
-                          "lod table line %u column 'resolution': '%s' unsupported (only 1, the measured meshes)", ln, c);
+                          "lod table line %u column 'resolution': '%s' is not in (0, 1] (the simulated mesh's share of "
+                          "the drawn mesh's vertices; 1: the drawn mesh itself)", ln, c);
     }
 
     static const struct {

@@ -1,0 +1,280 @@
+/* Resolution levels of weft_lod_garment: a level with resolution < 1 simulates a coarser mesh of
+ * the same garment (def.sim_meshes) and draws the garment's own mesh through a mesh map.
+ *
+ * Scene: a 4k sheet falling onto a box that slides sideways, with the 1k sheet of the same square
+ * as the sim mesh. Checks: the drawn mesh keeps its vertex count at every level; switching 4k ->
+ * 1k -> 4k mid-drape does not pop (the pop metric of test_switch.c: the largest vertex jump in the
+ * frame after the switch against the largest per-frame motion over the 8 frames before), and a
+ * switch without the blend is printed for comparison; set_state at a coarse level shows the given
+ * state exactly; a level without a matching sim mesh, pins at a coarse level and a bad sim mesh
+ * fail with clear errors and leave the garment as it was. */
+#include "../xpbd/scene.h"
+#include "test.h"
+#include "weft/body.h"
+#include "weft/lod.h"
+
+#include <math.h>
+#include <string.h>
+
+#define POP_WINDOW 8
+#define POP_BOUND 1.5
+#define POP_FLOOR_M (9.81 / 3600.0)
+#define SWITCH_AT 16
+
+static const char *const table_text =
+    "level,method,model,precision,substeps,ccd,resolution,ms_per_frame,mve_cm,max_edge_strain,sequences,frames\n"
+    "xpbd-4,xpbd,-,-,4,off,1,4.0,1.0,0.02,1,1\n"
+    "xpbd-4-quarter,xpbd,-,-,4,off,0.25,1.0,1.5,0.02,1,1\n"
+    "xpbd-4-half,xpbd,-,-,4,off,0.5,2.0,1.2,0.02,1,1\n";
+
+typedef struct res_scene {
+    weft_context *ctx;
+    weft_lod_table *table;
+    weft_cloth_mesh *fine, *coarse;
+    test_mesh box;
+    float *moved;
+} res_scene;
+
+static bool scene_make(res_scene *s)
+{
+    memset(s, 0, sizeof *s);
+    weft_context_def cd = weft_default_context_def();
+    CHECK_RESULT(weft_context_create(&cd, &s->ctx), WEFT_OK);
+    weft_cloth_def d = weft_default_cloth_def(WEFT_CLOTH_SHEET);
+    d.size = 0.6f;
+    d.height = 0.55f;
+    d.resolution = WEFT_CLOTH_RES_4K;
+    CHECK_RESULT(weft_cloth_create(s->ctx, &d, NULL, &s->fine), WEFT_OK);
+    d.resolution = WEFT_CLOTH_RES_1K;
+    CHECK_RESULT(weft_cloth_create(s->ctx, &d, NULL, &s->coarse), WEFT_OK);
+    const float lo[3] = {-0.15f, 0.0f, -0.15f}, hi[3] = {0.15f, 0.4f, 0.15f};
+    s->box = test_box(lo, hi);
+    s->moved = malloc(sizeof(float) * 3 * s->box.nv);
+    CHECK_RESULT(weft_lod_table_load_memory(s->ctx, table_text, strlen(table_text), &s->table), WEFT_OK);
+    return s->fine && s->coarse && s->moved && s->table;
+}
+
+static void scene_free(res_scene *s)
+{
+    weft_lod_table_destroy(s->table);
+    free(s->moved);
+    test_mesh_free(&s->box);
+    weft_cloth_destroy(s->fine);
+    weft_cloth_destroy(s->coarse);
+    weft_context_destroy(s->ctx);
+}
+
+static uint32_t level_of(const res_scene *s, const char *name)
+{
+    uint32_t i = 0;
+    CHECK_RESULT(weft_lod_table_find(s->table, name, &i), WEFT_OK);
+    return i;
+}
+
+static weft_result make(const res_scene *s, const char *level, uint32_t blend, bool with_mesh, weft_lod_garment **out)
+{
+    static weft_lod_mesh mesh;
+    mesh.rest_positions = s->coarse->positions;
+    mesh.vertex_count = s->coarse->vertex_count;
+    mesh.triangles = s->coarse->triangles;
+    mesh.triangle_count = s->coarse->triangle_count;
+    weft_lod_garment_def d = weft_default_lod_garment_def();
+    d.table = s->table;
+    d.level = level_of(s, level);
+    d.rest_positions = s->fine->positions;
+    d.vertex_count = s->fine->vertex_count;
+    d.triangles = s->fine->triangles;
+    d.triangle_count = s->fine->triangle_count;
+    d.collider_rest_positions = s->box.pos;
+    d.collider_vertex_count = s->box.nv;
+    d.collider_triangles = s->box.tris;
+    d.collider_triangle_count = s->box.nt;
+    d.sim_meshes = with_mesh ? &mesh : NULL;
+    d.sim_mesh_count = with_mesh ? 1 : 0;
+    d.resolution_blend_frames = blend;
+    return weft_lod_garment_create(s->ctx, &d, out);
+}
+
+/* Frame f -> f+1: the box slides along +X at 0.6 m/s. */
+static bool step(res_scene *s, weft_lod_garment *g, uint32_t f)
+{
+    const float dx = 0.6f * (float)(f + 1) / 60.0f;
+    for (uint32_t i = 0; i < s->box.nv; ++i) {
+        s->moved[3 * i] = s->box.pos[3 * i] + dx;
+        s->moved[3 * i + 1] = s->box.pos[3 * i + 1];
+        s->moved[3 * i + 2] = s->box.pos[3 * i + 2];
+    }
+    weft_result r = weft_lod_garment_set_collider(g, s->moved);
+    if (r == WEFT_OK) {
+        r = weft_lod_garment_step(g);
+    }
+    CHECK_MSG(r == WEFT_OK, "frame %u: %s", f, weft_last_error());
+    return r == WEFT_OK;
+}
+
+static double max_disp(const float *a, const float *b, uint32_t n)
+{
+    double m = 0.0;
+    for (uint32_t i = 0; i < n; ++i) {
+        double dx = a[3 * i] - b[3 * i], dy = a[3 * i + 1] - b[3 * i + 1], dz = a[3 * i + 2] - b[3 * i + 2];
+        m = fmax(m, sqrt(dx * dx + dy * dy + dz * dz));
+    }
+    return m;
+}
+
+/* Runs `from` to SWITCH_AT, switches to `to`, steps once; jump and normal motion in metres. */
+static bool measure(res_scene *s, const char *from, const char *to, uint32_t blend, double *jump, double *normal)
+{
+    const uint32_t N = s->fine->vertex_count;
+    const size_t f = (size_t)N * 3;
+    float *traj = calloc((size_t)(SWITCH_AT + 2) * f, sizeof(float));
+    weft_lod_garment *g = NULL;
+    bool ok = traj && make(s, from, blend, true, &g) == WEFT_OK;
+    CHECK_MSG(ok, "create %s: %s", from, weft_last_error());
+    if (ok) {
+        CHECK_EQ_INT(weft_lod_garment_vertex_count(g), N);
+        memcpy(traj, weft_lod_garment_positions(g), f * sizeof(float));
+    }
+    for (uint32_t k = 0; ok && k < SWITCH_AT; ++k) {
+        ok = step(s, g, k);
+        if (ok) {
+            memcpy(traj + (k + 1) * f, weft_lod_garment_positions(g), f * sizeof(float));
+        }
+    }
+    if (ok) {
+        weft_result r = weft_lod_garment_switch(g, level_of(s, to));
+        CHECK_MSG(r == WEFT_OK, "switch %s -> %s: %s", from, to, weft_last_error());
+        ok = r == WEFT_OK;
+    }
+    if (ok) {
+        /* The switch itself moves nothing that is drawn (without the blend, onto a coarse mesh, it
+         * does: that is the pop the blend avoids). */
+        CHECK_MSG((blend == 0 && strcmp(to, "xpbd-4") != 0) || memcmp(weft_lod_garment_positions(g), traj + SWITCH_AT * f, f * sizeof(float)) == 0,
+                  "%s -> %s: the drawn positions changed at the switch", from, to);
+        const uint32_t sim_n = weft_garment_vertex_count(weft_lod_garment_current(g));
+        CHECK_EQ_INT(sim_n, strcmp(to, "xpbd-4") == 0 ? N : s->coarse->vertex_count);
+        ok = step(s, g, SWITCH_AT);
+    }
+    if (ok) {
+        memcpy(traj + (SWITCH_AT + 1) * f, weft_lod_garment_positions(g), f * sizeof(float));
+        *jump = max_disp(traj + (SWITCH_AT + 1) * f, traj + SWITCH_AT * f, N);
+        *normal = 0.0;
+        for (uint32_t k = SWITCH_AT - POP_WINDOW; k < SWITCH_AT; ++k) {
+            *normal = fmax(*normal, max_disp(traj + (k + 1) * f, traj + k * f, N));
+        }
+    }
+    weft_lod_garment_destroy(g);
+    free(traj);
+    return ok;
+}
+
+static void test_resolution_switch_without_pop(void)
+{
+    res_scene s;
+    if (!scene_make(&s)) {
+        scene_free(&s);
+        return;
+    }
+    static const char *const pairs[][2] = {{"xpbd-4", "xpbd-4-quarter"}, {"xpbd-4-quarter", "xpbd-4"}};
+    for (size_t i = 0; i < 2; ++i) {
+        double jump = 0, normal = 0, raw_jump = 0, raw_normal = 0;
+        if (!measure(&s, pairs[i][0], pairs[i][1], 8, &jump, &normal) ||
+            !measure(&s, pairs[i][0], pairs[i][1], 0, &raw_jump, &raw_normal)) {
+            continue;
+        }
+        printf("%-15s -> %-15s at %u: jump %6.2f mm / normal %6.2f mm = %.2f | without the blend: %6.2f mm = %.2f\n",
+               pairs[i][0], pairs[i][1], SWITCH_AT, jump * 1e3, normal * 1e3, jump / normal, raw_jump * 1e3,
+               raw_jump / raw_normal);
+        CHECK_MSG(normal > 1e-3, "the sheet barely moves before the switch (%g m): the scene tests nothing", normal);
+        CHECK_MSG(jump <= POP_BOUND * normal + POP_FLOOR_M, "%s -> %s: jump %.4g m over %.2f x normal %.4g m",
+                  pairs[i][0], pairs[i][1], jump, POP_BOUND, normal);
+    }
+    scene_free(&s);
+}
+
+static void test_resolution_state_and_failures(void)
+{
+    res_scene s;
+    if (!scene_make(&s)) {
+        scene_free(&s);
+        return;
+    }
+    const uint32_t N = s.fine->vertex_count;
+    const size_t nx = (size_t)N * 3 * sizeof(float);
+    weft_lod_garment *g = NULL;
+
+    /* No sim mesh: a coarse level cannot be created. */
+    CHECK_RESULT(make(&s, "xpbd-4-quarter", 8, false, &g), WEFT_ERROR_UNSUPPORTED);
+    CHECK(g == NULL);
+    CHECK(strstr(weft_last_error(), "xpbd-4-quarter") != NULL);
+
+    /* A coarse level draws the fine mesh; set_state there shows the given state exactly. */
+    CHECK_RESULT(make(&s, "xpbd-4-quarter", 8, true, &g), WEFT_OK);
+    if (g) {
+        CHECK_EQ_INT(weft_lod_garment_vertex_count(g), N);
+        float *x = malloc(nx);
+        memcpy(x, s.fine->positions, nx);
+        for (uint32_t i = 0; i < N; ++i) {
+            x[3 * i + 1] += 0.01f * sinf(40.0f * x[3 * i]); /* ripples finer than the 1k grid */
+        }
+        CHECK_RESULT(weft_lod_garment_set_state(g, x, x), WEFT_OK);
+        CHECK(memcmp(weft_lod_garment_positions(g), x, nx) == 0);
+        /* Pins name drawn vertices: not available while a coarse mesh is simulated. */
+        const uint32_t pin = 0;
+        CHECK_RESULT(weft_lod_garment_set_pins(g, &pin, s.fine->positions, 1), WEFT_ERROR_UNSUPPORTED);
+        /* No mesh near 0.5 (the 1k sheet is a quarter): the switch fails, nothing changes. */
+        CHECK_RESULT(weft_lod_garment_switch(g, level_of(&s, "xpbd-4-half")), WEFT_ERROR_UNSUPPORTED);
+        CHECK_EQ_INT(weft_lod_garment_level(g), level_of(&s, "xpbd-4-quarter"));
+        CHECK(memcmp(weft_lod_garment_positions(g), x, nx) == 0);
+        /* A NaN state is refused and the drawn state kept. */
+        float *bad = malloc(nx);
+        memcpy(bad, x, nx);
+        bad[7] = NAN;
+        CHECK_RESULT(weft_lod_garment_set_state(g, bad, NULL), WEFT_ERROR_NOT_FINITE);
+        CHECK(memcmp(weft_lod_garment_positions(g), x, nx) == 0);
+        /* Back to the fine mesh: it starts exactly where the drawn state was. */
+        CHECK_RESULT(weft_lod_garment_switch(g, level_of(&s, "xpbd-4")), WEFT_OK);
+        CHECK(memcmp(weft_lod_garment_positions(g), x, nx) == 0);
+        free(bad);
+        free(x);
+        weft_lod_garment_destroy(g);
+        g = NULL;
+    }
+
+    /* A fine level with pins cannot switch to a coarse one. */
+    CHECK_RESULT(make(&s, "xpbd-4", 8, true, &g), WEFT_OK);
+    if (g) {
+        const uint32_t pin = 3;
+        CHECK_RESULT(weft_lod_garment_set_pins(g, &pin, s.fine->positions + 9, 1), WEFT_OK);
+        CHECK_RESULT(weft_lod_garment_switch(g, level_of(&s, "xpbd-4-quarter")), WEFT_ERROR_UNSUPPORTED);
+        CHECK_EQ_INT(weft_lod_garment_level(g), level_of(&s, "xpbd-4"));
+        weft_lod_garment_destroy(g);
+        g = NULL;
+    }
+
+    /* A sim mesh with an index out of range fails at creation. */
+    uint32_t *tris = malloc((size_t)s.coarse->triangle_count * 3 * sizeof(uint32_t));
+    memcpy(tris, s.coarse->triangles, (size_t)s.coarse->triangle_count * 3 * sizeof(uint32_t));
+    tris[5] = s.coarse->vertex_count + 3;
+    weft_lod_mesh bad_mesh = {s.coarse->positions, s.coarse->vertex_count, tris, s.coarse->triangle_count};
+    weft_lod_garment_def d = weft_default_lod_garment_def();
+    d.table = s.table;
+    d.level = level_of(&s, "xpbd-4");
+    d.rest_positions = s.fine->positions;
+    d.vertex_count = N;
+    d.triangles = s.fine->triangles;
+    d.triangle_count = s.fine->triangle_count;
+    d.collider_rest_positions = s.box.pos;
+    d.collider_vertex_count = s.box.nv;
+    d.collider_triangles = s.box.tris;
+    d.collider_triangle_count = s.box.nt;
+    d.sim_meshes = &bad_mesh;
+    d.sim_mesh_count = 1;
+    CHECK_MSG(weft_lod_garment_create(s.ctx, &d, &g) != WEFT_OK, "a sim mesh with a bad index was accepted");
+    CHECK(g == NULL);
+    CHECK(strstr(weft_last_error(), "sim_meshes[0]") != NULL);
+    free(tris);
+    scene_free(&s);
+}
+
+TEST_MAIN(TEST_CASE(test_resolution_switch_without_pop), TEST_CASE(test_resolution_state_and_failures))
