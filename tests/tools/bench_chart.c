@@ -4,27 +4,12 @@
 #define _POSIX_C_SOURCE 200809L /* posix_spawn, stat */
 #include "test.h"
 
-#include <spawn.h>
+#include "tool_run.h"
+
 #include <stdbool.h>
 #include <sys/stat.h>
-#include <sys/wait.h>
-
-extern char **environ;
 
 static const char *g_exe, *g_data, *g_out;
-
-static int run(const char *const argv[])
-{
-    pid_t pid;
-    if (posix_spawn(&pid, argv[0], NULL, NULL, (char *const *)argv, environ) != 0) {
-        return -1;
-    }
-    int status = 0;
-    if (waitpid(pid, &status, 0) < 0) {
-        return -1;
-    }
-    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
 
 /* Field `col` (0-based) of a CSV line into out. */
 static void field(const char *line, int col, char *out, size_t cap)
@@ -45,7 +30,7 @@ static void chart_quick_rows(void)
 {
     const char *argv[] = {g_exe, "bench", "chart", "--data", g_data, "--split", "all", "--quick", "--frames", "4",
                           "--xpbd", "5", "--no-fnopt", "--no-plot", "--out", g_out, NULL};
-    CHECK_EQ_INT(run(argv), 0);
+    CHECK_EQ_INT(tool_run(argv, NULL), 0);
     char path[1024];
     snprintf(path, sizeof path, "%s/chart.csv", g_out);
     FILE *f = fopen(path, "r");
@@ -91,9 +76,9 @@ static void chart_rejects_bad_input(void)
 {
     /* A folder without sequences and an unknown option both fail cleanly. */
     const char *none[] = {g_exe, "bench", "chart", "--data", g_out, "--no-fnopt", "--no-plot", "--out", g_out, NULL};
-    CHECK_EQ_INT(run(none), 1);
+    CHECK_EQ_INT(tool_run(none, NULL), 1);
     const char *bad[] = {g_exe, "bench", "chart", "--data", g_data, "--xpbd", "0", NULL};
-    CHECK_EQ_INT(run(bad), 2);
+    CHECK_EQ_INT(tool_run(bad, NULL), 2);
 }
 
 int main(int argc, char **argv)

@@ -1,39 +1,17 @@
 /* `weft eval` options on the committed sample sequence: --sim-mesh with the sequence's own mesh
- * (an identity map) scores exactly as without it, --tether-cm runs and bad values of either fail
- * with an error exit. argv: weft binary, data folder, output folder. Exits 77 (skipped) without
+ * (an identity map) scores exactly as without it, --tether-cm and --strain-limit run, a tiny
+ * --time-limit stops the rollout early and says so, and bad values fail with an error exit. argv: weft binary, data folder, output folder. Exits 77 (skipped) without
  * a sample sequence. */
 #define _POSIX_C_SOURCE 200809L /* posix_spawn, stat */
 #include "test.h"
 
-#include <fcntl.h>
+#include "tool_run.h"
+
 #include <math.h>
 #include <stdbool.h>
-#include <spawn.h>
 #include <sys/stat.h>
-#include <sys/wait.h>
-
-extern char **environ;
 
 static const char *g_exe, *g_seq, *g_out;
-
-/* Runs argv with stdout into `out_path`; returns the exit status (-1 if it did not exit). */
-static int run_to(const char *const argv[], const char *out_path)
-{
-    posix_spawn_file_actions_t fa;
-    posix_spawn_file_actions_init(&fa);
-    posix_spawn_file_actions_addopen(&fa, 1, out_path, O_WRONLY | O_CREAT | O_TRUNC, 0644);
-    pid_t pid;
-    int ok = posix_spawn(&pid, argv[0], &fa, NULL, (char *const *)argv, environ);
-    posix_spawn_file_actions_destroy(&fa);
-    if (ok != 0) {
-        return -1;
-    }
-    int status = 0;
-    if (waitpid(pid, &status, 0) < 0) {
-        return -1;
-    }
-    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
-}
 
 /* The JSON line eval printed, with its "ms_per_frame" value replaced by '#' (wall time differs per
  * run, in value and in length). */
@@ -79,8 +57,8 @@ static void sim_mesh_identity(void)
     const char *plain[] = {g_exe, "eval", "--seq", g_seq, "--method", "xpbd:5", "--frames", "6", "--json", NULL};
     const char *mapped[] = {g_exe,  "eval",   "--seq", g_seq,        "--method", "xpbd:5", "--frames",
                             "6",    "--json", "--sim-mesh", g_seq, NULL};
-    CHECK_EQ_INT(run_to(plain, a), 0);
-    CHECK_EQ_INT(run_to(mapped, b), 0);
+    CHECK_EQ_INT(tool_run(plain, a), 0);
+    CHECK_EQ_INT(tool_run(mapped, b), 0);
     CHECK(json_line(a, ja, sizeof ja));
     CHECK(json_line(b, jb, sizeof jb));
     double mve = json_number(ja, "mve_cm");
@@ -96,15 +74,42 @@ static void tethers_and_bad_values(void)
     snprintf(o, sizeof o, "%s/eval_tether.txt", g_out);
     const char *tied[] = {g_exe, "eval", "--seq", g_seq, "--method", "xpbd:5", "--frames", "6", "--tether-cm", "2",
                           "--json", NULL};
-    CHECK_EQ_INT(run_to(tied, o), 0);
+    CHECK_EQ_INT(tool_run(tied, o), 0);
     CHECK(json_line(o, j, sizeof j));
     CHECK_MSG(isfinite(json_number(j, "mve_cm")) && isfinite(json_number(j, "ccd_passes")), "%s", j);
     const char *negative[] = {g_exe, "eval", "--seq", g_seq, "--method", "lbs", "--tether-cm", "-1", "--json", NULL};
-    CHECK_EQ_INT(run_to(negative, o), 1); /* the library rejects the radius; nothing is scored */
+    CHECK_EQ_INT(tool_run(negative, o), 1); /* the library rejects the radius; nothing is scored */
     const char *garbage[] = {g_exe, "eval", "--seq", g_seq, "--tether-cm", "3cm", NULL};
-    CHECK_EQ_INT(run_to(garbage, o), 2);
+    CHECK_EQ_INT(tool_run(garbage, o), 2);
     const char *missing[] = {g_exe, "eval", "--seq", g_seq, "--method", "lbs", "--sim-mesh", g_out, "--json", NULL};
-    CHECK_EQ_INT(run_to(missing, o), 1); /* no rest_pos.npy there */
+    CHECK_EQ_INT(tool_run(missing, o), 1); /* no rest_pos.npy there */
+}
+
+static void strain_and_time_limits(void)
+{
+    char o[1200], j[2048];
+    snprintf(o, sizeof o, "%s/eval_strain.txt", g_out);
+    const char *limited[] = {g_exe, "eval", "--seq", g_seq, "--method", "xpbd:5", "--frames", "6", "--strain-limit",
+                             "10", "--json", NULL};
+    CHECK_EQ_INT(tool_run(limited, o), 0);
+    CHECK(json_line(o, j, sizeof j));
+    CHECK_MSG(isfinite(json_number(j, "mve_cm")) && json_number(j, "overstretched_pct") >= 0.0 &&
+                  json_number(j, "gt_max_edge_strain") >= 0.0 && strstr(j, "\"time_limited\": false"),
+              "%s", j);
+    /* 1 ms of stepping: XPBD on the sample takes longer than that per frame, so the rollout stops
+     * after its first frame or two and reports it. */
+    snprintf(o, sizeof o, "%s/eval_time.txt", g_out);
+    const char *timed[] = {g_exe, "eval", "--seq", g_seq, "--method", "xpbd:40", "--time-limit", "0.001", "--json", NULL};
+    CHECK_EQ_INT(tool_run(timed, o), 0);
+    CHECK(json_line(o, j, sizeof j));
+    CHECK_MSG(strstr(j, "\"time_limited\": true") && json_number(j, "frames") >= 1 && json_number(j, "frames") < 10,
+              "%s", j);
+    const char *bad_strain[] = {g_exe, "eval", "--seq", g_seq, "--method", "lbs", "--strain-limit", "-5", "--json", NULL};
+    CHECK_EQ_INT(tool_run(bad_strain, o), 1); /* the library rejects the limit */
+    const char *bad_time[] = {g_exe, "eval", "--seq", g_seq, "--time-limit", "0", NULL};
+    CHECK_EQ_INT(tool_run(bad_time, o), 2);
+    const char *junk_time[] = {g_exe, "eval", "--seq", g_seq, "--time-limit", "5s", NULL};
+    CHECK_EQ_INT(tool_run(junk_time, o), 2);
 }
 
 int main(int argc, char **argv)
@@ -126,6 +131,7 @@ int main(int argc, char **argv)
         return 77;
     }
     mkdir(g_out, 0777);
-    static const test_case_ cases[] = {TEST_CASE(sim_mesh_identity), TEST_CASE(tethers_and_bad_values)};
+    static const test_case_ cases[] = {TEST_CASE(sim_mesh_identity), TEST_CASE(tethers_and_bad_values),
+                                       TEST_CASE(strain_and_time_limits)};
     return test_run_(cases, sizeof cases / sizeof cases[0], 1, argv);
 }

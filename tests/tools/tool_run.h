@@ -1,0 +1,33 @@
+/* Running the `weft` binary from a test: one child process, stdout into a file or inherited. */
+#ifndef WEFT_TESTS_TOOL_RUN_H
+#define WEFT_TESTS_TOOL_RUN_H
+
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/wait.h>
+
+extern char **environ;
+
+/* Runs argv (argv[0] a path, NULL-terminated) with stdout into out_path (NULL: inherited);
+ * returns the exit status, or -1 when it could not start or did not exit. */
+static inline int tool_run(const char *const argv[], const char *out_path)
+{
+    posix_spawn_file_actions_t fa;
+    posix_spawn_file_actions_init(&fa);
+    if (out_path) {
+        posix_spawn_file_actions_addopen(&fa, 1, out_path, O_WRONLY | O_CREAT | O_TRUNC, 0644);
+    }
+    pid_t pid;
+    int ok = posix_spawn(&pid, argv[0], &fa, NULL, (char *const *)argv, environ);
+    posix_spawn_file_actions_destroy(&fa);
+    if (ok != 0) {
+        return -1;
+    }
+    int status = 0;
+    if (waitpid(pid, &status, 0) < 0) {
+        return -1;
+    }
+    return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+#endif
