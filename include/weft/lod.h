@@ -217,8 +217,12 @@ WEFT_API uint32_t weft_lod_garment_vertex_count(const weft_lod_garment *garment)
  * read its stats. Valid until the next switch or destroy. Step it only after
  * weft_lod_garment_set_collider so that the past-frame ring stays complete, and change its state
  * through weft_lod_garment_set_state, not weft_garment_set_state. At a resolution level it is the
- * coarse garment (its own vertex count), and only weft_lod_garment_step updates the drawn mesh. */
+ * coarse garment (its own vertex count): call weft_lod_garment_sync after each such step. */
 WEFT_API weft_garment *weft_lod_garment_current(weft_lod_garment *garment);
+/* After stepping weft_lod_garment_current yourself: maps the new state onto the drawn mesh at a
+ * resolution level (no-op at resolution 1, or when it was not stepped since the last call).
+ * weft_lod_garment_step does this itself. */
+WEFT_API weft_result weft_lod_garment_sync(weft_lod_garment *garment);
 
 /* ---------------------------------------------------------------------------------------- */
 /* Mesh maps: one garment at two resolutions (the resolution lever of level of detail).        */

@@ -64,6 +64,7 @@ struct weft_lod_garment {
     uint32_t blend_frames, blend_left;
     float *scratch;                     /* largest sim mesh's vertex count * 3 */
     size_t scratch_floats;
+    uint64_t drawn_frame;               /* g->stats.frame the drawn state was last made for */
 };
 
 weft_lod_garment_def weft_default_lod_garment_def(void)
@@ -525,6 +526,7 @@ weft_result weft_lod_garment_set_state(weft_lod_garment *lg, const float *positi
     } else {
         r = set_state_coarse(lg, positions, prev_positions);
     }
+    lg->drawn_frame = lg->g->stats.frame;
     if (r == WEFT_OK) {
         /* The garment's frame count restarts at 0: keep absolute frames increasing, and drop
          * the frames recorded before the teleport. */
@@ -547,14 +549,26 @@ weft_result weft_lod_garment_step(weft_lod_garment *lg)
     }
     record(lg);
     weft_result r = weft_garment_step(lg->g);
-    if (r != WEFT_OK || lg->mesh < 0) {
-        return r;
+    return r == WEFT_OK ? weft_lod_garment_sync(lg) : r;
+}
+
+weft_result weft_lod_garment_sync(weft_lod_garment *lg)
+{
+    if (!lg) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_lod_garment_sync: garment is NULL");
+    }
+    if (lg->mesh < 0 || lg->g->stats.frame == lg->drawn_frame) {
+        return WEFT_OK;
     }
     float *t = lg->drawn_prev;
     lg->drawn_prev = lg->drawn_x;
     lg->drawn_x = t;
     lg->blend_left -= lg->blend_left > 0;
-    return update_drawn(lg);
+    weft_result r = update_drawn(lg);
+    if (r == WEFT_OK) {
+        lg->drawn_frame = lg->g->stats.frame;
+    }
+    return r;
 }
 
 /* Replays recorded frames k0..t-1 through ng's method so its latent window is what it would be
@@ -708,6 +722,7 @@ weft_result weft_lod_garment_switch(weft_lod_garment *lg, uint32_t level)
     lg->g = ng;
     lg->level = level;
     lg->mesh = mesh;
+    lg->drawn_frame = ng->stats.frame;
     return WEFT_OK;
 }
 

@@ -29,6 +29,11 @@ typedef struct crowd {
     weft_context *ctx;
     weft_body *body;
     weft_cloth_mesh *cloth;
+    /* The same garment at the wardrobe's coarser resolutions: the sim meshes of resolution levels
+     * (lod.csv resolution < 1), placed per character in coarse_rest. */
+    weft_cloth_mesh *coarse[WEFT_CLOTH_RES_COUNT];
+    float *coarse_rest[WEFT_CLOTH_RES_COUNT];
+    uint32_t coarse_count;
     weft_lod_table *table;
     weft_model *models[CROWD_MAX_MODELS];
     uint32_t model_count;
@@ -56,6 +61,10 @@ static void crowd_free(crowd *c)
     }
     weft_lod_table_destroy(c->table);
     weft_cloth_destroy(c->cloth);
+    for (uint32_t k = 0; k < c->coarse_count; ++k) {
+        weft_cloth_destroy(c->coarse[k]);
+        free(c->coarse_rest[k]);
+    }
     weft_body_destroy(c->body);
     weft_renderer_destroy(c->renderer);
     free(c->garments);
@@ -216,6 +225,17 @@ int weft_avatar_sample_crowd(const weft_avatar_sample_options *o)
         weft_cloth_create(c.ctx, &cldef, c.body, &c.cloth) != WEFT_OK) {
         return crowd_fail(&c, "setting up the avatar and garment");
     }
+    for (int r = WEFT_CLOTH_RES_1K; r < (int)res; ++r) {
+        weft_cloth_def coarse_def = cldef;
+        coarse_def.resolution = (weft_cloth_resolution)r;
+        weft_cloth_mesh **m = &c.coarse[c.coarse_count];
+        if (weft_cloth_create(c.ctx, &coarse_def, c.body, m) != WEFT_OK ||
+            !(c.coarse_rest[c.coarse_count] = malloc((size_t)(*m)->vertex_count * 3 * sizeof(float)))) {
+            weft_cloth_destroy(*m);
+            return crowd_fail(&c, "making the garment's coarser meshes");
+        }
+        c.coarse_count++;
+    }
     if (!load_table(&c, o)) {
         crowd_free(&c);
         return 1;
@@ -223,6 +243,11 @@ int weft_avatar_sample_crowd(const weft_avatar_sample_options *o)
     const uint32_t levels = weft_lod_table_count(c.table);
     const uint32_t nb = weft_body_vertex_count(c.body), nv = c.cloth->vertex_count;
     c.usable = calloc(levels, 1);
+    weft_lod_mesh sim[WEFT_CLOTH_RES_COUNT];
+    for (uint32_t k = 0; k < c.coarse_count; ++k) {
+        sim[k] = (weft_lod_mesh){c.coarse_rest[k], c.coarse[k]->vertex_count, c.coarse[k]->triangles,
+                                 c.coarse[k]->triangle_count};
+    }
     c.garments = calloc(n, sizeof *c.garments);
     c.level = calloc(n, sizeof *c.level);
     c.by_level = calloc(n, sizeof *c.by_level);
@@ -242,6 +267,21 @@ int weft_avatar_sample_crowd(const weft_avatar_sample_options *o)
         return 1;
     }
     load_models(&c, o);
+    /* A resolution level needs a coarser mesh near its share of the drawn vertices (the rule of
+     * weft_lod_garment_def.sim_meshes: within a factor of 1.5). */
+    for (uint32_t l = 0; l < levels; ++l) {
+        const weft_lod_level *lv = weft_lod_table_level(c.table, l);
+        bool mesh = lv->resolution >= 1.0;
+        for (uint32_t k = 0; k < c.coarse_count && !mesh; ++k) {
+            double share = (double)c.coarse[k]->vertex_count / nv;
+            mesh = share <= 1.5 * lv->resolution && share >= lv->resolution / 1.5;
+        }
+        if (c.usable[l] && !mesh) {
+            printf("level %s not usable: no %s mesh near %.0f vertices for resolution %g\n", lv->name, o->garment,
+                   lv->resolution * nv, lv->resolution);
+            c.usable[l] = 0;
+        }
+    }
 
     /* Grid: columns along X, rows going away from the camera (-Z), centred on the origin. */
     const uint32_t cols = (uint32_t)ceil(sqrt((double)n));
@@ -319,6 +359,13 @@ int weft_avatar_sample_crowd(const weft_avatar_sample_options *o)
             c.rest[3 * v + 1] = c.cloth->positions[3 * v + 1];
             c.rest[3 * v + 2] = c.cloth->positions[3 * v + 2] + dz;
         }
+        for (uint32_t k = 0; k < c.coarse_count; ++k) {
+            for (uint32_t v = 0; v < c.coarse[k]->vertex_count; ++v) {
+                c.coarse_rest[k][3 * v] = c.coarse[k]->positions[3 * v] + dx;
+                c.coarse_rest[k][3 * v + 1] = c.coarse[k]->positions[3 * v + 1];
+                c.coarse_rest[k][3 * v + 2] = c.coarse[k]->positions[3 * v + 2] + dz;
+            }
+        }
         weft_lod_garment_def d = weft_default_lod_garment_def();
         d.table = c.table;
         d.level = c.level[i];
@@ -332,6 +379,8 @@ int weft_avatar_sample_crowd(const weft_avatar_sample_options *o)
         d.collider_vertex_count = nb;
         d.collider_triangles = weft_body_triangles(c.body);
         d.collider_triangle_count = weft_body_triangle_count(c.body);
+        d.sim_meshes = sim;
+        d.sim_mesh_count = c.coarse_count;
         if (weft_lod_garment_create(c.ctx, &d, &c.garments[i]) != WEFT_OK) {
             return crowd_fail(&c, "creating a garment");
         }
@@ -415,6 +464,12 @@ int weft_avatar_sample_crowd(const weft_avatar_sample_options *o)
                 snprintf(what, sizeof what, "cloth step of level %s at frame %u", weft_lod_table_level(c.table, l)->name,
                          f);
                 return crowd_fail(&c, what);
+            }
+            /* Resolution levels draw the garment through a mesh map: part of their step. */
+            for (uint32_t k = 0; k < c.level_count[l]; ++k) {
+                if (weft_lod_garment_sync(c.garments[c.by_level[first + k]]) != WEFT_OK) {
+                    return crowd_fail(&c, "mapping a garment onto its drawn mesh");
+                }
             }
             double ms = weft__now_ms() - t0;
             frame_ms += ms;

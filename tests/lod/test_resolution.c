@@ -277,4 +277,34 @@ static void test_resolution_state_and_failures(void)
     scene_free(&s);
 }
 
-TEST_MAIN(TEST_CASE(test_resolution_switch_without_pop), TEST_CASE(test_resolution_state_and_failures))
+/* Stepping the current (coarse) garment directly, as a batched host does, then syncing, draws the
+ * same positions as weft_lod_garment_step; a sync without a step changes nothing. */
+static void test_resolution_sync(void)
+{
+    res_scene s;
+    if (!scene_make(&s)) {
+        scene_free(&s);
+        return;
+    }
+    const size_t nx = (size_t)s.fine->vertex_count * 3 * sizeof(float);
+    weft_lod_garment *a = NULL, *b = NULL;
+    CHECK_RESULT(make(&s, "xpbd-4-quarter", 8, true, &a), WEFT_OK);
+    CHECK_RESULT(make(&s, "xpbd-4-quarter", 8, true, &b), WEFT_OK);
+    for (uint32_t f = 0; a && b && f < 4; ++f) {
+        CHECK(step(&s, a, f));
+        CHECK_RESULT(weft_lod_garment_set_collider(b, s.moved), WEFT_OK); /* step() left frame f+1's box */
+        weft_garment *cur = weft_lod_garment_current(b);
+        CHECK_RESULT(weft_garments_step(&cur, 1), WEFT_OK);
+        CHECK_RESULT(weft_lod_garment_sync(b), WEFT_OK);
+        CHECK_RESULT(weft_lod_garment_sync(b), WEFT_OK); /* nothing stepped since: no-op */
+        CHECK_MSG(memcmp(weft_lod_garment_positions(a), weft_lod_garment_positions(b), nx) == 0,
+                  "batched step + sync drew different positions at frame %u", f);
+    }
+    CHECK_RESULT(weft_lod_garment_sync(NULL), WEFT_ERROR_INVALID_ARGUMENT);
+    weft_lod_garment_destroy(a);
+    weft_lod_garment_destroy(b);
+    scene_free(&s);
+}
+
+TEST_MAIN(TEST_CASE(test_resolution_switch_without_pop), TEST_CASE(test_resolution_state_and_failures),
+          TEST_CASE(test_resolution_sync))
