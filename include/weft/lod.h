@@ -51,6 +51,11 @@
  *   (a row of a table with all three, from `weft bench lod --crops model,5:cells,model@3000`)
  *   game-int8-noccd-cells5,model,game,int8,-,off,1,4.02397,6.39549,1.53334,3,180,5,cells,-
  *
+ * Optional columns for every method (weft_garment_def's tether_distance and strain_limit):
+ *
+ *   tether_cm            tether radius in cm, in (0, 100000]; "-": no tethers
+ *   strain_limit_pct     strain limit in %, in (0, 1000]; "-": none
+ *
  * Columns may come in any order; unknown columns are an error (a misspelt name would otherwise
  * silently drop a measurement). Tables written before the crop columns existed load unchanged.
  */
@@ -79,6 +84,8 @@ typedef struct weft_lod_level {
     double crop_cm;                     /* 0: the model's own margin */
     weft_collider_crop collider_crop;   /* BOX unless the table says cells */
     uint32_t max_collider_tokens;       /* 0: no cap */
+    double tether_cm;                   /* 0: no tethers (weft_garment_def.tether_distance, in cm) */
+    double strain_limit_pct;            /* 0: none (weft_garment_def.strain_limit, in %) */
     double ms_per_frame;
     double mve_cm;
     double max_edge_strain;

@@ -130,6 +130,8 @@ static weft_result make_garment(weft_lod_garment *lg, const weft_lod_level *lv, 
     if (lv->method == WEFT_METHOD_XPBD) {
         d.substeps = lv->substeps;
     }
+    d.tether_distance = (float)(lv->tether_cm / 100.0);
+    d.strain_limit = (float)(lv->strain_limit_pct / 100.0);
     d.rest_positions = rest;
     d.vertex_count = nv;
     d.triangles = tris;
@@ -649,9 +651,10 @@ weft_result weft_lod_garment_switch(weft_lod_garment *lg, uint32_t level)
                           "them first",
                           lv->name, ops->name, old->pin_count);
     }
-    /* LBS binds the garment to the collider at creation: bind to the pose of now, not the rest
-     * pose, or the cloth would snap back to where it was designed. */
-    const float *bind = lv->method == WEFT_METHOD_LBS && lg->C > 0 ? old->collider_prev : old->collider_rest;
+    /* LBS and tethers bind the garment to the collider at creation: bind to the pose of now, not
+     * the rest pose, or the cloth would snap back to where it was designed. */
+    const bool binds = lv->method == WEFT_METHOD_LBS || lv->tether_cm > 0.0;
+    const float *bind = binds && lg->C > 0 ? old->collider_prev : old->collider_rest;
     /* The drawn state carries over: exactly onto the drawn mesh, mapped down onto a coarse one. */
     const float *X = drawn_x(lg), *Xp = drawn_prev(lg);
     const lod_mesh *m = mesh >= 0 ? &lg->meshes[mesh] : NULL;

@@ -28,17 +28,20 @@ enum lod_column {
     COL_CROP_CM = COL_REQUIRED,
     COL_CROP_RULE,
     COL_CROP_TOKENS,
+    COL_TETHER_CM,
+    COL_STRAIN_PCT,
     COL_COUNT
 };
 
 static const char *const column_names[COL_COUNT] = {
     "level",     "method",    "model",  "precision", "substeps",      "ccd",
     "resolution", "ms_per_frame", "mve_cm", "max_edge_strain", "sequences", "frames",
-    "crop_cm",   "collider_crop", "max_collider_tokens"};
+    "crop_cm",   "collider_crop", "max_collider_tokens", "tether_cm", "strain_limit_pct"};
 
 /* What an absent optional column means: the model's own crop. */
-static const char *const column_defaults[COL_COUNT] = {[COL_CROP_CM] = "-", [COL_CROP_RULE] = "-",
-                                                       [COL_CROP_TOKENS] = "-"};
+static const char *const column_defaults[COL_COUNT] = {[COL_CROP_CM] = "-",     [COL_CROP_RULE] = "-",
+                                                       [COL_CROP_TOKENS] = "-", [COL_TETHER_CM] = "-",
+                                                       [COL_STRAIN_PCT] = "-"};
 
 /* One line split at commas into trimmed cells (no quoting: no field needs a comma). */
 typedef struct lod_line {
@@ -272,6 +275,20 @@ static weft_result parse_level(char cells[COL_COUNT][LOD_CELL_CAP], uint32_t ln,
         return weft__fail(WEFT_ERROR_FORMAT,
                           "lod table line %u column 'max_collider_tokens': '%s' is not '-' (no cap) or an integer >= 1",
                           ln, c);
+    }
+    /* Tethers and strain limit (every method; weft_garment_def.tether_distance / strain_limit). */
+    c = cells[COL_TETHER_CM];
+    if (strcmp(c, "-") != 0 && (!parse_f64(c, &lv->tether_cm) || !(lv->tether_cm > 0.0) || lv->tether_cm > 1e5)) {
+        return weft__fail(WEFT_ERROR_FORMAT,
+                          "lod table line %u column 'tether_cm': '%s' is not '-' (no tethers) or a number in (0, 100000]",
+                          ln, c);
+    }
+    c = cells[COL_STRAIN_PCT];
+    if (strcmp(c, "-") != 0 &&
+        (!parse_f64(c, &lv->strain_limit_pct) || !(lv->strain_limit_pct > 0.0) || lv->strain_limit_pct > 1000.0)) {
+        return weft__fail(WEFT_ERROR_FORMAT,
+                          "lod table line %u column 'strain_limit_pct': '%s' is not '-' (no limit) or a number in "
+                          "(0, 1000]", ln, c);
     }
     return WEFT_OK;
 }

@@ -84,6 +84,33 @@ static void test_load_good(void)
     weft_context_destroy(ctx);
 }
 
+#define HEADER_GARMENT                                                                                             \
+    "level,method,model,precision,substeps,ccd,resolution,ms_per_frame,mve_cm,max_edge_strain,sequences,frames,"      \
+    "tether_cm,strain_limit_pct\n"
+
+/* The optional tether and strain-limit columns: absent means none, "-" means none, numbers in cm
+ * and %; every method may have them. */
+static void test_load_garment_columns(void)
+{
+    weft_context_def cd = weft_default_context_def();
+    weft_context *ctx = NULL;
+    CHECK_RESULT(weft_context_create(&cd, &ctx), WEFT_OK);
+    const char *text = HEADER_GARMENT "t,lbs,-,-,-,on,1,1,1,0,1,1,3,10\n"
+                                      "n,xpbd,-,-,5,on,0.25,1,1,0,1,1,-,-\n"
+                                      "m,model,game,int8,-,on,1,1,1,0,1,1,2.5,-\n";
+    weft_lod_table *t = NULL;
+    CHECK_RESULT(weft_lod_table_load_memory(ctx, text, strlen(text), &t), WEFT_OK);
+    if (t) {
+        const weft_lod_level *a = weft_lod_table_level(t, 0), *b = weft_lod_table_level(t, 1),
+                             *c = weft_lod_table_level(t, 2);
+        CHECK(a->tether_cm == 3.0 && a->strain_limit_pct == 10.0);
+        CHECK(b->tether_cm == 0.0 && b->strain_limit_pct == 0.0 && b->resolution == 0.25);
+        CHECK(c->tether_cm == 2.5 && c->strain_limit_pct == 0.0);
+    }
+    weft_lod_table_destroy(t);
+    weft_context_destroy(ctx);
+}
+
 static void test_load_malformed(void)
 {
     weft_context *ctx = ctx_make();
@@ -128,6 +155,11 @@ static void test_load_malformed(void)
                "frames\nx,lbs,-,-,-,on,1,1,1,0,1,1\n",
          "twice"},
         {NULL, "level,method\nx,lbs\n", "header"},
+        {NULL, HEADER_GARMENT "x,lbs,-,-,-,on,1,1,1,0,1,1,0,-\n", "tether_cm"},
+        {NULL, HEADER_GARMENT "x,lbs,-,-,-,on,1,1,1,0,1,1,3cm,-\n", "tether_cm"},
+        {NULL, HEADER_GARMENT "x,lbs,-,-,-,on,1,1,1,0,1,1,-,0\n", "strain_limit_pct"},
+        {NULL, HEADER_GARMENT "x,lbs,-,-,-,on,1,1,1,0,1,1,-,1001\n", "strain_limit_pct"},
+        {NULL, HEADER_GARMENT "x,lbs,-,-,-,on,1,1,1,0,1,1,-,nan\n", "strain_limit_pct"},
     };
     char text[2048];
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; ++i) {
@@ -254,5 +286,5 @@ static void test_pick(void)
     weft_context_destroy(ctx);
 }
 
-TEST_MAIN(TEST_CASE(test_load_good), TEST_CASE(test_load_malformed), TEST_CASE(test_load_truncations),
+TEST_MAIN(TEST_CASE(test_load_good), TEST_CASE(test_load_garment_columns), TEST_CASE(test_load_malformed), TEST_CASE(test_load_truncations),
           TEST_CASE(test_pick))

@@ -47,6 +47,7 @@ typedef struct lod_cand {
     unsigned substeps;
     bool ccd;
     lod_crop crop;              /* model levels only */
+    double tether_cm, strain_pct; /* 0: none */
     uint32_t sequences, frames, failed, nan_runs;
     double mve_w, ms_w, strain;
     char note[240];
@@ -54,6 +55,9 @@ typedef struct lod_cand {
 
 typedef struct lod_opts {
     const char *data, *split, *models, *out, *scale_levels, *scale_res;
+    const char *scenario;               /* only sequences of this scenario; NULL: all */
+    const char *name;                   /* OUT/<name>.csv, and its own blocks in OUT/LOD.md unless "lod" */
+    double tether_cm, strain_pct;       /* > 0: also measure the deployed garment levels with these */
     uint32_t frames, max_seqs, scale_frames;
     unsigned xpbd[8];
     size_t nxpbd;
@@ -69,6 +73,7 @@ static void usage(FILE *f)
             "usage: weft bench lod --data DIR [--split test|val|train|all] [--models DIR] [--out DIR] [--frames N]\n"
             "                      [--max-seqs N] [--xpbd 5,10,20] [--no-scale] [--scale-levels a,b,...]\n"
             "                      [--scale-frames N] [--scale-res 1k|4k] [--scale-only] [--crops model,8,4:cells]\n"
+            "                      [--scenario S] [--name NAME] [--tether-cm X] [--strain-limit P]\n"
             "  Measures every level (LBS, XPBD at the given substeps, each DIR/*.safetensors model at\n"
             "  fp32/fp16/int8 with and without CCD) on the split through `weft eval --json`, writes OUT/lod.csv\n"
             "  (loadable by weft_lod_table_load_file) and the table in OUT/LOD.md, then measures the\n"
@@ -82,7 +87,11 @@ static void usage(FILE *f)
             "  --crop-cost   only measure the step cost of the --crops on the walking default avatar (T-shirt\n"
             "                --scale-res, --scale-frames timed frames, CCD off, fp32): one garment per crop, stepped\n"
             "                in turn each frame; prints median and min ms per step and the mean kept tokens.\n"
-            "                --crop-model FILE (default MODELS/game.safetensors)\n",
+            "                --crop-model FILE (default MODELS/game.safetensors)\n"
+            "  --scenario S  only the split's sequences of scenario S (e.g. garment)\n"
+            "  --name NAME   write OUT/NAME.csv and the tables into their own sections of OUT/LOD.md (default lod)\n"
+            "  --tether-cm X, --strain-limit P  also measure LBS, the first XPBD and every model's int8 (CCD on and\n"
+            "                off) with tethers of X cm and/or a P %% strain limit (levels named ...-tX-sP)\n",
             LOD_MAX_CROPS);
 }
 
@@ -254,6 +263,37 @@ static size_t build_candidates(weft_context *ctx, const lod_opts *o, lod_cand *c
             }
         }
     }
+    /* The deployed garment levels: the same methods with tethers and/or the strain limit. */
+    if (o->tether_cm > 0.0 || o->strain_pct > 0.0) {
+        char suffix[32] = "";
+        if (o->tether_cm > 0.0) {
+            snprintf(suffix, sizeof suffix, "-t%.4g", o->tether_cm);
+        }
+        if (o->strain_pct > 0.0) {
+            size_t used = strlen(suffix);
+            snprintf(suffix + used, sizeof suffix - used, "-s%.4g", o->strain_pct);
+        }
+        const size_t base = n;
+        for (size_t i = 0; i < base && n < LOD_MAX_CANDS; ++i) {
+            const lod_cand *b = &c[i];
+            bool first_xpbd = strcmp(b->family, "xpbd") == 0 && o->nxpbd && b->substeps == o->xpbd[0];
+            bool int8_own = strcmp(b->family, "model") == 0 && strcmp(b->precision, "int8") == 0 &&
+                            b->crop.cm == 0.0 && !b->crop.cells && !b->crop.tokens;
+            if (!(strcmp(b->family, "lbs") == 0 || first_xpbd || int8_own)) {
+                continue;
+            }
+            char full[160];
+            snprintf(full, sizeof full, "%.47s%.31s", b->name, suffix);
+            if (strlen(full) >= WEFT_LOD_NAME_CAP) {
+                continue;
+            }
+            c[n] = *b;
+            memcpy(c[n].name, full, strlen(full) + 1);
+            c[n].tether_cm = o->tether_cm;
+            c[n].strain_pct = o->strain_pct;
+            n++;
+        }
+    }
     return n;
 }
 
@@ -263,7 +303,9 @@ static void run_candidates(const char *exe, const lod_opts *o, const bench_seq *
     char frames_arg[16];
     snprintf(frames_arg, sizeof frames_arg, "%u", o->frames);
     for (size_t k = 0; k < nc; ++k) {
-        char crop_arg[32], tokens_arg[16];
+        char crop_arg[32], tokens_arg[16], tether_arg[32], strain_arg[32];
+        snprintf(tether_arg, sizeof tether_arg, "%.9g", c[k].tether_cm);
+        snprintf(strain_arg, sizeof strain_arg, "%.9g", c[k].strain_pct);
         snprintf(crop_arg, sizeof crop_arg, "%.9g", c[k].crop.cm);
         snprintf(tokens_arg, sizeof tokens_arg, "%u", c[k].crop.tokens);
         for (size_t s = 0; s < nseq; ++s) {
@@ -294,6 +336,14 @@ static void run_candidates(const char *exe, const lod_opts *o, const bench_seq *
                     extra[n++] = "--max-collider-tokens";
                     extra[n++] = tokens_arg;
                 }
+            }
+            if (c[k].tether_cm > 0.0) {
+                extra[n++] = "--tether-cm";
+                extra[n++] = tether_arg;
+            }
+            if (c[k].strain_pct > 0.0) {
+                extra[n++] = "--strain-limit";
+                extra[n++] = strain_arg;
             }
             extra[n] = NULL;
             bench_eval_result e;
@@ -327,9 +377,10 @@ static bool write_csv(const char *path, const lod_cand *c, size_t nc, const char
         return false;
     }
     fprintf(f, "# weft level-of-detail table, measured by: %s\n", command);
-    fprintf(f, "# data %s, split %s; build and machine: %s\n", o->data, o->split, weft_config_string());
+    fprintf(f, "# data %s, split %s%s%s; build and machine: %s\n", o->data, o->split, o->scenario ? ", scenario " : "",
+            o->scenario ? o->scenario : "", weft_config_string());
     fprintf(f, "level,method,model,precision,substeps,ccd,resolution,ms_per_frame,mve_cm,max_edge_strain,sequences,"
-               "frames,crop_cm,collider_crop,max_collider_tokens\n");
+               "frames,crop_cm,collider_crop,max_collider_tokens,tether_cm,strain_limit_pct\n");
     for (size_t k = 0; k < nc; ++k) {
         if (!cand_valid(&c[k])) {
             continue;
@@ -346,10 +397,17 @@ static bool write_csv(const char *path, const lod_cand *c, size_t nc, const char
         if (model && c[k].crop.tokens) {
             snprintf(tokens, sizeof tokens, "%u", c[k].crop.tokens);
         }
-        fprintf(f, "%s,%s,%s,%s,%s,%s,1,%.6g,%.6g,%.6g,%u,%u,%s,%s,%s\n", c[k].name, c[k].family,
+        char tether[32] = "-", strain[32] = "-";
+        if (c[k].tether_cm > 0.0) {
+            snprintf(tether, sizeof tether, "%.9g", c[k].tether_cm);
+        }
+        if (c[k].strain_pct > 0.0) {
+            snprintf(strain, sizeof strain, "%.9g", c[k].strain_pct);
+        }
+        fprintf(f, "%s,%s,%s,%s,%s,%s,1,%.6g,%.6g,%.6g,%u,%u,%s,%s,%s,%s,%s\n", c[k].name, c[k].family,
                 model ? c[k].model_name : "-", model ? c[k].precision : "-", sub, c[k].ccd ? "on" : "off",
                 c[k].ms_w / c[k].frames, c[k].mve_w / c[k].frames, c[k].strain, c[k].sequences, c[k].frames, crop_cm,
-                model ? (c[k].crop.cells ? "cells" : "box") : "-", tokens);
+                model ? (c[k].crop.cells ? "cells" : "box") : "-", tokens, tether, strain);
     }
     fclose(f);
     return true;
@@ -870,7 +928,7 @@ static int scale_only(const lod_opts *o, const char *command)
 int weft_bench_lod(int argc, char **argv)
 {
     lod_opts o = {.split = "test", .models = "tools/train/models", .out = "docs", .scale = true, .scale_frames = 4,
-                  .scale_res = "1k"};
+                  .scale_res = "1k", .name = "lod"};
     char command[2048] = "weft bench lod";
     for (int i = 1; i < argc; ++i) {
         size_t cl = strlen(command);
@@ -903,6 +961,24 @@ int weft_bench_lod(int argc, char **argv)
             o.out = v;
         } else if (strcmp(a, "--crop-model") == 0) {
             o.cost_model = v;
+        } else if (strcmp(a, "--scenario") == 0) {
+            o.scenario = v;
+        } else if (strcmp(a, "--name") == 0) {
+            o.name = v;
+            for (const char *p = v; *p; ++p) {
+                if (!((*p >= 'a' && *p <= 'z') || (*p >= '0' && *p <= '9') || *p == '_' || *p == '-') || p - v > 40) {
+                    fprintf(stderr, "weft bench lod: --name wants [a-z0-9_-], at most 40 characters\n");
+                    return 2;
+                }
+            }
+        } else if (strcmp(a, "--tether-cm") == 0 || strcmp(a, "--strain-limit") == 0) {
+            char *end;
+            double x = strtod(v, &end);
+            if (*end || end == v || !(x > 0.0) || x > 1000.0) {
+                fprintf(stderr, "weft bench lod: bad value '%s' for %s (a number in (0, 1000])\n", v, a);
+                return 2;
+            }
+            *(a[2] == 't' ? &o.tether_cm : &o.strain_pct) = x;
         } else if (strcmp(a, "--scale-levels") == 0) {
             o.scale_levels = v;
         } else if (strcmp(a, "--scale-res") == 0) {
@@ -966,6 +1042,20 @@ int weft_bench_lod(int argc, char **argv)
     if (!bench_start("lod", o.data, o.split, o.out, exe, sizeof exe, &seqs, &nseq)) {
         return 1;
     }
+    if (o.scenario) {
+        size_t kept = 0;
+        for (size_t i = 0; i < nseq; ++i) {
+            if (strcmp(seqs[i].scenario, o.scenario) == 0) {
+                seqs[kept++] = seqs[i];
+            }
+        }
+        nseq = kept;
+        if (nseq == 0) {
+            fprintf(stderr, "weft bench lod: no %s sequences of scenario '%s' under %s\n", o.split, o.scenario, o.data);
+            free(seqs);
+            return 1;
+        }
+    }
     if (o.max_seqs && nseq > o.max_seqs) {
         nseq = o.max_seqs;
     }
@@ -988,7 +1078,11 @@ int weft_bench_lod(int argc, char **argv)
     free(seqs);
 
     char csv[1200], md[1200];
-    snprintf(csv, sizeof csv, "%s/lod.csv", o.out);
+    snprintf(csv, sizeof csv, "%s/%s.csv", o.out, o.name);
+    const bool main_table = strcmp(o.name, "lod") == 0;
+    char table_tag[64], scaling_tag[64];
+    snprintf(table_tag, sizeof table_tag, main_table ? "table" : "table-%s", o.name);
+    snprintf(scaling_tag, sizeof scaling_tag, main_table ? "scaling" : "scaling-%s", o.name);
     snprintf(md, sizeof md, "%s/LOD.md", o.out);
     size_t valid = 0;
     for (size_t k = 0; k < nc; ++k) {
@@ -1005,14 +1099,14 @@ int weft_bench_lod(int argc, char **argv)
 
     char *doc = bench_slurp(md, NULL);
     char *block = table_block(cands, nc, command, &o, wall, skipped, nskip);
-    doc = block ? replace_block(doc, "table", block) : NULL;
+    doc = block ? replace_block(doc, table_tag, block) : NULL;
     free(block);
     if (o.scale && doc) {
         static scale_row rows[LOD_MAX_SCALE * 6];
         char desc[256] = "";
         size_t nr = run_scaling(&o, csv, rows, sizeof rows / sizeof rows[0], desc, sizeof desc);
         block = nr ? scaling_block(rows, nr, desc, &o, command) : NULL;
-        doc = block ? replace_block(doc, "scaling", block) : doc;
+        doc = block ? replace_block(doc, scaling_tag, block) : doc;
         free(block);
     }
     return write_doc(md, doc) ? 0 : 1;
