@@ -176,13 +176,19 @@ static bool make_path(const char *path)
 
 static bool load_table(crowd *c, const weft_avatar_sample_options *o)
 {
-    const char *path = o->lod_table ? o->lod_table : "docs/lod.csv";
+    /* Default: the worn-garment table (tethered and strain-limited levels, measured on garments),
+     * else the table over every scenario. */
+    struct stat st;
+    const char *path = o->lod_table                                   ? o->lod_table
+                       : stat("docs/lod_garment.csv", &st) == 0 ? "docs/lod_garment.csv"
+                                                                     : "docs/lod.csv";
     if (weft_lod_table_load_file(c->ctx, path, &c->table) != WEFT_OK) {
         fprintf(stderr, "avatar_render --crowd: the LOD table: %s\n  (run from the source root, or pass --lod-table; "
-                        "`weft bench lod` writes docs/lod.csv)\n",
+                        "`weft bench lod` writes docs/lod.csv and docs/lod_garment.csv)\n",
                 weft_last_error());
         return false;
     }
+    printf("LOD table: %s\n", path);
     return true;
 }
 
@@ -599,7 +605,8 @@ void weft_avatar_sample_crowd_usage(FILE *out)
 {
     fprintf(out, "  --crowd N               crowd mode: N (1..256) avatars in a grid, garments at mixed levels of detail\n"
                  "                          picked from the LOD table by depth; writes OUT/crowd.png (no frames)\n"
-                 "  --lod-table FILE        the measured LOD table for --crowd (default docs/lod.csv)\n"
+                 "  --lod-table FILE        the measured LOD table for --crowd (default docs/lod_garment.csv, else\n"
+                 "                          docs/lod.csv)\n"
                  "  --crowd-mve CM          accuracy target of the front row (default: the best usable level's MVE);\n"
                  "                          it grows by 100%% per metre of depth\n"
                  "  --crowd-budget MS       per-character ms/frame budget for the pick (default none)\n");
