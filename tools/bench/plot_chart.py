@@ -106,7 +106,7 @@ def main():
         ax.set_ylim(bottom=0, top=top * 1.12 if (pts or bad) else 1.0)
         ax.grid(True, which="both", alpha=0.3)
         ax.text(0.01, 0.01, "better: bottom left", transform=ax.transAxes, fontsize=8, color="#555555")
-    fig.suptitle("weft: speed against accuracy (filled marker = CCD on, hollow = CCD off, red X = NaN, red ring = edge strain > 25%)",
+    fig.suptitle("weft: speed against accuracy (filled marker = CCD on, hollow = CCD off, red X = NaN, red ring = over 1% of edges strained > 25%)",
                  fontsize=11)
     fig.tight_layout()
     fig.savefig(args.out, dpi=110)
