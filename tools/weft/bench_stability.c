@@ -830,7 +830,7 @@ int weft_bench_stability(int argc, char **argv)
     c = &cases[nc++];
     snprintf(c->name, sizeof c->name, "unseen_motion");
     snprintf(c->axis, sizeof c->axis, "unseen");
-    snprintf(c->level, sizeof c->level, "%s", garment_scenario ? "new body, motion, garment" : "new seed");
+    snprintf(c->level, sizeof c->level, "%s", garment_scenario ? "new body + motion + garment" : "new seed");
     snprintf(c->scenario, sizeof c->scenario, "%s", o.scenario);
     c->vertices = o.base_vertices;
     c->frames = o.frames;
