@@ -31,7 +31,7 @@ struct weft_garment {
     uint32_t strain_edge_count;
     uint32_t *strain_edges;             /* unique edges, 2 per edge */
     float *strain_rest;                 /* rest length per edge */
-    uint8_t *strain_fixed;              /* vertex_count scratch: pinned or glued this step */
+    uint8_t *strain_fixed;              /* vertex_count: 1 glued (radius-0 tether), | 2 pinned this step */
 
     uint32_t vertex_count, triangle_count;
     float *rest;                        /* vertex_count * 3 */

@@ -40,6 +40,9 @@ weft_result weft__strain_create(weft_garment *g)
         return WEFT_ERROR_OUT_OF_MEMORY;
     }
     g->strain_edge_count = m;
+    for (uint32_t i = 0; i < g->vertex_count; ++i) {
+        g->strain_fixed[i] = g->tether_radius && g->tether_radius[i] == 0.0f; /* glued for good */
+    }
     uint32_t e = 0;
     for (size_t i = 0; i < n; ++i) {
         if (i > 0 && keys[i] == keys[i - 1]) {
@@ -70,13 +73,10 @@ void weft__strain_destroy(weft_garment *g)
 
 void weft__strain_limit(weft_garment *g)
 {
+    /* Bit 0: glued by a radius-0 tether (set at creation); bit 1: pinned this step. */
     uint8_t *fixed = g->strain_fixed;
-    memset(fixed, 0, g->vertex_count);
     for (uint32_t k = 0; k < g->pin_count; ++k) {
-        fixed[g->pin_indices[k]] = 1;
-    }
-    for (uint32_t i = 0; g->tether_radius && i < g->vertex_count; ++i) {
-        fixed[i] |= g->tether_radius[i] == 0.0f;
+        fixed[g->pin_indices[k]] |= 2;
     }
     const float grow = 1.0f + g->strain_limit;
     float *x = g->x_next;
@@ -109,6 +109,9 @@ void weft__strain_limit(weft_garment *g)
         if (n == 0) {
             break;
         }
+    }
+    for (uint32_t k = 0; k < g->pin_count; ++k) {
+        fixed[g->pin_indices[k]] &= 1;
     }
     g->stats.strain_limited_edges = over;
 }

@@ -189,6 +189,20 @@ static weft_result update_drawn(weft_lod_garment *lg)
     return WEFT_OK;
 }
 
+/* A mesh map whose `to` points follow the `from` surface. */
+static weft_result make_map(weft_context *ctx, const float *from, uint32_t from_n, const uint32_t *from_tris,
+                            uint32_t from_t, const float *to, uint32_t to_n, weft_mesh_map **out)
+{
+    weft_mesh_map_def d = weft_default_mesh_map_def();
+    d.from_rest_positions = from;
+    d.from_vertex_count = from_n;
+    d.from_triangles = from_tris;
+    d.from_triangle_count = from_t;
+    d.to_rest_positions = to;
+    d.to_vertex_count = to_n;
+    return weft_mesh_map_create(ctx, &d, out);
+}
+
 static void free_lod(weft_lod_garment *lg)
 {
     const weft_context *ctx = lg->ctx;
@@ -308,23 +322,9 @@ weft_result weft_lod_garment_create(weft_context *ctx, const weft_lod_garment_de
         memcpy(m->rest, src->rest_positions, (size_t)m->V * 3 * sizeof(float));
         memcpy(m->tris, src->triangles, (size_t)m->T * 3 * sizeof(uint32_t));
         /* Both maps validate their meshes (indices, finite values, zero-area triangles). */
-        weft_mesh_map_def up = weft_default_mesh_map_def();
-        up.from_rest_positions = m->rest;
-        up.from_vertex_count = m->V;
-        up.from_triangles = m->tris;
-        up.from_triangle_count = m->T;
-        up.to_rest_positions = lg->rest;
-        up.to_vertex_count = lg->N;
-        weft_mesh_map_def down = weft_default_mesh_map_def();
-        down.from_rest_positions = lg->rest;
-        down.from_vertex_count = lg->N;
-        down.from_triangles = lg->tris;
-        down.from_triangle_count = lg->T;
-        down.to_rest_positions = m->rest;
-        down.to_vertex_count = m->V;
-        mr = weft_mesh_map_create(ctx, &up, &m->up);
+        mr = make_map(ctx, m->rest, m->V, m->tris, m->T, lg->rest, lg->N, &m->up);
         if (mr == WEFT_OK) {
-            mr = weft_mesh_map_create(ctx, &down, &m->down);
+            mr = make_map(ctx, lg->rest, lg->N, lg->tris, lg->T, m->rest, m->V, &m->down);
         }
         if (mr != WEFT_OK) {
             weft__fail(mr, "weft_lod_garment_create: sim_meshes[%u]: %s", i, weft_last_error());
