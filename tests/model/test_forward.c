@@ -180,16 +180,25 @@ static void compare(const float *c, const float *p, const float *x_t, size_t n, 
 
 /* ---- cases ----------------------------------------------------------------------------- */
 
-static void teacher_forced_parity(void)
+/* One step from ground-truth frames (t, t-1) per golden frame, against PyTorch's prediction
+ * `pred_name` of the model in `model_file`. */
+static void teacher_forced_parity_of(const char *model_file, const char *pred_name)
 {
     golden g;
+    npy pred;
     if (!golden_load(&g)) {
         CHECK(!"golden tensors missing");
         return;
     }
+    if (!npy_load(pred_name, "<f4", &pred)) {
+        CHECK(!"golden prediction missing");
+        golden_free(&g);
+        return;
+    }
+    CHECK(pred.rank == 3 && pred.shape[0] == g.tf_frames.shape[0] && pred.shape[1] == g.V);
     weft_context *ctx = make_ctx();
     weft_model *m = NULL;
-    CHECK_RESULT(weft_model_load_file(ctx, DATA "golden_model.safetensors", &m), WEFT_OK);
+    CHECK_RESULT(weft_model_load_file(ctx, model_file, &m), WEFT_OK);
     double worst = 0, worst_motion = 0;
     for (size_t i = 0; m && i < g.tf_frames.shape[0]; ++i) {
         uint32_t t = ((const uint32_t *)g.tf_frames.data)[i];
@@ -203,18 +212,31 @@ static void teacher_forced_parity(void)
         CHECK_RESULT(weft_garment_set_collider(gar, frame(&g.cpos, t + 1)), WEFT_OK);
         CHECK_RESULT(weft_garment_step(gar), WEFT_OK);
         double rel, relm;
-        compare(weft_garment_positions(gar), frame(&g.tf_pred, i), frame(&g.gt, t), (size_t)g.V * 3, &rel, &relm);
+        compare(weft_garment_positions(gar), frame(&pred, i), frame(&g.gt, t), (size_t)g.V * 3, &rel, &relm);
         CHECK_MSG(rel <= 1e-4, "frame %u: relative error %.3g > 1e-4", t, rel);
         CHECK_MSG(relm <= 1e-3, "frame %u: error %.3g of the frame's motion > 1e-3", t, relm);
         worst = fmax(worst, rel);
         worst_motion = fmax(worst_motion, relm);
         weft_garment_destroy(gar);
     }
-    printf("teacher-forced: %zu frames, max relative error %.3g (%.3g of the per-frame motion)\n",
+    printf("teacher-forced %s: %zu frames, max relative error %.3g (%.3g of the per-frame motion)\n", pred_name,
            g.tf_frames.shape[0], worst, worst_motion);
     weft_model_destroy(m);
     weft_context_destroy(ctx);
+    free(pred.data);
     golden_free(&g);
+}
+
+static void teacher_forced_parity(void)
+{
+    teacher_forced_parity_of(DATA "golden_model.safetensors", "tf_pred");
+}
+
+/* The shipped game model (the 'previous' prior, K = 32: the golden model covers the inertial
+ * prior); game_tf_pred.npy is export.py --golden of tools/train/models/game.ckpt.pt. */
+static void shipped_game_parity(void)
+{
+    teacher_forced_parity_of(WEFT_SOURCE_DIR "/tools/train/models/game.safetensors", "game_tf_pred");
 }
 
 static void rollout_parity(void)
@@ -695,6 +717,6 @@ static void parallel_for_hook(void)
     golden_free(&g);
 }
 
-TEST_MAIN(TEST_CASE(teacher_forced_parity), TEST_CASE(shipped_models_step), TEST_CASE(rollout_parity), TEST_CASE(bad_model_files),
+TEST_MAIN(TEST_CASE(teacher_forced_parity), TEST_CASE(shipped_game_parity), TEST_CASE(shipped_models_step), TEST_CASE(rollout_parity), TEST_CASE(bad_model_files),
           TEST_CASE(bad_state_and_collider), TEST_CASE(reduced_precision),
           TEST_CASE(quantized_files), TEST_CASE(parallel_for_hook))
