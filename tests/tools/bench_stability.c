@@ -1,8 +1,8 @@
 /* `weft bench stability` end to end on a tiny gripper suite (64 vertices, 12-frame cases, LBS and
  * XPBD-5, no models, no FNOpt): the run succeeds and writes a CSV with one row per case and
  * method, statuses from the documented set and scores kept under each sequence; a second run
- * reuses the kept scores (the CSV, wall times included, comes out byte-identical); bad options
- * fail. argv: weft binary, output folder. */
+ * reuses the kept scores (the CSV, wall times included, comes out byte-identical); a model's kept
+ * scores follow the model file's contents; bad options fail. argv: weft binary, output folder. */
 #define _POSIX_C_SOURCE 200809L /* stat, mkdir */
 #include "test.h"
 #include "tool_run.h"
@@ -34,19 +34,59 @@ static char *slurp(const char *path)
     return p;
 }
 
-/* The suite into out/<name>, its cases under out/data. */
-static int suite(const char *name, bool rescore)
+/* The suite into out/<name>, its cases under out/data, the models of out/<models>. */
+static int suite_with(const char *name, const char *models_dir, bool rescore)
 {
     char data[1200], out[1200], models[1200];
     snprintf(data, sizeof data, "%s/data", g_out);
     snprintf(out, sizeof out, "%s/%s", g_out, name);
-    snprintf(models, sizeof models, "%s/no_models", g_out);
+    snprintf(models, sizeof models, "%s/%s", g_out, models_dir);
     mkdir(models, 0777);
     const char *argv[] = {g_exe,       "bench",  "stability",  "--quick",  "--frames",   "12",      "--long-frames",
                           "16",        "--xpbd", "5",          "--no-fnopt", "--no-garment", "--no-plot", "--models",
                           models,      "--data", data,         "--out",    out,          rescore ? "--rescore" : NULL,
                           NULL};
     return tool_run(argv, NULL);
+}
+
+static int suite(const char *name, bool rescore)
+{
+    return suite_with(name, "no_models", rescore);
+}
+
+static void remove_files(const char *dir, const char *suffix)
+{
+    DIR *d = opendir(dir);
+    struct dirent *e;
+    char path[1600];
+    while (d && (e = readdir(d)) != NULL) {
+        size_t l = strlen(e->d_name), s = strlen(suffix);
+        if (l > s && strcmp(e->d_name + l - s, suffix) == 0) {
+            snprintf(path, sizeof path, "%s/%s", dir, e->d_name);
+            remove(path);
+        }
+    }
+    if (d) {
+        closedir(d);
+    }
+}
+
+static bool copy_file(const char *from, const char *to)
+{
+    FILE *in = fopen(from, "rb"), *out = in ? fopen(to, "wb") : NULL;
+    bool ok = in && out;
+    char buf[65536];
+    size_t n;
+    while (ok && (n = fread(buf, 1, sizeof buf, in)) > 0) {
+        ok = fwrite(buf, 1, n, out) == n;
+    }
+    if (in) {
+        fclose(in);
+    }
+    if (out) {
+        ok = fclose(out) == 0 && ok;
+    }
+    return ok;
 }
 
 static size_t count_files(const char *dir, const char *suffix)
@@ -110,6 +150,28 @@ static void runs_and_resumes(void)
     free(second);
 }
 
+/* A kept model score belongs to the model file's contents, not its path: a retrained model
+ * under the same name is scored again, the same file is not. */
+static void model_scores_follow_the_file(void)
+{
+    char dir[1200], model[1300], scores[1300];
+    snprintf(dir, sizeof dir, "%s/one_model", g_out);
+    mkdir(dir, 0777);
+    snprintf(model, sizeof model, "%s/m.safetensors", dir);
+    snprintf(scores, sizeof scores, "%s/data/res_x1/gripper_v64_0000/scores", g_out);
+    remove_files(scores, ".json"); /* an earlier ctest run may have left other models' scores */
+    CHECK(copy_file(WEFT_SOURCE_DIR "/tools/train/models/game.safetensors", model));
+    CHECK_EQ_INT(suite_with("model_a", "one_model", false), 0);
+    /* LBS, XPBD-5 and the model at fp32, fp16 and int8, each at 3 lengths */
+    size_t with_a = count_files(scores, ".json");
+    CHECK_EQ_INT(with_a, 15);
+    CHECK_EQ_INT(suite_with("model_a_again", "one_model", false), 0);
+    CHECK_EQ_INT(count_files(scores, ".json"), with_a);
+    CHECK(copy_file(WEFT_SOURCE_DIR "/tools/train/models/unified.safetensors", model));
+    CHECK_EQ_INT(suite_with("model_b", "one_model", false), 0);
+    CHECK_EQ_INT(count_files(scores, ".json"), with_a + 9);
+}
+
 static void bad_options(void)
 {
     const char *zero[] = {g_exe, "bench", "stability", "--time-limit", "0", NULL};
@@ -129,6 +191,7 @@ int main(int argc, char **argv)
     g_exe = argv[1];
     g_out = argv[2];
     mkdir(g_out, 0777);
-    static const test_case_ cases[] = {TEST_CASE(runs_and_resumes), TEST_CASE(bad_options)};
+    static const test_case_ cases[] = {TEST_CASE(runs_and_resumes), TEST_CASE(model_scores_follow_the_file),
+                                       TEST_CASE(bad_options)};
     return test_run_(cases, sizeof cases / sizeof cases[0], 1, argv);
 }

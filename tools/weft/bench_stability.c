@@ -15,7 +15,7 @@
  * quarter means follow exactly from runs cut at 1/4, 3/4 and the full length.
  *
  * Resumable: every eval's result is kept next to its sequence (<seq>/scores/<hash>.json, keyed by
- * the eval's arguments) and reused by a later run unless --rescore; the tables are rewritten after
+ * the eval's arguments and, for a model, the model file's contents) and reused by a later run unless --rescore; the tables are rewritten after
  * every case, so a run stopped part-way leaves what it scored, and the next run goes on from there. */
 #define _POSIX_C_SOURCE 200809L /* opendir, stat */
 #include "weft.h"
@@ -90,7 +90,9 @@ static void usage(FILE *f)
             "  defaults: V=256 vertices, T=240 frames, long 2400 frames, 2 sequences per case, S=900 s of stepping\n"
             "  per rollout before a method is marked too slow (its prefix is still scored)\n"
             "  --quick   V=64, T=60, long 480 frames, 1 sequence per case, FNOpt speed axis with adam only, S=300\n"
-            "  --rescore ignore the scores kept from earlier runs (<seq>/scores/*.json) and evaluate again\n");
+            "  --rescore ignore the scores kept from earlier runs (<seq>/scores/*.json) and evaluate again\n"
+            "            (scores are kept by the eval's arguments and, for models, the model file's contents: a\n"
+            "            retrained model is scored again by itself; a changed weft needs --rescore)\n");
 }
 
 /* When simgen's validator rejected the case, say why from the rejected sequence's meta.json. */
@@ -172,6 +174,23 @@ static unsigned long long score_hash(const char *const *args)
         h = (h ^ 0x1f) * 1099511628211ull; /* separator */
     }
     return h;
+}
+
+/* "<bytes>-<FNV-1a of the contents>" of a file: what a kept model score is tied to. */
+static bool file_fingerprint(const char *path, char *out, size_t cap)
+{
+    size_t size = 0;
+    unsigned char *data = (unsigned char *)bench_slurp(path, &size);
+    if (!data) {
+        return false;
+    }
+    unsigned long long h = 1469598103934665603ull;
+    for (size_t i = 0; i < size; ++i) {
+        h = (h ^ data[i]) * 1099511628211ull;
+    }
+    free(data);
+    int n = snprintf(out, cap, "%zu-%016llx", size, h);
+    return n > 0 && (size_t)n < cap;
 }
 
 static bool score_path(const char *seq, const char *const *args, char *out, size_t cap)
@@ -275,18 +294,35 @@ static bool eval_method(const char *exe, const st_opts *o, const st_method *m, c
         extra[n++] = m->strain_pct;
     }
     extra[n] = NULL;
-    char key[2048] = "";
+    /* The kept score's key: the arguments, plus the model file's contents for a model method, so
+     * a retrained model at the same path is scored again rather than matched to an old score. */
+    const char *keyargs[22];
+    int nk = 0;
     for (int i = 0; i < n; ++i) {
-        size_t kl = strlen(key);
-        snprintf(key + kl, sizeof key - kl, "%s%s", i ? " " : "", extra[i]);
+        keyargs[nk++] = extra[i];
     }
-    if (!o->rescore && score_load(seq, extra, key, e)) {
+    char content[40];
+    if (strcmp(m->family, "model") == 0) {
+        if (!file_fingerprint(m->model, content, sizeof content)) {
+            fprintf(stderr, "weft bench stability: cannot read model %s\n", m->model);
+            return false;
+        }
+        keyargs[nk++] = "model-content";
+        keyargs[nk++] = content;
+    }
+    keyargs[nk] = NULL;
+    char key[2048] = "";
+    for (int i = 0; i < nk; ++i) {
+        size_t kl = strlen(key);
+        snprintf(key + kl, sizeof key - kl, "%s%s", i ? " " : "", keyargs[i]);
+    }
+    if (!o->rescore && score_load(seq, keyargs, key, e)) {
         return true;
     }
     if (!bench_eval(exe, seq, extra, e)) {
         return false; /* failures are not kept: the next run tries again */
     }
-    score_save(seq, extra, key, e);
+    score_save(seq, keyargs, key, e);
     return true;
 }
 
