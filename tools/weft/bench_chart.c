@@ -306,23 +306,7 @@ static void write_outputs(const chart_opts *o, const chart_method *methods, cons
     fclose(f);
 
     if (o->plot) {
-        char script[1200], png[1200], csv[1200], img[1200];
-        snprintf(img, sizeof img, "%s/img", o->out);
-        snprintf(png, sizeof png, "%s/img/chart.png", o->out);
-        snprintf(csv, sizeof csv, "%s/chart.csv", o->out);
-        if (!bench_mkdirs(img) || !bench_find_script(exe, "plot_chart.py", script, sizeof script)) {
-            fprintf(stderr, "weft bench chart: tools/bench/plot_chart.py not found (run from the source root); no PNG\n");
-            return;
-        }
-        const char *argv[] = {"/usr/bin/python3", script, "--csv", csv, "--out", png, NULL};
-        char *out = NULL, why[240];
-        int rc = bench_spawn(argv, &out, why, sizeof why);
-        free(out);
-        if (rc != 0) {
-            fprintf(stderr, "weft bench chart: plotting failed: %s\n", why);
-        } else {
-            printf("wrote %s\n", png);
-        }
+        bench_plot(exe, "chart", "plot_chart.py", o->out, "chart");
     }
 }
 
@@ -529,31 +513,16 @@ int weft_bench_chart(int argc, char **argv)
             if (!r) {
                 continue;
             }
+            const bool is_model = strcmp(mm->family, "model") == 0;
+            const bench_method_spec spec = {mm->method,
+                                            mm->ccd,
+                                            o.frames ? frames_arg : NULL,
+                                            is_model ? mm->model : NULL,
+                                            is_model ? mm->precision : NULL,
+                                            mm->tether_cm,
+                                            mm->strain_pct};
             const char *extra[16];
-            int n = 0;
-            extra[n++] = "--method";
-            extra[n++] = mm->method;
-            extra[n++] = "--ccd";
-            extra[n++] = mm->ccd ? "on" : "off";
-            if (o.frames) {
-                extra[n++] = "--frames";
-                extra[n++] = frames_arg;
-            }
-            if (strcmp(mm->family, "model") == 0) {
-                extra[n++] = "--model";
-                extra[n++] = mm->model;
-                extra[n++] = "--precision";
-                extra[n++] = mm->precision;
-            }
-            if (mm->tether_cm[0]) {
-                extra[n++] = "--tether-cm";
-                extra[n++] = mm->tether_cm;
-            }
-            if (mm->strain_pct[0]) {
-                extra[n++] = "--strain-limit";
-                extra[n++] = mm->strain_pct;
-            }
-            extra[n] = NULL;
+            bench_method_args(&spec, extra, 0);
             bench_eval_result e;
             bench_eval(exe, seqs[s].dir, extra, &e);
             r->sequences++;

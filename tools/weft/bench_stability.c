@@ -267,33 +267,18 @@ static bool eval_method(const char *exe, const st_opts *o, const st_method *m, c
     char fr[16], tl[16];
     snprintf(fr, sizeof fr, "%u", frames);
     snprintf(tl, sizeof tl, "%u", time_limit);
+    const bool is_model = strcmp(m->family, "model") == 0;
+    const bench_method_spec spec = {m->method,
+                                    true,
+                                    frames ? fr : NULL,
+                                    is_model ? m->model : NULL,
+                                    is_model ? m->precision : NULL,
+                                    m->tether_cm,
+                                    m->strain_pct};
     const char *extra[20];
-    int n = 0;
-    extra[n++] = "--time-limit";
-    extra[n++] = tl;
-    extra[n++] = "--method";
-    extra[n++] = m->method;
-    extra[n++] = "--ccd";
-    extra[n++] = "on";
-    if (frames) {
-        extra[n++] = "--frames";
-        extra[n++] = fr;
-    }
-    if (strcmp(m->family, "model") == 0) {
-        extra[n++] = "--model";
-        extra[n++] = m->model;
-        extra[n++] = "--precision";
-        extra[n++] = m->precision;
-    }
-    if (m->tether_cm[0]) {
-        extra[n++] = "--tether-cm";
-        extra[n++] = m->tether_cm;
-    }
-    if (m->strain_pct[0]) {
-        extra[n++] = "--strain-limit";
-        extra[n++] = m->strain_pct;
-    }
-    extra[n] = NULL;
+    extra[0] = "--time-limit";
+    extra[1] = tl;
+    const int n = bench_method_args(&spec, extra, 2);
     /* The kept score's key: the arguments, plus the model file's contents for a model method, so
      * a retrained model at the same path is scored again rather than matched to an old score. */
     const char *keyargs[22];
@@ -302,7 +287,7 @@ static bool eval_method(const char *exe, const st_opts *o, const st_method *m, c
         keyargs[nk++] = extra[i];
     }
     char content[40];
-    if (strcmp(m->family, "model") == 0) {
+    if (is_model) {
         if (!file_fingerprint(m->model, content, sizeof content)) {
             fprintf(stderr, "weft bench stability: cannot read model %s\n", m->model);
             return false;
@@ -664,23 +649,7 @@ static int write_tables(const st_run *run)
            wall);
 
     if (o.plot) {
-        char script[1200], png[1200], csv[1200], img[1200];
-        snprintf(img, sizeof img, "%s/img", o.out);
-        snprintf(png, sizeof png, "%s/img/stability.png", o.out);
-        snprintf(csv, sizeof csv, "%s/stability.csv", o.out);
-        if (!bench_mkdirs(img) || !bench_find_script(exe, "plot_stability.py", script, sizeof script)) {
-            fprintf(stderr, "weft bench stability: tools/bench/plot_stability.py not found; no PNG\n");
-            return 0;
-        }
-        const char *pargv[] = {"/usr/bin/python3", script, "--csv", csv, "--out", png, NULL};
-        char *out = NULL, why[240];
-        int rc = bench_spawn(pargv, &out, why, sizeof why);
-        free(out);
-        if (rc != 0) {
-            fprintf(stderr, "weft bench stability: plotting failed: %s\n", why);
-        } else {
-            printf("wrote %s\n", png);
-        }
+        bench_plot(exe, "stability", "plot_stability.py", o.out, "stability");
     }
     return 0;
 }

@@ -473,3 +473,53 @@ bool bench_start(const char *tool, const char *data, const char *split, const ch
     }
     return true;
 }
+
+int bench_method_args(const bench_method_spec *spec, const char **out, int n)
+{
+    out[n++] = "--method";
+    out[n++] = spec->method;
+    out[n++] = "--ccd";
+    out[n++] = spec->ccd ? "on" : "off";
+    if (spec->frames && spec->frames[0]) {
+        out[n++] = "--frames";
+        out[n++] = spec->frames;
+    }
+    if (spec->model) {
+        out[n++] = "--model";
+        out[n++] = spec->model;
+        out[n++] = "--precision";
+        out[n++] = spec->precision;
+    }
+    if (spec->tether_cm && spec->tether_cm[0]) {
+        out[n++] = "--tether-cm";
+        out[n++] = spec->tether_cm;
+    }
+    if (spec->strain_pct && spec->strain_pct[0]) {
+        out[n++] = "--strain-limit";
+        out[n++] = spec->strain_pct;
+    }
+    out[n] = NULL;
+    return n;
+}
+
+bool bench_plot(const char *exe, const char *tool, const char *script, const char *out_dir, const char *name)
+{
+    char path[1200], png[1200], csv[1200], img[1200];
+    snprintf(img, sizeof img, "%s/img", out_dir);
+    snprintf(png, sizeof png, "%s/img/%s.png", out_dir, name);
+    snprintf(csv, sizeof csv, "%s/%s.csv", out_dir, name);
+    if (!bench_mkdirs(img) || !bench_find_script(exe, script, path, sizeof path)) {
+        fprintf(stderr, "weft bench %s: tools/bench/%s not found (run from the source root); no PNG\n", tool, script);
+        return false;
+    }
+    const char *argv[] = {"/usr/bin/python3", path, "--csv", csv, "--out", png, NULL};
+    char *out = NULL, why[240];
+    int rc = bench_spawn(argv, &out, why, sizeof why);
+    free(out);
+    if (rc != 0) {
+        fprintf(stderr, "weft bench %s: plotting failed: %s\n", tool, why);
+        return false;
+    }
+    printf("wrote %s\n", png);
+    return true;
+}

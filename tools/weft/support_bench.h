@@ -35,6 +35,20 @@ bool bench_self_exe(char *out, size_t cap);
  * Returns the exit status, or -1 when the child could not be started or was killed. */
 int bench_spawn(const char *const argv[], char **out, char *why, size_t why_cap);
 
+/* One method as `weft eval` arguments (see bench_method_args). */
+typedef struct bench_method_spec {
+    const char *method;                 /* lbs | xpbd:S | model */
+    bool ccd;
+    const char *frames;                 /* NULL or "": every frame */
+    const char *model, *precision;      /* model methods only (NULL otherwise) */
+    const char *tether_cm, *strain_pct; /* NULL or "": off */
+} bench_method_spec;
+
+/* Appends spec's `weft eval` arguments (--method, --ccd, --frames, --model, --precision,
+ * --tether-cm, --strain-limit; at most 14) to out at index n, NULL-terminates, and returns the new
+ * count. out needs room for n + 15 entries. */
+int bench_method_args(const bench_method_spec *spec, const char **out, int n);
+
 /* `exe eval --json --seq seq_dir <extra...>` parsed into r. Returns r->ok. */
 bool bench_eval(const char *exe, const char *seq_dir, const char *const extra[], bench_eval_result *r);
 
@@ -74,6 +88,10 @@ size_t bench_list_models(const char *dir, char names[][256], size_t cap);
 /* A plotting script tools/bench/NAME: relative to the working directory, else to the binary
  * (build-x/bin/weft -> ../../tools/bench). */
 bool bench_find_script(const char *exe, const char *name, char *out, size_t cap);
+
+/* Draws OUT/img/NAME.png from OUT/NAME.csv with tools/bench/SCRIPT (python3, matplotlib);
+ * prints what it wrote, or "weft bench TOOL: ..." on stderr and returns false. */
+bool bench_plot(const char *exe, const char *tool, const char *script, const char *out_dir, const char *name);
 
 /* The file for one precision: MODEL.<precision>.safetensors when the quantiser wrote one, else
  * MODEL.safetensors (base), which the runtime converts at garment creation. */
