@@ -15,8 +15,9 @@
  * quarter means follow exactly from runs cut at 1/4, 3/4 and the full length.
  *
  * Resumable: every eval's result is kept next to its sequence (<seq>/scores/<hash>.json, keyed by
- * the eval's arguments and, for a model, the model file's contents) and reused by a later run unless --rescore; the tables are rewritten after
- * every case, so a run stopped part-way leaves what it scored, and the next run goes on from there. */
+ * the eval's arguments and, for a model, the model file's contents) and reused by a later run
+ * unless --rescore; the tables are rewritten after every case, so a run stopped part-way leaves
+ * what it scored, and the next run goes on from there. */
 #define _POSIX_C_SOURCE 200809L /* opendir, stat */
 #include "weft.h"
 #include "support_bench.h"
@@ -46,6 +47,7 @@ typedef struct st_method {
     char label[96], family[16], method[16], precision[8], model[1024];
     char tether_cm[16]; /* "" or `weft eval --tether-cm` */
     char strain_pct[16]; /* "" or `weft eval --strain-limit` */
+    char model_content[40]; /* model methods: the file's fingerprint, part of a kept score's key */
 } st_method;
 
 typedef struct st_case {
@@ -163,15 +165,23 @@ static bool generate_case(const char *exe, const st_opts *o, st_case *c, char *d
     return true;
 }
 
+#define FNV_START 1469598103934665603ull
+
+static unsigned long long fnv1a(unsigned long long h, const unsigned char *p, size_t n)
+{
+    for (size_t i = 0; i < n; ++i) {
+        h = (h ^ p[i]) * 1099511628211ull;
+    }
+    return h;
+}
+
 /* FNV-1a of the eval's arguments: the name of its kept score. */
 static unsigned long long score_hash(const char *const *args)
 {
-    unsigned long long h = 1469598103934665603ull;
+    static const unsigned char separator = 0x1f;
+    unsigned long long h = FNV_START;
     for (int i = 0; args[i]; ++i) {
-        for (const char *p = args[i]; *p; ++p) {
-            h = (h ^ (unsigned char)*p) * 1099511628211ull;
-        }
-        h = (h ^ 0x1f) * 1099511628211ull; /* separator */
+        h = fnv1a(fnv1a(h, (const unsigned char *)args[i], strlen(args[i])), &separator, 1);
     }
     return h;
 }
@@ -180,14 +190,11 @@ static unsigned long long score_hash(const char *const *args)
 static bool file_fingerprint(const char *path, char *out, size_t cap)
 {
     size_t size = 0;
-    unsigned char *data = (unsigned char *)bench_slurp(path, &size);
+    char *data = bench_slurp(path, &size);
     if (!data) {
         return false;
     }
-    unsigned long long h = 1469598103934665603ull;
-    for (size_t i = 0; i < size; ++i) {
-        h = (h ^ data[i]) * 1099511628211ull;
-    }
+    unsigned long long h = fnv1a(FNV_START, (const unsigned char *)data, size);
     free(data);
     int n = snprintf(out, cap, "%zu-%016llx", size, h);
     return n > 0 && (size_t)n < cap;
@@ -286,14 +293,9 @@ static bool eval_method(const char *exe, const st_opts *o, const st_method *m, c
     for (int i = 0; i < n; ++i) {
         keyargs[nk++] = extra[i];
     }
-    char content[40];
     if (is_model) {
-        if (!file_fingerprint(m->model, content, sizeof content)) {
-            fprintf(stderr, "weft bench stability: cannot read model %s\n", m->model);
-            return false;
-        }
         keyargs[nk++] = "model-content";
-        keyargs[nk++] = content;
+        keyargs[nk++] = m->model_content;
     }
     keyargs[nk] = NULL;
     char key[2048] = "";
@@ -782,7 +784,12 @@ int weft_bench_stability(int argc, char **argv)
             snprintf(methods[nm].family, 16, "model");
             snprintf(methods[nm].method, 16, "model");
             snprintf(methods[nm].precision, 8, "%s", k_prec[p]);
-            bench_model_file(o.models, stem, model_names[i], k_prec[p], methods[nm++].model, 1024);
+            bench_model_file(o.models, stem, model_names[i], k_prec[p], methods[nm].model, 1024);
+            if (!file_fingerprint(methods[nm].model, methods[nm].model_content, sizeof methods[nm].model_content)) {
+                fprintf(stderr, "weft bench stability: cannot read model %s\n", methods[nm].model);
+                return 1;
+            }
+            nm++;
         }
         if (garment_scenario) {
             /* Worn garments also get the game-engine remedies: int8 with 3 cm tethers (drift) and a 10 %
