@@ -19,6 +19,7 @@ typedef struct plan_item {
     weft_sim_scenario scenario;
     uint32_t vertices;
     uint32_t index;
+    const char *tier; /* the --all tier's tag ("1k", ...); NULL for --scenario items */
     char name[64];
 } plan_item;
 
@@ -28,6 +29,20 @@ typedef struct plan_tier {
     const char *tag;
 } plan_tier;
 static const plan_tier k_tiers[] = {{1024, 150, "1k"}, {4096, 30, "4k"}, {16384, 2, "16k"}};
+
+/* Which plan items this process generates: its shard, and the --tier filter when one was given. */
+typedef struct plan_filter {
+    uint32_t shard_i, shard_n;
+    const char *tier;
+} plan_filter;
+
+static bool plan_wanted(const plan_filter *f, const plan_item *items, uint32_t i)
+{
+    if (i % f->shard_n != f->shard_i) {
+        return false;
+    }
+    return !f->tier || (items[i].tier && strcmp(items[i].tier, f->tier) == 0);
+}
 
 static uint64_t mix64(uint64_t z)
 {
@@ -185,9 +200,11 @@ static void usage(FILE *f)
             "usage: weft simgen --out DIR (--all | --scenario drop|gripper|garment [--count N] [--vertices V])\n"
             "                   [--shard I/N] [--frames T] [--substeps S] [--max-substeps S] [--seed X]\n"
             "                   [--garment-substeps S] [--no-validate] [--manifest-only] [--limit N]\n"
-            "                   [--no-garments] [--speed X] [--resolution-series]\n"
+            "                   [--no-garments] [--speed X] [--resolution-series] [--tier 1k|4k|16k]\n"
             "  --all            the whole planned set: per scenario (drop, gripper, garment) 150 x 1k,\n"
             "                   30 x 4k and 2 x 16k vertices, smallest first\n"
+            "  --tier T         generate only that tier of --all (e.g. the 16k cross-resolution\n"
+            "                   sequences before the 1k tier is finished)\n"
             "  --no-garments    leave the garment scenario out of --all (it is the slowest)\n"
             "  --speed X        scale the avatar's motion and the gripper's schedule (0.1..10, default 1;\n"
             "                   the stability suite's speed axis); same draws as at speed 1\n"
@@ -204,7 +221,7 @@ static void usage(FILE *f)
 
 int weft_cmd_simgen(int argc, char **argv)
 {
-    const char *out = NULL, *scenario = NULL;
+    const char *out = NULL, *scenario = NULL, *tier = NULL;
     bool all = false, manifest_only = false, validate = true, garments = true, resolution_series = false;
     uint32_t garment_substeps = 0;
     float motion_speed = 1.0f;
@@ -233,6 +250,16 @@ int weft_cmd_simgen(int argc, char **argv)
             validate = false;
         } else if (v && strcmp(a, "--out") == 0) {
             out = v, ++i;
+        } else if (v && strcmp(a, "--tier") == 0) {
+            tier = NULL;
+            for (size_t t = 0; t < sizeof k_tiers / sizeof k_tiers[0]; ++t) {
+                tier = strcmp(v, k_tiers[t].tag) == 0 ? k_tiers[t].tag : tier;
+            }
+            if (!tier) {
+                fprintf(stderr, "simgen: --tier wants 1k, 4k or 16k, got '%s'\n", v);
+                return 2;
+            }
+            ++i;
         } else if (v && strcmp(a, "--scenario") == 0) {
             scenario = v, ++i;
         } else if (v && strcmp(a, "--count") == 0) {
@@ -260,6 +287,10 @@ int weft_cmd_simgen(int argc, char **argv)
             usage(stderr);
             return 2;
         }
+    }
+    if (tier && !all) {
+        fprintf(stderr, "simgen: --tier selects part of --all; add --all\n");
+        return 2;
     }
     if (!out || (!all && !scenario && !manifest_only)) {
         usage(stderr);
@@ -293,6 +324,7 @@ int weft_cmd_simgen(int argc, char **argv)
                     p->scenario = (weft_sim_scenario)s;
                     p->vertices = k_tiers[t].vertices;
                     p->index = k;
+                    p->tier = k_tiers[t].tag;
                     snprintf(p->name, sizeof p->name, "%s_%s_%04u", weft_sim_scenario_name(p->scenario), k_tiers[t].tag, k);
                 }
             }
@@ -333,11 +365,12 @@ int weft_cmd_simgen(int argc, char **argv)
             free(plan);
             return 1;
         }
+        const plan_filter filter = {shard_i, shard_n, tier};
         uint32_t todo = 0;
         for (uint32_t i = 0; i < n; ++i) {
             char path[1200];
             snprintf(path, sizeof path, "%s/%s/meta.json", out, plan[i].name);
-            todo += (i % shard_n == shard_i) && !file_exists(path);
+            todo += plan_wanted(&filter, plan, i) && !file_exists(path);
         }
         if (todo > limit) {
             todo = limit;
@@ -348,7 +381,7 @@ int weft_cmd_simgen(int argc, char **argv)
             char dir[1100], path[1200];
             snprintf(dir, sizeof dir, "%s/%s", out, plan[i].name);
             snprintf(path, sizeof path, "%s/meta.json", dir);
-            if (i % shard_n != shard_i || file_exists(path)) {
+            if (!plan_wanted(&filter, plan, i) || file_exists(path)) {
                 continue;
             }
             weft_sim_sequence_def def = weft_sim_default_sequence_def();

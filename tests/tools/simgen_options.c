@@ -1,0 +1,78 @@
+/* `weft simgen` plan options: --tier generates only that tier of --all (here one 16k drop
+ * sequence, a few frames, unvalidated, to stay quick) and the manifest lists it; bad --tier / --shard values fail with a usage exit. argv: weft binary, output folder. */
+#define _POSIX_C_SOURCE 200809L /* posix_spawn, stat */
+#include "test.h"
+
+#include "tool_run.h"
+
+#include <stdbool.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
+static const char *g_exe, *g_out;
+
+static bool exists(const char *path)
+{
+    struct stat st;
+    return stat(path, &st) == 0;
+}
+
+/* The file's text (at most cap - 1 bytes); empty when it cannot be read. */
+static void slurp(const char *path, char *buf, size_t cap)
+{
+    buf[0] = '\0';
+    FILE *f = fopen(path, "rb");
+    if (f) {
+        size_t n = fread(buf, 1, cap - 1, f);
+        buf[n] = '\0';
+        fclose(f);
+    }
+}
+
+static void tier_generates_only_that_tier(void)
+{
+    char dir[1024], meta[1200], other[1200], manifest[1200];
+    snprintf(dir, sizeof dir, "%s/tier", g_out);
+    snprintf(meta, sizeof meta, "%s/drop_16k_0000/meta.json", dir);
+    snprintf(other, sizeof other, "%s/drop_1k_0000/meta.json", dir);
+    snprintf(manifest, sizeof manifest, "%s/manifest.json", dir);
+    unlink(meta); /* a rerun must generate again, not resume past it */
+    const char *argv[] = {g_exe, "simgen", "--out", dir, "--all", "--tier", "16k", "--limit", "1",
+                          "--frames", "3", "--no-validate", NULL};
+    CHECK_EQ_INT(tool_run(argv, NULL), 0);
+    CHECK_MSG(exists(meta), "no %s", meta);
+    CHECK_MSG(!exists(other), "--tier 16k generated a 1k sequence");
+    static char text[1 << 20];
+    slurp(manifest, text, sizeof text);
+    /* The manifest lists finished sequences: the 16k one with its vertex count, no 1k one. */
+    const char *entry = strstr(text, "\"drop_16k_0000\"");
+    const char *v = entry ? strstr(entry, "\"vertices\":") : NULL;
+    long vertices = v ? strtol(v + 11, NULL, 10) : 0;
+    CHECK_MSG(vertices > 12000 && vertices < 20000, "16k sequence with %ld vertices", vertices);
+    CHECK(strstr(text, "_1k_") == NULL);
+}
+
+static void bad_plan_options_fail(void)
+{
+    char dir[1024];
+    snprintf(dir, sizeof dir, "%s/bad", g_out);
+    const char *unknown[] = {g_exe, "simgen", "--out", dir, "--all", "--tier", "2k", NULL};
+    CHECK_EQ_INT(tool_run(unknown, NULL), 2);
+    const char *alone[] = {g_exe, "simgen", "--out", dir, "--scenario", "drop", "--tier", "4k", NULL};
+    CHECK_EQ_INT(tool_run(alone, NULL), 2);
+    const char *shard[] = {g_exe, "simgen", "--out", dir, "--all", "--shard", "3/3", NULL};
+    CHECK_EQ_INT(tool_run(shard, NULL), 2);
+    CHECK_MSG(!exists(dir), "a rejected command created %s", dir);
+}
+
+int main(int argc, char **argv)
+{
+    if (argc < 3) {
+        fprintf(stderr, "usage: %s WEFT OUT\n", argv[0]);
+        return 1;
+    }
+    g_exe = argv[1];
+    g_out = argv[2];
+    static const test_case_ cases[] = {TEST_CASE(tier_generates_only_that_tier), TEST_CASE(bad_plan_options_fail)};
+    return test_run_(cases, sizeof cases / sizeof cases[0], argc - 2, argv + 2);
+}
