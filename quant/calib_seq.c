@@ -224,47 +224,6 @@ static bool list_push(str_list *l, const char *s)
 }
 
 
-static const char *json_split(const cJSON *obj)
-{
-    const cJSON *v = cJSON_GetObjectItemCaseSensitive(obj, "split");
-    return cJSON_IsString(v) ? v->valuestring : NULL;
-}
-
-/* The sequence's split by `weft eval`'s rule: meta.json "split", else the root's manifest.json,
- * else the name hash mod 10 (< 8 train, 8 val, 9 test). */
-static bool in_split(const char *path, const char *name, const cJSON *manifest, const char *split)
-{
-    if (!split) {
-        return true;
-    }
-    char p[4096];
-    void *text = NULL;
-    size_t size = 0;
-    cJSON *meta = NULL;
-    if (join(p, sizeof p, path, "meta.json") && quant_read_all(p, &text, &size) == WEFT_OK) {
-        meta = cJSON_ParseWithLength(text, size);
-    }
-    const char *s = meta ? json_split(meta) : NULL;
-    const cJSON *e;
-    const cJSON *seqs = manifest ? cJSON_GetObjectItemCaseSensitive(manifest, "sequences") : NULL;
-    cJSON_ArrayForEach(e, seqs)
-    {
-        const cJSON *en = cJSON_GetObjectItemCaseSensitive(e, "name");
-        if (!s && cJSON_IsString(en) && strcmp(en->valuestring, name) == 0) {
-            s = json_split(e);
-        }
-    }
-    bool match;
-    if (s) {
-        match = strcmp(s, split) == 0;
-    } else {
-        match = strcmp(split, weft_sim_split_of(name)) == 0;
-    }
-    cJSON_Delete(meta);
-    free(text);
-    return match;
-}
-
 static int cmp_str(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }
 
 static weft_result expand_folder(const char *dir, const char *split, str_list *out)
@@ -289,24 +248,16 @@ static weft_result expand_folder(const char *dir, const char *split, str_list *o
     if (names.n) {
         qsort(names.v, names.n, sizeof *names.v, cmp_str);
     }
-    char mpath[4096];
-    void *mtext = NULL;
-    size_t msize = 0;
-    cJSON *manifest = NULL;
-    if (join(mpath, sizeof mpath, dir, "manifest.json") && quant_read_all(mpath, &mtext, &msize) == WEFT_OK) {
-        manifest = cJSON_ParseWithLength(mtext, msize);
-    }
     uint32_t before = out->n;
     weft_result r = WEFT_OK;
     for (uint32_t i = 0; i < names.n && r == WEFT_OK; ++i) {
         char path[4096];
         if (join(path, sizeof path, dir, names.v[i]) && is_file_in(path, "meta.json") &&
-            is_file_in(path, "cloth_pos.npy") && in_split(path, names.v[i], manifest, split) && !list_push(out, path)) {
+            is_file_in(path, "cloth_pos.npy") && (!split || strcmp(weft_sim_sequence_split(path), split) == 0) &&
+            !list_push(out, path)) {
             r = weft__fail(WEFT_ERROR_OUT_OF_MEMORY, "quantize: out of memory listing '%s'", dir);
         }
     }
-    cJSON_Delete(manifest);
-    free(mtext);
     quant_list_free(names.v, names.n);
     if (r == WEFT_OK && out->n == before) {
         r = weft__fail(WEFT_ERROR_FORMAT, "quantize: no sequences (meta.json + cloth_pos.npy)%s%s under '%s'",

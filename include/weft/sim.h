@@ -103,6 +103,10 @@ WEFT_API weft_sim_sequence_def weft_sim_default_sequence_def(void);
  * when the set grows. `weft simgen` writes it into the manifest; tools/train/data.py computes the
  * same. NULL name: "train". */
 WEFT_API const char *weft_sim_split_of(const char *sequence_name);
+/* The split of the sequence in folder `dir`: its meta.json "split" (packed and hand-made
+ * sequences carry one), else its entry in the dataset's manifest.json one folder up, else
+ * weft_sim_split_of(the folder's name). "train", "val" or "test"; NULL for a NULL or empty path. */
+WEFT_API const char *weft_sim_sequence_split(const char *dir);
 WEFT_API const char *weft_sim_scenario_name(weft_sim_scenario scenario);
 
 /* Simulates one sequence and writes it into out_dir (created if missing): meta.json plus

@@ -60,6 +60,82 @@ const char *weft_sim_split_of(const char *name)
     return h < 8 ? "train" : (h == 8 ? "val" : "test");
 }
 
+/* A whole small file as a NUL-terminated string (NULL when unreadable or over 64 MiB). */
+static char *read_text(const char *path)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f) {
+        return NULL;
+    }
+    char *text = NULL;
+    long size = fseek(f, 0, SEEK_END) == 0 ? ftell(f) : -1;
+    if (size >= 0 && size < (64l << 20) && fseek(f, 0, SEEK_SET) == 0 && (text = malloc((size_t)size + 1))) {
+        if (fread(text, 1, (size_t)size, f) != (size_t)size) {
+            free(text);
+            text = NULL;
+        } else {
+            text[size] = '\0';
+        }
+    }
+    fclose(f);
+    return text;
+}
+
+/* One of the three split names, by value, so the caller's pointer outlives the parsed JSON. */
+static const char *split_constant(const cJSON *v)
+{
+    static const char *const names[] = {"train", "val", "test"};
+    for (int i = 0; cJSON_IsString(v) && i < 3; ++i) {
+        if (strcmp(v->valuestring, names[i]) == 0) {
+            return names[i];
+        }
+    }
+    return NULL;
+}
+
+const char *weft_sim_sequence_split(const char *dir)
+{
+    char path[4096];
+    size_t len = dir ? strlen(dir) : 0;
+    while (len > 1 && dir[len - 1] == '/') {
+        --len;
+    }
+    if (len == 0 || len + 32 > sizeof path) {
+        return NULL;
+    }
+    size_t base = len;
+    while (base > 0 && dir[base - 1] != '/') {
+        --base;
+    }
+    char name[256];
+    snprintf(name, sizeof name, "%.*s", (int)(len - base), dir + base);
+    /* 1. meta.json (packed sequences carry their split there) */
+    snprintf(path, sizeof path, "%.*s/meta.json", (int)len, dir);
+    char *text = read_text(path);
+    cJSON *json = text ? cJSON_Parse(text) : NULL;
+    const char *split = split_constant(cJSON_GetObjectItemCaseSensitive(json, "split"));
+    cJSON_Delete(json);
+    free(text);
+    /* 2. the dataset's manifest.json, one folder up */
+    if (!split) {
+        snprintf(path, sizeof path, "%.*smanifest.json", (int)base, dir);
+        text = base > 0 ? read_text(path) : read_text("manifest.json");
+        json = text ? cJSON_Parse(text) : NULL;
+        const cJSON *e;
+        cJSON_ArrayForEach(e, cJSON_GetObjectItemCaseSensitive(json, "sequences"))
+        {
+            const cJSON *en = cJSON_GetObjectItemCaseSensitive(e, "name");
+            if (!split && cJSON_IsString(en) && strcmp(en->valuestring, name) == 0) {
+                split = split_constant(cJSON_GetObjectItemCaseSensitive(e, "split"));
+            }
+        }
+        cJSON_Delete(json);
+        free(text);
+    }
+    /* 3. the name's hash, as simgen assigns it */
+    return split ? split : weft_sim_split_of(name);
+}
+
 const char *weft_sim_scenario_name(weft_sim_scenario s)
 {
     static const char *const names[] = {"drop", "gripper", "garment"};

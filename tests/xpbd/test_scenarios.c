@@ -1,9 +1,11 @@
 /* The scenario generator end to end on small sheets: drop and gripper sequences are written,
  * validated, deterministic for a seed, and the gripper really holds the cloth up. */
+#define _POSIX_C_SOURCE 200809L /* mkdir */
 #include "test.h"
 #include "weft/sim.h"
 
 #include <stdint.h>
+#include <sys/stat.h>
 
 static long file_size(const char *path)
 {
@@ -182,5 +184,46 @@ static void test_split(void)
               "split %u / %u / %u", n[0], n[1], n[2]);
 }
 
+static void write_text(const char *path, const char *text)
+{
+    FILE *f = fopen(path, "wb");
+    CHECK_MSG(f != NULL, "cannot write %s", path);
+    if (f) {
+        fputs(text, f);
+        fclose(f);
+    }
+}
+
+/* A folder's split: meta.json first, then the manifest one folder up, then the name's hash. */
+static void test_sequence_split(void)
+{
+    char root[512], a[600], b[600], c[600], p[700];
+    snprintf(root, sizeof root, "%s/xpbd_scenarios", WEFT_BINARY_DIR);
+    mkdir(root, 0755);
+    snprintf(root, sizeof root, "%s/xpbd_scenarios/split_set", WEFT_BINARY_DIR);
+    snprintf(a, sizeof a, "%s/gripper_v256_0000", root); /* hash: train */
+    snprintf(b, sizeof b, "%s/gripper_v256_0012", root); /* hash: val */
+    snprintf(c, sizeof c, "%s/gripper_v256_0026", root); /* hash: test */
+    mkdir(root, 0755), mkdir(a, 0755), mkdir(b, 0755), mkdir(c, 0755);
+    snprintf(p, sizeof p, "%s/meta.json", a);
+    write_text(p, "{\"scenario\": \"gripper\", \"split\": \"test\"}");
+    snprintf(p, sizeof p, "%s/meta.json", b);
+    write_text(p, "{\"scenario\": \"gripper\"}");
+    snprintf(p, sizeof p, "%s/meta.json", c);
+    write_text(p, "{\"scenario\": \"gripper\", \"split\": \"nonsense\"}");
+    snprintf(p, sizeof p, "%s/manifest.json", root);
+    write_text(p, "{\"sequences\": [{\"name\": \"gripper_v256_0000\", \"split\": \"val\"},"
+                  " {\"name\": \"gripper_v256_0012\", \"split\": \"train\"}]}");
+    CHECK(strcmp(weft_sim_sequence_split(a), "test") == 0);  /* meta wins over the manifest */
+    CHECK(strcmp(weft_sim_sequence_split(b), "train") == 0); /* the manifest over the hash */
+    snprintf(p, sizeof p, "%s/", b);
+    CHECK(strcmp(weft_sim_sequence_split(p), "train") == 0); /* a trailing slash is the same folder */
+    CHECK(strcmp(weft_sim_sequence_split(c), "test") == 0);  /* unknown values fall through */
+    snprintf(p, sizeof p, "%s/manifest.json", root);
+    write_text(p, "not json");
+    CHECK(strcmp(weft_sim_sequence_split(b), "val") == 0); /* unreadable manifest: the hash */
+    CHECK(weft_sim_sequence_split(NULL) == NULL && weft_sim_sequence_split("") == NULL);
+}
+
 TEST_MAIN(TEST_CASE(test_drop_deterministic), TEST_CASE(test_gripper_lifts), TEST_CASE(test_gripper_speed),
-          TEST_CASE(test_split))
+          TEST_CASE(test_split), TEST_CASE(test_sequence_split))

@@ -22,7 +22,6 @@
 #include "weft/sim.h"
 #include "assets/npz.h"
 
-#include <cjson/cJSON.h>
 #include <dirent.h>
 #include <math.h>
 #include <stdio.h>
@@ -575,43 +574,6 @@ static bool is_file(const char *dir, const char *name)
 }
 
 
-/* The sequence's split: meta.json "split", else `weft simgen`'s manifest.json in the root folder
- * (its "sequences" list), else the simgen name hash mod 10 (< 8 train, 8 val, 9 test). */
-static bool in_split(const char *dir, const char *name, const cJSON *manifest, const char *split)
-{
-    if (!split) {
-        return true;
-    }
-    char p[1024];
-    size_t n = 0;
-    char *text = path_join(p, sizeof p, dir, "meta.json") ? slurp(p, &n) : NULL;
-    const char *s = NULL;
-    cJSON *j = text ? cJSON_Parse(text) : NULL;
-    const cJSON *v = j ? cJSON_GetObjectItemCaseSensitive(j, "split") : NULL;
-    if (cJSON_IsString(v)) {
-        s = v->valuestring;
-    }
-    const cJSON *seqs = manifest ? cJSON_GetObjectItemCaseSensitive(manifest, "sequences") : NULL;
-    const cJSON *e;
-    cJSON_ArrayForEach(e, seqs)
-    {
-        const cJSON *en = cJSON_GetObjectItemCaseSensitive(e, "name");
-        const cJSON *es = cJSON_GetObjectItemCaseSensitive(e, "split");
-        if (!s && cJSON_IsString(en) && cJSON_IsString(es) && strcmp(en->valuestring, name) == 0) {
-            s = es->valuestring;
-        }
-    }
-    bool match;
-    if (s) {
-        match = strcmp(s, split) == 0;
-    } else {
-        match = strcmp(split, weft_sim_split_of(name)) == 0;
-    }
-    cJSON_Delete(j);
-    free(text);
-    return match;
-}
-
 static int cmp_str(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }
 
 static void usage(FILE *f)
@@ -800,20 +762,15 @@ int weft_cmd_eval(int argc, char **argv)
             if (count) {
                 qsort(names, count, sizeof *names, cmp_str);
             }
-            char mpath[1024];
-            size_t msize = 0;
-            char *mtext = path_join(mpath, sizeof mpath, o.seq, "manifest.json") ? slurp(mpath, &msize) : NULL;
-            cJSON *manifest = mtext ? cJSON_Parse(mtext) : NULL;
             for (size_t i = 0; i < count; ++i) {
                 char path[1024];
-                if (path_join(path, sizeof path, o.seq, names[i]) && is_file(path, "meta.json") && is_file(path, "cloth_pos.npy") && in_split(path, names[i], manifest, o.split)) {
+                if (path_join(path, sizeof path, o.seq, names[i]) && is_file(path, "meta.json") && is_file(path, "cloth_pos.npy") &&
+                    (!o.split || strcmp(weft_sim_sequence_split(path), o.split) == 0)) {
                     rc |= eval_sequence(ctx, model, &o, path, &total, !o.json);
                 }
                 free(names[i]);
             }
             free(names);
-            cJSON_Delete(manifest);
-            free(mtext);
         }
     }
     if (total.sequences == 0 && rc == 0) {

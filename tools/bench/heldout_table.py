@@ -1,0 +1,110 @@
+"""Held-out table: `weft eval` per method and split, MVE per scenario, as one markdown table.
+
+  /usr/bin/python3 tools/bench/heldout_table.py --data data/refsim --split test val \
+      --method game=model:tools/train/models/game.safetensors --method LBS=lbs --method XPBD-5=xpbd:5 \
+      --out docs/heldout_test_val.md
+
+Each --method is LABEL=METHOD[:ARG] with METHOD one of model:PATH (fp32), int8:PATH, fp16:PATH,
+lbs, xpbd:S; every run is `weft eval --seq DATA --split SPLIT --ccd off|on` (240-frame rollouts
+from the first two reference frames). The per-sequence lines eval prints are grouped by the
+scenario in each sequence's name (drop_/garment_/gripper_) and averaged weighted by frames
+(eval's own total weights by vertex-frames; the sequences' vertex counts differ by a few %). Also writes the per-sequence rows as CSV next to --out.
+"""
+import argparse
+import csv
+import os
+import re
+import subprocess
+import sys
+
+LINE = re.compile(r"^(\S+)\s+frames\s+(\d+)\s+MVE\s+([-\d.naninf]+) cm\s+coll\s+([-\d.]+)%\s+self\s+([-\d.]+)%\s+"
+                  r"([-\d.]+) ms/frame\s+strain\s+([-\d.naninf]+)\s+tokens\s+\S+(\s+NaN)?")
+SCENARIOS = ("drop", "garment", "gripper")
+
+
+def method_args(spec):
+    kind, _, arg = spec.partition(":")
+    if kind in ("model", "int8", "fp16"):
+        precision = {"model": "fp32"}.get(kind, kind)
+        return ["--method", "model", "--model", arg, "--precision", precision]
+    if kind == "lbs":
+        return ["--method", "lbs"]
+    if kind == "xpbd":
+        return ["--method", "xpbd:" + arg]
+    sys.exit(f"heldout_table: unknown method '{spec}'")
+
+
+def run(weft, data, split, spec, ccd, frames):
+    cmd = [weft, "eval", "--seq", data, "--split", split, "--ccd", ccd] + method_args(spec)
+    if frames:
+        cmd += ["--frames", str(frames)]
+    print("$ " + " ".join(cmd), file=sys.stderr, flush=True)
+    out = subprocess.run(cmd, stdout=subprocess.PIPE, text=True, check=False)
+    rows = []
+    for line in out.stdout.splitlines():
+        m = LINE.match(line.strip())
+        if m:
+            name = os.path.basename(m.group(1).rstrip("/"))
+            rows.append({"sequence": name, "scenario": name.split("_")[0], "frames": int(m.group(2)),
+                         "mve_cm": float(m.group(3)), "coll_pct": float(m.group(4)),
+                         "self_pct": float(m.group(5)), "ms_per_frame": float(m.group(6)),
+                         "max_strain": float(m.group(7)), "nan": bool(m.group(8))})
+    if out.returncode != 0 and not rows:
+        sys.exit(f"heldout_table: `{' '.join(cmd)}` failed ({out.returncode})")
+    return rows
+
+
+def mean(rows, key):
+    w = sum(r["frames"] for r in rows)
+    return sum(r[key] * r["frames"] for r in rows) / w if w else float("nan")
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    ap.add_argument("--weft", default="build/bin/weft")
+    ap.add_argument("--data", required=True)
+    ap.add_argument("--split", nargs="+", default=["test"])
+    ap.add_argument("--method", action="append", required=True, help="LABEL=METHOD[:ARG]")
+    ap.add_argument("--ccd", default="off", choices=["on", "off"])
+    ap.add_argument("--frames", type=int, default=0, help="rollout length (default: the whole sequence)")
+    ap.add_argument("--out", help="markdown file (default: print only)")
+    a = ap.parse_args()
+
+    table, per_seq = [], []
+    for split in a.split:
+        for m in a.method:
+            label, _, spec = m.partition("=")
+            if not spec:
+                sys.exit(f"heldout_table: --method wants LABEL=METHOD, got '{m}'")
+            rows = run(a.weft, a.data, split, spec, a.ccd, a.frames)
+            for r in rows:
+                per_seq.append(dict(r, split=split, method=label))
+            cells = [split, label, f"{mean(rows, 'mve_cm'):.2f}"]
+            for s in SCENARIOS:
+                sub = [r for r in rows if r["scenario"] == s]
+                cells.append(f"{mean(sub, 'mve_cm'):.2f} ({len(sub)})" if sub else "—")
+            cells += [f"{mean(rows, 'coll_pct'):.2f}", f"{mean(rows, 'self_pct'):.2f}",
+                      f"{mean(rows, 'ms_per_frame'):.2f}", f"{max((r['max_strain'] for r in rows), default=0):.1f}",
+                      "yes" if any(r["nan"] for r in rows) else "no"]
+            table.append(cells)
+
+    head = ("| split | method | all | drop (n) | garment (n) | gripper (n) | collision % | self-collision % "
+            "| ms/frame | max strain | NaN |\n|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---|\n")
+    md = head + "".join("| " + " | ".join(c) + " |\n" for c in table)
+    print(md)
+    if a.out:
+        cmd = "/usr/bin/python3 tools/bench/heldout_table.py " + " ".join(
+            [f"--data {a.data}", "--split " + " ".join(a.split), f"--ccd {a.ccd}"] +
+            [f"--method {m}" for m in a.method] + ([f"--frames {a.frames}"] if a.frames else []) +
+            [f"--out {a.out}"])
+        with open(a.out, "w") as f:
+            f.write(f"MVE in cm, 240-frame rollouts, CCD {a.ccd}; made by\n\n```\n{cmd}\n```\n\n" + md)
+        with open(os.path.splitext(a.out)[0] + ".csv", "w", newline="") as f:
+            w = csv.DictWriter(f, fieldnames=["split", "method", "sequence", "scenario", "frames", "mve_cm",
+                                              "coll_pct", "self_pct", "ms_per_frame", "max_strain", "nan"])
+            w.writeheader()
+            w.writerows(per_seq)
+
+
+if __name__ == "__main__":
+    main()
