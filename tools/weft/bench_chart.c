@@ -314,10 +314,9 @@ int weft_bench_chart(int argc, char **argv)
 {
     chart_opts o = {.split = "test", .models = "tools/train/models", .out = "docs",
                     .fnopt_model = "tools/fnopt/models/fnopt_32.safetensors", .plot = true, .fnopt = true};
-    char command[2048] = "weft bench chart";
+    char command[2048];
+    bench_command_line(command, sizeof command, "weft bench chart", argc, argv);
     for (int i = 1; i < argc; ++i) {
-        size_t cl = strlen(command);
-        snprintf(command + cl, sizeof command - cl, " %s", argv[i]);
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
             usage(stdout);
@@ -351,21 +350,15 @@ int weft_bench_chart(int argc, char **argv)
             } else if (strcmp(a, "--fnopt-motions") == 0) {
                 o.fnopt_motions = v;
             } else if (strcmp(a, "--frames") == 0 || strcmp(a, "--max-seqs") == 0) {
-                char *end;
-                unsigned long x = strtoul(v, &end, 10);
-                if (*end || x > 1000000) {
-                    fprintf(stderr, "weft bench chart: bad number '%s' for %s\n", v, a);
+                if (!bench_parse_u32("chart", a, v, 0, 1000000, a[2] == 'f' ? &o.frames : &o.max_seqs)) {
                     return 2;
                 }
-                *(a[2] == 'f' ? &o.frames : &o.max_seqs) = (uint32_t)x;
                 o.frames_given = o.frames_given || a[2] == 'f';
             } else {
                 fprintf(stderr, "weft bench chart: unknown option '%s'\n", a);
                 usage(stderr);
                 return 2;
             }
-            cl = strlen(command);
-            snprintf(command + cl, sizeof command - cl, " %s", v);
             ++i;
         }
     }

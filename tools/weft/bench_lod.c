@@ -929,10 +929,9 @@ int weft_bench_lod(int argc, char **argv)
 {
     lod_opts o = {.split = "test", .models = "tools/train/models", .out = "docs", .scale = true, .scale_frames = 4,
                   .scale_res = "1k", .name = "lod"};
-    char command[2048] = "weft bench lod";
+    char command[2048];
+    bench_command_line(command, sizeof command, "weft bench lod", argc, argv);
     for (int i = 1; i < argc; ++i) {
-        size_t cl = strlen(command);
-        snprintf(command + cl, sizeof command - cl, " %s", argv[i]);
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
             usage(stdout);
@@ -995,20 +994,15 @@ int weft_bench_lod(int argc, char **argv)
                 return 2;
             }
         } else if (strcmp(a, "--frames") == 0 || strcmp(a, "--max-seqs") == 0 || strcmp(a, "--scale-frames") == 0) {
-            char *end;
-            unsigned long x = strtoul(v, &end, 10);
-            if (*end || end == v || x > 1000000 || (a[2] == 's' && x == 0)) {
-                fprintf(stderr, "weft bench lod: bad number '%s' for %s\n", v, a);
+            if (!bench_parse_u32("lod", a, v, a[2] == 's' ? 1 : 0, 1000000,
+                                 a[2] == 'f' ? &o.frames : a[2] == 'm' ? &o.max_seqs : &o.scale_frames)) {
                 return 2;
             }
-            *(a[2] == 'f' ? &o.frames : a[2] == 'm' ? &o.max_seqs : &o.scale_frames) = (uint32_t)x;
         } else {
             fprintf(stderr, "weft bench lod: unknown option '%s'\n", a);
             usage(stderr);
             return 2;
         }
-        cl = strlen(command);
-        snprintf(command + cl, sizeof command - cl, " %s", v);
         ++i;
     }
     weft_cloth_resolution res_check;

@@ -661,10 +661,9 @@ int weft_bench_stability(int argc, char **argv)
     st_opts o = {.data = "data/stability", .out = "docs", .models = "tools/train/models", .scenario = "gripper",
                  .fnopt_model = "tools/fnopt/models/fnopt_32.safetensors", .plot = true, .fnopt = true,
                  .garment = true};
-    char command[2048] = "weft bench stability";
+    char command[2048];
+    bench_command_line(command, sizeof command, "weft bench stability", argc, argv);
     for (int i = 1; i < argc; ++i) {
-        size_t cl = strlen(command);
-        snprintf(command + cl, sizeof command - cl, " %s", argv[i]);
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
             usage(stdout);
@@ -690,13 +689,9 @@ int weft_bench_stability(int argc, char **argv)
                             : strcmp(a, "--time-limit") == 0  ? &o.time_limit
                                                               : NULL;
             if (num) {
-                char *end;
-                unsigned long x = strtoul(v, &end, 10);
-                if (*end || x == 0 || x > 1000000) {
-                    fprintf(stderr, "weft bench stability: bad number '%s' for %s\n", v, a);
+                if (!bench_parse_u32("stability", a, v, 1, 1000000, num)) {
                     return 2;
                 }
-                *num = (uint32_t)x;
             } else if (strcmp(a, "--xpbd") == 0) {
                 if ((o.nxpbd = bench_parse_substeps(v, o.xpbd, 8)) == 0) {
                     fprintf(stderr, "weft bench stability: --xpbd wants substep counts like 5,10,20,40\n");
@@ -717,8 +712,6 @@ int weft_bench_stability(int argc, char **argv)
                 usage(stderr);
                 return 2;
             }
-            cl = strlen(command);
-            snprintf(command + cl, sizeof command - cl, " %s", v);
             ++i;
         }
     }

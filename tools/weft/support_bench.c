@@ -272,6 +272,27 @@ static bool is_file(const char *dir, const char *name)
     return n > 0 && (size_t)n < sizeof p && stat(p, &st) == 0 && S_ISREG(st.st_mode);
 }
 
+void bench_command_line(char *out, size_t cap, const char *prefix, int argc, char **argv)
+{
+    snprintf(out, cap, "%s", prefix);
+    for (int i = 1; i < argc; ++i) {
+        size_t len = strlen(out);
+        snprintf(out + len, cap - len, " %s", argv[i]);
+    }
+}
+
+bool bench_parse_u32(const char *tool, const char *opt, const char *v, uint32_t lo, uint32_t hi, uint32_t *out)
+{
+    char *end;
+    unsigned long x = v && *v >= '0' && *v <= '9' ? strtoul(v, &end, 10) : 0;
+    if (!v || *v < '0' || *v > '9' || *end || x < lo || x > hi) {
+        fprintf(stderr, "weft bench %s: bad number '%s' for %s\n", tool, v ? v : "", opt);
+        return false;
+    }
+    *out = (uint32_t)x;
+    return true;
+}
+
 bool bench_list_sequences(const char *root, const char *split, bench_seq **out, size_t *count)
 {
     *out = NULL;
@@ -280,11 +301,6 @@ bool bench_list_sequences(const char *root, const char *split, bench_seq **out, 
     if (!dh) {
         return false;
     }
-    char mpath[1200];
-    snprintf(mpath, sizeof mpath, "%s/manifest.json", root);
-    char *mtext = bench_slurp(mpath, NULL);
-    cJSON *manifest = mtext ? cJSON_Parse(mtext) : NULL;
-    const cJSON *mseqs = manifest ? cJSON_GetObjectItemCaseSensitive(manifest, "sequences") : NULL;
     bench_seq *list = NULL;
     size_t n = 0, cap = 0;
     bool ok = true;
@@ -311,29 +327,11 @@ bool bench_list_sequences(const char *root, const char *split, bench_seq **out, 
         const cJSON *fr = cJSON_GetObjectItemCaseSensitive(meta, "frames");
         const cJSON *cl = cJSON_GetObjectItemCaseSensitive(meta, "cloth");
         const cJSON *vx = cl ? cJSON_GetObjectItemCaseSensitive(cl, "vertices") : NULL;
-        const cJSON *sp = cJSON_GetObjectItemCaseSensitive(meta, "split");
         snprintf(s.scenario, sizeof s.scenario, "%s", cJSON_IsString(sc) ? sc->valuestring : "unknown");
         bench_sanitize(s.scenario);
         s.frames = cJSON_IsNumber(fr) && fr->valuedouble > 0 ? (uint32_t)fr->valuedouble : 0;
         s.vertices = cJSON_IsNumber(vx) && vx->valuedouble > 0 ? (uint32_t)vx->valuedouble : 0;
-        bool keep = true;
-        if (split) {
-            const char *which = cJSON_IsString(sp) ? sp->valuestring : NULL;
-            const cJSON *e;
-            cJSON_ArrayForEach(e, mseqs)
-            {
-                const cJSON *en = cJSON_GetObjectItemCaseSensitive(e, "name");
-                const cJSON *es = cJSON_GetObjectItemCaseSensitive(e, "split");
-                if (!which && cJSON_IsString(en) && cJSON_IsString(es) && strcmp(en->valuestring, s.name) == 0) {
-                    which = es->valuestring;
-                }
-            }
-            if (which) {
-                keep = strcmp(which, split) == 0;
-            } else {
-                keep = strcmp(split, weft_sim_split_of(s.name)) == 0;
-            }
-        }
+        const bool keep = !split || strcmp(weft_sim_sequence_split(s.dir), split) == 0;
         cJSON_Delete(meta);
         if (!keep) {
             continue;
@@ -350,8 +348,6 @@ bool bench_list_sequences(const char *root, const char *split, bench_seq **out, 
         list[n++] = s;
     }
     closedir(dh);
-    cJSON_Delete(manifest);
-    free(mtext);
     if (!ok) {
         free(list);
         return false;

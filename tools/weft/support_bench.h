@@ -59,8 +59,7 @@ char *bench_slurp(const char *path, size_t *size);
 bool bench_mkdirs(const char *path);
 
 /* Sequence folders (meta.json + cloth_pos.npy) directly under root, sorted by name, whose
- * split is `split` (NULL: all). The split follows `weft eval`: meta.json "split", else the
- * root's manifest.json, else simgen's name hash. *out is malloc'd; the caller frees. */
+ * split is `split` (NULL: all), by weft_sim_sequence_split as `weft eval` decides it. *out is malloc'd; the caller frees. */
 bool bench_list_sequences(const char *root, const char *split, bench_seq **out, size_t *count);
 
 /* The common start of a harness benchmark: the running binary's path into exe, the output
@@ -74,6 +73,14 @@ bool bench_start(const char *tool, const char *data, const char *split, const ch
  * material by `weft fnopt fit` (docs/FNOPT.md, "Material fit"); every FNOpt scene of the
  * harness benchmarks runs with them, as the FNOpt evaluation tables do. */
 #define BENCH_FNOPT_MATERIAL "100,3,5"
+
+/* The command line as the docs quote it: prefix ("weft bench chart") and every argument after
+ * argv[0], space-separated, cut to cap. */
+void bench_command_line(char *out, size_t cap, const char *prefix, int argc, char **argv);
+
+/* An option's unsigned value: all digits, within [lo, hi]. On failure prints
+ * "weft bench <tool>: bad number 'v' for opt" and returns false, *out untouched. */
+bool bench_parse_u32(const char *tool, const char *opt, const char *v, uint32_t lo, uint32_t hi, uint32_t *out);
 
 /* Collapses a stderr line into something safe for one CSV / markdown cell. */
 void bench_sanitize(char *s);
