@@ -3,6 +3,8 @@
 #define _POSIX_C_SOURCE 200809L /* mkdir, rename */
 #include "xpbd/scene.h"
 
+#include "io/npy_write.h"
+
 #include <cjson/cJSON.h>
 #include <errno.h>
 #include <stdio.h>
@@ -142,35 +144,6 @@ const char *weft_sim_scenario_name(weft_sim_scenario s)
     return (unsigned)s < WEFT_SIM_SCENARIO_COUNT ? names[s] : "unknown";
 }
 
-/* NPY v1.0: magic, header length, a Python dict literal padded to a 64-byte boundary. */
-static bool npy_write(const char *path, const char *descr, const uint64_t *shape, int ndim, const void *data,
-                      size_t bytes)
-{
-    char dims[128] = "";
-    size_t len = 0;
-    for (int i = 0; i < ndim; ++i) {
-        len += (size_t)snprintf(dims + len, sizeof dims - len, "%llu%s", (unsigned long long)shape[i],
-                                ndim == 1 ? "," : (i + 1 < ndim ? ", " : ""));
-    }
-    char header[256];
-    int hl = snprintf(header, sizeof header, "{'descr': '%s', 'fortran_order': False, 'shape': (%s), }", descr, dims);
-    size_t total = 10 + (size_t)hl + 1;
-    size_t pad = (64 - total % 64) % 64;
-    FILE *f = fopen(path, "wb");
-    if (!f) {
-        return false;
-    }
-    unsigned char pre[10] = {0x93, 'N', 'U', 'M', 'P', 'Y', 1, 0, 0, 0};
-    uint16_t hlen = (uint16_t)(hl + pad + 1);
-    pre[8] = (unsigned char)(hlen & 0xff);
-    pre[9] = (unsigned char)(hlen >> 8);
-    bool ok = fwrite(pre, 1, 10, f) == 10 && fwrite(header, 1, (size_t)hl, f) == (size_t)hl;
-    for (size_t i = 0; ok && i < pad; ++i) {
-        ok = fputc(' ', f) != EOF;
-    }
-    ok = ok && fputc('\n', f) != EOF && fwrite(data, 1, bytes, f) == bytes;
-    return fclose(f) == 0 && ok;
-}
 
 static bool make_dir(const char *path)
 {
@@ -520,24 +493,24 @@ static bool write_arrays(const char *dir, const xscene *sc, const weft_sim_seque
     bool ok = true;
     uint64_t s2[2] = {nv, 3}, s3[3] = {T, nv, 3};
     snprintf(path, sizeof path, "%s/rest_pos.npy", dir);
-    ok = ok && npy_write(path, "<f4", s2, 2, sc->cloth.pos, sizeof(float) * 3 * nv);
+    ok = ok && weft_npy_write_file(path, "<f4", s2, 2, sc->cloth.pos, sizeof(float) * 3 * nv);
     snprintf(path, sizeof path, "%s/cloth_pos.npy", dir);
-    ok = ok && npy_write(path, "<f4", s3, 3, b->cloth + off * nv * 3, sizeof(float) * 3 * nv * T);
+    ok = ok && weft_npy_write_file(path, "<f4", s3, 3, b->cloth + off * nv * 3, sizeof(float) * 3 * nv * T);
     uint64_t sf[2] = {sc->cloth.nt, 3};
     snprintf(path, sizeof path, "%s/faces.npy", dir);
-    ok = ok && npy_write(path, "<i4", sf, 2, sc->cloth.tris, sizeof(uint32_t) * 3 * sc->cloth.nt);
+    ok = ok && weft_npy_write_file(path, "<i4", sf, 2, sc->cloth.tris, sizeof(uint32_t) * 3 * sc->cloth.nt);
     uint64_t sc3[3] = {T, nc, 3};
     snprintf(path, sizeof path, "%s/collider_pos.npy", dir);
-    ok = ok && npy_write(path, "<f4", sc3, 3, b->collider + off * nc * 3, sizeof(float) * 3 * nc * T);
+    ok = ok && weft_npy_write_file(path, "<f4", sc3, 3, b->collider + off * nc * 3, sizeof(float) * 3 * nc * T);
     uint64_t scf[2] = {sc->collider.nt, 3};
     snprintf(path, sizeof path, "%s/collider_faces.npy", dir);
-    ok = ok && npy_write(path, "<i4", scf, 2, sc->collider.tris, sizeof(uint32_t) * 3 * sc->collider.nt);
+    ok = ok && weft_npy_write_file(path, "<i4", scf, 2, sc->collider.tris, sizeof(uint32_t) * 3 * sc->collider.nt);
     uint64_t sp[2] = {T, nv};
     snprintf(path, sizeof path, "%s/pinned.npy", dir);
-    ok = ok && npy_write(path, "|u1", sp, 2, b->pinned + off * nv, (size_t)T * nv);
+    ok = ok && weft_npy_write_file(path, "|u1", sp, 2, b->pinned + off * nv, (size_t)T * nv);
     uint64_t ss[2] = {T, ST_COUNT};
     snprintf(path, sizeof path, "%s/stats.npy", dir);
-    ok = ok && npy_write(path, "<f4", ss, 2, b->stats + off * ST_COUNT, sizeof(float) * ST_COUNT * T);
+    ok = ok && weft_npy_write_file(path, "<f4", ss, 2, b->stats + off * ST_COUNT, sizeof(float) * ST_COUNT * T);
     return ok;
 }
 

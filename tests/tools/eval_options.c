@@ -1,6 +1,6 @@
 /* `weft eval` options on the committed sample sequence: --sim-mesh with the sequence's own mesh
  * (an identity map) scores exactly as without it, --tether-cm and --strain-limit run, a tiny
- * --time-limit stops the rollout early and says so, and bad values fail with an error exit. argv: weft binary, data folder, output folder. Exits 77 (skipped) without
+ * --time-limit stops the rollout early and says so, --write-pos writes the rollout, and bad values fail with an error exit. argv: weft binary, data folder, output folder. Exits 77 (skipped) without
  * a sample sequence. */
 #define _POSIX_C_SOURCE 200809L /* posix_spawn, stat */
 #include "test.h"
@@ -112,6 +112,44 @@ static void strain_and_time_limits(void)
     CHECK_EQ_INT(tool_run(junk_time, o), 2);
 }
 
+/* Payload bytes of an .npy file (file size minus its header); -1 when unreadable. */
+static long npy_payload(const char *path)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f) {
+        return -1;
+    }
+    unsigned char pre[10];
+    long size = -1;
+    if (fread(pre, 1, 10, f) == 10 && memcmp(pre, "\x93NUMPY\x01", 7) == 0 && fseek(f, 0, SEEK_END) == 0) {
+        size = ftell(f) - 10 - (long)(pre[8] | pre[9] << 8);
+    }
+    fclose(f);
+    return size;
+}
+
+/* --write-pos: the two start frames plus one array row per scored frame, float32 [T, V, 3]. */
+static void write_pos(void)
+{
+    char dir[1100], path[1300], rest[1300], o[1100], j[2048];
+    snprintf(dir, sizeof dir, "%s/rollouts", g_out);
+    snprintf(path, sizeof path, "%s/sample_seq.npy", dir);
+    snprintf(rest, sizeof rest, "%s/rest_pos.npy", g_seq);
+    snprintf(o, sizeof o, "%s/eval_write.txt", g_out);
+    remove(path);
+    const char *argv[] = {g_exe, "eval", "--seq", g_seq, "--method", "lbs", "--ccd", "off", "--frames", "6",
+                          "--write-pos", dir, "--json", NULL};
+    CHECK_EQ_INT(tool_run(argv, o), 0);
+    CHECK(json_line(o, j, sizeof j));
+    long frames = (long)json_number(j, "frames"), vertex_bytes = npy_payload(rest) / 3; /* rest is [V, 3] f32 */
+    CHECK_EQ_INT((int)frames, 6);
+    CHECK_MSG(vertex_bytes > 0 && npy_payload(path) == (frames + 2) * vertex_bytes * 3,
+              "%s holds %ld bytes, expected %ld", path, npy_payload(path), (frames + 2) * vertex_bytes * 3);
+    const char *unwritable[] = {g_exe, "eval", "--seq", g_seq, "--method", "lbs", "--frames", "2", "--write-pos",
+                                "/proc/weft-cannot-write-here", NULL};
+    CHECK_EQ_INT(tool_run(unwritable, o), 1);
+}
+
 int main(int argc, char **argv)
 {
     if (argc < 4) {
@@ -132,6 +170,6 @@ int main(int argc, char **argv)
     }
     mkdir(g_out, 0777);
     static const test_case_ cases[] = {TEST_CASE(sim_mesh_identity), TEST_CASE(tethers_and_bad_values),
-                                       TEST_CASE(strain_and_time_limits)};
+                                       TEST_CASE(strain_and_time_limits), TEST_CASE(write_pos)};
     return test_run_(cases, sizeof cases / sizeof cases[0], 1, argv);
 }

@@ -21,6 +21,8 @@
 #include "weft/lod.h"
 #include "weft/sim.h"
 #include "assets/npz.h"
+#include "io/npy_write.h"
+#include "support_bench.h"
 
 #include <dirent.h>
 #include <math.h>
@@ -47,6 +49,7 @@ typedef struct eval_opts {
     float tether;                       /* m, 0: no tethers */
     float strain_limit;                 /* fraction, 0: off */
     const char *sim_mesh;               /* folder with rest_pos.npy + faces.npy: simulate on this mesh */
+    const char *write_pos;              /* folder: write each rollout as <sequence>.npy [frames + 2, N, 3] */
     double time_limit_ms;               /* 0: none; else stop a rollout once stepping took this long */
 } eval_opts;
 
@@ -302,6 +305,22 @@ static double max_strain(const float *x, const float *rest, const uint32_t *e, u
     return m;
 }
 
+/* DIR/<sequence folder name>.npy, [frames, V, 3] float32. */
+static bool write_rollout(const char *out_dir, const char *seq_dir, const float *pos, uint32_t frames, uint32_t V)
+{
+    const char *base = strrchr(seq_dir, '/');
+    base = base && base[1] ? base + 1 : seq_dir;
+    char path[2048];
+    int n = snprintf(path, sizeof path, "%s/%s.npy", out_dir, base);
+    const uint64_t shape[3] = {frames, V, 3};
+    if (!pos || n <= 0 || (size_t)n >= sizeof path || !bench_mkdirs(out_dir) ||
+        !weft_npy_write_file(path, "<f4", shape, 3, pos, (size_t)frames * V * 3 * sizeof(float))) {
+        fprintf(stderr, "weft eval: cannot write the rollout to %s\n", path);
+        return false;
+    }
+    return true;
+}
+
 static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_opts *o, const char *dir,
                          eval_acc *total, bool print)
 {
@@ -463,6 +482,11 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
     if (o->max_frames && o->max_frames + 1 < last) {
         last = o->max_frames + 1;
     }
+    /* --write-pos: the two reference frames the rollout starts from, then every step's positions. */
+    float *rollout = o->write_pos ? malloc((size_t)(last + 1) * nv * sizeof(float)) : NULL;
+    if (rollout) {
+        memcpy(rollout, s.pos, 2 * nv * sizeof(float));
+    }
     for (uint32_t t = 1; t < last && edges && prev; ++t) {
         if (o->time_limit_ms > 0 && a.ms_sum > o->time_limit_ms) {
             a.time_limited = true;
@@ -506,6 +530,9 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
         }
         const float *x = up ? mapped : weft_garment_positions(g);
         cur = x;
+        if (rollout) {
+            memcpy(rollout + (size_t)(t + 1) * nv, x, nv * sizeof(float));
+        }
         const float *gt = s.pos + (size_t)(t + 1) * nv;
         for (uint32_t i = 0; i < s.V; ++i) {
             double dx = (double)x[3 * i] - gt[3 * i], dy = (double)x[3 * i + 1] - gt[3 * i + 1],
@@ -530,6 +557,10 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
         }
     }
     int rc = (r == WEFT_OK || a.nan) ? 0 : 1;
+    if (o->write_pos && !write_rollout(o->write_pos, dir, rollout, a.frames + 2, s.V)) {
+        rc = 1;
+    }
+    free(rollout);
     if (print) {
         printf("%-40s frames %4u  MVE %8.3f cm  coll %6.2f%%  self %6.2f%%  %8.3f ms/frame  strain %.3f  tokens %.0f%s\n",
                dir, a.frames, a.vert_frames > 0 ? a.err_sum / a.vert_frames * 100.0 : 0.0,
@@ -581,13 +612,15 @@ static void usage(FILE *f)
     fprintf(f, "usage: weft eval --seq DIR [--model M] [--method model|lbs|xpbd:S] [--precision fp32|fp16|int8]\n"
                "                 [--ccd on|off] [--split train|val|test] [--frames N] [--json]\n"
                "                 [--crop-cm X] [--crop box|cells] [--max-collider-tokens N] [--tether-cm X]\n"
-               "                 [--strain-limit PCT] [--sim-mesh DIR] [--time-limit S]\n"
+               "                 [--strain-limit PCT] [--sim-mesh DIR] [--time-limit S] [--write-pos DIR]\n"
                "  DIR is one sequence folder (meta.json + .npy) or a folder of them.\n"
                "  --tether-cm X   tethers to the skinned garment, radius X cm (0 on vertices pinned at the start)\n"
                "  --strain-limit PCT  shorten edges stretched over PCT %% after each step (and in CCD)\n"
                "  --sim-mesh DIR  simulate on DIR's rest_pos.npy + faces.npy (the same garment at another\n"
                "                  resolution) and score its map onto the sequence's mesh; pins are not applied\n"
-               "  --time-limit S  stop each rollout once its steps took S seconds (JSON: time_limited, frames)\n");
+               "  --time-limit S  stop each rollout once its steps took S seconds (JSON: time_limited, frames)\n"
+               "  --write-pos DIR write each rollout to DIR/<sequence>.npy, [frames + 2, N, 3] float32: the two\n"
+               "                  reference frames it starts from, then every step (on the scored mesh)\n");
 }
 
 int weft_cmd_eval(int argc, char **argv)
@@ -666,6 +699,8 @@ int weft_cmd_eval(int argc, char **argv)
                 return 2;
             }
             o.time_limit_ms = sec * 1e3;
+        } else if (strcmp(a, "--write-pos") == 0) {
+            o.write_pos = v, ++i;
         } else if (strcmp(a, "--sim-mesh") == 0) {
             o.sim_mesh = v, ++i; /* rest_pos.npy + faces.npy of the same garment at another resolution */
         } else if (strcmp(a, "--tether-cm") == 0) {
