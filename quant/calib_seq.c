@@ -14,7 +14,7 @@
 #include <string.h>
 #include <sys/stat.h>
 
-weft_result quant_read_all(const char *path, void **out, size_t *size)
+weft_result quant_read_all(weft_context *ctx, const char *path, void **out, size_t *size)
 {
     FILE *f = fopen(path, "rb");
     if (!f) {
@@ -28,14 +28,18 @@ weft_result quant_read_all(const char *path, void **out, size_t *size)
         fclose(f);
         return weft__fail(WEFT_ERROR_IO, "quantize: cannot size '%s'", path);
     }
-    void *buf = malloc(len ? (size_t)len : 1);
+    void *buf = ctx ? weft__alloc(ctx, (size_t)len) : malloc(len ? (size_t)len : 1);
     if (!buf) {
         fclose(f);
         return weft__fail(WEFT_ERROR_OUT_OF_MEMORY, "quantize: out of memory reading '%s'", path);
     }
     if (fread(buf, 1, (size_t)len, f) != (size_t)len) {
         fclose(f);
-        free(buf);
+        if (ctx) {
+            weft__free(ctx, buf, (size_t)len);
+        } else {
+            free(buf);
+        }
         return weft__fail(WEFT_ERROR_IO, "quantize: short read on '%s'", path);
     }
     fclose(f);
@@ -75,7 +79,7 @@ static weft_result load_array(const char *dir, const char *name, uint32_t rank, 
     }
     void *bytes = NULL;
     size_t size = 0;
-    weft_result r = quant_read_all(path, &bytes, &size);
+    weft_result r = quant_read_all(NULL, path, &bytes, &size);
     if (r != WEFT_OK) {
         return r;
     }
@@ -142,7 +146,7 @@ weft_result quant_seq_load(const char *dir, quant_seq *s)
     if (!join(path, sizeof path, dir, "meta.json")) {
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "quantize: path too long under '%s'", dir);
     }
-    weft_result r = quant_read_all(path, &text, &size);
+    weft_result r = quant_read_all(NULL, path, &text, &size);
     if (r != WEFT_OK) {
         return r;
     }
@@ -272,7 +276,7 @@ static weft_result expand_list(const char *file, str_list *out)
 {
     void *text = NULL;
     size_t size = 0;
-    weft_result r = quant_read_all(file, &text, &size);
+    weft_result r = quant_read_all(NULL, file, &text, &size);
     if (r != WEFT_OK) {
         return r;
     }

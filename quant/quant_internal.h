@@ -24,8 +24,9 @@ void quant_seq_free(quant_seq *s);
 weft_result quant_seq_expand(const char *const *args, const char *split, char ***out, uint32_t *count);
 void quant_list_free(char **list, uint32_t count);
 
-/* Whole-file read into malloc'd memory. */
-weft_result quant_read_all(const char *path, void **out, size_t *size);
+/* Whole-file read: into the context's allocator (release with weft__free(ctx, p, size)), or
+ * malloc'd memory when ctx is NULL. */
+weft_result quant_read_all(weft_context *ctx, const char *path, void **out, size_t *size);
 
 /* Calibration of a clothtransformer model held in a safetensors buffer. */
 typedef struct quant_calib quant_calib;

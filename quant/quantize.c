@@ -797,36 +797,6 @@ weft_result weft_quant_smooth_memory(weft_context *ctx, const weft_quant_def *de
     return r;
 }
 
-static weft_result read_file(weft_context *ctx, const char *path, void **out, size_t *size)
-{
-    FILE *f = fopen(path, "rb");
-    if (!f) {
-        return weft__fail(WEFT_ERROR_IO, "quantize: cannot open '%s'", path);
-    }
-    long len = -1;
-    if (fseek(f, 0, SEEK_END) == 0) {
-        len = ftell(f);
-    }
-    if (len < 0 || fseek(f, 0, SEEK_SET) != 0) {
-        fclose(f);
-        return weft__fail(WEFT_ERROR_IO, "quantize: cannot size '%s'", path);
-    }
-    void *buf = weft__alloc(ctx, (size_t)len);
-    if (!buf) {
-        fclose(f);
-        return WEFT_ERROR_OUT_OF_MEMORY;
-    }
-    if (fread(buf, 1, (size_t)len, f) != (size_t)len) {
-        fclose(f);
-        weft__free(ctx, buf, (size_t)len);
-        return weft__fail(WEFT_ERROR_IO, "quantize: short read on '%s'", path);
-    }
-    fclose(f);
-    *out = buf;
-    *size = (size_t)len;
-    return WEFT_OK;
-}
-
 static weft_result write_file_atomic(const char *path, const void *bytes, size_t size)
 {
     char tmp[4096];
@@ -860,7 +830,7 @@ weft_result weft_quantize_file(weft_context *ctx, const weft_quant_def *def, con
     }
     void *in = NULL, *out = NULL;
     size_t in_size = 0, out_size = 0;
-    weft_result r = read_file(ctx, in_path, &in, &in_size);
+    weft_result r = quant_read_all(ctx, in_path, &in, &in_size);
     if (r != WEFT_OK) {
         return r;
     }
