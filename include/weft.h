@@ -292,8 +292,9 @@ WEFT_API weft_result weft_garment_set_state(weft_garment *garment, const float *
 /* Collider vertex positions at the frame being stepped to (t+1), collider_vertex_count * 3. */
 WEFT_API weft_result weft_garment_set_collider(weft_garment *garment, const float *collider_positions);
 
-/* Pins: vertices that follow given targets this frame (handles, grasps, attachments). Methods
- * that cannot honour pins return WEFT_ERROR_UNSUPPORTED. count 0 clears the pins. */
+/* Pins: vertices that follow given targets this frame (handles, grasps, attachments). XPBD
+ * solves with them (the rest of the cloth feels the pull); the learned and LBS methods step
+ * first and then set the pinned vertices to their targets. count 0 clears the pins. */
 WEFT_API weft_result weft_garment_set_pins(weft_garment *garment, const uint32_t *vertex_indices,
                                            const float *target_positions, uint32_t count);
 

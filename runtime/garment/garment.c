@@ -299,10 +299,6 @@ weft_result weft_garment_set_pins(weft_garment *g, const uint32_t *vertex_indice
     if (!g || (count > 0 && (!vertex_indices || !target_positions))) {
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_garment_set_pins: indices and targets are required");
     }
-    if (count > 0 && !g->ops->supports_pins) {
-        return weft__fail(WEFT_ERROR_UNSUPPORTED, "weft_garment_set_pins: method '%s' does not support pins",
-                          g->ops->name);
-    }
     if (count > g->vertex_count) {
         return weft__fail(WEFT_ERROR_SIZE_MISMATCH, "weft_garment_set_pins: %u pins for %u vertices", count,
                           g->vertex_count);
@@ -358,6 +354,14 @@ weft_result weft__garment_finish_step(weft_garment *g)
     if (!weft__all_finite(g->x_next, (size_t)g->vertex_count * 3)) {
         return weft__fail(WEFT_ERROR_NOT_FINITE, "weft_garment_step: method '%s' produced NaN or infinity; state kept",
                           g->ops->name);
+    }
+    /* Methods that do not solve with pins (the learned step, LBS) honour them here: the pinned
+     * vertices are set to their targets before tethers and the strain limit (both keep pinned
+     * vertices); CCD may still hold one back where its move would cross a surface, as for XPBD. */
+    if (!g->ops->supports_pins) {
+        for (uint32_t k = 0; k < g->pin_count; ++k) {
+            memcpy(g->x_next + 3 * (size_t)g->pin_indices[k], g->pin_targets + 3 * (size_t)k, 3 * sizeof(float));
+        }
     }
     if (g->tether_skin) {
         weft_result r = apply_tethers(g);

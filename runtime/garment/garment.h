@@ -57,7 +57,7 @@ struct weft_garment {
 
 struct weft_method_ops {
     const char *name;
-    bool supports_pins;
+    bool supports_pins; /* solves with pins; otherwise the garment sets them after the step */
     /* Allocate method_state and precompute everything constant for this garment. */
     weft_result (*create)(weft_garment *g);
     void (*destroy)(weft_garment *g);

@@ -644,13 +644,6 @@ weft_result weft_lod_garment_switch(weft_lod_garment *lg, uint32_t level)
                           "weft_lod_garment_switch: level '%s' simulates a coarser mesh and cannot honour the %u pins "
                           "in use; clear them first", lv->name, old->pin_count);
     }
-    const weft_method_ops *ops = weft__method_ops(lv->method);
-    if (old->pin_count > 0 && ops && !ops->supports_pins) {
-        return weft__fail(WEFT_ERROR_UNSUPPORTED,
-                          "weft_lod_garment_switch: level '%s' (method %s) cannot honour the %u pins in use; clear "
-                          "them first",
-                          lv->name, ops->name, old->pin_count);
-    }
     /* LBS and tethers bind the garment to the collider at creation: bind to the pose of now, not
      * the rest pose, or the cloth would snap back to where it was designed. */
     const bool binds = lv->method == WEFT_METHOD_LBS || lv->tether_cm > 0.0;

@@ -110,6 +110,10 @@ static void strain_and_time_limits(void)
     CHECK_EQ_INT(tool_run(bad_time, o), 2);
     const char *junk_time[] = {g_exe, "eval", "--seq", g_seq, "--time-limit", "5s", NULL};
     CHECK_EQ_INT(tool_run(junk_time, o), 2);
+    const char *bad_pins[] = {g_exe, "eval", "--seq", g_seq, "--pins", "some", NULL};
+    CHECK_EQ_INT(tool_run(bad_pins, o), 2);
+    const char *all_pins[] = {g_exe, "eval", "--seq", g_seq, "--method", "lbs", "--frames", "2", "--pins", "all", NULL};
+    CHECK_EQ_INT(tool_run(all_pins, o), 0);
 }
 
 /* Payload bytes of an .npy file (file size minus its header); -1 when unreadable. */

@@ -50,6 +50,7 @@ typedef struct eval_opts {
     float strain_limit;                 /* fraction, 0: off */
     const char *sim_mesh;               /* folder with rest_pos.npy + faces.npy: simulate on this mesh */
     const char *write_pos;              /* folder: write each rollout as <sequence>.npy [frames + 2, N, 3] */
+    bool pins_all;                      /* the sequence's pins for every method, not only XPBD */
     double time_limit_ms;               /* 0: none; else stop a rollout once stepping took this long */
 } eval_opts;
 
@@ -467,9 +468,12 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
     uint32_t *edges = edges_of(&s, &ne);
     float *prev = malloc(nv * sizeof(float));
     /* Gripper attachments: pinned vertices follow their ground-truth positions (the scenario's
-     * boundary condition) for methods that take pins; the learned method sees only the gripper. */
-    uint32_t *pin_idx = s.pinned && !up ? malloc((size_t)s.V * sizeof(uint32_t)) : NULL;
-    float *pin_pos = s.pinned && !up ? malloc(nv * sizeof(float)) : NULL;
+     * boundary condition). By default only XPBD gets them, inside its solve, and the learned and
+     * LBS methods see only the gripper (the protocol of the documented tables); --pins all gives
+     * every method the pins (the library sets them after a learned or LBS step). */
+    const bool use_pins = s.pinned && !up && (o->pins_all || o->method == WEFT_METHOD_XPBD);
+    uint32_t *pin_idx = use_pins ? malloc((size_t)s.V * sizeof(uint32_t)) : NULL;
+    float *pin_pos = use_pins ? malloc(nv * sizeof(float)) : NULL;
     bool pins = pin_idx && pin_pos;
     /* The scored positions: the garment's own, or its map onto this sequence's mesh. */
     const float *cur = weft_garment_positions(g);
@@ -507,8 +511,9 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
                     np++;
                 }
             }
-            if (weft_garment_set_pins(g, pin_idx, pin_pos, np) == WEFT_ERROR_UNSUPPORTED) {
-                pins = false;
+            if ((r = weft_garment_set_pins(g, pin_idx, pin_pos, np)) != WEFT_OK) {
+                fprintf(stderr, "weft eval: %s: frame %u: pins: %s\n", dir, t + 1, weft_last_error());
+                break;
             }
         }
         double t0 = now_ms();
@@ -613,12 +618,15 @@ static void usage(FILE *f)
                "                 [--ccd on|off] [--split train|val|test] [--frames N] [--json]\n"
                "                 [--crop-cm X] [--crop box|cells] [--max-collider-tokens N] [--tether-cm X]\n"
                "                 [--strain-limit PCT] [--sim-mesh DIR] [--time-limit S] [--write-pos DIR]\n"
+               "                 [--pins xpbd|all]\n"
                "  DIR is one sequence folder (meta.json + .npy) or a folder of them.\n"
                "  --tether-cm X   tethers to the skinned garment, radius X cm (0 on vertices pinned at the start)\n"
                "  --strain-limit PCT  shorten edges stretched over PCT %% after each step (and in CCD)\n"
                "  --sim-mesh DIR  simulate on DIR's rest_pos.npy + faces.npy (the same garment at another\n"
                "                  resolution) and score its map onto the sequence's mesh; pins are not applied\n"
                "  --time-limit S  stop each rollout once its steps took S seconds (JSON: time_limited, frames)\n"
+               "  --pins xpbd|all the sequence's pins (gripper grasps) for XPBD only (default, the documented\n"
+               "                  protocol) or for every method (set after a learned or LBS step)\n"
                "  --write-pos DIR write each rollout to DIR/<sequence>.npy, [frames + 2, N, 3] float32: the two\n"
                "                  reference frames it starts from, then every step (on the scored mesh)\n");
 }
@@ -699,6 +707,12 @@ int weft_cmd_eval(int argc, char **argv)
                 return 2;
             }
             o.time_limit_ms = sec * 1e3;
+        } else if (strcmp(a, "--pins") == 0) {
+            if (strcmp(v, "all") != 0 && strcmp(v, "xpbd") != 0) {
+                fprintf(stderr, "weft eval: --pins takes xpbd or all\n");
+                return 2;
+            }
+            o.pins_all = strcmp(v, "all") == 0, ++i;
         } else if (strcmp(a, "--write-pos") == 0) {
             o.write_pos = v, ++i;
         } else if (strcmp(a, "--sim-mesh") == 0) {
