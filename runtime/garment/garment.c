@@ -312,8 +312,10 @@ weft_result weft_garment_set_pins(weft_garment *g, const uint32_t *vertex_indice
     if (!weft__all_finite(target_positions, (size_t)count * 3)) {
         return weft__fail(WEFT_ERROR_NOT_FINITE, "weft_garment_set_pins: targets contain NaN or infinity");
     }
-    memcpy(g->pin_indices, vertex_indices, (size_t)count * sizeof(uint32_t));
-    memcpy(g->pin_targets, target_positions, (size_t)count * 3 * sizeof(float));
+    if (count > 0) { /* count 0 clears; the pointers may then be NULL */
+        memcpy(g->pin_indices, vertex_indices, (size_t)count * sizeof(uint32_t));
+        memcpy(g->pin_targets, target_positions, (size_t)count * 3 * sizeof(float));
+    }
     g->pin_count = count;
     return WEFT_OK;
 }
