@@ -3,6 +3,7 @@
 #include "io/npy_write.h"
 
 #include <stdio.h>
+
 /* NPY v1.0: magic, header length, a Python dict literal padded to a 64-byte boundary. */
 bool weft_npy_write_file(const char *path, const char *descr, const uint64_t *shape, int ndim, const void *data,
                          size_t bytes)

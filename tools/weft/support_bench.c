@@ -283,9 +283,9 @@ void bench_command_line(char *out, size_t cap, const char *prefix, int argc, cha
 
 bool bench_parse_u32(const char *tool, const char *opt, const char *v, uint32_t lo, uint32_t hi, uint32_t *out)
 {
-    char *end;
+    char *end = NULL; /* stays NULL unless v starts with a digit (strtoul alone takes "-1", " 5") */
     unsigned long x = v && *v >= '0' && *v <= '9' ? strtoul(v, &end, 10) : 0;
-    if (!v || *v < '0' || *v > '9' || *end || x < lo || x > hi) {
+    if (!end || *end || x < lo || x > hi) {
         fprintf(stderr, "weft bench %s: bad number '%s' for %s\n", tool, v ? v : "", opt);
         return false;
     }
