@@ -212,9 +212,10 @@ WEFT_API weft_result weft_lod_garment_set_state(weft_lod_garment *garment, const
  * positions at t and t-1 (so the velocity carries over), the collider at t (and at t+1 when it
  * was already set this frame) and the pins; a learned model's latent history is rebuilt from the
  * recorded past frames, so its first step sees the same window as if it had run all along.
- * LBS binds to the current pose instead of the rest pose. This allocates (a switch is not a
- * per-frame operation). On failure (no model, pins the level cannot honour, out of memory) the
- * garment stays at its current level, unchanged. Switching to the current level is a no-op. */
+ * LBS, tethers and a model with the skinned prior bind to the current pose instead of the rest
+ * pose. This allocates (a switch is not a per-frame operation). On failure (no model, pins the
+ * level cannot honour, out of memory) the garment stays at its current level, unchanged.
+ * Switching to the current level is a no-op. */
 WEFT_API weft_result weft_lod_garment_switch(weft_lod_garment *garment, uint32_t level);
 
 WEFT_API uint32_t weft_lod_garment_level(const weft_lod_garment *garment);

@@ -17,6 +17,7 @@
 #include "lod/lod_internal.h"
 #include "garment/garment.h"
 #include "model/model.h"
+#include "model/transformer.h"
 
 #include <math.h>
 #include <string.h>
@@ -644,9 +645,12 @@ weft_result weft_lod_garment_switch(weft_lod_garment *lg, uint32_t level)
                           "weft_lod_garment_switch: level '%s' simulates a coarser mesh and cannot honour the %u pins "
                           "in use; clear them first", lv->name, old->pin_count);
     }
-    /* LBS and tethers bind the garment to the collider at creation: bind to the pose of now, not
-     * the rest pose, or the cloth would snap back to where it was designed. */
-    const bool binds = lv->method == WEFT_METHOD_LBS || lv->tether_cm > 0.0;
+    /* LBS, tethers and the model's skinned prior bind the garment to the collider at creation:
+     * bind to the pose of now, not the rest pose, or the cloth would snap back to where it was
+     * designed (LBS, tethers) or follow the wrong part of the body (the prior). */
+    const bool skin_prior = lv->method == WEFT_METHOD_MODEL &&
+                            weft__ct_binds_collider(find_model(lg->models, lg->model_count, lv));
+    const bool binds = lv->method == WEFT_METHOD_LBS || lv->tether_cm > 0.0 || skin_prior;
     const float *bind = binds && lg->C > 0 ? old->collider_prev : old->collider_rest;
     /* The drawn state carries over: exactly onto the drawn mesh, mapped down onto a coarse one. */
     const float *X = drawn_x(lg), *Xp = drawn_prev(lg);

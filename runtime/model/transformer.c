@@ -4,6 +4,7 @@
  * Mirrors tools/train/model.py operation for operation; see docs/MODEL.md. */
 #include "model/transformer.h"
 #include "model/crop.h"
+#include "xpbd/xpbd.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -33,6 +34,18 @@ static weft_result get_pos(const weft_model *m, const char *key, float *out)
     return WEFT_OK;
 }
 
+static const char *const g_prior_names[WEFT_CT_PRIOR_COUNT] = {"inertial", "previous", "skinned"};
+
+/* The prior called `name`; WEFT_CT_PRIOR_COUNT for none. */
+static weft_ct_prior prior_named(const char *name)
+{
+    uint32_t p = 0;
+    while (p < WEFT_CT_PRIOR_COUNT && strcmp(name, g_prior_names[p]) != 0) {
+        ++p;
+    }
+    return (weft_ct_prior)p;
+}
+
 static weft_result read_config(const weft_model *m, weft_ct_config *c)
 {
     weft_ct_config t = {0};
@@ -57,11 +70,10 @@ static weft_result read_config(const weft_model *m, weft_ct_config *c)
     if ((r = weft__model_config_string(m, "prior", &prior)) != WEFT_OK) {
         return r;
     }
-    if (strcmp(prior, "inertial") == 0) {
-        t.inertial_prior = true;
-    } else if (strcmp(prior, "previous") != 0) {
-        return weft__fail(WEFT_ERROR_BAD_METADATA, "model config 'prior' = '%s': expected 'inertial' or 'previous'",
-                          prior);
+    t.prior = prior_named(prior);
+    if (t.prior == WEFT_CT_PRIOR_COUNT) {
+        return weft__fail(WEFT_ERROR_BAD_METADATA,
+                          "model config 'prior' = '%s': expected 'inertial', 'previous' or 'skinned'", prior);
     }
     /* Optional keys. */
     if (weft__model_config_find(m, "requires_collider") &&
@@ -320,6 +332,16 @@ done:
 
 weft_result weft__ct_validate(const weft_model *model) { return weft__ct_bind(model, NULL, NULL); }
 
+bool weft__ct_binds_collider(const weft_model *model)
+{
+    /* A loaded file of this architecture has passed read_config, so its prior is valid. */
+    if (!model || !model->arch || strcmp(model->arch->name, WEFT_CT_ARCHITECTURE) != 0) {
+        return false;
+    }
+    const weft_config_value *v = weft__model_config_find(model, "prior");
+    return v && v->kind == WEFT_CONFIG_STRING && prior_named(v->string) == WEFT_CT_PRIOR_SKINNED;
+}
+
 /* ------------------------------------------------------------------------------------------ */
 /* Garment state                                                                               */
 
@@ -382,6 +404,11 @@ typedef struct ct_state {
     float *x, *xln, *xq, *xk, *xv, *xa; /* hK x D temporal stream */
     float *dh, *da, *dln;               /* N x D decoder stream, attention out, normed */
     float *out3;                        /* N x 3 */
+    /* The skinned prior: the LBS method's binding, made from the garment at creation exactly as
+     * lbs_create makes it (the S track of the training data is `weft eval --method lbs`), and
+     * S_t, S_{t+1} (N x 3). NULL for the other priors. */
+    xskin *skin;
+    float *skin_cur, *skin_next;
     float *attn_scratch;
     size_t attn_scratch_floats;
     /* Calibration observer (weft__ct_set_observer) and its packing scratch: obs_rows rows of
@@ -719,6 +746,7 @@ static void ct_destroy(weft_garment *g)
         return;
     }
     batch_free(g->ctx, s->batch);
+    xskin_destroy(g->ctx, s->skin);
     for (uint32_t i = 0; i < s->buf_count; ++i) {
         weft__free(g->ctx, *s->bufs[i].ptr, s->bufs[i].floats * sizeof(float));
     }
@@ -946,6 +974,11 @@ static weft_result ct_create(weft_garment *g)
         return weft__fail(WEFT_ERROR_NO_COLLIDER, "method 'model': the model needs a collider "
                                                   "(def.collider_vertex_count is 0)");
     }
+    const bool skinned = c.prior == WEFT_CT_PRIOR_SKINNED;
+    if (skinned && g->collider_vertex_count == 0) {
+        return weft__fail(WEFT_ERROR_NO_COLLIDER, "method 'model': the model's prior 'skinned' follows the collider, "
+                                                  "and the garment has none (def.collider_vertex_count is 0)");
+    }
     ct_state *s = weft__alloc(g->ctx, sizeof *s);
     if (!s) {
         return WEFT_ERROR_OUT_OF_MEMORY;
@@ -974,7 +1007,8 @@ static weft_result ct_create(weft_garment *g)
               add_buf(g, s, &s->x, hk * D) && add_buf(g, s, &s->xln, hk * D) && add_buf(g, s, &s->xq, hk * D) &&
               add_buf(g, s, &s->xk, hk * D) && add_buf(g, s, &s->xv, hk * D) && add_buf(g, s, &s->xa, hk * D) &&
               add_buf(g, s, &s->dh, N * D) && add_buf(g, s, &s->da, N * D) && add_buf(g, s, &s->dln, N * D) &&
-              add_buf(g, s, &s->out3, N * 3);
+              add_buf(g, s, &s->out3, N * 3) &&
+              (!skinned || (add_buf(g, s, &s->skin_cur, N * 3) && add_buf(g, s, &s->skin_next, N * 3)));
     if (ok) {
         size_t a = weft_attention_scratch((uint32_t)K, (uint32_t)ntok);
         a = max_sz(a, weft_attention_scratch((uint32_t)hk, (uint32_t)hk));
@@ -1016,6 +1050,11 @@ static weft_result ct_create(weft_garment *g)
         return WEFT_ERROR_OUT_OF_MEMORY;
     }
     if ((r = build_csr(g, s)) != WEFT_OK) {
+        ct_destroy(g);
+        return r;
+    }
+    /* g->x is still the initial state here, as in lbs_create. */
+    if (skinned && (r = xskin_create(g, "method 'model' (skinned prior)", &s->skin)) != WEFT_OK) {
         ct_destroy(g);
         return r;
     }
@@ -1248,8 +1287,45 @@ static void ct_temporal(const ct_state *first, ct_state *const *members, uint32_
     }
 }
 
+/* S_t and S_{t+1} of the skinned prior, both evaluated every step rather than S_t kept from the
+ * step before: weft_garment_set_state, a teleported collider or a level switch's replay then
+ * need no care. */
+static weft_result skin_eval(const weft_garment *g, ct_state *s)
+{
+    weft_result r = xskin_eval(s->skin, g->collider_triangles, g->collider_prev,
+                               "method 'model': skinned prior, collider at t", s->skin_cur);
+    if (r == WEFT_OK) {
+        r = xskin_eval(s->skin, g->collider_triangles, g->collider_next,
+                       "method 'model': skinned prior, collider at t+1", s->skin_next);
+    }
+    return r;
+}
+
+/* X_{t+1} = prior + out_scale * displacement into g->x_next, the prior computed as
+ * tools/train/model.py computes it. The one output of every precision and of batched steps. */
+static weft_result ct_output(weft_garment *g, ct_state *s)
+{
+    const weft_ct_config *c = &s->c;
+    if (c->prior == WEFT_CT_PRIOR_SKINNED) {
+        weft_result r = skin_eval(g, s);
+        if (r != WEFT_OK) {
+            return r;
+        }
+    }
+    for (size_t i = 0; i < (size_t)s->N * 3; ++i) {
+        float prior = g->x[i]; /* previous */
+        if (c->prior == WEFT_CT_PRIOR_INERTIAL) {
+            prior = 2.0f * g->x[i] - g->x_prev[i];
+        } else if (c->prior == WEFT_CT_PRIOR_SKINNED) {
+            prior = g->x[i] + (s->skin_next[i] - s->skin_cur[i]);
+        }
+        g->x_next[i] = prior + c->out_scale * s->out3[i];
+    }
+    return WEFT_OK;
+}
+
 /* Decoder and output: X_{t+1} into g->x_next from Z_{t+1}; commits the latent history when the
- * result is finite. */
+ * step succeeded (finite result, and the skinned prior evaluated). */
 static weft_result ct_decode(weft_garment *g, ct_state *s, const float *z_next)
 {
     const weft_ct_config *c = &s->c;
@@ -1271,9 +1347,9 @@ static weft_result ct_decode(weft_garment *g, ct_state *s, const float *z_next)
     linear(s, N, &w->dec_head, s->dln, D, s->out3, 3, WEFT_ACT_NONE, false);
 
     /* ---- X_{t+1} = prior + out_scale * displacement ---- */
-    for (size_t i = 0; i < (size_t)N * 3; ++i) {
-        float prior = c->inertial_prior ? 2.0f * g->x[i] - g->x_prev[i] : g->x[i];
-        g->x_next[i] = prior + c->out_scale * s->out3[i];
+    weft_result r = ct_output(g, s);
+    if (r != WEFT_OK) {
+        return r;
     }
     if (!weft__all_finite(g->x_next, (size_t)N * 3)) {
         return weft__fail(WEFT_ERROR_NOT_FINITE, "method 'model': the forward pass produced NaN or infinity; "

@@ -16,10 +16,19 @@
 #define WEFT_CT_MAX_GNN 8u
 #define WEFT_CT_MAX_LAYERS 64u
 
+/* The residual's prior (config "prior"): X_{t+1} = prior + out_scale * displacement. */
+typedef enum weft_ct_prior {
+    WEFT_CT_PRIOR_INERTIAL,             /* "inertial": 2 X_t - X_{t-1} */
+    WEFT_CT_PRIOR_PREVIOUS,             /* "previous": X_t */
+    WEFT_CT_PRIOR_SKINNED,              /* "skinned": X_t + S_{t+1} - S_t, S the LBS method's
+                                           binding (runtime/xpbd/lbs.c) on the collider */
+    WEFT_CT_PRIOR_COUNT
+} weft_ct_prior;
+
 typedef struct weft_ct_config {
     uint32_t K, D, L, H, history, ffn, nfreq, gnn_layers;
     float vel_scale, area_scale, out_scale, crop_margin, ln_eps;
-    bool inertial_prior;                /* prior "inertial" (2 X_t - X_{t-1}) or "previous" (X_t) */
+    weft_ct_prior prior;
     bool dec_skip;
     bool requires_collider;             /* trained only with colliders */
     uint32_t vertex_count;              /* 0: any garment; else the one mesh it was trained for */
@@ -91,6 +100,11 @@ weft_result weft__ct_bind(const weft_model *model, weft_ct_config *out_config, w
 
 /* Load-time hook for the architecture table: weft__ct_bind without outputs. */
 weft_result weft__ct_validate(const weft_model *model);
+
+/* Whether a garment of this model binds itself to the collider at creation (the skinned prior),
+ * as the LBS method does: a level switch must then bind to the pose of now. False for models of
+ * another architecture or without a valid "prior". */
+bool weft__ct_binds_collider(const weft_model *model);
 
 /* Called after every linear layer of the forward pass (fp32 activations, before any fused
  * residual add is visible to the caller: `in` is the layer input, `out` its output). `name` is

@@ -6,10 +6,16 @@ Array names accepted (the first present wins):
   cloth triangles   faces.npy / cloth_faces.npy   [F, 3] int
   collider          collider_pos.npy / obst_pos.npy / body_pos.npy   [T, Vc, 3] (optional)
   collider tris     collider_faces.npy / obst_faces.npy / body_faces.npy [Fc, 3] (optional)
+  skinned garment   skin_pos.npy           [T, V, 3] (optional; the "skinned" prior's S track)
 A `topology.npz` with rest_pos / faces is read as well. Packed sequences (`*.wpk.npz`, written by
 pack.py) are found below the roots too. meta.json may carry "scenario" and "split";
 otherwise the split comes from the root's manifest.json / splits/*.txt (weft simgen), else from a
 hash of the folder name (default_split, the rule weft simgen uses).
+
+The S track is the skinning baseline's rollout, `weft eval --method lbs --ccd off --write-pos DIR`
+(DIR/<name>.npy, the binding made on frame 1, so S_1 = X_1); load_sequences(..., skin_roots=[DIR])
+attaches it, pack.py --skin DIR stores it. Frame 0 of that file is the reference frame, not S_0;
+no prior reads S_0 (the first predicted frame is 2, whose prior uses S_2 - S_1).
 """
 import glob
 import json
@@ -68,9 +74,24 @@ class Sequence:
         if self.cpos is not None:
             if self.cpos.shape[0] != T or self.cfaces.max() >= self.cpos.shape[1]:
                 raise ValueError(f"{folder}: collider arrays disagree with the cloth")
+        self.skin = None
+        sp = os.path.join(folder, "skin_pos.npy")
+        if os.path.exists(sp):
+            self.attach_skin(np.load(sp, mmap_mode="r"), sp)
         self.frames = T
         self.scenario = self.meta.get("scenario", "unknown")
         self.split = self.meta.get("split") or default_split(self.name)
+
+    def attach_skin(self, skin, where):
+        """Set the S track ([T, V, 3], or longer: cut to the cloth's frames)."""
+        T, V = self.pos.shape[:2]
+        if skin.ndim != 3 or skin.shape[0] < T or skin.shape[1:] != (V, 3):
+            raise ValueError(f"{where}: skin track {skin.shape} does not match the cloth {self.pos.shape}")
+        self.skin = skin[:T]
+
+    def skin_window(self, start, length):
+        """Frames [start, start+length) of the S track as float32, or None without one."""
+        return None if self.skin is None else np.array(self.skin[start:start + length], dtype=np.float32)
 
     def window(self, start, length):
         """Frames [start, start+length) as float32 arrays (cloth, collider or None)."""
@@ -140,7 +161,9 @@ def find_packs(roots):
     return out
 
 
-def load_sequences(roots, split=None, min_frames=8):
+def load_sequences(roots, split=None, min_frames=8, skin_roots=()):
+    """Sequences (folders and packs) below roots; with skin_roots, S tracks from <root>/<name>.npy
+    are attached to sequences that do not carry one."""
     seqs = []
     named = manifest_splits(roots)
     packs = find_packs(roots)
@@ -159,5 +182,11 @@ def load_sequences(roots, split=None, min_frames=8):
         if "split" not in s.meta and s.name in named:
             s.split = named[s.name]
         if split is None or s.split == split:
+            if s.skin is None:
+                for r in skin_roots:
+                    sp = os.path.join(r, s.name + ".npy")
+                    if os.path.exists(sp):
+                        s.attach_skin(np.load(sp, mmap_mode="r"), sp)
+                        break
             seqs.append(s)
     return seqs

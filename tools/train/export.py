@@ -10,7 +10,14 @@ golden tensors for the C parity test.
 Golden files (.npy, little-endian float32/uint32): rest, faces, cfaces, gt_pos [T,V,3],
 c_pos [T,Vc,3], tf_frames [n] (frame t of each teacher-forced step), tf_pred [n,V,3] (X_{t+1} from
 GT X_t, X_{t-1}, C_t, C_{t+1} with an empty latent history) and rollout [R,V,3] (autoregressive
-from GT frames 0 and 1; rollout[i] is frame i+2).
+from GT frames 0 and 1; rollout[i] is frame i+2). With --golden-preds-only only the last three
+are written: the test reads the others from the --golden-seq folder itself (its rest_pos, faces,
+collider_faces, cloth_pos, collider_pos), as the skinned-prior test does:
+
+  /usr/bin/python3 tools/train/export.py --ckpt data/runs/golden_skin/ckpt.pt \
+      --out tests/model/data/garment_seq/golden_skin.safetensors --name golden_skin \
+      --golden tests/model/data/garment_seq/golden --golden-seq tests/model/data/garment_seq \
+      --tf-frames 1,2,5,10 --rollout 14 --golden-preds-only
 """
 import argparse
 import json
@@ -71,10 +78,14 @@ def load_model(ckpt_path):
     return m, st
 
 
-def golden(model, seq, out_dir, tf_frames, rollout_len):
+def golden(model, seq, out_dir, tf_frames, rollout_len, seq_arrays=True):
     os.makedirs(out_dir, exist_ok=True)
     T = min(seq.frames, rollout_len + 2)
     x, c = seq.window(0, T)
+    sk = seq.skin_window(0, T)
+    if model.cfg["prior"] == "skinned" and sk is None:
+        raise SystemExit(f"golden: the skinned prior needs the S track of {seq.folder} (skin_pos.npy)")
+    sa = None if sk is None else torch.from_numpy(sk).unsqueeze(0)
     adj = mean_adjacency(seq.faces, seq.rest.shape[0])
     rest = torch.from_numpy(seq.rest).unsqueeze(0)
     ctri = None if seq.cfaces is None else torch.from_numpy(seq.cfaces)
@@ -86,22 +97,27 @@ def golden(model, seq, out_dir, tf_frames, rollout_len):
         for t in frames:
             cn = None if ca is None else ca[:, t + 1]
             cc = None if ca is None else ca[:, t]
-            xn, _ = model.step([], xa[:, t], xa[:, t - 1], rest, adj, cn, cc, ctri)
+            sn = None if sa is None else sa[:, t + 1]
+            sc = None if sa is None else sa[:, t]
+            xn, _ = model.step([], xa[:, t], xa[:, t - 1], rest, adj, cn, cc, ctri, sn, sc)
             tf.append(xn[0].numpy())
         hist, xp, xc, roll = [], xa[:, 0], xa[:, 1], []
         for t in range(1, T - 1):
             cn = None if ca is None else ca[:, t + 1]
             cc = None if ca is None else ca[:, t]
-            xn, hist = model.step(hist, xc, xp, rest, adj, cn, cc, ctri)
+            sn = None if sa is None else sa[:, t + 1]
+            sc = None if sa is None else sa[:, t]
+            xn, hist = model.step(hist, xc, xp, rest, adj, cn, cc, ctri, sn, sc)
             roll.append(xn[0].numpy())
             xp, xc = xc, xn
     save = lambda n, a, dt="<f4": np.save(os.path.join(out_dir, n + ".npy"), np.ascontiguousarray(a, dtype=dt))  # noqa: E731
-    save("rest", seq.rest)
-    save("faces", seq.faces, "<u4")
-    save("gt_pos", x)
-    if c is not None:
-        save("cfaces", seq.cfaces, "<u4")
-        save("c_pos", c)
+    if seq_arrays:
+        save("rest", seq.rest)
+        save("faces", seq.faces, "<u4")
+        save("gt_pos", x)
+        if c is not None:
+            save("cfaces", seq.cfaces, "<u4")
+            save("c_pos", c)
     save("tf_frames", np.array(frames), "<u4")
     save("tf_pred", np.stack(tf))
     save("rollout", np.stack(roll))
@@ -119,6 +135,8 @@ def main():
     ap.add_argument("--golden-seq", default=None, help="sequence folder the golden tensors come from")
     ap.add_argument("--tf-frames", default="1,2,5,10,20,40")
     ap.add_argument("--rollout", type=int, default=50)
+    ap.add_argument("--golden-preds-only", action="store_true",
+                    help="write only tf_frames, tf_pred and rollout (the test reads the sequence's own arrays)")
     ap.add_argument("--slim-ckpt", default=None,
                     help="also write weights + config + step (no optimiser state) here; train.py --resume "
                          "continues from it with a fresh optimiser")
@@ -139,7 +157,8 @@ def main():
                     "elapsed": st.get("elapsed", 0.0)}, a.slim_ckpt)
         print(f"wrote {a.slim_ckpt}: {os.path.getsize(a.slim_ckpt)} bytes")
     if a.golden:
-        golden(model, Sequence(a.golden_seq), a.golden, [int(t) for t in a.tf_frames.split(",")], a.rollout)
+        golden(model, Sequence(a.golden_seq), a.golden, [int(t) for t in a.tf_frames.split(",")], a.rollout,
+               seq_arrays=not a.golden_preds_only)
 
 
 if __name__ == "__main__":

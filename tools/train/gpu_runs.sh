@@ -1,33 +1,62 @@
 #!/bin/bash
-# Training runs sharing one lent GPU machine, for a machine that is held for a fixed time.
+# Training runs sharing one lent GPU machine.
 #
-#   tools/train/gpu_runs.sh launch     start the runs detached (setsid), so they outlive the call
-#                                      that launched them; each ends after BUDGET minutes (23)
-#   tools/train/gpu_runs.sh collect    print each run's progress and validation rows, and pack each
-#                                      run folder as RUN.tgz into $OUT (or DEST) to bring it back
+#   SET=skin MINUTES=7.5 tools/train/gpu_runs.sh train
+#       run every run of the set side by side in the foreground for at most MINUTES of training
+#       each (they checkpoint and stop; the data loading comes on top), then collect. Run it again
+#       on the same machine and each run resumes where it stopped, until its BUDGET minutes of
+#       schedule (lr decay, rollout curriculum) are used up.
+#   SET=skin tools/train/gpu_runs.sh launch     the same runs detached (setsid, BUDGET minutes),
+#                                               for a machine held longer than one call
+#   SET=skin tools/train/gpu_runs.sh collect    print each run's progress and validation rows, and
+#                                               pack each run folder as RUN.tgz into $OUT (or DEST)
 #
-# Data: the packed set (tools/train/pack.py) under data/pack. Runs go to data/gpu/runs/NAME.
-# These four are the runs the shipped models came from (docs/MODEL.md, "Training").
+# Runs go to data/gpu/runs/NAME. Sets (docs/MODEL.md, "Training"):
+#   shipped  the four runs the shipped models came from (data: the packed set under data/pack)
+#   skin     the skinned prior on the grown set, against the same models fine-tuned with their
+#            own priors (data: pack.py --skin under data/pack179s)
+#   skin2    the skin set's game runs continued with longer rollouts (curriculum 1 -> 10), keeping
+#            the weights whose 240-frame validation rollouts are best (--keep-best); their starting
+#            checkpoints are the skin runs' under data/gpu/init/
 set -u
 cd "$(dirname "$0")/../.." || exit 1
 R=data/gpu/runs
-RUNS="game_ft unified_ft game_prev unified_prev"
+SET=${SET:-skin}
+case "$SET" in
+    shipped) RUNS="game_ft unified_ft game_prev unified_prev"; DATA=${DATA:-data/pack}; BUDGET=${BUDGET:-23} ;;
+    skin) RUNS="game_skin unified_skin game_skin0 game_prev179"; DATA=${DATA:-data/pack179s}; BUDGET=${BUDGET:-15} ;;
+    skin2) RUNS="s0_r10 s_r10 s0_contact ship_skin_r10"; DATA=${DATA:-data/pack179s}; BUDGET=${BUDGET:-7.5}
+           EXTRA="--eval-every 500 --eval-frames 238 --keep-best --rollout-max 10" ;;
+    *) echo "unknown SET=$SET (shipped|skin|skin2)" >&2; exit 2 ;;
+esac
 
-launch() {
+run_args() {  # the arguments of run $1 (besides the common ones)
+    case "$1" in
+        game_ft) echo --preset game --init-from tools/train/models/game.ckpt.pt --batch 32 --lr 5e-4 ;;
+        unified_ft) echo --preset unified --init-from tools/train/models/unified.ckpt.pt --batch 32 --lr 5e-4 ;;
+        game_prev) echo "--preset game --config '{\"prior\":\"previous\"}' --batch 32 --lr 1e-3" ;;
+        unified_prev) echo "--preset unified --config '{\"prior\":\"previous\"}' --batch 32 --lr 1.5e-3" ;;
+        game_skin) echo "--init-from tools/train/models/game.ckpt.pt --config '{\"prior\":\"skinned\"}' --batch 32 --lr 5e-4" ;;
+        unified_skin) echo "--init-from tools/train/models/unified.ckpt.pt --config '{\"prior\":\"skinned\"}' --batch 32 --lr 5e-4" ;;
+        game_skin0) echo "--preset game --config '{\"prior\":\"skinned\"}' --batch 32 --lr 1e-3" ;;
+        game_prev179) echo --init-from tools/train/models/game.ckpt.pt --batch 32 --lr 5e-4 ;;
+        s0_r10) echo --init-from data/gpu/init/game_skin0.pt --batch 32 --lr 3e-4 ;;
+        s_r10) echo --init-from data/gpu/init/game_skin.pt --batch 32 --lr 3e-4 ;;
+        s0_contact) echo --init-from data/gpu/init/game_skin0.pt --batch 32 --lr 3e-4 --lambda-contact 0.5 ;;
+        ship_skin_r10) echo "--init-from tools/train/models/game.ckpt.pt --config '{\"prior\":\"skinned\"}' --batch 32 --lr 5e-4" ;;
+    esac
+}
+
+start() {  # start every run of the set in the background; $1: extra arguments for all
     export PYTHONUNBUFFERED=1
     mkdir -p $R
-    local common="--data data/pack --steps 1000000 --budget-minutes ${BUDGET:-23} --eval-every 2000
-                  --ckpt-every 500 --cuda --threads 2 --noise-std 5e-4 --lambda-strain 100"
-    go() {
-        local name=$1; shift
-        # shellcheck disable=SC2086
-        setsid nohup "${PYTHON:-python3}" tools/train/train.py $common --out $R/$name "$@" \
-            > $R/$name.err 2>&1 < /dev/null &
-    }
-    go game_ft --preset game --init-from tools/train/models/game.ckpt.pt --batch 32 --lr 5e-4
-    go unified_ft --preset unified --init-from tools/train/models/unified.ckpt.pt --batch 32 --lr 5e-4
-    go game_prev --preset game --config '{"prior":"previous"}' --batch 32 --lr 1e-3
-    go unified_prev --preset unified --config '{"prior":"previous"}' --batch 32 --lr 1.5e-3
+    local common="--data $DATA --steps 1000000 --budget-minutes $BUDGET --eval-every 2000
+                  --ckpt-every 500 --cuda --threads 2 --noise-std 5e-4 --lambda-strain 100 --resume ${EXTRA:-}"
+    for n in $RUNS; do
+        # shellcheck disable=SC2086,SC2046
+        eval setsid nohup "${PYTHON:-python3}" tools/train/train.py $common $1 --out $R/$n $(run_args $n) \
+            ">> $R/$n.err 2>&1 < /dev/null &"
+    done
     sleep 5
     echo "$(pgrep -fc '[t]ools/train/train.py') runs started"
 }
@@ -44,7 +73,11 @@ collect() {
 }
 
 case "${1:-}" in
-    launch) launch ;;
+    train)
+        start "--max-minutes ${MINUTES:-7.5}"
+        while pgrep -f '[t]ools/train/train.py' > /dev/null; do sleep 5; done
+        collect ;;
+    launch) start "" ;;
     collect) collect ;;
-    *) echo "usage: $0 launch|collect" >&2; exit 2 ;;
+    *) echo "usage: SET=shipped|skin $0 train|launch|collect" >&2; exit 2 ;;
 esac

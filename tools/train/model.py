@@ -13,7 +13,9 @@ Data flow for one step t -> t+1 (all positions in metres, centred on the garment
             SwiGLU feed-forward; the newest frame's output is Z_{t+1}
   decoder:  rest-shape vertices -> pe -> MLP -> queries cross-attending to Z_{t+1}
             (+ the encoder's vertex tokens when dec_skip) -> 2 x GNN -> Linear -> displacement
-  output:   X_{t+1} = prior + out_scale * displacement, prior = 2 X_t - X_{t-1} ("inertial") or X_t
+  output:   X_{t+1} = prior + out_scale * displacement, prior = 2 X_t - X_{t-1} ("inertial"), X_t
+            ("previous") or X_t + S_{t+1} - S_t ("skinned": S is the skinning baseline on the
+            collider, runtime/xpbd/lbs.c; equal to "previous" when the collider does not move)
 """
 import json
 import math
@@ -38,7 +40,7 @@ DEFAULT_CONFIG = {
     "vel_scale": 100.0,   # multiplies X_t - X_{t-1} (m/frame) before the velocity embedding
     "area_scale": 100.0,  # multiplies sqrt(triangle area) (m) of collider triangles
     "out_scale": 0.01,    # metres per unit of the decoder output
-    "prior": "inertial",  # "inertial" (2 X_t - X_{t-1}) or "previous" (X_t)
+    "prior": "inertial",  # "inertial" (2 X_t - X_{t-1}), "previous" (X_t), "skinned" (X_t + S_{t+1} - S_t)
     "crop_margin": 0.15,  # collider triangles farther than this (m) from the garment box are dropped
     "dec_skip": True,     # decoder adds the encoder's per-vertex tokens to its queries' output
     "requires_collider": False,  # set by training when every training sequence had a collider
@@ -46,6 +48,7 @@ DEFAULT_CONFIG = {
 }
 
 GELU_TANH = "tanh"
+PRIORS = ("inertial", "previous", "skinned")
 
 
 def full_config(cfg):
@@ -53,8 +56,8 @@ def full_config(cfg):
     out.update(cfg or {})
     if out["D"] % out["H"] != 0:
         raise ValueError("D must be a multiple of H")
-    if out["prior"] not in ("inertial", "previous"):
-        raise ValueError("prior must be 'inertial' or 'previous'")
+    if out["prior"] not in PRIORS:
+        raise ValueError("prior must be one of " + ", ".join(PRIORS))
     return out
 
 
@@ -277,21 +280,28 @@ class ClothTransformer(nn.Module):
             h = g(h, adj)
         return self.dec_head(self.dec_ln(h))
 
-    def prior(self, x_t, x_prev):
-        return 2.0 * x_t - x_prev if self.cfg["prior"] == "inertial" else x_t
+    def prior(self, x_t, x_prev, s_next=None, s_cur=None):
+        p = self.cfg["prior"]
+        if p == "inertial":
+            return 2.0 * x_t - x_prev
+        if p == "skinned":
+            if s_next is None or s_cur is None:
+                raise ValueError("the skinned prior needs the S track (S_t and S_{t+1})")
+            return x_t + (s_next - s_cur)
+        return x_t
 
     # -- one step ----------------------------------------------------------------------------
 
-    def step(self, hist, x_t, x_prev, rest, adj, c_next=None, c_cur=None, ctri=None):
-        """hist: list of past latents (B, K, D) (oldest first, may be empty: reset).
-        Returns (x_next, new hist list)."""
+    def step(self, hist, x_t, x_prev, rest, adj, c_next=None, c_cur=None, ctri=None, s_next=None, s_cur=None):
+        """hist: list of past latents (B, K, D) (oldest first, may be empty: reset); s_next/s_cur:
+        the S track at t+1 and t (the skinned prior only). Returns (x_next, new hist list)."""
         z, vtok = self.encode(x_t, x_prev, adj, c_next, c_cur, ctri)
         hist = (list(hist) + [z])[-self.cfg["history"]:]
         while len(hist) < self.cfg["history"]:
             hist = [hist[0]] + hist            # repeat the oldest after a reset
         z_next = self.temporal(torch.stack(hist, dim=1))
         d = self.decode(z_next, rest, adj, vtok)
-        return self.prior(x_t, x_prev) + self.cfg["out_scale"] * d, hist
+        return self.prior(x_t, x_prev, s_next, s_cur) + self.cfg["out_scale"] * d, hist
 
     def metadata(self, name=""):
         return {"architecture": ARCHITECTURE, "name": name, "config": json.dumps(self.cfg, sort_keys=True)}

@@ -11,6 +11,9 @@ One `NAME.wpk.npz` per accepted sequence, grouped into folders `part0/`, `part1/
   - collider triangles that can never enter the model's crop (the garment's box at t grown by the
     model's crop_margin, tested against the triangle at t+1, as model.crop_mask) in any frame are
     dropped, with the vertices only they use. The model sees exactly the same kept tokens.
+  - with --skin DIR, the S track of the "skinned" prior (DIR/<name>.npy from `weft eval --method
+    lbs --write-pos DIR`, see data.py) is stored like the cloth track; a sequence without one is
+    an error (a skinned-prior model cannot train on it).
 meta.json travels inside each file, with the split from the dataset's manifest written into it.
 """
 import argparse
@@ -78,6 +81,9 @@ def pack_sequence(seq, cloth_step, collider_step, margin):
     out = {"rest_pos": seq.rest.astype(np.float32), "faces": seq.faces.astype(np.int32)}
     for k, v in encode_track(pos, cloth_step).items():
         out["cloth_" + k] = v
+    if seq.skin is not None:
+        for k, v in encode_track(np.asarray(seq.skin, dtype=np.float32), cloth_step).items():
+            out["skin_" + k] = v
     if seq.cpos is not None:
         cpos = np.asarray(seq.cpos, dtype=np.float32)
         tris = crop_support(pos, cpos, seq.cfaces, margin)
@@ -108,10 +114,12 @@ class PackedSequence(weft_data.Sequence):
                 self.cfaces = np.ascontiguousarray(z["collider_faces"], dtype=np.int64)
             else:
                 self.cpos, self.cfaces = None, None
+            self.skin = decode_track(z, "skin_") if "skin_body" in z.files else None
         self.folder = path
         self.name = os.path.basename(path)[:-len(".wpk.npz")]
         T, V = self.pos.shape[:2]
-        if self.rest.shape != (V, 3) or self.faces.min() < 0 or self.faces.max() >= V:
+        bad_skin = self.skin is not None and self.skin.shape != self.pos.shape
+        if self.rest.shape != (V, 3) or self.faces.min() < 0 or self.faces.max() >= V or bad_skin:
             raise ValueError(f"{path}: arrays disagree")
         self.frames = T
         self.scenario = self.meta.get("scenario", "unknown")
@@ -126,10 +134,14 @@ def main():
     ap.add_argument("--cloth-step", type=float, default=2e-5)
     ap.add_argument("--collider-step", type=float, default=5e-5)
     ap.add_argument("--crop-margin", type=float, default=0.15, help="the model's crop_margin (m)")
+    ap.add_argument("--skin", default=None, help="folder of S tracks (<name>.npy) to store with each sequence")
     ap.add_argument("--check", action="store_true", help="decode each file and report the error")
     a = ap.parse_args()
-    seqs = weft_data.load_sequences(a.data)
+    seqs = weft_data.load_sequences(a.data, skin_roots=[a.skin] if a.skin else ())
     seqs = [s for s in seqs if s.meta.get("accepted", True)]
+    missing = [s.name for s in seqs if a.skin and s.skin is None]
+    if missing:
+        sys.exit(f"pack: no S track under {a.skin} for {len(missing)} sequence(s): {', '.join(missing[:5])}")
     os.makedirs(a.out, exist_ok=True)
     part, part_bytes, total = 0, 0, 0
     for i, s in enumerate(seqs):
@@ -153,6 +165,8 @@ def main():
             p = PackedSequence(path)
             e = np.abs(p.pos - np.asarray(s.pos)).max()
             msg += f" cloth err {e * 1e6:.1f} um"
+            if p.skin is not None:
+                msg += f", skin err {np.abs(p.skin - np.asarray(s.skin)).max() * 1e6:.1f} um"
             if p.cpos is not None:
                 msg += f", collider {p.cfaces.shape[0]}/{s.cfaces.shape[0]} tris"
         print(msg, flush=True)

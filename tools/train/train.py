@@ -70,6 +70,11 @@ def data_stats(seqs, prior):
         v = x[1:] - x[:-1]
         vel.append(v.reshape(-1))
         p = 2 * x[1:-1] - x[:-2] if prior == "inertial" else x[1:-1]
+        if prior == "skinned":
+            if s.skin is None:   # refused after the config is settled (main)
+                continue
+            sk = np.asarray(s.skin, dtype=np.float64)
+            p = p + sk[2:] - sk[1:-1]
         res.append((x[2:] - p).reshape(-1))
         if s.cfaces is not None:
             c = np.asarray(s.cpos[0], dtype=np.float64)
@@ -106,7 +111,7 @@ def strain_penalty(x, edges, rest_len):
 class Rollout(torch.nn.Module):
     """The whole autoregressive rollout as one forward() (DDP needs one forward per backward).
 
-    x_all/c_all: (B, T, V, 3) windows. With prefill, the latent history is first filled from
+    x_all/c_all/s_all: (B, T, V, 3) windows (s_all: the S track, skinned prior). With prefill, the latent history is first filled from
     ground-truth frames; without, it starts empty (the state after weft_garment_set_state).
     Returns the predictions (B, steps, V, 3) of frames base+2 .. base+1+steps."""
 
@@ -115,7 +120,7 @@ class Rollout(torch.nn.Module):
         self.m = m
         self.cfg = m.cfg
 
-    def forward(self, x_all, c_all, rest, adj, ctri, steps: int, prefill: bool):
+    def forward(self, x_all, c_all, rest, adj, ctri, steps: int, prefill: bool, s_all=None):
         m = self.m
         base = self.cfg["history"] - 1 if prefill else 0
         hist = []
@@ -131,7 +136,9 @@ class Rollout(torch.nn.Module):
             t = base + 1 + r
             cn = None if c_all is None else c_all[:, t + 1]
             cc = None if c_all is None else c_all[:, t]
-            xn, hist = m.step(hist, x, xp, rest, adj, cn, cc, ctri)
+            sn = None if s_all is None else s_all[:, t + 1]
+            sc = None if s_all is None else s_all[:, t]
+            xn, hist = m.step(hist, x, xp, rest, adj, cn, cc, ctri, sn, sc)
             preds.append(xn)
             xp, x = x, xn
         return torch.stack(preds, dim=1)
@@ -148,11 +155,13 @@ def evaluate(model, seqs, mc, device, frames=60):
     for s in seqs:
         T = min(s.frames, frames + 2)
         x, c = s.window(0, T)
+        sk = s.skin_window(0, T)
         xa = torch.from_numpy(x).to(device).unsqueeze(0)
         ca = None if c is None else torch.from_numpy(c).to(device).unsqueeze(0)
+        sa = None if sk is None else torch.from_numpy(sk).to(device).unsqueeze(0)
         mesh = mc.get(s)
         with torch.no_grad():
-            preds = ro(xa, ca, mesh["rest"], mesh["adj"], mesh["ctri"], T - 2, False)
+            preds = ro(xa, ca, mesh["rest"], mesh["adj"], mesh["ctri"], T - 2, False, sa)
         errs.append(float((preds - xa[:, 2:T]).norm(dim=-1).mean()) * 100.0)
     return float(np.mean(errs)) if errs else float("nan")
 
@@ -187,6 +196,9 @@ def main():
     ap.add_argument("--preset", choices=sorted(PRESETS), default="game")
     ap.add_argument("--config", default="{}", help="JSON overriding preset entries")
     ap.add_argument("--name", default=None)
+    ap.add_argument("--skin", nargs="*", default=[],
+                    help="folders of S tracks (<name>.npy, `weft eval --method lbs --write-pos`) for the "
+                         "skinned prior, for sequences that do not carry one (packs made with --skin do)")
     ap.add_argument("--out", required=True)
     ap.add_argument("--steps", type=int, default=3000)
     ap.add_argument("--batch", type=int, default=4, help="windows per step (same sequence)")
@@ -207,6 +219,9 @@ def main():
     ap.add_argument("--ckpt-every", type=int, default=200)
     ap.add_argument("--eval-every", type=int, default=500)
     ap.add_argument("--eval-frames", type=int, default=60)
+    ap.add_argument("--keep-best", action="store_true",
+                    help="also keep OUT/best.pt: the weights with the lowest validation MVE so far (use a "
+                         "long --eval-frames: short rollouts do not show which weights stay stable)")
     ap.add_argument("--resume", action="store_true")
     ap.add_argument("--init-from", default=None,
                     help="start from this checkpoint's weights and config (fine-tuning: fresh optimiser, "
@@ -226,8 +241,9 @@ def main():
     os.makedirs(a.out, exist_ok=True)
     ckpt_path = os.path.join(a.out, "ckpt.pt")
 
-    train = weft_data.load_sequences(a.data, "train")
-    val = weft_data.load_sequences(a.data, "val") or weft_data.load_sequences(a.data, "test")
+    train = weft_data.load_sequences(a.data, "train", skin_roots=a.skin)
+    val = (weft_data.load_sequences(a.data, "val", skin_roots=a.skin)
+           or weft_data.load_sequences(a.data, "test", skin_roots=a.skin))
     if not train:
         sys.exit(f"no training sequences under {a.data}")
 
@@ -255,6 +271,11 @@ def main():
         cfg["requires_collider"] = all(s.cfaces is not None for s in train)
         cfg.update(json.loads(a.config))   # explicit overrides win over measured scales
     cfg = full_config(cfg)
+    if cfg["prior"] == "skinned":
+        missing = [s.name for s in train + val if s.skin is None]
+        if missing:
+            sys.exit(f"prior 'skinned' needs the S track; none for {len(missing)} sequence(s) "
+                     f"({', '.join(missing[:4])}): pass --skin DIR or pack with --skin")
     random.seed(a.seed + rank)
     torch.manual_seed(a.seed)              # identical initial weights on every rank
     net = ClothTransformer(cfg).to(device)
@@ -302,6 +323,10 @@ def main():
     tty = sys.stderr.isatty()
     out_scale = cfg["out_scale"]
     run_avg = None
+    best_val = float("inf")
+    best_path = os.path.join(a.out, "best.pt")
+    if a.keep_best and os.path.exists(best_path):   # resumed: the best so far stays the bar
+        best_val = torch.load(best_path, map_location="cpu").get("val_mve_cm", best_val)
     while step < a.steps:
         if a.budget_minutes > 0:
             progress = (elapsed_before + time.time() - t_start) / (60.0 * a.budget_minutes)
@@ -324,6 +349,9 @@ def main():
             continue
         starts = [random.randrange(0, seq.frames - need + 1) for _ in range(a.batch)]
         xs, cs = zip(*[seq.window(s0, need) for s0 in starts])
+        sa = None
+        if cfg["prior"] == "skinned":
+            sa = torch.from_numpy(np.stack([seq.skin_window(s0, need) for s0 in starts])).to(device)
         xa = torch.from_numpy(np.stack(xs)).to(device)
         if a.noise_std > 0:  # only the frames the rollout starts from are inputs; targets stay clean
             base_in = rollout_base(cfg, True) + 2
@@ -331,7 +359,7 @@ def main():
             xa = torch.cat([xin, xa[:, base_in:]], dim=1)
         ca = None if cs[0] is None else torch.from_numpy(np.stack(cs)).to(device)
         mesh = mc.get(seq)
-        predt = model(xa, ca, mesh["rest"], mesh["adj"], mesh["ctri"], R, True)
+        predt = model(xa, ca, mesh["rest"], mesh["adj"], mesh["ctri"], R, True, sa)
         preds = predt.unbind(1)
         base = rollout_base(cfg, True)
         mse = 0.0
@@ -364,7 +392,12 @@ def main():
         elapsed = elapsed_before + time.time() - t_start
         val_mve = ""
         if rank == 0 and a.eval_every > 0 and (step % a.eval_every == 0 or step == a.steps) and val:
-            val_mve = f"{evaluate(net, val, mc, device, a.eval_frames):.4f}"
+            v = evaluate(net, val, mc, device, a.eval_frames)
+            val_mve = f"{v:.4f}"
+            if a.keep_best and v < best_val:
+                best_val = v
+                save_ckpt(os.path.join(a.out, "best.pt"), {"model": net.state_dict(), "config": cfg, "step": step,
+                                                          "elapsed": elapsed, "val_mve_cm": v})
         if log:
             log.writerow([step, f"{float(loss):.6g}", f"{mse_cm:.5f}", f"{float(contact) / len(preds):.5g}",
                           f"{float(ccd_l):.5g}", R, f"{lr:.3g}", f"{elapsed:.1f}", val_mve, f"{float(strain) / len(preds):.5g}"])
@@ -394,7 +427,11 @@ def main():
                                   "config": cfg, "elapsed": elapsed_before + time.time() - t_start,
                                   "py_rng": random.getstate(), "torch_rng": torch.get_rng_state()})
             if val:
-                print(f"\nfinal val MVE {evaluate(net, val, mc, device, a.eval_frames):.4f} cm", file=sys.stderr)
+                v = evaluate(net, val, mc, device, a.eval_frames)
+                print(f"\nfinal val MVE {v:.4f} cm", file=sys.stderr)
+                if a.keep_best and v < best_val:
+                    save_ckpt(best_path, {"model": net.state_dict(), "config": cfg, "step": step,
+                                          "elapsed": elapsed_before + time.time() - t_start, "val_mve_cm": v})
         print(f"\ndone: step {step}, checkpoint {ckpt_path}", file=sys.stderr)
     if ddp:
         dist.destroy_process_group()
