@@ -294,11 +294,13 @@ static void teacher_forced_parity(void)
     teacher_forced_parity_of(&golden_flat, DATA "golden_model.safetensors", "tf_pred");
 }
 
-/* The shipped game model (the 'previous' prior, K = 32: the golden model covers the inertial
- * prior); game_tf_pred.npy is export.py --golden of tools/train/models/game.ckpt.pt. */
+/* The shipped game model (the skinned prior, K = 32) on the garment sequence; game_tf_pred.npy is
+ * tf_pred.npy of `export.py --ckpt tools/train/models/game.ckpt.pt --golden DIR --golden-seq
+ * tests/model/data/garment_seq --tf-frames 1,2,5,10 --rollout 14 --golden-preds-only`. */
 static void shipped_game_parity(void)
 {
-    teacher_forced_parity_of(&golden_flat, WEFT_SOURCE_DIR "/tools/train/models/game.safetensors", "game_tf_pred");
+    teacher_forced_parity_of(&golden_garment_seq, WEFT_SOURCE_DIR "/tools/train/models/game.safetensors",
+                             "game_tf_pred");
 }
 
 /* The autoregressive rollout from ground-truth frames (0, 1) with its latent history, against
