@@ -28,7 +28,7 @@ import numpy as np
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import data as weft_data  # noqa: E402
-from pack import crop_support  # noqa: E402
+from pack import crop_collider  # noqa: E402
 
 
 def main():
@@ -49,14 +49,10 @@ def main():
     meta["frames"] = T
     meta["cut_from"] = {"sequence": s.name, "frames": T, "collider_crop_margin_m": a.crop_margin}
     if s.cpos is not None:
-        cpos = np.asarray(s.cpos[:T], dtype=np.float32)
-        tris = crop_support(pos, cpos, s.cfaces, a.crop_margin)
-        used = np.unique(s.cfaces[tris].reshape(-1))
-        remap = -np.ones(cpos.shape[1], np.int64)
-        remap[used] = np.arange(len(used))
-        np.save(os.path.join(a.out, "collider_pos.npy"), np.ascontiguousarray(cpos[:, used]))
-        np.save(os.path.join(a.out, "collider_faces.npy"), remap[s.cfaces[tris]].astype(np.int32))
-        meta["cut_from"]["collider_triangles_kept"] = [int(len(tris)), int(len(s.cfaces))]
+        cpos, cfaces, kept = crop_collider(pos, np.asarray(s.cpos[:T], dtype=np.float32), s.cfaces, a.crop_margin)
+        np.save(os.path.join(a.out, "collider_pos.npy"), cpos)
+        np.save(os.path.join(a.out, "collider_faces.npy"), cfaces)
+        meta["cut_from"]["collider_triangles_kept"] = [int(kept), int(len(s.cfaces))]
     with open(os.path.join(a.out, "meta.json"), "w") as f:
         json.dump(meta, f, indent=1)
     print(f"{a.out}: {T} frames, {pos.shape[1]} vertices"

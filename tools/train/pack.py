@@ -72,6 +72,16 @@ def crop_support(pos, cpos, cfaces, margin):
     return np.nonzero(keep)[0]
 
 
+def crop_collider(pos, cpos, cfaces, margin):
+    """The collider cut to crop_support's triangles: (positions [T, used, 3], triangles renumbered
+    onto them, number of triangles kept)."""
+    tris = crop_support(pos, cpos, cfaces, margin)
+    used = np.unique(cfaces[tris].reshape(-1))
+    remap = -np.ones(cpos.shape[1], np.int64)
+    remap[used] = np.arange(len(used))
+    return np.ascontiguousarray(cpos[:, used]), remap[cfaces[tris]].astype(np.int32), len(tris)
+
+
 def pack_sequence(seq, cloth_step, collider_step, margin):
     pos = np.asarray(seq.pos, dtype=np.float32)
     meta = dict(seq.meta)
@@ -85,14 +95,10 @@ def pack_sequence(seq, cloth_step, collider_step, margin):
         for k, v in encode_track(np.asarray(seq.skin, dtype=np.float32), cloth_step).items():
             out["skin_" + k] = v
     if seq.cpos is not None:
-        cpos = np.asarray(seq.cpos, dtype=np.float32)
-        tris = crop_support(pos, cpos, seq.cfaces, margin)
-        used = np.unique(seq.cfaces[tris].reshape(-1))
-        remap = -np.ones(cpos.shape[1], np.int64)
-        remap[used] = np.arange(len(used))
-        out["collider_faces"] = remap[seq.cfaces[tris]].astype(np.int32)
-        meta["pack"]["collider_kept"] = [int(len(tris)), int(len(seq.cfaces))]
-        for k, v in encode_track(cpos[:, used], collider_step).items():
+        kept_pos, out["collider_faces"], kept = crop_collider(pos, np.asarray(seq.cpos, dtype=np.float32),
+                                                             seq.cfaces, margin)
+        meta["pack"]["collider_kept"] = [int(kept), int(len(seq.cfaces))]
+        for k, v in encode_track(kept_pos, collider_step).items():
             out["collider_" + k] = v
     out["meta"] = np.frombuffer(json.dumps(meta).encode(), np.uint8)
     return out
