@@ -2,7 +2,8 @@
  * XPBD-5, no models, no FNOpt): the run succeeds and writes a CSV with one row per case and
  * method, statuses from the documented set and scores kept under each sequence; a second run
  * reuses the kept scores (the CSV, wall times included, comes out byte-identical); a model's kept
- * scores follow the model file's contents; bad options fail. argv: weft binary, output folder. */
+ * scores follow the model file's contents; the table replaces only the marked block of an
+ * existing STABILITY.md; bad options fail. argv: weft binary, output folder. */
 #define _POSIX_C_SOURCE 200809L /* stat, mkdir */
 #include "test.h"
 #include "tool_run.h"
@@ -154,6 +155,39 @@ static void runs_and_resumes(void)
     free(second);
 }
 
+/* The generated table goes between the markers of an existing page; the prose around it stays. */
+static void prose_around_the_table_survives(void)
+{
+    char dir[1200], path[1300];
+    snprintf(dir, sizeof dir, "%s/prose", g_out);
+    mkdir(dir, 0777);
+    snprintf(path, sizeof path, "%s/STABILITY.md", dir);
+    FILE *f = fopen(path, "w");
+    CHECK(f != NULL);
+    if (!f) {
+        return;
+    }
+    fputs("# Stability\n\nHand-written lead.\n\n<!-- stability:table -->\nstale table\n<!-- /stability:table -->\n\n"
+          "Hand-written tail.\n",
+          f);
+    fclose(f);
+    CHECK_EQ_INT(suite("prose", false), 0); /* the scores kept by runs_and_resumes: no evaluation */
+    char *doc = slurp(path);
+    CHECK(doc != NULL);
+    if (!doc) {
+        return;
+    }
+    const char *lead = strstr(doc, "Hand-written lead."), *open = strstr(doc, "<!-- stability:table -->");
+    const char *table = strstr(doc, "| case | axis | method |"), *close = strstr(doc, "<!-- /stability:table -->");
+    const char *tail = strstr(doc, "Hand-written tail.");
+    CHECK(strncmp(doc, "# Stability\n", 12) == 0);
+    CHECK(lead && open && table && close && tail);
+    CHECK(lead < open && open < table && table < close && close < tail);
+    CHECK(strstr(doc, "stale table") == NULL);
+    CHECK(strstr(close + 1, "<!-- stability:table -->") == NULL); /* replaced, not appended */
+    free(doc);
+}
+
 /* A kept model score belongs to the model file's contents, not its path: a retrained model
  * under the same name is scored again, the same file is not. */
 static void model_scores_follow_the_file(void)
@@ -195,7 +229,8 @@ int main(int argc, char **argv)
     g_exe = argv[1];
     g_out = argv[2];
     mkdir(g_out, 0777);
-    static const test_case_ cases[] = {TEST_CASE(runs_and_resumes), TEST_CASE(model_scores_follow_the_file),
+    static const test_case_ cases[] = {TEST_CASE(runs_and_resumes), TEST_CASE(prose_around_the_table_survives),
+                                       TEST_CASE(model_scores_follow_the_file),
                                        TEST_CASE(bad_options)};
     return test_run_(cases, sizeof cases / sizeof cases[0], 1, argv);
 }

@@ -34,8 +34,10 @@ def method_args(spec):
     sys.exit(f"heldout_table: unknown method '{spec}'")
 
 
-def run(weft, data, split, spec, ccd, frames):
+def run(weft, data, split, spec, ccd, frames, pins="xpbd"):
     cmd = [weft, "eval", "--seq", data, "--split", split, "--ccd", ccd] + method_args(spec)
+    if pins != "xpbd":
+        cmd += ["--pins", pins]
     if frames:
         cmd += ["--frames", str(frames)]
     print("$ " + " ".join(cmd), file=sys.stderr, flush=True)
@@ -66,6 +68,8 @@ def main():
     ap.add_argument("--split", nargs="+", default=["test"])
     ap.add_argument("--method", action="append", required=True, help="LABEL=METHOD[:ARG]")
     ap.add_argument("--ccd", default="off", choices=["on", "off"])
+    ap.add_argument("--pins", default="xpbd", choices=["xpbd", "all"],
+                    help="the sequences' pins (gripper grasps, waistbands) for XPBD only, or for every method")
     ap.add_argument("--frames", type=int, default=0, help="rollout length (default: the whole sequence)")
     ap.add_argument("--out", help="markdown file (default: print only)")
     a = ap.parse_args()
@@ -76,7 +80,7 @@ def main():
             label, _, spec = m.partition("=")
             if not spec:
                 sys.exit(f"heldout_table: --method wants LABEL=METHOD, got '{m}'")
-            rows = run(a.weft, a.data, split, spec, a.ccd, a.frames)
+            rows = run(a.weft, a.data, split, spec, a.ccd, a.frames, a.pins)
             for r in rows:
                 per_seq.append(dict(r, split=split, method=label))
             cells = [split, label, f"{mean(rows, 'mve_cm'):.2f}"]
@@ -94,11 +98,11 @@ def main():
     print(md)
     if a.out:
         cmd = "/usr/bin/python3 tools/bench/heldout_table.py " + " ".join(
-            [f"--data {a.data}", "--split " + " ".join(a.split), f"--ccd {a.ccd}"] +
+            [f"--data {a.data}", "--split " + " ".join(a.split), f"--ccd {a.ccd}"] + ([f"--pins {a.pins}"] if a.pins != "xpbd" else []) +
             [f"--method {m}" for m in a.method] + ([f"--frames {a.frames}"] if a.frames else []) +
             [f"--out {a.out}"])
         with open(a.out, "w") as f:
-            f.write(f"MVE in cm, 240-frame rollouts, CCD {a.ccd}; made by\n\n```\n{cmd}\n```\n\n" + md)
+            f.write(f"MVE in cm, 240-frame rollouts, CCD {a.ccd}, pins for {'every method' if a.pins == 'all' else 'XPBD only'}; made by\n\n```\n{cmd}\n```\n\n" + md)
         with open(os.path.splitext(a.out)[0] + ".csv", "w", newline="") as f:
             w = csv.DictWriter(f, fieldnames=["split", "method", "sequence", "scenario", "frames", "mve_cm",
                                               "coll_pct", "self_pct", "ms_per_frame", "max_strain", "nan"])

@@ -7,6 +7,8 @@ Array names accepted (the first present wins):
   collider          collider_pos.npy / obst_pos.npy / body_pos.npy   [T, Vc, 3] (optional)
   collider tris     collider_faces.npy / obst_faces.npy / body_faces.npy [Fc, 3] (optional)
   skinned garment   skin_pos.npy           [T, V, 3] (optional; the "skinned" prior's S track)
+  pins              pinned.npy             [T, V] u8 (optional; 1 where a vertex follows the gripper
+                                           or the waistband in that frame: train.py --pins)
 A `topology.npz` with rest_pos / faces is read as well. Packed sequences (`*.wpk.npz`, written by
 pack.py) are found below the roots too. meta.json may carry "scenario" and "split";
 otherwise the split comes from the root's manifest.json / splits/*.txt (weft simgen), else from a
@@ -74,6 +76,9 @@ class Sequence:
         if self.cpos is not None:
             if self.cpos.shape[0] != T or self.cfaces.max() >= self.cpos.shape[1]:
                 raise ValueError(f"{folder}: collider arrays disagree with the cloth")
+        self.pinned = _first(folder, ["pinned.npy"], required=False)
+        if self.pinned is not None and self.pinned.shape != (T, V):
+            raise ValueError(f"{folder}: pinned {self.pinned.shape} does not match the cloth {self.pos.shape}")
         self.skin = None
         sp = os.path.join(folder, "skin_pos.npy")
         if os.path.exists(sp):
@@ -92,6 +97,12 @@ class Sequence:
     def skin_window(self, start, length):
         """Frames [start, start+length) of the S track as float32, or None without one."""
         return None if self.skin is None else np.array(self.skin[start:start + length], dtype=np.float32)
+
+    def pin_window(self, start, length):
+        """Frames [start, start+length) of the pin mask as bool [length, V], or None without pins."""
+        if self.pinned is None:
+            return None
+        return np.array(self.pinned[start:start + length]) != 0
 
     def window(self, start, length):
         """Frames [start, start+length) as float32 arrays (cloth, collider or None)."""

@@ -18,6 +18,11 @@
 #   skin2    the skin set's game runs continued with longer rollouts (curriculum 1 -> 10), keeping
 #            the weights whose 240-frame validation rollouts are best (--keep-best); their starting
 #            checkpoints are the skin runs' under data/gpu/init/
+#   pins     the skinned prior with the sequences' pins in every training and validation rollout
+#            (train.py --pins: grasped and waistband vertices follow the reference, as weft eval
+#            --pins all), rollouts to 10, 240-frame keep-best: `unified` from scratch, `game` from
+#            scratch with the gripper drawn twice as often, and the shipped `game` fine-tuned
+#            (data: pack.py --skin of the grown set, with its pin masks, under data/pack_pins)
 set -u
 cd "$(dirname "$0")/../.." || exit 1
 R=data/gpu/runs
@@ -27,7 +32,9 @@ case "$SET" in
     skin) RUNS="game_skin unified_skin game_skin0 game_prev179"; DATA=${DATA:-data/pack179s}; BUDGET=${BUDGET:-15} ;;
     skin2) RUNS="s0_r10 s_r10 s0_contact ship_skin_r10"; DATA=${DATA:-data/pack179s}; BUDGET=${BUDGET:-7.5}
            EXTRA="--eval-every 500 --eval-frames 238 --keep-best --rollout-max 10" ;;
-    *) echo "unknown SET=$SET (shipped|skin|skin2)" >&2; exit 2 ;;
+    pins) RUNS="unified_pins game_pins0 game_pins_ft"; DATA=${DATA:-data/pack_pins}; BUDGET=${BUDGET:-17}
+          EXTRA="--eval-every 1000 --eval-frames 238 --keep-best --rollout-max 10 --pins --max-train-vertices 5000" ;;
+    *) echo "unknown SET=$SET (shipped|skin|skin2|pins)" >&2; exit 2 ;;
 esac
 
 run_args() {  # the arguments of run $1 (besides the common ones)
@@ -44,6 +51,9 @@ run_args() {  # the arguments of run $1 (besides the common ones)
         s_r10) echo --init-from data/gpu/init/game_skin.pt --batch 32 --lr 3e-4 ;;
         s0_contact) echo --init-from data/gpu/init/game_skin0.pt --batch 32 --lr 3e-4 --lambda-contact 0.5 ;;
         ship_skin_r10) echo "--init-from tools/train/models/game.ckpt.pt --config '{\"prior\":\"skinned\"}' --batch 32 --lr 5e-4" ;;
+        unified_pins) echo "--preset unified --config '{\"prior\":\"skinned\"}' --batch 32 --lr 1e-3" ;;
+        game_pins0) echo "--preset game --config '{\"prior\":\"skinned\"}' --batch 32 --lr 1e-3 --scenario-weight gripper=2" ;;
+        game_pins_ft) echo --init-from tools/train/models/game.ckpt.pt --batch 32 --lr 3e-4 ;;
     esac
 }
 
@@ -79,5 +89,5 @@ case "${1:-}" in
         collect ;;
     launch) start "" ;;
     collect) collect ;;
-    *) echo "usage: SET=shipped|skin $0 train|launch|collect" >&2; exit 2 ;;
+    *) echo "usage: SET=shipped|skin|skin2|pins $0 train|launch|collect" >&2; exit 2 ;;
 esac

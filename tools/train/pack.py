@@ -14,6 +14,7 @@ One `NAME.wpk.npz` per accepted sequence, grouped into folders `part0/`, `part1/
   - with --skin DIR, the S track of the "skinned" prior (DIR/<name>.npy from `weft eval --method
     lbs --write-pos DIR`, see data.py) is stored like the cloth track; a sequence without one is
     an error (a skinned-prior model cannot train on it).
+  - the pin mask (pinned.npy, [T, V] u8) is stored bit-packed and deflated (exact).
 meta.json travels inside each file, with the split from the dataset's manifest written into it.
 """
 import argparse
@@ -94,6 +95,10 @@ def pack_sequence(seq, cloth_step, collider_step, margin):
     if seq.skin is not None:
         for k, v in encode_track(np.asarray(seq.skin, dtype=np.float32), cloth_step).items():
             out["skin_" + k] = v
+    if seq.pinned is not None and np.any(seq.pinned):
+        bits = np.packbits(np.asarray(seq.pinned) != 0, axis=None)
+        out["pinned_bits"] = np.frombuffer(zlib.compress(bits.tobytes(), 9), np.uint8)
+        out["pinned_shape"] = np.array(seq.pinned.shape, np.int64)
     if seq.cpos is not None:
         kept_pos, out["collider_faces"], kept = crop_collider(pos, np.asarray(seq.cpos, dtype=np.float32),
                                                              seq.cfaces, margin)
@@ -121,11 +126,17 @@ class PackedSequence(weft_data.Sequence):
             else:
                 self.cpos, self.cfaces = None, None
             self.skin = decode_track(z, "skin_") if "skin_body" in z.files else None
+            self.pinned = None
+            if "pinned_bits" in z.files:
+                shape = tuple(int(v) for v in z["pinned_shape"])
+                bits = np.frombuffer(zlib.decompress(z["pinned_bits"].tobytes()), np.uint8)
+                self.pinned = np.unpackbits(bits, count=shape[0] * shape[1]).reshape(shape)
         self.folder = path
         self.name = os.path.basename(path)[:-len(".wpk.npz")]
         T, V = self.pos.shape[:2]
         bad_skin = self.skin is not None and self.skin.shape != self.pos.shape
-        if self.rest.shape != (V, 3) or self.faces.min() < 0 or self.faces.max() >= V or bad_skin:
+        bad_pins = self.pinned is not None and self.pinned.shape != (T, V)
+        if self.rest.shape != (V, 3) or self.faces.min() < 0 or self.faces.max() >= V or bad_skin or bad_pins:
             raise ValueError(f"{path}: arrays disagree")
         self.frames = T
         self.scenario = self.meta.get("scenario", "unknown")
@@ -173,6 +184,9 @@ def main():
             msg += f" cloth err {e * 1e6:.1f} um"
             if p.skin is not None:
                 msg += f", skin err {np.abs(p.skin - np.asarray(s.skin)).max() * 1e6:.1f} um"
+            if (p.pinned is None) != (s.pinned is None or not np.any(s.pinned)) or (
+                    p.pinned is not None and not np.array_equal(p.pinned != 0, np.asarray(s.pinned) != 0)):
+                sys.exit(f"pack: {s.name}: pin mask does not round-trip")
             if p.cpos is not None:
                 msg += f", collider {p.cfaces.shape[0]}/{s.cfaces.shape[0]} tris"
         print(msg, flush=True)

@@ -113,6 +113,8 @@ class Rollout(torch.nn.Module):
 
     x_all/c_all/s_all: (B, T, V, 3) windows (s_all: the S track, skinned prior). With prefill, the latent history is first filled from
     ground-truth frames; without, it starts empty (the state after weft_garment_set_state).
+    p_all: (B, T, V) bool pin masks, or None: pinned vertices of each predicted frame take their
+    ground-truth positions before the next step, as weft_garment_set_pins does after a learned step.
     Returns the predictions (B, steps, V, 3) of frames base+2 .. base+1+steps."""
 
     def __init__(self, m):
@@ -120,7 +122,7 @@ class Rollout(torch.nn.Module):
         self.m = m
         self.cfg = m.cfg
 
-    def forward(self, x_all, c_all, rest, adj, ctri, steps: int, prefill: bool, s_all=None):
+    def forward(self, x_all, c_all, rest, adj, ctri, steps: int, prefill: bool, s_all=None, p_all=None):
         m = self.m
         base = self.cfg["history"] - 1 if prefill else 0
         hist = []
@@ -139,6 +141,8 @@ class Rollout(torch.nn.Module):
             sn = None if s_all is None else s_all[:, t + 1]
             sc = None if s_all is None else s_all[:, t]
             xn, hist = m.step(hist, x, xp, rest, adj, cn, cc, ctri, sn, sc)
+            if p_all is not None:
+                xn = torch.where(p_all[:, t + 1].unsqueeze(-1), x_all[:, t + 1], xn)
             preds.append(xn)
             xp, x = x, xn
         return torch.stack(preds, dim=1)
@@ -148,8 +152,9 @@ def rollout_base(cfg, prefill):
     return cfg["history"] - 1 if prefill else 0
 
 
-def evaluate(model, seqs, mc, device, frames=60):
-    """Mean vertex error (cm) of an autoregressive rollout from the first two GT frames."""
+def evaluate(model, seqs, mc, device, frames=60, pins=False):
+    """Mean vertex error (cm) of an autoregressive rollout from the first two GT frames (with pins:
+    the sequence's pinned vertices follow the reference, as `weft eval --pins all`)."""
     ro = Rollout(model)
     errs = []
     for s in seqs:
@@ -159,9 +164,11 @@ def evaluate(model, seqs, mc, device, frames=60):
         xa = torch.from_numpy(x).to(device).unsqueeze(0)
         ca = None if c is None else torch.from_numpy(c).to(device).unsqueeze(0)
         sa = None if sk is None else torch.from_numpy(sk).to(device).unsqueeze(0)
+        pm = s.pin_window(0, T) if pins else None
+        pa = None if pm is None else torch.from_numpy(pm).to(device).unsqueeze(0)
         mesh = mc.get(s)
         with torch.no_grad():
-            preds = ro(xa, ca, mesh["rest"], mesh["adj"], mesh["ctri"], T - 2, False, sa)
+            preds = ro(xa, ca, mesh["rest"], mesh["adj"], mesh["ctri"], T - 2, False, sa, pa)
         errs.append(float((preds - xa[:, 2:T]).norm(dim=-1).mean()) * 100.0)
     return float(np.mean(errs)) if errs else float("nan")
 
@@ -211,6 +218,15 @@ def main():
     ap.add_argument("--noise-std", type=float, default=0.0,
                     help="Gaussian noise (m) added to the ground-truth input frames of each window, so "
                          "the model learns to correct states off the data manifold (rollout drift)")
+    ap.add_argument("--pins", action="store_true",
+                    help="pinned vertices (pinned.npy: gripper grasps, waistbands) take their reference "
+                         "positions after every predicted step, in training rollouts and validation, as "
+                         "the runtime does with weft_garment_set_pins (evaluate with weft eval --pins all)")
+    ap.add_argument("--scenario-weight", nargs="*", default=[], metavar="SCENARIO=W",
+                    help="draw training sequences of a scenario W times as often (default 1 each)")
+    ap.add_argument("--max-train-vertices", type=int, default=0,
+                    help="leave training sequences with more cloth vertices out (0: keep all); "
+                         "bounds memory at a given batch and rollout length")
     ap.add_argument("--stage", choices=["pretrain", "ccd"], default="pretrain")
     ap.add_argument("--max-minutes", type=float, default=0.0, help="stop (with a checkpoint) after this")
     ap.add_argument("--budget-minutes", type=float, default=0.0,
@@ -244,8 +260,25 @@ def main():
     train = weft_data.load_sequences(a.data, "train", skin_roots=a.skin)
     val = (weft_data.load_sequences(a.data, "val", skin_roots=a.skin)
            or weft_data.load_sequences(a.data, "test", skin_roots=a.skin))
+    if a.max_train_vertices > 0:
+        train = [s for s in train if s.rest.shape[0] <= a.max_train_vertices]
     if not train:
         sys.exit(f"no training sequences under {a.data}")
+    weights = {}
+    for sw in a.scenario_weight:
+        name, _, w = sw.partition("=")
+        try:
+            weights[name] = float(w)
+        except ValueError:
+            sys.exit(f"--scenario-weight {sw}: expected SCENARIO=W")
+        if weights[name] < 0:
+            sys.exit(f"--scenario-weight {sw}: the weight must be >= 0")
+    draw_w = [weights.get(s.scenario, 1.0) for s in train]
+    if sum(draw_w) <= 0:
+        sys.exit("--scenario-weight leaves no training sequence to draw")
+    if a.pins and not any(s.pinned is not None for s in train):
+        print("--pins: no training sequence carries pins (pinned.npy, or a pack made since pins were packed)",
+              file=sys.stderr)
 
     state = None
     init = None
@@ -342,7 +375,7 @@ def main():
         for gparam in opt.param_groups:
             gparam["lr"] = lr
         R = 1 + min(a.rollout_max - 1, int(a.rollout_max * progress / 0.7))
-        seq = random.choice(train)
+        seq = random.choices(train, draw_w)[0] if weights else random.choice(train)
         h = cfg["history"]
         need = (h - 1) + R + 2
         if seq.frames < need:
@@ -358,8 +391,11 @@ def main():
             xin = xa[:, :base_in] + a.noise_std * torch.randn_like(xa[:, :base_in])
             xa = torch.cat([xin, xa[:, base_in:]], dim=1)
         ca = None if cs[0] is None else torch.from_numpy(np.stack(cs)).to(device)
+        pa = None
+        if a.pins and seq.pinned is not None:
+            pa = torch.from_numpy(np.stack([seq.pin_window(s0, need) for s0 in starts])).to(device)
         mesh = mc.get(seq)
-        predt = model(xa, ca, mesh["rest"], mesh["adj"], mesh["ctri"], R, True, sa)
+        predt = model(xa, ca, mesh["rest"], mesh["adj"], mesh["ctri"], R, True, sa, pa)
         preds = predt.unbind(1)
         base = rollout_base(cfg, True)
         mse = 0.0
@@ -392,7 +428,7 @@ def main():
         elapsed = elapsed_before + time.time() - t_start
         val_mve = ""
         if rank == 0 and a.eval_every > 0 and (step % a.eval_every == 0 or step == a.steps) and val:
-            v = evaluate(net, val, mc, device, a.eval_frames)
+            v = evaluate(net, val, mc, device, a.eval_frames, a.pins)
             val_mve = f"{v:.4f}"
             if a.keep_best and v < best_val:
                 best_val = v
@@ -427,7 +463,7 @@ def main():
                                   "config": cfg, "elapsed": elapsed_before + time.time() - t_start,
                                   "py_rng": random.getstate(), "torch_rng": torch.get_rng_state()})
             if val:
-                v = evaluate(net, val, mc, device, a.eval_frames)
+                v = evaluate(net, val, mc, device, a.eval_frames, a.pins)
                 print(f"\nfinal val MVE {v:.4f} cm", file=sys.stderr)
                 if a.keep_best and v < best_val:
                     save_ckpt(best_path, {"model": net.state_dict(), "config": cfg, "step": step,

@@ -519,3 +519,52 @@ bool bench_plot(const char *exe, const char *tool, const char *script, const cha
     printf("wrote %s\n", png);
     return true;
 }
+
+char *bench_append(char *buf, size_t *len, size_t *cap, const char *s)
+{
+    size_t n = strlen(s);
+    if (*len + n + 1 > *cap) {
+        size_t nc = (*cap + n + 1) * 2;
+        char *nb = realloc(buf, nc);
+        if (!nb) {
+            free(buf);
+            return NULL;
+        }
+        buf = nb;
+        *cap = nc;
+    }
+    memcpy(buf + *len, s, n + 1);
+    *len += n;
+    return buf;
+}
+
+char *bench_replace_block(char *doc, const char *tag, const char *body, const char *title)
+{
+    char open[96], close[96];
+    snprintf(open, sizeof open, "<!-- %s -->", tag);
+    snprintf(close, sizeof close, "<!-- /%s -->", tag);
+    size_t len = 0, cap = 0;
+    char *out = NULL;
+    char *a = doc ? strstr(doc, open) : NULL;
+    char *b = a ? strstr(a, close) : NULL;
+    if (a && b) {
+        char saved = *a;
+        *a = '\0';
+        out = bench_append(out, &len, &cap, doc);
+        *a = saved;
+        out = out ? bench_append(out, &len, &cap, open) : NULL;
+        out = out ? bench_append(out, &len, &cap, "\n") : NULL;
+        out = out ? bench_append(out, &len, &cap, body) : NULL;
+        out = out ? bench_append(out, &len, &cap, b) : NULL;
+    } else {
+        out = bench_append(out, &len, &cap, doc ? doc : title);
+        out = out ? bench_append(out, &len, &cap, "\n") : NULL;
+        out = out ? bench_append(out, &len, &cap, open) : NULL;
+        out = out ? bench_append(out, &len, &cap, "\n") : NULL;
+        out = out ? bench_append(out, &len, &cap, body) : NULL;
+        out = out ? bench_append(out, &len, &cap, close) : NULL;
+        out = out ? bench_append(out, &len, &cap, "\n") : NULL;
+    }
+    free(doc);
+    return out;
+}

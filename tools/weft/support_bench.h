@@ -55,6 +55,16 @@ bool bench_eval(const char *exe, const char *seq_dir, const char *const extra[],
 /* The whole file, NUL-terminated; NULL when it cannot be read. */
 char *bench_slurp(const char *path, size_t *size);
 
+/* Appends s to the growable string buf (length *len, capacity *cap); returns the new buffer, or
+ * NULL (buf freed) when out of memory. */
+char *bench_append(char *buf, size_t *len, size_t *cap, const char *s);
+
+/* A generated block in a hand-written page: returns doc (freed) with the text between the lines
+ * "<!-- TAG -->" and "<!-- /TAG -->" replaced by body, so the prose around it survives a rerun.
+ * Without the markers the block is appended to doc (to title when doc is NULL: a new page).
+ * NULL when out of memory. */
+char *bench_replace_block(char *doc, const char *tag, const char *body, const char *title);
+
 /* mkdir -p. */
 bool bench_mkdirs(const char *path);
 
