@@ -1,7 +1,8 @@
 /* `weft bench lod` end to end on the committed sample sequence: the run writes a lod.csv that
  * weft_lod_table_load_file accepts, with one level per candidate (LBS with and without CCD,
  * XPBD at the substeps asked for, the `game` model at three precisions with and without CCD),
- * finite measured numbers, and a LOD.md with the generated table between its markers.
+ * finite measured numbers, and a LOD.md with the generated table between its markers;
+ * --max-seqs counts per scenario.
  * argv: weft binary, data folder, models folder, output folder. Exits 77 (skipped) without a
  * sample sequence. */
 #define _POSIX_C_SOURCE 200809L /* posix_spawn, symlink */
@@ -135,6 +136,50 @@ static void bench_measures_crop_levels(void)
     CHECK_EQ_INT(run(bad), 2);
 }
 
+/* --max-seqs N keeps N sequences of each scenario (as bench chart), not N of the whole split:
+ * two drops (the sample, linked twice) and a garment with --max-seqs 1 measure one of each. */
+static void max_seqs_counts_per_scenario(void)
+{
+    char data[1100], empty[1100], out[1100], link_path[1300], target[1300];
+    snprintf(data, sizeof data, "%s/two_scenarios", g_out);
+    snprintf(empty, sizeof empty, "%s/no_models", g_out);
+    snprintf(out, sizeof out, "%s/max_seqs", g_out);
+    mkdir(data, 0755);
+    mkdir(empty, 0755);
+    mkdir(out, 0755);
+    static const char *const names[] = {"drop_a", "drop_b", "garment_a"};
+    for (int i = 0; i < 3; ++i) {
+        snprintf(link_path, sizeof link_path, "%s/%s", data, names[i]);
+        if (i < 2) {
+            snprintf(target, sizeof target, "%s/sample_seq", g_data);
+        } else {
+            snprintf(target, sizeof target, "%s/tests/model/data/garment_seq", WEFT_SOURCE_DIR);
+        }
+        unlink(link_path);
+        CHECK_MSG(symlink(target, link_path) == 0, "symlink %s: %s", link_path, strerror(errno));
+    }
+    char csv[1200];
+    snprintf(csv, sizeof csv, "%s/lod.csv", out);
+    unlink(csv);
+    const char *argv[] = {g_exe,    "bench",  "lod",    "--data", data,  "--split", "all",       "--frames",
+                          "2",      "--xpbd", "1",      "--models", empty, "--out",   out,         "--no-scale",
+                          "--max-seqs", "1", NULL};
+    CHECK_EQ_INT(run(argv), 0);
+    weft_context_def cd = weft_default_context_def();
+    weft_context *ctx = NULL;
+    CHECK_RESULT(weft_context_create(&cd, &ctx), WEFT_OK);
+    weft_lod_table *t = NULL;
+    CHECK_RESULT(weft_lod_table_load_file(ctx, csv, &t), WEFT_OK);
+    if (t) {
+        uint32_t idx = 0;
+        CHECK_RESULT(weft_lod_table_find(t, "lbs-noccd", &idx), WEFT_OK);
+        const weft_lod_level *l = weft_lod_table_level(t, idx);
+        CHECK_MSG(l && l->sequences == 2, "lbs-noccd measured %u sequences, want 2", l ? l->sequences : 0);
+        weft_lod_table_destroy(t);
+    }
+    weft_context_destroy(ctx);
+}
+
 int main(int argc, char **argv)
 {
     if (argc != 5) {
@@ -152,6 +197,7 @@ int main(int argc, char **argv)
         printf("skipped: no %s\n", probe);
         return 77;
     }
-    static const test_case_ cases[] = {TEST_CASE(bench_writes_loadable_table), TEST_CASE(bench_measures_crop_levels)};
-    return test_run_(cases, 2, 1, argv);
+    static const test_case_ cases[] = {TEST_CASE(bench_writes_loadable_table), TEST_CASE(bench_measures_crop_levels),
+                                       TEST_CASE(max_seqs_counts_per_scenario)};
+    return test_run_(cases, sizeof cases / sizeof cases[0], 1, argv);
 }

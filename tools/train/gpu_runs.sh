@@ -21,8 +21,10 @@
 #   pins     the skinned prior with the sequences' pins in every training and validation rollout
 #            (train.py --pins: grasped and waistband vertices follow the reference, as weft eval
 #            --pins all), rollouts to 10, 240-frame keep-best: `unified` from scratch, `game` from
-#            scratch with the gripper drawn twice as often, and the shipped `game` fine-tuned
-#            (data: pack.py --skin of the grown set, with its pin masks, under data/pack_pins)
+#            scratch with the gripper drawn twice as often, the shipped `game` fine-tuned, and the
+#            shipped `game` cut to 16 and 8 latents (cut_latents.py, into data/gpu/init/) fine-tuned
+#            at their K (data: pack.py --skin of the grown set, with its pin masks, under
+#            data/pack_pins)
 set -u
 cd "$(dirname "$0")/../.." || exit 1
 R=data/gpu/runs
@@ -32,7 +34,7 @@ case "$SET" in
     skin) RUNS="game_skin unified_skin game_skin0 game_prev179"; DATA=${DATA:-data/pack179s}; BUDGET=${BUDGET:-15} ;;
     skin2) RUNS="s0_r10 s_r10 s0_contact ship_skin_r10"; DATA=${DATA:-data/pack179s}; BUDGET=${BUDGET:-7.5}
            EXTRA="--eval-every 500 --eval-frames 238 --keep-best --rollout-max 10" ;;
-    pins) RUNS="unified_pins game_pins0 game_pins_ft"; DATA=${DATA:-data/pack_pins}; BUDGET=${BUDGET:-17}
+    pins) RUNS="unified_pins game_pins0 game_pins_ft game_k16_ft game_k8_ft"; DATA=${DATA:-data/pack_pins}; BUDGET=${BUDGET:-17}
           EXTRA="--eval-every 1000 --eval-frames 238 --keep-best --rollout-max 10 --pins --max-train-vertices 5000" ;;
     *) echo "unknown SET=$SET (shipped|skin|skin2|pins)" >&2; exit 2 ;;
 esac
@@ -54,6 +56,8 @@ run_args() {  # the arguments of run $1 (besides the common ones)
         unified_pins) echo "--preset unified --config '{\"prior\":\"skinned\"}' --batch 32 --lr 1e-3" ;;
         game_pins0) echo "--preset game --config '{\"prior\":\"skinned\"}' --batch 32 --lr 1e-3 --scenario-weight gripper=2" ;;
         game_pins_ft) echo --init-from tools/train/models/game.ckpt.pt --batch 32 --lr 3e-4 ;;
+        game_k16_ft) echo --init-from data/gpu/init/game_k16.pt --batch 32 --lr 3e-4 ;;
+        game_k8_ft) echo --init-from data/gpu/init/game_k8.pt --batch 32 --lr 3e-4 ;;
     esac
 }
 

@@ -79,6 +79,7 @@ static void usage(FILE *f)
             "  (loadable by weft_lod_table_load_file) and the table in OUT/LOD.md, then measures the\n"
             "  per-character step cost of 1, 8 and 64 walking avatars at the --scale-levels (default: lbs,\n"
             "  xpbd-5, every model at int8 and fp32 with CCD and at fp32 without). Default OUT: docs.\n"
+            "  --max-seqs N  at most N sequences of each scenario (the first by name), as bench chart\n"
             "  --scale-only  skip the table: reuse OUT/lod.csv and regenerate only the per-character section\n"
             "  --crops L     collider crops to measure every model level at (default: model, the model's own):\n"
             "                'model' or a margin in cm (box rule, as trained), optionally :cells (finer rule) and\n"
@@ -999,8 +1000,18 @@ int weft_bench_lod(int argc, char **argv)
             return 1;
         }
     }
-    if (o.max_seqs && nseq > o.max_seqs) {
-        nseq = o.max_seqs;
+    if (o.max_seqs) { /* per scenario, as `weft bench chart` counts them (the split lists them by name) */
+        size_t kept = 0;
+        for (size_t i = 0; i < nseq; ++i) {
+            uint32_t same = 0;
+            for (size_t j = 0; j < kept; ++j) {
+                same += strcmp(seqs[j].scenario, seqs[i].scenario) == 0;
+            }
+            if (same < o.max_seqs) {
+                seqs[kept++] = seqs[i];
+            }
+        }
+        nseq = kept;
     }
     weft_context_def cdef = weft_default_context_def();
     weft_context *ctx = NULL;
