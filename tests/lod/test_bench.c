@@ -32,6 +32,21 @@ static int run(const char *const argv[])
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
 }
 
+/* Runs `weft bench lod` (argv) and loads the lod.csv it wrote (NULL, with a failed check, when
+ * either fails); *ctx is the context it lives in, for the caller to destroy. */
+static weft_lod_table *bench_table(const char *const argv[], const char *csv, weft_context **ctx)
+{
+    CHECK_EQ_INT(run(argv), 0);
+    weft_context_def cd = weft_default_context_def();
+    *ctx = NULL;
+    CHECK_RESULT(weft_context_create(&cd, ctx), WEFT_OK);
+    weft_lod_table *t = NULL;
+    if (*ctx) {
+        CHECK_RESULT(weft_lod_table_load_file(*ctx, csv, &t), WEFT_OK);
+    }
+    return t;
+}
+
 static void bench_writes_loadable_table(void)
 {
     /* Only the `game` model (linked into a folder of its own) keeps the run short. */
@@ -53,13 +68,8 @@ static void bench_writes_loadable_table(void)
     unlink(csv);
     const char *argv[] = {g_exe,  "bench", "lod",      "--data", g_data,  "--split", "all", "--frames", "3",
                           "--xpbd", "1",   "--models", models,   "--out", g_out,     "--no-scale", NULL};
-    CHECK_EQ_INT(run(argv), 0);
-
-    weft_context_def cd = weft_default_context_def();
     weft_context *ctx = NULL;
-    CHECK_RESULT(weft_context_create(&cd, &ctx), WEFT_OK);
-    weft_lod_table *t = NULL;
-    CHECK_RESULT(weft_lod_table_load_file(ctx, csv, &t), WEFT_OK);
+    weft_lod_table *t = bench_table(argv, csv, &ctx);
     if (t) {
         CHECK_EQ_INT(weft_lod_table_count(t), 9);
         static const char *const names[] = {"lbs",           "lbs-noccd",     "xpbd-1",
@@ -101,12 +111,8 @@ static void bench_measures_crop_levels(void)
     const char *argv[] = {g_exe,    "bench", "lod",   "--data", g_data,       "--split",  "all",
                           "--frames", "3",   "--xpbd", "1",     "--models",   models,     "--out",
                           out,      "--no-scale", "--crops", "model,6:cells@40", NULL};
-    CHECK_EQ_INT(run(argv), 0);
-    weft_context_def cd = weft_default_context_def();
     weft_context *ctx = NULL;
-    CHECK_RESULT(weft_context_create(&cd, &ctx), WEFT_OK);
-    weft_lod_table *t = NULL;
-    CHECK_RESULT(weft_lod_table_load_file(ctx, csv, &t), WEFT_OK);
+    weft_lod_table *t = bench_table(argv, csv, &ctx);
     if (t) {
         CHECK_EQ_INT(weft_lod_table_count(t), 15); /* lbs x2, xpbd-1, game: 3 precisions x CCD x 2 crops */
         static const struct {
@@ -164,12 +170,8 @@ static void max_seqs_counts_per_scenario(void)
     const char *argv[] = {g_exe,    "bench",  "lod",    "--data", data,  "--split", "all",       "--frames",
                           "2",      "--xpbd", "1",      "--models", empty, "--out",   out,         "--no-scale",
                           "--max-seqs", "1", NULL};
-    CHECK_EQ_INT(run(argv), 0);
-    weft_context_def cd = weft_default_context_def();
     weft_context *ctx = NULL;
-    CHECK_RESULT(weft_context_create(&cd, &ctx), WEFT_OK);
-    weft_lod_table *t = NULL;
-    CHECK_RESULT(weft_lod_table_load_file(ctx, csv, &t), WEFT_OK);
+    weft_lod_table *t = bench_table(argv, csv, &ctx);
     if (t) {
         uint32_t idx = 0;
         CHECK_RESULT(weft_lod_table_find(t, "lbs-noccd", &idx), WEFT_OK);

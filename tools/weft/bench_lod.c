@@ -839,23 +839,6 @@ static char *scaling_block(const scale_row *r, size_t n, const char *desc, const
     return s ? bench_append(s, &len, &cap, "\n") : NULL;
 }
 
-/* Writes doc to path; false (with a message) on failure. Frees doc. */
-static bool write_doc(const char *path, char *doc)
-{
-    FILE *f = doc ? fopen(path, "w") : NULL;
-    bool wrote = f && fputs(doc, f) >= 0;
-    if (f) {
-        wrote = fclose(f) == 0 && wrote;
-    }
-    free(doc);
-    if (!wrote) {
-        fprintf(stderr, "weft bench lod: cannot write %s\n", path);
-    } else {
-        printf("wrote %s\n", path);
-    }
-    return wrote;
-}
-
 /* Part 2 alone, on the table already in OUT/lod.csv. */
 static int scale_only(const lod_opts *o, const char *command)
 {
@@ -872,7 +855,7 @@ static int scale_only(const lod_opts *o, const char *command)
     char *block = scaling_block(rows, nr, desc, o, command);
     char *doc = block ? bench_replace_block(bench_slurp(md, NULL), "lod:scaling", block, "# Level of detail\n") : NULL;
     free(block);
-    return write_doc(md, doc) ? 0 : 1;
+    return bench_write_doc("lod", md, doc) ? 0 : 1;
 }
 
 int weft_bench_lod(int argc, char **argv)
@@ -1063,5 +1046,5 @@ int weft_bench_lod(int argc, char **argv)
         doc = block ? bench_replace_block(doc, scaling_tag, block, "# Level of detail\n") : doc;
         free(block);
     }
-    return write_doc(md, doc) ? 0 : 1;
+    return bench_write_doc("lod", md, doc) ? 0 : 1;
 }

@@ -654,14 +654,7 @@ static int write_tables(const st_run *run)
     fclose(f);
     char *doc = gen ? bench_replace_block(bench_slurp(path, NULL), "stability:table", gen, "# Stability suite\n") : NULL;
     free(gen);
-    FILE *mf = doc ? fopen(path, "w") : NULL;
-    bool wrote = mf && fputs(doc, mf) >= 0;
-    if (mf) {
-        wrote = fclose(mf) == 0 && wrote;
-    }
-    free(doc);
-    if (!wrote) {
-        fprintf(stderr, "weft bench stability: cannot write %s\n", path);
+    if (!bench_write_doc("stability", path, doc)) {
         return 1;
     }
     printf("wrote %s/stability.csv and %s/STABILITY.md (%zu of %zu cases, %.1f s)\n", o.out, o.out, run->done, nc,

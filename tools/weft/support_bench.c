@@ -568,3 +568,19 @@ char *bench_replace_block(char *doc, const char *tag, const char *body, const ch
     free(doc);
     return out;
 }
+
+bool bench_write_doc(const char *tool, const char *path, char *doc)
+{
+    FILE *f = doc ? fopen(path, "w") : NULL;
+    bool wrote = f && fputs(doc, f) >= 0;
+    if (f) {
+        wrote = fclose(f) == 0 && wrote;
+    }
+    free(doc);
+    if (!wrote) {
+        fprintf(stderr, "weft bench %s: cannot write %s\n", tool, path);
+    } else {
+        printf("wrote %s\n", path);
+    }
+    return wrote;
+}

@@ -65,6 +65,10 @@ char *bench_append(char *buf, size_t *len, size_t *cap, const char *s);
  * NULL when out of memory. */
 char *bench_replace_block(char *doc, const char *tag, const char *body, const char *title);
 
+/* Writes doc (may be NULL: out of memory) to path and frees it; prints "wrote PATH", or a
+ * "weft bench TOOL: cannot write" message and returns false. */
+bool bench_write_doc(const char *tool, const char *path, char *doc);
+
 /* mkdir -p. */
 bool bench_mkdirs(const char *path);
 
