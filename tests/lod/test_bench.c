@@ -2,7 +2,7 @@
  * weft_lod_table_load_file accepts, with one level per candidate (LBS with and without CCD,
  * XPBD at the substeps asked for, the `game` model at three precisions with and without CCD),
  * finite measured numbers, and a LOD.md with the generated table between its markers;
- * --max-seqs counts per scenario.
+ * --max-seqs counts per scenario; --sim-data adds resolution levels simulated on a coarser mesh.
  * argv: weft binary, data folder, models folder, output folder. Exits 77 (skipped) without a
  * sample sequence. */
 #define _POSIX_C_SOURCE 200809L /* posix_spawn, symlink */
@@ -182,6 +182,52 @@ static void max_seqs_counts_per_scenario(void)
     weft_context_destroy(ctx);
 }
 
+/* --sim-data: a 256-vertex drop and its 64-vertex twin (`weft simgen --resolution-series`, same
+ * scene) give LBS and XPBD levels at resolution 64/256-ish that the table loader accepts; a folder
+ * with no coarser twin is refused before anything runs. */
+static void sim_data_adds_resolution_levels(void)
+{
+    char fine[1100], coarse[1100], empty[1100], out[1100], csv[1200];
+    snprintf(fine, sizeof fine, "%s/res_v256", g_out);
+    snprintf(coarse, sizeof coarse, "%s/res_v64", g_out);
+    snprintf(empty, sizeof empty, "%s/no_models", g_out);
+    snprintf(out, sizeof out, "%s/res_levels", g_out);
+    mkdir(empty, 0755);
+    mkdir(out, 0755);
+    const char *gen_fine[] = {g_exe, "simgen", "--out", fine, "--scenario", "drop", "--count", "1", "--vertices", "256",
+                              "--frames", "6", "--resolution-series", "--seed", "3", NULL};
+    const char *gen_coarse[] = {g_exe, "simgen", "--out", coarse, "--scenario", "drop", "--count", "1", "--vertices",
+                                "64", "--frames", "6", "--resolution-series", "--seed", "3", NULL};
+    CHECK_EQ_INT(run(gen_fine), 0);
+    CHECK_EQ_INT(run(gen_coarse), 0);
+    snprintf(csv, sizeof csv, "%s/lod.csv", out);
+    unlink(csv);
+    const char *argv[] = {g_exe, "bench", "lod", "--data", fine, "--split", "all", "--frames", "3", "--xpbd", "1",
+                          "--models", empty, "--out", out, "--no-scale", "--sim-data", coarse, NULL};
+    weft_context *ctx = NULL;
+    weft_lod_table *t = bench_table(argv, csv, &ctx);
+    if (t) {
+        CHECK_EQ_INT(weft_lod_table_count(t), 6); /* lbs x2, xpbd-1, each again on the coarse mesh */
+        uint32_t n = weft_lod_table_count(t), coarse_levels = 0;
+        for (uint32_t i = 0; i < n; ++i) {
+            const weft_lod_level *l = weft_lod_table_level(t, i);
+            if (l && l->resolution < 1.0f) {
+                coarse_levels++;
+                CHECK_MSG(l->resolution > 0.1f && l->resolution < 0.4f && strstr(l->name, "-r0.") != NULL &&
+                              l->frames == 3 && isfinite(l->mve_cm),
+                          "%s: resolution %g", l->name, (double)l->resolution);
+            }
+        }
+        CHECK_EQ_INT(coarse_levels, 3);
+        weft_lod_table_destroy(t);
+    }
+    weft_context_destroy(ctx);
+    /* The fine folder has no coarser twin of itself: refused. */
+    const char *bad[] = {g_exe, "bench", "lod", "--data", fine, "--split", "all", "--models", empty, "--out", out,
+                         "--no-scale", "--sim-data", fine, NULL};
+    CHECK_EQ_INT(run(bad), 1);
+}
+
 int main(int argc, char **argv)
 {
     if (argc != 5) {
@@ -200,6 +246,6 @@ int main(int argc, char **argv)
         return 77;
     }
     static const test_case_ cases[] = {TEST_CASE(bench_writes_loadable_table), TEST_CASE(bench_measures_crop_levels),
-                                       TEST_CASE(max_seqs_counts_per_scenario)};
+                                       TEST_CASE(max_seqs_counts_per_scenario), TEST_CASE(sim_data_adds_resolution_levels)};
     return test_run_(cases, sizeof cases / sizeof cases[0], 1, argv);
 }

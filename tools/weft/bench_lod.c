@@ -29,6 +29,7 @@ const char weft_bench_lod_help[] =
 #define LOD_MAX_CANDS 160
 #define LOD_MAX_SCALE 16
 #define LOD_MAX_CROPS 8
+#define LOD_MAX_SIM 4
 
 /* One collider crop to measure model levels at (weft_garment_def.collider_crop_*). */
 typedef struct lod_crop {
@@ -48,6 +49,8 @@ typedef struct lod_cand {
     bool ccd;
     lod_crop crop;              /* model levels only */
     double tether_cm, strain_pct; /* 0: none */
+    int sim;                    /* resolution level: index into lod_opts.sim_data; -1: the sequence's own mesh */
+    double resolution;          /* simulated vertices / drawn vertices (1 on the own mesh) */
     uint32_t sequences, frames, failed, nan_runs;
     double mve_w, ms_w, strain;
     char note[240];
@@ -64,6 +67,12 @@ typedef struct lod_opts {
     lod_crop crops[LOD_MAX_CROPS];
     size_t ncrops;
     const char *cost_model;             /* --crop-cost: the model file */
+    /* --sim-data: folders of coarser meshes of the split's garments (resolution levels); per folder
+     * the coarse sequence folder of each sequence ("" when none) and the mean vertex share. */
+    const char *sim_data[LOD_MAX_SIM];
+    size_t nsim;
+    char (*sim_dir)[1024];              /* [nsim][nseq] */
+    double sim_res[LOD_MAX_SIM];
     bool scale, scale_only, crop_cost;
 } lod_opts;
 
@@ -73,13 +82,18 @@ static void usage(FILE *f)
             "usage: weft bench lod --data DIR [--split test|val|train|all] [--models DIR] [--out DIR] [--frames N]\n"
             "                      [--max-seqs N] [--xpbd 5,10,20] [--no-scale] [--scale-levels a,b,...]\n"
             "                      [--scale-frames N] [--scale-res 1k|4k] [--scale-only] [--crops model,8,4:cells]\n"
-            "                      [--scenario S] [--name NAME] [--tether-cm X] [--strain-limit P]\n"
+            "                      [--scenario S] [--name NAME] [--tether-cm X] [--strain-limit P] [--sim-data DIR]\n"
             "  Measures every level (LBS, XPBD at the given substeps, each DIR/*.safetensors model at\n"
             "  fp32/fp16/int8 with and without CCD) on the split through `weft eval --json`, writes OUT/lod.csv\n"
             "  (loadable by weft_lod_table_load_file) and the table in OUT/LOD.md, then measures the\n"
             "  per-character step cost of 1, 8 and 64 walking avatars at the --scale-levels (default: lbs,\n"
             "  xpbd-5, every model at int8 and fp32 with CCD and at fp32 without). Default OUT: docs.\n"
             "  --max-seqs N  at most N sequences of each scenario (the first by name), as bench chart\n"
+            "  --sim-data DIR  resolution levels: each sequence is also simulated on its coarser mesh in DIR\n"
+            "                (the sequence of the same scenario and index there, `weft simgen --resolution-series`)\n"
+            "                and scored on its own mesh (weft eval --sim-mesh) for LBS, the first XPBD and every\n"
+            "                model at its own crop; the level's resolution is the vertex share (named -rSHARE).\n"
+            "                Up to %d times.\n"
             "  --scale-only  skip the table: reuse OUT/lod.csv and regenerate only the per-character section\n"
             "  --crops L     collider crops to measure every model level at (default: model, the model's own):\n"
             "                'model' or a margin in cm (box rule, as trained), optionally :cells (finer rule) and\n"
@@ -93,7 +107,7 @@ static void usage(FILE *f)
             "  --name NAME   write OUT/NAME.csv and the tables into their own sections of OUT/LOD.md (default lod)\n"
             "  --tether-cm X, --strain-limit P  also measure LBS, the first XPBD and every model's int8 (CCD on and\n"
             "                off) with tethers of X cm and/or a P %% strain limit (levels named ...-tX-sP)\n",
-            LOD_MAX_CROPS);
+            LOD_MAX_SIM, LOD_MAX_CROPS);
 }
 
 static double now_s(void)
@@ -295,7 +309,81 @@ static size_t build_candidates(weft_context *ctx, const lod_opts *o, lod_cand *c
             n++;
         }
     }
+    /* Resolution levels: LBS, the first XPBD and every model at its own crop, simulated on the
+     * coarser mesh of each --sim-data folder (garment levels with tethers stay at full resolution). */
+    const size_t base = n;
+    for (size_t i = 0; i < o->nsim; ++i) {
+        for (size_t j = 0; j < base && n < LOD_MAX_CANDS; ++j) {
+            const lod_cand *b = &c[j];
+            bool first_xpbd = strcmp(b->family, "xpbd") == 0 && o->nxpbd && b->substeps == o->xpbd[0];
+            bool model_own = strcmp(b->family, "model") == 0 && b->crop.cm == 0.0 && !b->crop.cells && !b->crop.tokens;
+            if (b->sim || b->tether_cm > 0.0 || b->strain_pct > 0.0 ||
+                !(strcmp(b->family, "lbs") == 0 || first_xpbd || model_own)) {
+                continue;
+            }
+            char full[160];
+            snprintf(full, sizeof full, "%.47s-r%.2f", b->name, o->sim_res[i]);
+            if (strlen(full) >= WEFT_LOD_NAME_CAP) {
+                continue;
+            }
+            c[n] = *b;
+            memcpy(c[n].name, full, strlen(full) + 1);
+            c[n].sim = (int)i + 1;
+            c[n].resolution = o->sim_res[i];
+            n++;
+        }
+    }
     return n;
+}
+
+/* Pairs each sequence with its coarser mesh in every --sim-data folder: the sequence of the same
+ * scenario and index (the number after the last '_', as `weft simgen --resolution-series` names
+ * them) with fewer vertices. Fills o->sim_dir and o->sim_res; false (with a message) when a
+ * folder cannot be read or pairs with no sequence. */
+static bool pair_sim_meshes(lod_opts *o, const bench_seq *seqs, size_t nseq)
+{
+    o->sim_dir = calloc(o->nsim * (nseq ? nseq : 1), sizeof *o->sim_dir);
+    if (!o->sim_dir) {
+        fprintf(stderr, "weft bench lod: out of memory\n");
+        return false;
+    }
+    for (size_t i = 0; i < o->nsim; ++i) {
+        bench_seq *cs = NULL;
+        size_t ncs = 0;
+        if (!bench_list_sequences(o->sim_data[i], NULL, &cs, &ncs) || ncs == 0) {
+            fprintf(stderr, "weft bench lod: --sim-data %s: no sequences there\n", o->sim_data[i]);
+            free(cs);
+            return false;
+        }
+        double share = 0.0;
+        size_t paired = 0;
+        for (size_t s = 0; s < nseq; ++s) {
+            const char *idx = strrchr(seqs[s].name, '_');
+            for (size_t j = 0; idx && j < ncs; ++j) {
+                const char *cidx = strrchr(cs[j].name, '_');
+                if (cidx && strcmp(cidx, idx) == 0 && strcmp(cs[j].scenario, seqs[s].scenario) == 0 &&
+                    cs[j].vertices > 0 && cs[j].vertices < seqs[s].vertices) {
+                    snprintf(o->sim_dir[i * nseq + s], sizeof o->sim_dir[0], "%s", cs[j].dir);
+                    share += (double)cs[j].vertices / seqs[s].vertices;
+                    paired++;
+                    break;
+                }
+            }
+        }
+        free(cs);
+        if (paired == 0) {
+            fprintf(stderr,
+                    "weft bench lod: --sim-data %s: no coarser mesh of any measured sequence (same scenario and "
+                    "index, fewer vertices)\n",
+                    o->sim_data[i]);
+            return false;
+        }
+        o->sim_res[i] = share / (double)paired;
+        printf("resolution level %zu: %zu of %zu sequences paired with a coarser mesh under %s, mean vertex share "
+               "%.3f\n",
+               i + 1, paired, nseq, o->sim_data[i], o->sim_res[i]);
+    }
+    return true;
 }
 
 static void run_candidates(const char *exe, const lod_opts *o, const bench_seq *seqs, size_t nseq, lod_cand *c,
@@ -346,9 +434,21 @@ static void run_candidates(const char *exe, const lod_opts *o, const bench_seq *
                 extra[n++] = "--strain-limit";
                 extra[n++] = strain_arg;
             }
-            extra[n] = NULL;
             bench_eval_result e;
-            bench_eval(exe, seqs[s].dir, extra, &e);
+            if (c[k].sim) {
+                const char *sim = o->sim_dir[(size_t)(c[k].sim - 1) * nseq + s];
+                if (!sim[0]) {
+                    memset(&e, 0, sizeof e);
+                    snprintf(e.why, sizeof e.why, "no coarser mesh of %.60s under %.100s", seqs[s].name,
+                             o->sim_data[c[k].sim - 1]);
+                }
+                extra[n++] = "--sim-mesh";
+                extra[n++] = sim;
+            }
+            extra[n] = NULL;
+            if (!c[k].sim || o->sim_dir[(size_t)(c[k].sim - 1) * nseq + s][0]) {
+                bench_eval(exe, seqs[s].dir, extra, &e);
+            }
             c[k].sequences++;
             if (!e.ok) {
                 c[k].failed++;
@@ -405,9 +505,9 @@ static bool write_csv(const char *path, const lod_cand *c, size_t nc, const char
         if (c[k].strain_pct > 0.0) {
             snprintf(strain, sizeof strain, "%.9g", c[k].strain_pct);
         }
-        fprintf(f, "%s,%s,%s,%s,%s,%s,1,%.6g,%.6g,%.6g,%u,%u,%s,%s,%s,%s,%s\n", c[k].name, c[k].family,
+        fprintf(f, "%s,%s,%s,%s,%s,%s,%.3g,%.6g,%.6g,%.6g,%u,%u,%s,%s,%s,%s,%s\n", c[k].name, c[k].family,
                 model ? c[k].model_name : "-", model ? c[k].precision : "-", sub, c[k].ccd ? "on" : "off",
-                c[k].ms_w / c[k].frames, c[k].mve_w / c[k].frames, c[k].strain, c[k].sequences, c[k].frames, crop_cm,
+                c[k].sim ? c[k].resolution : 1.0, c[k].ms_w / c[k].frames, c[k].mve_w / c[k].frames, c[k].strain, c[k].sequences, c[k].frames, crop_cm,
                 model ? (c[k].crop.cells ? "cells" : "box") : "-", tokens, tether, strain);
     }
     fclose(f);
@@ -760,8 +860,9 @@ static char *table_block(const lod_cand *c, size_t nc, const char *command, cons
              date, wall, o->data, o->split, o->frames ? ", rollouts cut at --frames" : "", weft_config_string());
     s = bench_append(s, &len, &cap, line);
     s = s ? bench_append(s, &len, &cap,
-                   "| level | method | precision | substeps | CCD | collider crop | sequences | frames | ms/frame | "
-                   "MVE (cm) | max edge strain | in lod.csv |\n|---|---|---|---|---|---|---|---|---|---|---|---|\n")
+                   "| level | method | precision | substeps | CCD | collider crop | resolution | sequences | frames | "
+                   "ms/frame | MVE (cm) | max edge strain | in lod.csv |\n"
+                   "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n")
           : NULL;
     /* Cheapest first. */
     bool done[LOD_MAX_CANDS] = {false};
@@ -796,9 +897,13 @@ static char *table_block(const lod_cand *c, size_t nc, const char *command, cons
                 snprintf(crop + used, sizeof crop - used, ", at most %u", k->crop.tokens);
             }
         }
-        snprintf(line, sizeof line, "| %s | %s%s%s | %s | %s | %s | %s | %u | %u | %.3f | %.3f | %.3f | %s |\n",
+        char res[64] = "1";
+        if (k->sim) {
+            snprintf(res, sizeof res, "%.2f (coarse mesh)", k->resolution);
+        }
+        snprintf(line, sizeof line, "| %s | %s%s%s | %s | %s | %s | %s | %s | %u | %u | %.3f | %.3f | %.3f | %s |\n",
                  k->name, k->family, k->model_name[0] ? " " : "", k->model_name, k->precision[0] ? k->precision : "-",
-                 sub, k->ccd ? "on" : "off", crop, k->sequences, k->frames, k->ms_w / w, k->mve_w / w, k->strain,
+                 sub, k->ccd ? "on" : "off", crop, res, k->sequences, k->frames, k->ms_w / w, k->mve_w / w, k->strain,
                  cand_valid(k) ? "yes" : (k->nan_runs ? "no: NaN" : "no: failed"));
         s = bench_append(s, &len, &cap, line);
     }
@@ -911,6 +1016,12 @@ int weft_bench_lod(int argc, char **argv)
                 return 2;
             }
             *(a[2] == 't' ? &o.tether_cm : &o.strain_pct) = x;
+        } else if (strcmp(a, "--sim-data") == 0) {
+            if (o.nsim == LOD_MAX_SIM) {
+                fprintf(stderr, "weft bench lod: at most %d --sim-data folders\n", LOD_MAX_SIM);
+                return 2;
+            }
+            o.sim_data[o.nsim++] = v;
         } else if (strcmp(a, "--scale-levels") == 0) {
             o.scale_levels = v;
         } else if (strcmp(a, "--scale-res") == 0) {
@@ -996,10 +1107,16 @@ int weft_bench_lod(int argc, char **argv)
         }
         nseq = kept;
     }
+    if (o.nsim && !pair_sim_meshes(&o, seqs, nseq)) {
+        free(o.sim_dir);
+        free(seqs);
+        return 1;
+    }
     weft_context_def cdef = weft_default_context_def();
     weft_context *ctx = NULL;
     if (weft_context_create(&cdef, &ctx) != WEFT_OK) {
         fprintf(stderr, "weft bench lod: %s\n", weft_last_error());
+        free(o.sim_dir);
         free(seqs);
         return 1;
     }
@@ -1012,6 +1129,8 @@ int weft_bench_lod(int argc, char **argv)
     double t0 = now_s();
     run_candidates(exe, &o, seqs, nseq, cands, nc);
     double wall = now_s() - t0;
+    free(o.sim_dir);
+    o.sim_dir = NULL;
     free(seqs);
 
     char csv[1200], md[1200];

@@ -518,6 +518,8 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
         }
         double t0 = now_ms();
         r = weft_garment_step(g);
+        /* A garment simulated on a coarser mesh is drawn through its map: part of the frame's cost. */
+        const weft_result mr = r == WEFT_OK && up ? weft_mesh_map_apply(up, weft_garment_positions(g), mapped) : WEFT_OK;
         a.ms_sum += now_ms() - t0;
         a.tokens_sum += weft_garment_stats(g).collider_tokens;
         a.ccd_passes_sum += weft_garment_stats(g).ccd_iterations;
@@ -529,7 +531,7 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
             fprintf(stderr, "weft eval: %s: frame %u: %s: %s\n", dir, t + 1, weft_result_string(r), weft_last_error());
             break;
         }
-        if (up && (r = weft_mesh_map_apply(up, weft_garment_positions(g), mapped)) != WEFT_OK) {
+        if ((r = mr) != WEFT_OK) {
             fprintf(stderr, "weft eval: %s: frame %u: mapping onto the scored mesh: %s\n", dir, t + 1, weft_last_error());
             break;
         }
@@ -623,7 +625,8 @@ static void usage(FILE *f)
                "  --tether-cm X   tethers to the skinned garment, radius X cm (0 on vertices pinned at the start)\n"
                "  --strain-limit PCT  shorten edges stretched over PCT %% after each step (and in CCD)\n"
                "  --sim-mesh DIR  simulate on DIR's rest_pos.npy + faces.npy (the same garment at another\n"
-               "                  resolution) and score its map onto the sequence's mesh; pins are not applied\n"
+               "                  resolution) and score its map onto the sequence's mesh (ms/frame includes the map);\n"
+               "                  pins are not applied\n"
                "  --time-limit S  stop each rollout once its steps took S seconds (JSON: time_limited, frames)\n"
                "  --pins xpbd|all the sequence's pins (gripper grasps) for XPBD only (default, the documented\n"
                "                  protocol) or for every method (set after a learned or LBS step)\n"
