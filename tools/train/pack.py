@@ -2,6 +2,10 @@
 
   /usr/bin/python3 tools/train/pack.py --data data/refsim --out data/pack --max-mb 40
   /usr/bin/python3 tools/train/train.py --data data/pack ...     # train.py reads packs directly
+  /usr/bin/python3 tools/train/pack.py --data data/refsim --out data/pack --append   # after the set grew
+
+With --append, sequences already packed under --out (in any part) are left as they are and the new
+ones go into new parts after the last, so parts already carried to a training machine stay valid.
 
 One `NAME.wpk.npz` per accepted sequence, grouped into folders `part0/`, `part1/`, ... of at most
 --max-mb each (so each part fits one transfer). The coding is lossy in a controlled way:
@@ -18,6 +22,7 @@ One `NAME.wpk.npz` per accepted sequence, grouped into folders `part0/`, `part1/
 meta.json travels inside each file, with the split from the dataset's manifest written into it.
 """
 import argparse
+import glob
 import json
 import os
 import sys
@@ -153,6 +158,8 @@ def main():
     ap.add_argument("--crop-margin", type=float, default=0.15, help="the model's crop_margin (m)")
     ap.add_argument("--skin", default=None, help="folder of S tracks (<name>.npy) to store with each sequence")
     ap.add_argument("--check", action="store_true", help="decode each file and report the error")
+    ap.add_argument("--append", action="store_true",
+                    help="keep what is packed under --out; pack only new sequences, into new parts")
     a = ap.parse_args()
     seqs = weft_data.load_sequences(a.data, skin_roots=[a.skin] if a.skin else ())
     seqs = [s for s in seqs if s.meta.get("accepted", True)]
@@ -161,6 +168,16 @@ def main():
         sys.exit(f"pack: no S track under {a.skin} for {len(missing)} sequence(s): {', '.join(missing[:5])}")
     os.makedirs(a.out, exist_ok=True)
     part, part_bytes, total = 0, 0, 0
+    if a.append:
+        packed = glob.glob(os.path.join(a.out, "part*", "*.wpk.npz"))
+        done = {os.path.basename(p)[:-len(".wpk.npz")] for p in packed}
+        parts = [int(os.path.basename(os.path.dirname(p))[4:]) for p in packed
+                 if os.path.basename(os.path.dirname(p))[4:].isdigit()]
+        part = max(parts) + 1 if parts else 0
+        print(f"--append: {len(done)} sequence(s) already packed; new ones from part{part}")
+        seqs = [s for s in seqs if s.name not in done]
+    elif glob.glob(os.path.join(a.out, "part*", "*.wpk.npz")):
+        sys.exit(f"pack: {a.out} already holds packed sequences: pass --append, or another --out")
     for i, s in enumerate(seqs):
         arrays = pack_sequence(s, a.cloth_step, a.collider_step, a.crop_margin)
         folder = os.path.join(a.out, f"part{part}")
