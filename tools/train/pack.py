@@ -158,12 +158,18 @@ def main():
     ap.add_argument("--crop-margin", type=float, default=0.15, help="the model's crop_margin (m)")
     ap.add_argument("--skin", default=None, help="folder of S tracks (<name>.npy) to store with each sequence")
     ap.add_argument("--check", action="store_true", help="decode each file and report the error")
+    ap.add_argument("--skip-unskinned", action="store_true",
+                    help="with --skin, leave out sequences that have no S track yet instead of failing")
     ap.add_argument("--append", action="store_true",
                     help="keep what is packed under --out; pack only new sequences, into new parts")
     a = ap.parse_args()
     seqs = weft_data.load_sequences(a.data, skin_roots=[a.skin] if a.skin else ())
     seqs = [s for s in seqs if s.meta.get("accepted", True)]
     missing = [s.name for s in seqs if a.skin and s.skin is None]
+    if missing and a.skip_unskinned:   # e.g. finished by a running simgen after the S track was written
+        print(f"--skip-unskinned: {len(missing)} sequence(s) without an S track left out: {', '.join(missing[:5])}")
+        seqs = [s for s in seqs if s.skin is not None]
+        missing = []
     if missing:
         sys.exit(f"pack: no S track under {a.skin} for {len(missing)} sequence(s): {', '.join(missing[:5])}")
     os.makedirs(a.out, exist_ok=True)
