@@ -68,7 +68,7 @@ def main():
     ap.add_argument("--split", nargs="+", default=["test"])
     ap.add_argument("--method", action="append", required=True, help="LABEL=METHOD[:ARG]")
     ap.add_argument("--ccd", default="off", choices=["on", "off"])
-    ap.add_argument("--pins", default="xpbd", choices=["xpbd", "all"],
+    ap.add_argument("--pins", default="all", choices=["xpbd", "all"],
                     help="the sequences' pins (gripper grasps, waistbands) for XPBD only, or for every method")
     ap.add_argument("--frames", type=int, default=0, help="rollout length (default: the whole sequence)")
     ap.add_argument("--out", help="markdown file (default: print only)")
@@ -98,7 +98,7 @@ def main():
     print(md)
     if a.out:
         cmd = "/usr/bin/python3 tools/bench/heldout_table.py " + " ".join(
-            [f"--data {a.data}", "--split " + " ".join(a.split), f"--ccd {a.ccd}"] + ([f"--pins {a.pins}"] if a.pins != "xpbd" else []) +
+            [f"--data {a.data}", "--split " + " ".join(a.split), f"--ccd {a.ccd}", f"--pins {a.pins}"] +
             [f"--method {m}" for m in a.method] + ([f"--frames {a.frames}"] if a.frames else []) +
             [f"--out {a.out}"])
         with open(a.out, "w") as f:

@@ -514,7 +514,7 @@ int weft_bench_chart(int argc, char **argv)
                                             is_model ? mm->precision : NULL,
                                             mm->tether_cm,
                                             mm->strain_pct};
-            const char *extra[16];
+            const char *extra[20];
             bench_method_args(&spec, extra, 0);
             bench_eval_result e;
             bench_eval(exe, seqs[s].dir, extra, &e);

@@ -398,7 +398,7 @@ static void run_candidates(const char *exe, const lod_opts *o, const bench_seq *
         snprintf(crop_arg, sizeof crop_arg, "%.9g", c[k].crop.cm);
         snprintf(tokens_arg, sizeof tokens_arg, "%u", c[k].crop.tokens);
         for (size_t s = 0; s < nseq; ++s) {
-            const char *extra[24];
+            const char *extra[32];
             int n = 0;
             extra[n++] = "--method";
             extra[n++] = c[k].method;
@@ -433,6 +433,10 @@ static void run_candidates(const char *exe, const lod_opts *o, const bench_seq *
             if (c[k].strain_pct > 0.0) {
                 extra[n++] = "--strain-limit";
                 extra[n++] = strain_arg;
+            }
+            if (strcmp(c[k].family, "xpbd") != 0) { /* the scene's pins for every method (bench_method_args) */
+                extra[n++] = "--pins";
+                extra[n++] = "all";
             }
             bench_eval_result e;
             if (c[k].sim) {

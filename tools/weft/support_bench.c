@@ -494,6 +494,10 @@ int bench_method_args(const bench_method_spec *spec, const char **out, int n)
         out[n++] = "--strain-limit";
         out[n++] = spec->strain_pct;
     }
+    if (strncmp(spec->method, "xpbd", 4) != 0) { /* XPBD solves with them already (same arguments as before) */
+        out[n++] = "--pins";
+        out[n++] = "all";
+    }
     out[n] = NULL;
     return n;
 }
