@@ -49,8 +49,7 @@ typedef struct lod_cand {
     bool ccd;
     lod_crop crop;              /* model levels only */
     double tether_cm, strain_pct; /* 0: none */
-    int sim;                    /* resolution level: index into lod_opts.sim_data; -1: the sequence's own mesh */
-    double resolution;          /* simulated vertices / drawn vertices (1 on the own mesh) */
+    int sim;                    /* resolution level: 0 the sequence's own mesh, i + 1 lod_opts.sim_data[i] */
     uint32_t sequences, frames, failed, nan_runs;
     double mve_w, ms_w, strain;
     char note[240];
@@ -329,7 +328,6 @@ static size_t build_candidates(weft_context *ctx, const lod_opts *o, lod_cand *c
             c[n] = *b;
             memcpy(c[n].name, full, strlen(full) + 1);
             c[n].sim = (int)i + 1;
-            c[n].resolution = o->sim_res[i];
             n++;
         }
     }
@@ -438,19 +436,18 @@ static void run_candidates(const char *exe, const lod_opts *o, const bench_seq *
                 extra[n++] = "--pins";
                 extra[n++] = "all";
             }
-            bench_eval_result e;
-            if (c[k].sim) {
-                const char *sim = o->sim_dir[(size_t)(c[k].sim - 1) * nseq + s];
-                if (!sim[0]) {
-                    memset(&e, 0, sizeof e);
-                    snprintf(e.why, sizeof e.why, "no coarser mesh of %.60s under %.100s", seqs[s].name,
-                             o->sim_data[c[k].sim - 1]);
-                }
+            const char *sim = c[k].sim ? o->sim_dir[(size_t)(c[k].sim - 1) * nseq + s] : NULL;
+            if (sim) {
                 extra[n++] = "--sim-mesh";
                 extra[n++] = sim;
             }
             extra[n] = NULL;
-            if (!c[k].sim || o->sim_dir[(size_t)(c[k].sim - 1) * nseq + s][0]) {
+            bench_eval_result e;
+            if (sim && !sim[0]) { /* this sequence has no coarser twin: the level fails on it */
+                memset(&e, 0, sizeof e);
+                snprintf(e.why, sizeof e.why, "no coarser mesh of %.60s under %.100s", seqs[s].name,
+                         o->sim_data[c[k].sim - 1]);
+            } else {
                 bench_eval(exe, seqs[s].dir, extra, &e);
             }
             c[k].sequences++;
@@ -511,7 +508,7 @@ static bool write_csv(const char *path, const lod_cand *c, size_t nc, const char
         }
         fprintf(f, "%s,%s,%s,%s,%s,%s,%.3g,%.6g,%.6g,%.6g,%u,%u,%s,%s,%s,%s,%s\n", c[k].name, c[k].family,
                 model ? c[k].model_name : "-", model ? c[k].precision : "-", sub, c[k].ccd ? "on" : "off",
-                c[k].sim ? c[k].resolution : 1.0, c[k].ms_w / c[k].frames, c[k].mve_w / c[k].frames, c[k].strain, c[k].sequences, c[k].frames, crop_cm,
+                c[k].sim ? o->sim_res[c[k].sim - 1] : 1.0, c[k].ms_w / c[k].frames, c[k].mve_w / c[k].frames, c[k].strain, c[k].sequences, c[k].frames, crop_cm,
                 model ? (c[k].crop.cells ? "cells" : "box") : "-", tokens, tether, strain);
     }
     fclose(f);
@@ -903,7 +900,7 @@ static char *table_block(const lod_cand *c, size_t nc, const char *command, cons
         }
         char res[64] = "1";
         if (k->sim) {
-            snprintf(res, sizeof res, "%.2f (coarse mesh)", k->resolution);
+            snprintf(res, sizeof res, "%.2f (coarse mesh)", o->sim_res[k->sim - 1]);
         }
         snprintf(line, sizeof line, "| %s | %s%s%s | %s | %s | %s | %s | %s | %u | %u | %.3f | %.3f | %.3f | %s |\n",
                  k->name, k->family, k->model_name[0] ? " " : "", k->model_name, k->precision[0] ? k->precision : "-",
