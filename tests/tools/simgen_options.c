@@ -1,9 +1,12 @@
 /* `weft simgen` plan options: --tier generates only that tier of --all (here one 16k drop
- * sequence, a few frames, unvalidated, to stay quick) and the manifest lists it; bad --tier / --shard values fail with a usage exit. argv: weft binary, output folder. */
+ * sequence, a few frames, unvalidated, to stay quick) and the manifest lists it; --split
+ * generates exactly the names that hash into that split; bad --tier / --shard / --split values
+ * fail with a usage exit. argv: weft binary, output folder. */
 #define _POSIX_C_SOURCE 200809L /* posix_spawn, stat */
 #include "test.h"
 
 #include "tool_run.h"
+#include "weft/sim.h"
 
 #include <stdbool.h>
 #include <sys/stat.h>
@@ -52,6 +55,28 @@ static void tier_generates_only_that_tier(void)
     CHECK(strstr(text, "_1k_") == NULL);
 }
 
+/* Tiny unvalidated sheets: every name of the plan exists afterwards iff it hashes into "test". */
+static void split_generates_only_that_split(void)
+{
+    char dir[1024], meta[1200], name[64];
+    snprintf(dir, sizeof dir, "%s/split", g_out);
+    const char *argv[] = {g_exe,      "simgen", "--out",   dir, "--scenario",    "drop", "--count", "24", "--vertices",
+                          "64",       "--frames", "2",     "--split", "test", "--no-validate", NULL};
+    CHECK_EQ_INT(tool_run(argv, NULL), 0);
+    int generated = 0, skipped = 0;
+    for (int k = 0; k < 24; ++k) {
+        snprintf(name, sizeof name, "drop_v64_%04d", k);
+        snprintf(meta, sizeof meta, "%s/%s/meta.json", dir, name);
+        bool in_test = strcmp(weft_sim_split_of(name), "test") == 0;
+        CHECK_MSG(exists(meta) == in_test, "%s (split %s) %s", name, weft_sim_split_of(name),
+                  exists(meta) ? "generated" : "missing");
+        generated += in_test;
+        skipped += !in_test;
+    }
+    /* 24 names at 1 in 10: the plan must have held both kinds for the check to mean anything. */
+    CHECK(generated > 0 && skipped > 0);
+}
+
 static void bad_plan_options_fail(void)
 {
     char dir[1024];
@@ -62,6 +87,8 @@ static void bad_plan_options_fail(void)
     CHECK_EQ_INT(tool_run(alone, NULL), 2);
     const char *shard[] = {g_exe, "simgen", "--out", dir, "--all", "--shard", "3/3", NULL};
     CHECK_EQ_INT(tool_run(shard, NULL), 2);
+    const char *split[] = {g_exe, "simgen", "--out", dir, "--all", "--split", "holdout", NULL};
+    CHECK_EQ_INT(tool_run(split, NULL), 2);
     CHECK_MSG(!exists(dir), "a rejected command created %s", dir);
 }
 
@@ -73,6 +100,7 @@ int main(int argc, char **argv)
     }
     g_exe = argv[1];
     g_out = argv[2];
-    static const test_case_ cases[] = {TEST_CASE(tier_generates_only_that_tier), TEST_CASE(bad_plan_options_fail)};
+    static const test_case_ cases[] = {TEST_CASE(tier_generates_only_that_tier),
+                                         TEST_CASE(split_generates_only_that_split), TEST_CASE(bad_plan_options_fail)};
     return test_run_(cases, sizeof cases / sizeof cases[0], argc - 2, argv + 2);
 }

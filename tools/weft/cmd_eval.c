@@ -322,6 +322,43 @@ static bool write_rollout(const char *out_dir, const char *seq_dir, const float 
     return true;
 }
 
+/* For each of n points of `from` (xyz), the index of the nearest of the m points of `to`.
+ * Brute force, once per sequence: 1k x 4k vertices is a few milliseconds. */
+static void nearest_vertices(const float *from, uint32_t n, const float *to, uint32_t m, uint32_t *out)
+{
+    for (uint32_t i = 0; i < n; ++i) {
+        double best = INFINITY;
+        out[i] = 0;
+        for (uint32_t j = 0; j < m; ++j) {
+            double dd = 0.0;
+            for (int k = 0; k < 3; ++k) {
+                const double e = (double)from[3 * (size_t)i + k] - to[3 * (size_t)j + k];
+                dd += e * e;
+            }
+            if (dd < best) {
+                best = dd;
+                out[i] = j;
+            }
+        }
+    }
+}
+
+/* The sequence's pin mask of one frame carried onto the simulated mesh: a simulated vertex is
+ * pinned when its nearest scored vertex is, and so is the simulated vertex nearest to each
+ * pinned scored vertex, so a grasp smaller than the coarse mesh's spacing still holds one. */
+static void sim_pins_at(const float *mask, uint32_t V, const uint32_t *near_scored, const uint32_t *near_sim,
+                        uint32_t SV, uint8_t *sim_mask)
+{
+    for (uint32_t i = 0; i < SV; ++i) {
+        sim_mask[i] = mask[near_scored[i]] != 0.0f;
+    }
+    for (uint32_t j = 0; j < V; ++j) {
+        if (mask[j] != 0.0f) {
+            sim_mask[near_sim[j]] = 1;
+        }
+    }
+}
+
 static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_opts *o, const char *dir,
                          eval_acc *total, bool print)
 {
@@ -333,9 +370,9 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
     /* --sim-mesh: the garment is simulated on another mesh of the same garment (e.g. its 1k
      * version for this 4k sequence) and mapped onto this sequence's mesh, which is what is scored:
      * `down` samples the ground truth onto the simulated mesh to start it, `up` maps every step
-     * back. Pins are not applied (tethers of radius 0 glue the vertices pinned at the start). */
-    float *sim_rest = NULL, *sim_x1 = NULL, *sim_x0 = NULL, *mapped = NULL;
-    uint32_t *sim_faces = NULL;
+     * back. Pins reach the simulated mesh through nearest vertices (see sim_pins_at). */
+    float *sim_rest = NULL, *sim_x1 = NULL, *sim_x0 = NULL, *mapped = NULL, *sim_gt = NULL;
+    uint32_t *sim_faces = NULL, *near_scored = NULL, *near_sim = NULL;
     uint32_t SV = s.V, SF = s.F;
     weft_mesh_map *down = NULL, *up = NULL;
     if (o->sim_mesh) {
@@ -368,9 +405,16 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
         }
         sim_x1 = malloc((size_t)SV * 3 * sizeof(float));
         sim_x0 = malloc((size_t)SV * 3 * sizeof(float));
+        sim_gt = malloc((size_t)SV * 3 * sizeof(float));
         mapped = malloc(nv * sizeof(float));
-        if (lr == WEFT_OK && (!sim_x1 || !sim_x0 || !mapped)) {
+        near_scored = malloc((size_t)SV * sizeof(uint32_t));
+        near_sim = malloc((size_t)s.V * sizeof(uint32_t));
+        if (lr == WEFT_OK && (!sim_x1 || !sim_x0 || !sim_gt || !mapped || !near_scored || !near_sim)) {
             lr = WEFT_ERROR_OUT_OF_MEMORY;
+        }
+        if (lr == WEFT_OK) {
+            nearest_vertices(sim_rest, SV, s.rest, s.V, near_scored);
+            nearest_vertices(s.rest, s.V, sim_rest, SV, near_sim);
         }
         if (lr == WEFT_OK && (lr = weft_mesh_map_apply(down, s.pos + nv, sim_x1)) == WEFT_OK) {
             lr = weft_mesh_map_apply(down, s.pos, sim_x0);
@@ -380,7 +424,8 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
                     weft_last_error());
             weft_mesh_map_destroy(down);
             weft_mesh_map_destroy(up);
-            free(sim_rest), free(sim_faces), free(sim_x1), free(sim_x0), free(mapped);
+            free(sim_rest), free(sim_faces), free(sim_x1), free(sim_x0), free(sim_gt), free(mapped);
+            free(near_scored), free(near_sim);
             seq_free(&s);
             return 1;
         }
@@ -406,30 +451,21 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
     }
     d.initial_positions = up ? sim_x1 : s.pos + nv;
     /* Tethers: the radius everywhere, 0 on vertices pinned at the start (a skirt's waistband), so
-     * a method without pins keeps the scenario's attachment. On a --sim-mesh a vertex takes the pin
-     * of the nearest vertex of the scored mesh. */
+     * a method without pins keeps the scenario's attachment; on a --sim-mesh, the vertices the
+     * sequence's pins reach there. */
     float *radii = NULL;
     d.tether_distance = o->tether; /* a bad radius, or tethers without a collider, fail in the library */
     d.strain_limit = o->strain_limit;
+    uint8_t *sim_pinned = up && s.pinned ? calloc(SV, 1) : NULL;
     if (o->tether > 0.0f && s.cpos) {
         radii = malloc((size_t)SV * sizeof(float));
+        if (sim_pinned) {
+            sim_pins_at(s.pinned + (size_t)1 * s.V, s.V, near_scored, near_sim, SV, sim_pinned);
+        }
         for (uint32_t i = 0; radii && i < SV; ++i) {
-            uint32_t src = i;
-            if (up) {
-                double best = INFINITY;
-                for (uint32_t j = 0; j < s.V; ++j) {
-                    double dd = 0.0;
-                    for (int k = 0; k < 3; ++k) {
-                        double e = (double)sim_rest[3 * (size_t)i + k] - s.rest[3 * (size_t)j + k];
-                        dd += e * e;
-                    }
-                    if (dd < best) {
-                        best = dd;
-                        src = j;
-                    }
-                }
-            }
-            radii[i] = s.pinned && s.pinned[(size_t)1 * s.V + src] != 0.0f ? 0.0f : o->tether;
+            const bool pinned_at_start =
+                up ? sim_pinned && sim_pinned[i] : s.pinned && s.pinned[(size_t)1 * s.V + i] != 0.0f;
+            radii[i] = pinned_at_start ? 0.0f : o->tether;
         }
         d.tether_distances = radii;
     }
@@ -444,7 +480,8 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
         weft_garment_destroy(g);
         weft_mesh_map_destroy(down);
         weft_mesh_map_destroy(up);
-        free(sim_rest), free(sim_faces), free(sim_x1), free(sim_x0), free(mapped);
+        free(sim_rest), free(sim_faces), free(sim_x1), free(sim_x0), free(sim_gt), free(mapped);
+        free(near_scored), free(near_sim), free(sim_pinned);
         seq_free(&s);
         return 1;
     }
@@ -470,10 +507,11 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
     /* Gripper attachments: pinned vertices follow their ground-truth positions (the scenario's
      * boundary condition). By default only XPBD gets them, inside its solve, and the learned and
      * LBS methods see only the gripper (the protocol of the documented tables); --pins all gives
-     * every method the pins (the library sets them after a learned or LBS step). */
-    const bool use_pins = s.pinned && !up && (o->pins_all || o->method == WEFT_METHOD_XPBD);
-    uint32_t *pin_idx = use_pins ? malloc((size_t)s.V * sizeof(uint32_t)) : NULL;
-    float *pin_pos = use_pins ? malloc(nv * sizeof(float)) : NULL;
+     * every method the pins (the library sets them after a learned or LBS step). On a --sim-mesh
+     * they are set on the simulated mesh, at the reference sampled there through `down`. */
+    const bool use_pins = s.pinned && (!up || sim_pinned) && (o->pins_all || o->method == WEFT_METHOD_XPBD);
+    uint32_t *pin_idx = use_pins ? malloc((size_t)SV * sizeof(uint32_t)) : NULL;
+    float *pin_pos = use_pins ? malloc((size_t)SV * 3 * sizeof(float)) : NULL;
     bool pins = pin_idx && pin_pos;
     /* The scored positions: the garment's own, or its map onto this sequence's mesh. */
     const float *cur = weft_garment_positions(g);
@@ -504,8 +542,15 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
             const float *pm = s.pinned + (size_t)(t + 1) * s.V;
             const float *gtp = s.pos + (size_t)(t + 1) * nv;
             uint32_t np = 0;
-            for (uint32_t i = 0; i < s.V; ++i) {
-                if (pm[i] != 0.0f) {
+            if (up) {
+                sim_pins_at(pm, s.V, near_scored, near_sim, SV, sim_pinned);
+                if ((r = weft_mesh_map_apply(down, gtp, sim_gt)) != WEFT_OK) {
+                    break;
+                }
+                gtp = sim_gt;
+            }
+            for (uint32_t i = 0; i < SV; ++i) {
+                if (up ? sim_pinned[i] != 0 : pm[i] != 0.0f) {
                     pin_idx[np] = i;
                     memcpy(pin_pos + 3 * (size_t)np, gtp + 3 * (size_t)i, 3 * sizeof(float));
                     np++;
@@ -599,7 +644,8 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
     weft_garment_destroy(g);
     weft_mesh_map_destroy(down);
     weft_mesh_map_destroy(up);
-    free(sim_rest), free(sim_faces), free(sim_x1), free(sim_x0), free(mapped);
+    free(sim_rest), free(sim_faces), free(sim_x1), free(sim_x0), free(sim_gt), free(mapped);
+    free(near_scored), free(near_sim), free(sim_pinned);
     seq_free(&s);
     return rc;
 }
@@ -626,7 +672,8 @@ static void usage(FILE *f)
                "  --strain-limit PCT  shorten edges stretched over PCT %% after each step (and in CCD)\n"
                "  --sim-mesh DIR  simulate on DIR's rest_pos.npy + faces.npy (the same garment at another\n"
                "                  resolution) and score its map onto the sequence's mesh (ms/frame includes the map);\n"
-               "                  pins are not applied\n"
+               "                  a simulated vertex is pinned where its nearest scored vertex is, and so is the\n"
+               "                  nearest one to each pinned scored vertex, at the reference sampled there\n"
                "  --time-limit S  stop each rollout once its steps took S seconds (JSON: time_limited, frames)\n"
                "  --pins xpbd|all the sequence's pins (gripper grasps) for XPBD only (default, the documented\n"
                "                  protocol) or for every method (set after a learned or LBS step)\n"

@@ -30,15 +30,19 @@ typedef struct plan_tier {
 } plan_tier;
 static const plan_tier k_tiers[] = {{1024, 150, "1k"}, {4096, 30, "4k"}, {16384, 2, "16k"}};
 
-/* Which plan items this process generates: its shard, and the --tier filter when one was given. */
+/* Which plan items this process generates: its shard, and the --tier and --split filters when given. */
 typedef struct plan_filter {
     uint32_t shard_i, shard_n;
     const char *tier;
+    const char *split; /* "train", "val" or "test": only names that would land in that split if accepted */
 } plan_filter;
 
 static bool plan_wanted(const plan_filter *f, const plan_item *items, uint32_t i)
 {
     if (i % f->shard_n != f->shard_i) {
+        return false;
+    }
+    if (f->split && strcmp(weft_sim_split_of(items[i].name), f->split) != 0) {
         return false;
     }
     return !f->tier || (items[i].tier && strcmp(items[i].tier, f->tier) == 0);
@@ -201,10 +205,13 @@ static void usage(FILE *f)
             "                   [--shard I/N] [--frames T] [--substeps S] [--max-substeps S] [--seed X]\n"
             "                   [--garment-substeps S] [--no-validate] [--manifest-only] [--limit N]\n"
             "                   [--no-garments] [--speed X] [--resolution-series] [--tier 1k|4k|16k]\n"
+            "                   [--split train|val|test]\n"
             "  --all            the whole planned set: per scenario (drop, gripper, garment) 150 x 1k,\n"
             "                   30 x 4k and 2 x 16k vertices, smallest first\n"
             "  --tier T         generate only that tier of --all (e.g. the 16k cross-resolution\n"
             "                   sequences before the 1k tier is finished)\n"
+            "  --split S        only sequences whose name falls in split S (the split is a hash of the\n"
+            "                   name): e.g. the held-out test sequences without the training set\n"
             "  --no-garments    leave the garment scenario out of --all (it is the slowest)\n"
             "  --speed X        scale the avatar's motion and the gripper's schedule (0.1..10, default 1;\n"
             "                   the stability suite's speed axis); same draws as at speed 1\n"
@@ -221,7 +228,7 @@ static void usage(FILE *f)
 
 int weft_cmd_simgen(int argc, char **argv)
 {
-    const char *out = NULL, *scenario = NULL, *tier = NULL;
+    const char *out = NULL, *scenario = NULL, *tier = NULL, *split = NULL;
     bool all = false, manifest_only = false, validate = true, garments = true, resolution_series = false;
     uint32_t garment_substeps = 0;
     float motion_speed = 1.0f;
@@ -259,6 +266,13 @@ int weft_cmd_simgen(int argc, char **argv)
                 fprintf(stderr, "simgen: --tier wants 1k, 4k or 16k, got '%s'\n", v);
                 return 2;
             }
+            ++i;
+        } else if (v && strcmp(a, "--split") == 0) {
+            if (strcmp(v, "train") != 0 && strcmp(v, "val") != 0 && strcmp(v, "test") != 0) {
+                fprintf(stderr, "simgen: --split wants train, val or test, got '%s'\n", v);
+                return 2;
+            }
+            split = v;
             ++i;
         } else if (v && strcmp(a, "--scenario") == 0) {
             scenario = v, ++i;
@@ -365,7 +379,7 @@ int weft_cmd_simgen(int argc, char **argv)
             free(plan);
             return 1;
         }
-        const plan_filter filter = {shard_i, shard_n, tier};
+        const plan_filter filter = {shard_i, shard_n, tier, split};
         uint32_t todo = 0;
         for (uint32_t i = 0; i < n; ++i) {
             char path[1200];
