@@ -210,6 +210,34 @@ static void model_scores_follow_the_file(void)
     CHECK_EQ_INT(count_files(scores, ".json"), with_a + 9);
 }
 
+/* --axes long: the long rollout alone (its sequence and scores are the ones kept above). */
+static void axes_choose_the_cases(void)
+{
+    char data[1200], out[1200], models[1200], path[1300];
+    snprintf(data, sizeof data, "%s/data", g_out);
+    snprintf(out, sizeof out, "%s/long_only", g_out);
+    snprintf(models, sizeof models, "%s/no_models", g_out);
+    mkdir(models, 0777);
+    const char *argv[] = {g_exe,        "bench", "stability", "--quick", "--frames", "12",   "--long-frames",
+                          "16",         "--xpbd", "5",         "--no-fnopt", "--no-garment", "--no-plot", "--models",
+                          models,       "--data", data,      "--out",   out,        "--axes", "long",
+                          NULL};
+    CHECK_EQ_INT(tool_run(argv, NULL), 0);
+    snprintf(path, sizeof path, "%s/stability.csv", out);
+    char *csv = slurp(path);
+    CHECK_MSG(csv != NULL, "no %s", path);
+    if (!csv) {
+        return;
+    }
+    size_t rows = 0;
+    for (const char *line = strchr(csv, '\n'); line && line[1]; line = strchr(line + 1, '\n')) {
+        rows++;
+        CHECK_MSG(strncmp(line + 1, "long_16,", 8) == 0, "unexpected row: %.60s", line + 1);
+    }
+    CHECK_EQ_INT(rows, 2); /* LBS and XPBD-5 */
+    free(csv);
+}
+
 static void bad_options(void)
 {
     const char *zero[] = {g_exe, "bench", "stability", "--time-limit", "0", NULL};
@@ -218,6 +246,8 @@ static void bad_options(void)
     CHECK_EQ_INT(tool_run(scenario, NULL), 2);
     const char *unknown[] = {g_exe, "bench", "stability", "--resume", NULL};
     CHECK_EQ_INT(tool_run(unknown, NULL), 2);
+    const char *axes[] = {g_exe, "bench", "stability", "--axes", "long,width", NULL};
+    CHECK_EQ_INT(tool_run(axes, NULL), 2);
 }
 
 int main(int argc, char **argv)
@@ -230,7 +260,7 @@ int main(int argc, char **argv)
     g_out = argv[2];
     mkdir(g_out, 0777);
     static const test_case_ cases[] = {TEST_CASE(runs_and_resumes), TEST_CASE(prose_around_the_table_survives),
-                                       TEST_CASE(model_scores_follow_the_file),
+                                       TEST_CASE(model_scores_follow_the_file), TEST_CASE(axes_choose_the_cases),
                                        TEST_CASE(bad_options)};
     return test_run_(cases, sizeof cases / sizeof cases[0], 1, argv);
 }

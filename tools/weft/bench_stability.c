@@ -72,6 +72,7 @@ typedef struct st_cell {
 
 typedef struct st_opts {
     const char *data, *out, *models, *scenario, *fnopt_model;
+    const char *axes; /* NULL: every axis; else a comma list of resolution, long, unseen, speed */
     uint32_t base_vertices, frames, long_frames, count;
     uint32_t time_limit; /* s of stepping per rollout before it counts as too slow */
     unsigned xpbd[8];
@@ -85,7 +86,7 @@ static void usage(FILE *f)
             "usage: weft bench stability [--data DIR] [--out DIR] [--models DIR] [--scenario gripper|drop|garment]\n"
             "                            [--base-vertices V] [--frames T] [--long-frames T] [--count N]\n"
             "                            [--xpbd 5,10,20,40] [--quick] [--no-plot] [--no-fnopt] [--no-garment]\n"
-            "                            [--fnopt-model PATH] [--time-limit S] [--rescore]\n"
+            "                            [--fnopt-model PATH] [--time-limit S] [--rescore] [--axes LIST]\n"
             "  Generates the stress cases with weft simgen under DIR (default data/stability; resumable), scores\n"
             "  LBS, XPBD 5/10/20/40 and every DIR/*.safetensors model (fp32/fp16/int8, CCD on) on each, and\n"
             "  writes OUT/stability.csv, OUT/img/stability.png and the table in OUT/STABILITY.md (between\n"
@@ -93,9 +94,43 @@ static void usage(FILE *f)
             "  defaults: V=256 vertices, T=240 frames, long 2400 frames, 2 sequences per case, S=900 s of stepping\n"
             "  per rollout before a method is marked too slow (its prefix is still scored)\n"
             "  --quick   V=64, T=60, long 480 frames, 1 sequence per case, FNOpt speed axis with adam only, S=300\n"
+            "  --axes L  only the cases of these axes, a comma list of resolution, long, unseen, speed (e.g.\n"
+            "            --axes long: the 2400-frame rollout alone, into its own --out)\n"
             "  --rescore ignore the scores kept from earlier runs (<seq>/scores/*.json) and evaluate again\n"
             "            (scores are kept by the eval's arguments and, for models, the model file's contents: a\n"
             "            retrained model is scored again by itself; a changed weft needs --rescore)\n");
+}
+
+/* The --axes keywords, each the first word of a case's axis name. */
+static const char *const k_axes[] = {"resolution", "long", "unseen", "speed"};
+
+static bool axes_valid(const char *list)
+{
+    for (const char *p = list; *p;) {
+        size_t n = strcspn(p, ",");
+        bool known = false;
+        for (size_t k = 0; k < sizeof k_axes / sizeof k_axes[0]; ++k) {
+            known |= n == strlen(k_axes[k]) && strncmp(p, k_axes[k], n) == 0;
+        }
+        if (!known) {
+            return false;
+        }
+        p += n + (p[n] == ',');
+    }
+    return list[0] != '\0';
+}
+
+static bool axis_wanted(const char *list, const char *axis)
+{
+    const size_t w = strcspn(axis, " ");
+    for (const char *p = list; list && *p;) {
+        size_t n = strcspn(p, ",");
+        if (n == w && strncmp(p, axis, n) == 0) {
+            return true;
+        }
+        p += n + (p[n] == ',');
+    }
+    return !list;
 }
 
 /* When simgen's validator rejected the case, say why from the rejected sequence's meta.json. */
@@ -717,6 +752,12 @@ int weft_bench_stability(int argc, char **argv)
                 o.scenario = v;
             } else if (strcmp(a, "--fnopt-model") == 0) {
                 o.fnopt_model = v;
+            } else if (strcmp(a, "--axes") == 0) {
+                if (!axes_valid(v)) {
+                    fprintf(stderr, "weft bench stability: --axes wants a comma list of resolution, long, unseen, speed\n");
+                    return 2;
+                }
+                o.axes = v;
             } else {
                 fprintf(stderr, "weft bench stability: unknown option '%s'\n", a);
                 usage(stderr);
@@ -883,6 +924,15 @@ int weft_bench_stability(int argc, char **argv)
         c->speed = k_speed[k];
         c->fnopt = true;
     }
+
+    /* --axes: keep only the chosen axes' cases, in order. */
+    size_t kept = 0;
+    for (size_t ci = 0; ci < nc; ++ci) {
+        if (axis_wanted(o.axes, cases[ci].axis)) {
+            cases[kept++] = cases[ci];
+        }
+    }
+    nc = kept;
 
     struct timespec t0, t1;
     clock_gettime(CLOCK_MONOTONIC, &t0);
