@@ -328,6 +328,8 @@ WEFT_API weft_result weft_garments_step(weft_garment *const *garments, uint32_t 
 /* Current positions (vertex_count * 3), valid until the next step, set_state or destroy. */
 WEFT_API const float *weft_garment_positions(const weft_garment *garment);
 WEFT_API uint32_t weft_garment_vertex_count(const weft_garment *garment);
+/* Vertices pinned by the last weft_garment_set_pins (0 for NULL). */
+WEFT_API uint32_t weft_garment_pin_count(const weft_garment *garment);
 WEFT_API weft_step_stats weft_garment_stats(const weft_garment *garment);
 
 #ifdef __cplusplus

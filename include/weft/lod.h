@@ -177,8 +177,11 @@ typedef struct weft_lod_garment_def {
      * over vertex_count is nearest its resolution (within a factor of 1.5, else the level fails
      * with WEFT_ERROR_UNSUPPORTED), and the garment is drawn through a mesh map: positions and
      * vertex_count stay those of the garment's own mesh at every level. Copied at creation; the
-     * maps both ways are made here. At most WEFT_LOD_MAX_SIM_MESHES. Pins are not available at a
-     * resolution level (their indices name the drawn mesh's vertices).
+     * maps both ways are made here. At most WEFT_LOD_MAX_SIM_MESHES. Pins name the drawn mesh's
+     * vertices at every level; at a resolution level each pinned vertex pins its nearest vertex of
+     * the simulated mesh (rest space), and a simulated vertex whose nearest drawn vertex is pinned
+     * is pinned too, at the drawn target plus the rest-space offset between the two (exact for a
+     * pinned patch that translates; a pin target is then off by that offset's rotation).
      * resolution_blend_frames: a switch onto a coarser mesh cannot show the finer mesh's detail;
      * the difference is faded out over this many frames instead of popping (default 8; 0: none). */
     const weft_lod_mesh *sim_meshes;
@@ -198,7 +201,8 @@ WEFT_API void weft_lod_garment_destroy(weft_lod_garment *garment);
 /* Collider at t+1, as weft_garment_set_collider. The first call of each frame also records the
  * current state (positions and collider at t) into the past-frame ring; no allocation. */
 WEFT_API weft_result weft_lod_garment_set_collider(weft_lod_garment *garment, const float *collider_positions);
-/* As weft_garment_set_pins; the pins are carried over at a switch. */
+/* As weft_garment_set_pins, with indices of the drawn mesh at every level (see sim_meshes for a
+ * resolution level); the pins are carried over at a switch. No allocation. */
 WEFT_API weft_result weft_lod_garment_set_pins(weft_lod_garment *garment, const uint32_t *vertex_indices,
                                                const float *target_positions, uint32_t count);
 /* As weft_garment_step. */
@@ -213,8 +217,8 @@ WEFT_API weft_result weft_lod_garment_set_state(weft_lod_garment *garment, const
  * was already set this frame) and the pins; a learned model's latent history is rebuilt from the
  * recorded past frames, so its first step sees the same window as if it had run all along.
  * LBS, tethers and a model with the skinned prior bind to the current pose instead of the rest
- * pose. This allocates (a switch is not a per-frame operation). On failure (no model, pins the
- * level cannot honour, out of memory) the garment stays at its current level, unchanged.
+ * pose. This allocates (a switch is not a per-frame operation). On failure (no model, no sim mesh
+ * for the level's resolution, out of memory) the garment stays at its current level, unchanged.
  * Switching to the current level is a no-op. */
 WEFT_API weft_result weft_lod_garment_switch(weft_lod_garment *garment, uint32_t level);
 

@@ -415,6 +415,8 @@ const float *weft_garment_positions(const weft_garment *g) { return g ? g->x : N
 
 uint32_t weft_garment_vertex_count(const weft_garment *g) { return g ? g->vertex_count : 0; }
 
+uint32_t weft_garment_pin_count(const weft_garment *g) { return g ? g->pin_count : 0; }
+
 weft_step_stats weft_garment_stats(const weft_garment *g)
 {
     weft_step_stats s = {0};

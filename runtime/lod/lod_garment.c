@@ -13,7 +13,12 @@
  * garment's own mesh through a mesh map; the "drawn" state (positions at t and t-1 on the
  * garment's mesh) is what the API shows, what the ring records and what a switch carries. A
  * switch onto a coarse mesh starts it from the drawn state mapped down, and fades the detail the
- * coarse mesh cannot hold (drawn - up(down(drawn))) out over a few frames. */
+ * coarse mesh cannot hold (drawn - up(down(drawn))) out over a few frames.
+ *
+ * Pins name drawn vertices. At a coarse level they are carried onto the coarse mesh by nearest
+ * vertices in rest space (coarse_pins): each pinned drawn vertex pins its nearest coarse vertex,
+ * and a coarse vertex whose nearest drawn vertex is pinned is pinned too, at the drawn target
+ * plus the rest-space offset between the two. */
 #include "lod/lod_internal.h"
 #include "garment/garment.h"
 #include "model/model.h"
@@ -35,6 +40,8 @@ typedef struct lod_mesh {
     uint32_t V, T;
     weft_mesh_map *up;                  /* this mesh -> the drawn mesh */
     weft_mesh_map *down;                /* the drawn mesh -> this mesh */
+    uint32_t *near_sim;                 /* per drawn vertex: the nearest vertex of this mesh (rest) */
+    uint32_t *near_drawn;               /* per vertex of this mesh: the nearest drawn vertex (rest) */
 } lod_mesh;
 
 struct weft_lod_garment {
@@ -66,6 +73,13 @@ struct weft_lod_garment {
     float *scratch;                     /* largest sim mesh's vertex count * 3 */
     size_t scratch_floats;
     uint64_t drawn_frame;               /* g->stats.frame the drawn state was last made for */
+
+    /* Pins at a coarse level (allocated only with sim meshes): the drawn pins as the host gave
+     * them, a drawn vertex -> pin slot lookup (UINT32_MAX: none), and the coarse pins made of them. */
+    uint32_t *pin_idx, *pin_slot, pin_count;
+    float *pin_tgt;
+    uint32_t *sim_pin_idx;
+    float *sim_pin_tgt, *sim_pin_w;     /* largest sim mesh's vertex count (* 3) */
 };
 
 weft_lod_garment_def weft_default_lod_garment_def(void)
@@ -176,16 +190,23 @@ static weft_result no_mesh(const weft_lod_garment *lg, const weft_lod_level *lv,
 static const float *drawn_x(const weft_lod_garment *lg) { return lg->mesh >= 0 ? lg->drawn_x : lg->g->x; }
 static const float *drawn_prev(const weft_lod_garment *lg) { return lg->mesh >= 0 ? lg->drawn_prev : lg->g->x_prev; }
 
-/* drawn_x from the coarse garment's positions, plus what is left of the blend. */
+/* drawn_x from the coarse garment's positions, plus what is left of the blend; pinned drawn
+ * vertices at their targets, as at the drawn level (the map alone leaves them where the coarse
+ * triangles around them are, which sag where the coarse pins end). */
 static weft_result update_drawn(weft_lod_garment *lg)
 {
     weft_result r = weft_mesh_map_apply(lg->meshes[lg->mesh].up, lg->g->x, lg->drawn_x);
-    if (r != WEFT_OK || lg->blend_left == 0) {
+    if (r != WEFT_OK) {
         return r;
     }
-    const float w = (float)lg->blend_left / (float)lg->blend_frames; /* blend_left <= blend_frames */
-    for (size_t i = 0; i < (size_t)lg->N * 3; ++i) {
-        lg->drawn_x[i] += w * lg->blend[i];
+    if (lg->blend_left > 0) {
+        const float w = (float)lg->blend_left / (float)lg->blend_frames; /* blend_left <= blend_frames */
+        for (size_t i = 0; i < (size_t)lg->N * 3; ++i) {
+            lg->drawn_x[i] += w * lg->blend[i];
+        }
+    }
+    for (uint32_t k = 0; k < lg->pin_count; ++k) {
+        memcpy(lg->drawn_x + 3 * (size_t)lg->pin_idx[k], lg->pin_tgt + 3 * (size_t)k, 3 * sizeof(float));
     }
     return WEFT_OK;
 }
@@ -204,6 +225,67 @@ static weft_result make_map(weft_context *ctx, const float *from, uint32_t from_
     return weft_mesh_map_create(ctx, &d, out);
 }
 
+/* For each of n points of `from` (xyz), the index of the nearest of the m points of `to`.
+ * Brute force at creation: 4k x 1k vertices is a few milliseconds. */
+static void nearest_points(const float *from, uint32_t n, const float *to, uint32_t m, uint32_t *out)
+{
+    for (uint32_t i = 0; i < n; ++i) {
+        const float *p = from + 3 * (size_t)i;
+        float best = INFINITY;
+        out[i] = 0;
+        for (uint32_t j = 0; j < m; ++j) {
+            const float *q = to + 3 * (size_t)j;
+            const float dx = p[0] - q[0], dy = p[1] - q[1], dz = p[2] - q[2];
+            const float d = dx * dx + dy * dy + dz * dz;
+            if (d < best) {
+                best = d;
+                out[i] = j;
+            }
+        }
+    }
+}
+
+/* The drawn pins (validated) carried onto coarse mesh m: writes lg->sim_pin_idx/tgt, returns the
+ * count. A coarse vertex reached by several drawn pins takes the mean of their targets. */
+static uint32_t coarse_pins(weft_lod_garment *lg, const lod_mesh *m, const uint32_t *idx, const float *tgt,
+                            uint32_t count)
+{
+    float *acc = lg->sim_pin_tgt, *w = lg->sim_pin_w;
+    memset(w, 0, (size_t)m->V * sizeof(float));
+    for (uint32_t k = 0; k < count; ++k) {
+        const uint32_t j = idx[k], i = m->near_sim[j];
+        if (w[i] == 0.0f) {
+            acc[3 * (size_t)i] = acc[3 * (size_t)i + 1] = acc[3 * (size_t)i + 2] = 0.0f;
+        }
+        for (int c = 0; c < 3; ++c) {
+            acc[3 * (size_t)i + c] += tgt[3 * (size_t)k + c] + m->rest[3 * (size_t)i + c] - lg->rest[3 * (size_t)j + c];
+        }
+        w[i] += 1.0f;
+        lg->pin_slot[j] = k;
+    }
+    uint32_t n = 0;
+    for (uint32_t i = 0; i < m->V; ++i) {
+        const uint32_t j = m->near_drawn[i], k = lg->pin_slot[j];
+        if (w[i] == 0.0f && k != UINT32_MAX) {
+            for (int c = 0; c < 3; ++c) {
+                acc[3 * (size_t)i + c] = tgt[3 * (size_t)k + c] + m->rest[3 * (size_t)i + c] - lg->rest[3 * (size_t)j + c];
+            }
+            w[i] = 1.0f;
+        }
+        if (w[i] > 0.0f) {
+            lg->sim_pin_idx[n] = i;
+            for (int c = 0; c < 3; ++c) {
+                lg->sim_pin_tgt[3 * (size_t)n + c] = acc[3 * (size_t)i + c] / w[i]; /* n <= i: in place */
+            }
+            n++;
+        }
+    }
+    for (uint32_t k = 0; k < count; ++k) {
+        lg->pin_slot[idx[k]] = UINT32_MAX;
+    }
+    return n;
+}
+
 static void free_lod(weft_lod_garment *lg)
 {
     const weft_context *ctx = lg->ctx;
@@ -214,7 +296,15 @@ static void free_lod(weft_lod_garment *lg)
         weft_mesh_map_destroy(m->down);
         weft__free(ctx, m->rest, (size_t)m->V * 3 * sizeof(float));
         weft__free(ctx, m->tris, (size_t)m->T * 3 * sizeof(uint32_t));
+        weft__free(ctx, m->near_sim, (size_t)lg->N * sizeof(uint32_t));
+        weft__free(ctx, m->near_drawn, (size_t)m->V * sizeof(uint32_t));
     }
+    weft__free(ctx, lg->pin_idx, (size_t)lg->N * sizeof(uint32_t));
+    weft__free(ctx, lg->pin_slot, (size_t)lg->N * sizeof(uint32_t));
+    weft__free(ctx, lg->pin_tgt, (size_t)lg->N * 3 * sizeof(float));
+    weft__free(ctx, lg->sim_pin_idx, lg->scratch_floats / 3 * sizeof(uint32_t));
+    weft__free(ctx, lg->sim_pin_tgt, lg->scratch_floats * sizeof(float));
+    weft__free(ctx, lg->sim_pin_w, lg->scratch_floats / 3 * sizeof(float));
     const size_t nx = (size_t)lg->N * 3 * sizeof(float);
     weft__free(ctx, lg->drawn_x, nx);
     weft__free(ctx, lg->drawn_prev, nx);
@@ -329,7 +419,16 @@ weft_result weft_lod_garment_create(weft_context *ctx, const weft_lod_garment_de
         }
         if (mr != WEFT_OK) {
             weft__fail(mr, "weft_lod_garment_create: sim_meshes[%u]: %s", i, weft_last_error());
+            break;
         }
+        m->near_sim = weft__alloc(ctx, (size_t)lg->N * sizeof(uint32_t));
+        m->near_drawn = weft__alloc(ctx, (size_t)m->V * sizeof(uint32_t));
+        if (!m->near_sim || !m->near_drawn) {
+            ok = false;
+            break;
+        }
+        nearest_points(lg->rest, lg->N, m->rest, m->V, m->near_sim);
+        nearest_points(m->rest, m->V, lg->rest, lg->N, m->near_drawn);
     }
     for (uint32_t i = 0; i < lg->mesh_count; ++i) {
         size_t f = (size_t)lg->meshes[i].V * 3;
@@ -337,7 +436,17 @@ weft_result weft_lod_garment_create(weft_context *ctx, const weft_lod_garment_de
     }
     if (ok && mr == WEFT_OK && lg->scratch_floats > 0) {
         lg->scratch = weft__alloc(ctx, lg->scratch_floats * sizeof(float));
-        ok = lg->scratch != NULL;
+        lg->pin_idx = weft__alloc(ctx, (size_t)lg->N * sizeof(uint32_t));
+        lg->pin_slot = weft__alloc(ctx, (size_t)lg->N * sizeof(uint32_t));
+        lg->pin_tgt = weft__alloc(ctx, (size_t)lg->N * 3 * sizeof(float));
+        lg->sim_pin_idx = weft__alloc(ctx, lg->scratch_floats / 3 * sizeof(uint32_t));
+        lg->sim_pin_tgt = weft__alloc(ctx, lg->scratch_floats * sizeof(float));
+        lg->sim_pin_w = weft__alloc(ctx, lg->scratch_floats / 3 * sizeof(float));
+        ok = lg->scratch && lg->pin_idx && lg->pin_slot && lg->pin_tgt && lg->sim_pin_idx && lg->sim_pin_tgt &&
+             lg->sim_pin_w;
+        for (uint32_t i = 0; ok && i < lg->N; ++i) {
+            lg->pin_slot[i] = UINT32_MAX;
+        }
     }
     if (mr == WEFT_OK && !ok) {
         mr = WEFT_ERROR_OUT_OF_MEMORY;
@@ -469,12 +578,34 @@ weft_result weft_lod_garment_set_pins(weft_lod_garment *lg, const uint32_t *vert
     if (!lg) {
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_lod_garment_set_pins: garment is NULL");
     }
-    if (lg->mesh >= 0 && count > 0) {
-        return weft__fail(WEFT_ERROR_UNSUPPORTED,
-                          "weft_lod_garment_set_pins: level '%s' simulates a coarser mesh; pins name the drawn "
-                          "mesh's vertices and are not available there", lg->table->levels[lg->level].name);
+    if (lg->mesh < 0) {
+        return weft_garment_set_pins(lg->g, vertex_indices, target_positions, count);
     }
-    return weft_garment_set_pins(lg->g, vertex_indices, target_positions, count);
+    /* A coarse level: the garment's own checks, on the drawn mesh's vertex count, before anything changes. */
+    if (count > 0 && (!vertex_indices || !target_positions)) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_lod_garment_set_pins: indices and targets are required");
+    }
+    if (count > lg->N) {
+        return weft__fail(WEFT_ERROR_SIZE_MISMATCH, "weft_lod_garment_set_pins: %u pins for %u vertices", count, lg->N);
+    }
+    for (uint32_t i = 0; i < count; ++i) {
+        if (vertex_indices[i] >= lg->N) {
+            return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
+                              "weft_lod_garment_set_pins: pin %u index %u >= vertex count %u", i, vertex_indices[i],
+                              lg->N);
+        }
+    }
+    if (!weft__all_finite(target_positions, (size_t)count * 3)) {
+        return weft__fail(WEFT_ERROR_NOT_FINITE, "weft_lod_garment_set_pins: targets contain NaN or infinity");
+    }
+    const uint32_t n = coarse_pins(lg, &lg->meshes[lg->mesh], vertex_indices, target_positions, count);
+    weft_result r = weft_garment_set_pins(lg->g, lg->sim_pin_idx, lg->sim_pin_tgt, n);
+    if (r == WEFT_OK && count > 0) {
+        memcpy(lg->pin_idx, vertex_indices, (size_t)count * sizeof(uint32_t));
+        memcpy(lg->pin_tgt, target_positions, (size_t)count * 3 * sizeof(float));
+    }
+    lg->pin_count = r == WEFT_OK ? count : lg->pin_count;
+    return r;
 }
 
 /* At a resolution level: the coarse garment gets the state mapped down, the drawn one keeps it
@@ -640,11 +771,6 @@ weft_result weft_lod_garment_switch(weft_lod_garment *lg, uint32_t level)
     if (mesh == -2) {
         return no_mesh(lg, lv, "weft_lod_garment_switch");
     }
-    if (mesh >= 0 && old->pin_count > 0) {
-        return weft__fail(WEFT_ERROR_UNSUPPORTED,
-                          "weft_lod_garment_switch: level '%s' simulates a coarser mesh and cannot honour the %u pins "
-                          "in use; clear them first", lv->name, old->pin_count);
-    }
     /* LBS, tethers and the model's skinned prior bind the garment to the collider at creation:
      * bind to the pose of now, not the rest pose, or the cloth would snap back to where it was
      * designed (LBS, tethers) or follow the wrong part of the body (the prior). */
@@ -711,10 +837,24 @@ weft_result weft_lod_garment_switch(weft_lod_garment *lg, uint32_t level)
             ng->collider_next_set = true;
         }
     }
-    if (old->pin_count > 0) {
-        memcpy(ng->pin_indices, old->pin_indices, (size_t)old->pin_count * sizeof(uint32_t));
-        memcpy(ng->pin_targets, old->pin_targets, (size_t)old->pin_count * 3 * sizeof(float));
-        ng->pin_count = old->pin_count;
+    /* The drawn pins carry over: kept by the garment at the drawn level, by lg at a coarse one;
+     * onto a coarse mesh they are carried by coarse_pins. */
+    const uint32_t *pin_idx = lg->mesh < 0 ? old->pin_indices : lg->pin_idx;
+    const float *pin_tgt = lg->mesh < 0 ? old->pin_targets : lg->pin_tgt;
+    const uint32_t pin_count = lg->mesh < 0 ? old->pin_count : lg->pin_count;
+    if (m) {
+        ng->pin_count = coarse_pins(lg, m, pin_idx, pin_tgt, pin_count);
+        memcpy(ng->pin_indices, lg->sim_pin_idx, (size_t)ng->pin_count * sizeof(uint32_t));
+        memcpy(ng->pin_targets, lg->sim_pin_tgt, (size_t)ng->pin_count * 3 * sizeof(float));
+        if (lg->mesh < 0 && pin_count > 0) {
+            memcpy(lg->pin_idx, pin_idx, (size_t)pin_count * sizeof(uint32_t));
+            memcpy(lg->pin_tgt, pin_tgt, (size_t)pin_count * 3 * sizeof(float));
+        }
+        lg->pin_count = pin_count;
+    } else if (pin_count > 0) {
+        memcpy(ng->pin_indices, pin_idx, (size_t)pin_count * sizeof(uint32_t));
+        memcpy(ng->pin_targets, pin_tgt, (size_t)pin_count * 3 * sizeof(float));
+        ng->pin_count = pin_count;
     }
     lg->frame_base += old->stats.frame;
     ng->stats = (weft_step_stats){0};

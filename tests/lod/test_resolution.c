@@ -6,8 +6,10 @@
  * 1k -> 4k mid-drape does not pop (the pop metric of test_switch.c: the largest vertex jump in the
  * frame after the switch against the largest per-frame motion over the 8 frames before), and a
  * switch without the blend is printed for comparison; set_state at a coarse level shows the given
- * state exactly; a level without a matching sim mesh, pins at a coarse level and a bad sim mesh
- * fail with clear errors and leave the garment as it was. */
+ * state exactly; pins name drawn vertices at every level: a corner pinned at a coarse level, or
+ * pinned before a switch onto it, holds while the rest falls, and the pins carry back to the fine
+ * level exactly; a level without a matching sim mesh, bad pins and a bad sim mesh fail with clear
+ * errors and leave the garment as it was. */
 #include "../xpbd/scene.h"
 #include "test.h"
 #include "weft/body.h"
@@ -221,9 +223,6 @@ static void test_resolution_state_and_failures(void)
         }
         CHECK_RESULT(weft_lod_garment_set_state(g, x, x), WEFT_OK);
         CHECK(memcmp(weft_lod_garment_positions(g), x, nx) == 0);
-        /* Pins name drawn vertices: not available while a coarse mesh is simulated. */
-        const uint32_t pin = 0;
-        CHECK_RESULT(weft_lod_garment_set_pins(g, &pin, s.fine->positions, 1), WEFT_ERROR_UNSUPPORTED);
         /* No mesh near 0.5 (the 1k sheet is a quarter): the switch fails, nothing changes. */
         CHECK_RESULT(weft_lod_garment_switch(g, level_of(&s, "xpbd-4-half")), WEFT_ERROR_UNSUPPORTED);
         CHECK_EQ_INT(weft_lod_garment_level(g), level_of(&s, "xpbd-4-quarter"));
@@ -239,17 +238,6 @@ static void test_resolution_state_and_failures(void)
         CHECK(memcmp(weft_lod_garment_positions(g), x, nx) == 0);
         free(bad);
         free(x);
-        weft_lod_garment_destroy(g);
-        g = NULL;
-    }
-
-    /* A fine level with pins cannot switch to a coarse one. */
-    CHECK_RESULT(make(&s, "xpbd-4", 8, true, &g), WEFT_OK);
-    if (g) {
-        const uint32_t pin = 3;
-        CHECK_RESULT(weft_lod_garment_set_pins(g, &pin, s.fine->positions + 9, 1), WEFT_OK);
-        CHECK_RESULT(weft_lod_garment_switch(g, level_of(&s, "xpbd-4-quarter")), WEFT_ERROR_UNSUPPORTED);
-        CHECK_EQ_INT(weft_lod_garment_level(g), level_of(&s, "xpbd-4"));
         weft_lod_garment_destroy(g);
         g = NULL;
     }
@@ -276,6 +264,127 @@ static void test_resolution_state_and_failures(void)
     CHECK(g == NULL);
     CHECK(strstr(weft_last_error(), "sim_meshes[0]") != NULL);
     free(tris);
+    scene_free(&s);
+}
+
+/* The drawn vertices within 4 cm of the sheet's (-x, -z) corner, held where they start. */
+static uint32_t corner_pins(const res_scene *s, uint32_t *idx, float *tgt)
+{
+    const float *x = s->fine->positions;
+    float lo[2] = {INFINITY, INFINITY};
+    for (uint32_t i = 0; i < s->fine->vertex_count; ++i) {
+        lo[0] = fminf(lo[0], x[3 * i]);
+        lo[1] = fminf(lo[1], x[3 * i + 2]);
+    }
+    uint32_t n = 0;
+    for (uint32_t i = 0; i < s->fine->vertex_count; ++i) {
+        const float dx = x[3 * i] - lo[0], dz = x[3 * i + 2] - lo[1];
+        if (dx * dx + dz * dz < 0.04f * 0.04f) {
+            idx[n] = i;
+            memcpy(tgt + 3 * n, x + 3 * i, 3 * sizeof(float));
+            n++;
+        }
+    }
+    return n;
+}
+
+/* The largest displacement from the rest shape of the unpinned drawn vertices within `radius` of
+ * the first pin (the corner's neighbourhood, which only the coarse pins hold up). */
+static double near_corner_drop(const res_scene *s, const weft_lod_garment *g, const uint32_t *idx, uint32_t n,
+                               float radius)
+{
+    const float *x = weft_lod_garment_positions(g), *r = s->fine->positions, *c = r + 3 * (size_t)idx[0];
+    double worst = 0.0;
+    for (uint32_t i = 0; i < s->fine->vertex_count; ++i) {
+        bool pinned = false;
+        for (uint32_t k = 0; k < n; ++k) {
+            pinned |= idx[k] == i;
+        }
+        const float dx = r[3 * i] - c[0], dz = r[3 * i + 2] - c[2];
+        if (!pinned && dx * dx + dz * dz < radius * radius) {
+            worst = fmax(worst, (double)r[3 * i + 1] - x[3 * i + 1]);
+        }
+    }
+    return worst;
+}
+
+/* The largest distance of the pinned drawn vertices from their targets. */
+static double pin_error(const weft_lod_garment *g, const uint32_t *idx, const float *tgt, uint32_t n)
+{
+    const float *x = weft_lod_garment_positions(g);
+    double worst = 0.0;
+    for (uint32_t k = 0; k < n; ++k) {
+        const float *p = x + 3 * (size_t)idx[k];
+        const double dx = p[0] - tgt[3 * k], dy = p[1] - tgt[3 * k + 1], dz = p[2] - tgt[3 * k + 2];
+        worst = fmax(worst, sqrt(dx * dx + dy * dy + dz * dz));
+    }
+    return worst;
+}
+
+/* Pins at a resolution level: set there, or carried by a switch onto it, a pinned corner stays
+ * within a few mm (the coarse mesh's pins sit at the drawn targets; the drawn corner is mapped
+ * from them) while the free corner falls; back at the fine level they hold exactly; bad pins at
+ * a coarse level fail and leave the pins in use. */
+static void test_resolution_pins(void)
+{
+    res_scene s;
+    if (!scene_make(&s)) {
+        scene_free(&s);
+        return;
+    }
+    const uint32_t N = s.fine->vertex_count;
+    uint32_t *idx = malloc(N * sizeof(uint32_t));
+    float *tgt = malloc((size_t)N * 3 * sizeof(float));
+    const uint32_t n = idx && tgt ? corner_pins(&s, idx, tgt) : 0;
+    CHECK_MSG(n >= 4 && n < 64, "%u corner vertices", n);
+    static const char *const starts[] = {"xpbd-4-quarter", "xpbd-4"};
+    for (int run = 0; run < 2 && n > 0; ++run) {
+        weft_lod_garment *g = NULL;
+        CHECK_RESULT(make(&s, starts[run], 8, true, &g), WEFT_OK);
+        if (!g) {
+            continue;
+        }
+        CHECK_RESULT(weft_lod_garment_set_pins(g, idx, tgt, n), WEFT_OK);
+        if (run == 1) { /* pinned at the fine level, then switched onto the coarse mesh */
+            CHECK_RESULT(weft_lod_garment_switch(g, level_of(&s, "xpbd-4-quarter")), WEFT_OK);
+        }
+        const uint32_t coarse_pins = weft_garment_pin_count(weft_lod_garment_current(g));
+        bool ok = true;
+        for (uint32_t f = 0; ok && f < 20; ++f) {
+            ok = step(&s, g, f);
+        }
+        const double held = pin_error(g, idx, tgt, n), near = near_corner_drop(&s, g, idx, n, 0.06f);
+        /* The opposite corner of the sheet (the last vertex) falls freely. */
+        const double fell = s.fine->positions[3 * (N - 1) + 1] - weft_lod_garment_positions(g)[3 * (N - 1) + 1];
+        printf("pins at the coarse level (%s): %u drawn pins -> %u coarse, corner held within %.2f mm, its 6 cm "
+               "neighbourhood dropped %.1f mm, free corner fell %.1f cm\n",
+               run == 0 ? "set there" : "carried by a switch", n, coarse_pins, held * 1e3, near * 1e3, fell * 1e2);
+        CHECK_MSG(coarse_pins > 0 && coarse_pins <= n, "%u coarse pins for %u drawn ones", coarse_pins, n);
+        CHECK_MSG(held == 0.0, "pinned corner moved %.4g m at the coarse level", held);
+        CHECK_MSG(near < 0.25 * fell, "the corner's neighbourhood dropped %.4g m (free corner %.4g m): the coarse "
+                  "pins do not hold it", near, fell);
+        CHECK_MSG(fell > 0.05, "the free corner fell only %.4g m: the scene tests nothing", fell);
+        /* Bad pins fail and leave the pins in use. */
+        uint32_t bad_idx = N;
+        CHECK_RESULT(weft_lod_garment_set_pins(g, &bad_idx, tgt, 1), WEFT_ERROR_INVALID_ARGUMENT);
+        float nan_tgt[3] = {0.0f, NAN, 0.0f};
+        CHECK_RESULT(weft_lod_garment_set_pins(g, idx, nan_tgt, 1), WEFT_ERROR_NOT_FINITE);
+        CHECK_RESULT(weft_lod_garment_set_pins(g, idx, tgt, N + 1), WEFT_ERROR_SIZE_MISMATCH);
+        CHECK_EQ_INT(weft_garment_pin_count(weft_lod_garment_current(g)), coarse_pins);
+        /* Back to the fine mesh: the drawn pins carry over and hold exactly after a step. */
+        CHECK_RESULT(weft_lod_garment_switch(g, level_of(&s, "xpbd-4")), WEFT_OK);
+        ok = ok && step(&s, g, 20);
+        if (ok) {
+            CHECK_MSG(pin_error(g, idx, tgt, n) == 0.0, "fine-level pins off by %g m", pin_error(g, idx, tgt, n));
+        }
+        /* Cleared at the coarse level, nothing is pinned there. */
+        CHECK_RESULT(weft_lod_garment_switch(g, level_of(&s, "xpbd-4-quarter")), WEFT_OK);
+        CHECK_RESULT(weft_lod_garment_set_pins(g, NULL, NULL, 0), WEFT_OK);
+        CHECK_EQ_INT(weft_garment_pin_count(weft_lod_garment_current(g)), 0);
+        weft_lod_garment_destroy(g);
+    }
+    free(idx);
+    free(tgt);
     scene_free(&s);
 }
 
@@ -355,4 +464,4 @@ static void test_tethered_level_binds_at_switch(void)
 }
 
 TEST_MAIN(TEST_CASE(test_resolution_switch_without_pop), TEST_CASE(test_resolution_state_and_failures),
-          TEST_CASE(test_resolution_sync), TEST_CASE(test_tethered_level_binds_at_switch))
+          TEST_CASE(test_resolution_pins), TEST_CASE(test_resolution_sync), TEST_CASE(test_tethered_level_binds_at_switch))

@@ -4,8 +4,10 @@
       --method game=model:tools/train/models/game.safetensors --method LBS=lbs --method XPBD-5=xpbd:5 \
       --out docs/heldout_test_val.md
 
-Each --method is LABEL=METHOD[:ARG] with METHOD one of model:PATH (fp32), int8:PATH, fp16:PATH,
-lbs, xpbd:S; every run is `weft eval --seq DATA --split SPLIT --ccd off|on` (240-frame rollouts
+Each --method is LABEL=METHOD[:ARG][,strain=PCT][,tether=CM] with METHOD one of model:PATH (fp32),
+int8:PATH, fp16:PATH, lbs, xpbd:S; strain= and tether= add the runtime's strain limit and
+tethers (`weft eval --strain-limit`, `--tether-cm`), e.g. `game+SL10=model:game.safetensors,strain=10`;
+every run is `weft eval --seq DATA --split SPLIT --ccd off|on` (240-frame rollouts
 from the first two reference frames). The per-sequence lines eval prints are grouped by the
 scenario in each sequence's name (drop_/garment_/gripper_) and averaged weighted by frames
 (eval's own total weights by vertex-frames; the sequences' vertex counts differ by a few %). Also writes the per-sequence rows as CSV next to --out.
@@ -22,15 +24,25 @@ LINE = re.compile(r"^(\S+)\s+frames\s+(\d+)\s+MVE\s+([-\d.naninf]+) cm\s+coll\s+
 SCENARIOS = ("drop", "garment", "gripper")
 
 
+OPTIONS = {"strain": "--strain-limit", "tether": "--tether-cm"}
+
+
 def method_args(spec):
-    kind, _, arg = spec.partition(":")
+    method, *options = spec.split(",")
+    extra = []
+    for opt in options:
+        key, _, value = opt.partition("=")
+        if key not in OPTIONS or not value:
+            sys.exit(f"heldout_table: unknown option '{opt}' in '{spec}' (strain=PCT, tether=CM)")
+        extra += [OPTIONS[key], value]
+    kind, _, arg = method.partition(":")
     if kind in ("model", "int8", "fp16"):
         precision = {"model": "fp32"}.get(kind, kind)
-        return ["--method", "model", "--model", arg, "--precision", precision]
+        return ["--method", "model", "--model", arg, "--precision", precision] + extra
     if kind == "lbs":
-        return ["--method", "lbs"]
+        return ["--method", "lbs"] + extra
     if kind == "xpbd":
-        return ["--method", "xpbd:" + arg]
+        return ["--method", "xpbd:" + arg] + extra
     sys.exit(f"heldout_table: unknown method '{spec}'")
 
 
