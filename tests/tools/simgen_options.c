@@ -77,6 +77,28 @@ static void split_generates_only_that_split(void)
     CHECK(generated > 0 && skipped > 0);
 }
 
+/* Two --scenario runs into one folder: the manifest and the split files of the second list the
+ * first run's sequences too. */
+static void manifest_keeps_other_runs(void)
+{
+    char dir[1024], manifest[1200];
+    snprintf(dir, sizeof dir, "%s/two_runs", g_out);
+    snprintf(manifest, sizeof manifest, "%s/manifest.json", dir);
+    const char *drops[] = {g_exe, "simgen", "--out", dir, "--scenario", "drop", "--count", "2", "--vertices", "64",
+                           "--frames", "2", "--no-validate", NULL};
+    const char *grips[] = {g_exe, "simgen", "--out", dir, "--scenario", "gripper", "--count", "1", "--vertices", "64",
+                           "--frames", "2", "--no-validate", NULL};
+    CHECK_EQ_INT(tool_run(drops, NULL), 0);
+    CHECK_EQ_INT(tool_run(grips, NULL), 0);
+    static char text[1 << 16];
+    slurp(manifest, text, sizeof text);
+    CHECK_MSG(strstr(text, "\"drop_v64_0000\"") && strstr(text, "\"drop_v64_0001\"") && strstr(text, "\"gripper_v64_0000\""),
+              "the manifest lost a run's sequences:\n%.400s", text);
+    const char *entry = strstr(text, "\"drop_v64_0001\"");
+    const char *sc = entry ? strstr(entry, "\"scenario\":") : NULL;
+    CHECK_MSG(sc && strncmp(sc, "\"scenario\":\t\"drop\"", strlen("\"scenario\":\t\"drop\"")) == 0, "drop_v64_0001 listed as %.30s", sc ? sc : "-");
+}
+
 static void bad_plan_options_fail(void)
 {
     char dir[1024];
@@ -101,6 +123,7 @@ int main(int argc, char **argv)
     g_exe = argv[1];
     g_out = argv[2];
     static const test_case_ cases[] = {TEST_CASE(tier_generates_only_that_tier),
-                                         TEST_CASE(split_generates_only_that_split), TEST_CASE(bad_plan_options_fail)};
+                                         TEST_CASE(split_generates_only_that_split), TEST_CASE(manifest_keeps_other_runs),
+                                         TEST_CASE(bad_plan_options_fail)};
     return test_run_(cases, sizeof cases / sizeof cases[0], argc - 2, argv + 2);
 }

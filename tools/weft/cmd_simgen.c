@@ -5,6 +5,7 @@
 #include "weft/sim.h"
 
 #include <cjson/cJSON.h>
+#include <dirent.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -106,8 +107,76 @@ static void on_frame(uint32_t frame, uint32_t frames, void *user)
     }
 }
 
-static int write_manifest(const char *out, const plan_item *plan, uint32_t n)
+/* A sequence the manifest lists: this run's plan, then any other finished folder under DIR (a
+ * `--scenario` run into a folder another run filled keeps the other run's sequences listed). */
+typedef struct manifest_item {
+    char name[64];
+    int scenario; /* weft_sim_scenario; -1 until read from meta.json */
+} manifest_item;
+
+static int cmp_manifest_item(const void *a, const void *b)
 {
+    return strcmp(((const manifest_item *)a)->name, ((const manifest_item *)b)->name);
+}
+
+/* The plan's names in plan order, then the other folders of `out` holding a meta.json, sorted by
+ * name. NULL on out of memory. */
+static manifest_item *manifest_items(const char *out, const plan_item *plan, uint32_t n, uint32_t *count)
+{
+    uint32_t cap = n + 64, m = 0;
+    manifest_item *items = malloc(cap * sizeof *items);
+    for (uint32_t i = 0; items && i < n; ++i) {
+        snprintf(items[m].name, sizeof items[m].name, "%s", plan[i].name);
+        items[m++].scenario = (int)plan[i].scenario;
+    }
+    const uint32_t planned = m;
+    DIR *dh = items ? opendir(out) : NULL;
+    struct dirent *de;
+    while (dh && (de = readdir(dh)) != NULL) {
+        char meta[1200];
+        manifest_item key;
+        if (de->d_name[0] == '.' || strlen(de->d_name) >= sizeof key.name) {
+            continue;
+        }
+        snprintf(key.name, sizeof key.name, "%s", de->d_name);
+        snprintf(meta, sizeof meta, "%s/%s/meta.json", out, de->d_name);
+        bool in_plan = false;
+        for (uint32_t i = 0; i < planned && !in_plan; ++i) {
+            in_plan = strcmp(items[i].name, key.name) == 0;
+        }
+        if (in_plan || !file_exists(meta)) {
+            continue;
+        }
+        if (m == cap) {
+            manifest_item *grown = realloc(items, (size_t)(cap *= 2) * sizeof *items);
+            if (!grown) {
+                free(items);
+                items = NULL;
+                break;
+            }
+            items = grown;
+        }
+        key.scenario = -1;
+        items[m++] = key;
+    }
+    if (dh) {
+        closedir(dh);
+    }
+    if (items) {
+        qsort(items + planned, m - planned, sizeof *items, cmp_manifest_item);
+    }
+    *count = m;
+    return items;
+}
+
+static int write_manifest(const char *out, const plan_item *plan, uint32_t n_plan)
+{
+    uint32_t n = 0;
+    manifest_item *items = manifest_items(out, plan, n_plan, &n);
+    if (!items) {
+        fprintf(stderr, "simgen: out of memory\n");
+        return 1;
+    }
     cJSON *root = cJSON_CreateObject();
     cJSON *seqs = cJSON_CreateArray();
     uint32_t counts[WEFT_SIM_SCENARIO_COUNT][4] = {{0}}; /* accepted train/val/test, rejected */
@@ -124,7 +193,7 @@ static int write_manifest(const char *out, const plan_item *plan, uint32_t n)
         }
     }
     for (uint32_t i = 0; i < n; ++i) {
-        snprintf(path, sizeof path, "%s/%s/meta.json", out, plan[i].name);
+        snprintf(path, sizeof path, "%s/%s/meta.json", out, items[i].name);
         FILE *f = fopen(path, "rb");
         if (!f) {
             continue;
@@ -145,22 +214,35 @@ static int write_manifest(const char *out, const plan_item *plan, uint32_t n)
         if (!meta) {
             continue;
         }
+        if (items[i].scenario < 0) { /* not planned by this run: the scenario its meta.json names */
+            const cJSON *sc = cJSON_GetObjectItem(meta, "scenario");
+            for (int k = 0; k < WEFT_SIM_SCENARIO_COUNT && cJSON_IsString(sc); ++k) {
+                items[i].scenario = strcmp(sc->valuestring, weft_sim_scenario_name((weft_sim_scenario)k)) == 0
+                                        ? k
+                                        : items[i].scenario;
+            }
+            if (items[i].scenario < 0) {
+                cJSON_Delete(meta);
+                continue;
+            }
+        }
+        const weft_sim_scenario scenario = (weft_sim_scenario)items[i].scenario;
         bool accepted = cJSON_IsTrue(cJSON_GetObjectItem(meta, "accepted"));
         cJSON *e = cJSON_CreateObject();
-        cJSON_AddStringToObject(e, "name", plan[i].name);
-        cJSON_AddStringToObject(e, "scenario", weft_sim_scenario_name(plan[i].scenario));
+        cJSON_AddStringToObject(e, "name", items[i].name);
+        cJSON_AddStringToObject(e, "scenario", weft_sim_scenario_name(scenario));
         cJSON *cl = cJSON_GetObjectItem(meta, "cloth");
         cJSON_AddNumberToObject(e, "vertices", cJSON_GetNumberValue(cJSON_GetObjectItem(cl, "vertices")));
         cJSON_AddNumberToObject(e, "substeps", cJSON_GetNumberValue(cJSON_GetObjectItem(meta, "substeps")));
         cJSON_AddNumberToObject(e, "frames", cJSON_GetNumberValue(cJSON_GetObjectItem(meta, "frames")));
         cJSON_AddBoolToObject(e, "accepted", accepted);
-        const char *split = accepted ? weft_sim_split_of(plan[i].name) : "rejected";
+        const char *split = accepted ? weft_sim_split_of(items[i].name) : "rejected";
         cJSON_AddStringToObject(e, "split", split);
         cJSON_AddItemToArray(seqs, e);
         int k = accepted ? (strcmp(split, "train") == 0 ? 0 : (strcmp(split, "val") == 0 ? 1 : 2)) : 3;
-        counts[plan[i].scenario][k]++;
-        if (k < 3 && split_files[plan[i].scenario][k]) {
-            fprintf(split_files[plan[i].scenario][k], "%s\n", plan[i].name);
+        counts[scenario][k]++;
+        if (k < 3 && split_files[scenario][k]) {
+            fprintf(split_files[scenario][k], "%s\n", items[i].name);
         }
         cJSON_Delete(meta);
     }
@@ -177,6 +259,7 @@ static int write_manifest(const char *out, const plan_item *plan, uint32_t n)
         cJSON_AddNumberToObject(c, "rejected", counts[s][3]);
         cJSON_AddItemToObject(root, weft_sim_scenario_name((weft_sim_scenario)s), c);
     }
+    free(items);
     cJSON_AddItemToObject(root, "sequences", seqs);
     char *text = cJSON_Print(root);
     cJSON_Delete(root);
