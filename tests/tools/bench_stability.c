@@ -210,10 +210,11 @@ static void model_scores_follow_the_file(void)
     CHECK_EQ_INT(count_files(scores, ".json"), with_a + 9);
 }
 
-/* --axes long: the long rollout alone (its sequence and scores are the ones kept above). */
+/* --axes long: the long rollout alone (its sequence and scores are the ones kept above); with
+ * --ccd off the page says so. */
 static void axes_choose_the_cases(void)
 {
-    char data[1200], out[1200], models[1200], path[1300];
+    char data[1200], out[1200], models[1200], path[1300], page[1300];
     snprintf(data, sizeof data, "%s/data", g_out);
     snprintf(out, sizeof out, "%s/long_only", g_out);
     snprintf(models, sizeof models, "%s/no_models", g_out);
@@ -221,7 +222,7 @@ static void axes_choose_the_cases(void)
     const char *argv[] = {g_exe,        "bench", "stability", "--quick", "--frames", "12",   "--long-frames",
                           "16",         "--xpbd", "5",         "--no-fnopt", "--no-garment", "--no-plot", "--models",
                           models,       "--data", data,      "--out",   out,        "--axes", "long",
-                          NULL};
+                          "--ccd",      "off",    NULL};
     CHECK_EQ_INT(tool_run(argv, NULL), 0);
     snprintf(path, sizeof path, "%s/stability.csv", out);
     char *csv = slurp(path);
@@ -236,6 +237,10 @@ static void axes_choose_the_cases(void)
     }
     CHECK_EQ_INT(rows, 2); /* LBS and XPBD-5 */
     free(csv);
+    snprintf(page, sizeof page, "%s/STABILITY.md", out);
+    char *doc = slurp(page);
+    CHECK_MSG(doc && strstr(doc, "CCD post-processing off"), "%s does not say CCD was off", page);
+    free(doc);
 }
 
 static void bad_options(void)
@@ -248,6 +253,8 @@ static void bad_options(void)
     CHECK_EQ_INT(tool_run(unknown, NULL), 2);
     const char *axes[] = {g_exe, "bench", "stability", "--axes", "long,width", NULL};
     CHECK_EQ_INT(tool_run(axes, NULL), 2);
+    const char *ccd[] = {g_exe, "bench", "stability", "--ccd", "maybe", NULL};
+    CHECK_EQ_INT(tool_run(ccd, NULL), 2);
 }
 
 int main(int argc, char **argv)

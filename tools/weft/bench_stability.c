@@ -78,6 +78,7 @@ typedef struct st_opts {
     unsigned xpbd[8];
     size_t nxpbd;
     bool quick, plot, fnopt, garment, rescore;
+    bool no_ccd; /* --ccd off: every method without the CCD post-process (the default runs it) */
 } st_opts;
 
 static void usage(FILE *f)
@@ -86,7 +87,7 @@ static void usage(FILE *f)
             "usage: weft bench stability [--data DIR] [--out DIR] [--models DIR] [--scenario gripper|drop|garment]\n"
             "                            [--base-vertices V] [--frames T] [--long-frames T] [--count N]\n"
             "                            [--xpbd 5,10,20,40] [--quick] [--no-plot] [--no-fnopt] [--no-garment]\n"
-            "                            [--fnopt-model PATH] [--time-limit S] [--rescore] [--axes LIST]\n"
+            "                            [--fnopt-model PATH] [--time-limit S] [--rescore] [--axes LIST] [--ccd on|off]\n"
             "  Generates the stress cases with weft simgen under DIR (default data/stability; resumable), scores\n"
             "  LBS, XPBD 5/10/20/40 and every DIR/*.safetensors model (fp32/fp16/int8, CCD on) on each, and\n"
             "  writes OUT/stability.csv, OUT/img/stability.png and the table in OUT/STABILITY.md (between\n"
@@ -96,6 +97,8 @@ static void usage(FILE *f)
             "  --quick   V=64, T=60, long 480 frames, 1 sequence per case, FNOpt speed axis with adam only, S=300\n"
             "  --axes L  only the cases of these axes, a comma list of resolution, long, unseen, speed (e.g.\n"
             "            --axes long: the 2400-frame rollout alone, into its own --out)\n"
+            "  --ccd off every method without the CCD post-process (default on): the methods' own stability,\n"
+            "            without the cost of CCD once cloth is inside the body\n"
             "  --rescore ignore the scores kept from earlier runs (<seq>/scores/*.json) and evaluate again\n"
             "            (scores are kept by the eval's arguments and, for models, the model file's contents: a\n"
             "            retrained model is scored again by itself; a changed weft needs --rescore)\n");
@@ -312,7 +315,7 @@ static bool eval_method(const char *exe, const st_opts *o, const st_method *m, c
     snprintf(tl, sizeof tl, "%u", time_limit);
     const bool is_model = strcmp(m->family, "model") == 0;
     const bench_method_spec spec = {m->method,
-                                    true,
+                                    !o->no_ccd,
                                     frames ? fr : NULL,
                                     is_model ? m->model : NULL,
                                     is_model ? m->precision : NULL,
@@ -584,9 +587,9 @@ static int write_tables(const st_run *run)
             date, wall, o.data, command);
     fprintf(f, "Machine and build: `%s`\n\n", weft_config_string());
     fprintf(f, "Ground truth: `weft simgen` (validated XPBD reference, scenario `%s`), base %u cloth vertices, %u "
-               "frames, %u sequence(s) per case. Every method runs with CCD post-processing on, from the first two "
+               "frames, %u sequence(s) per case. Every method runs with CCD post-processing %s, from the first two "
                "ground-truth frames, and then sees only the collider.\n\n",
-            o.scenario, o.base_vertices, o.frames, o.count);
+            o.scenario, o.base_vertices, o.frames, o.count, o.no_ccd ? "off (`--ccd off`)" : "on");
     fprintf(f, "Status: **NaN** (non-finite state), **exploded** (more than %.0f%% of the edges strained by more than "
                "%.0f%% in some frame; a single edge over %.0f%% is common at pins and tight contacts, in the reference "
                "too, so the max strain is shown next to the reference's own), **too slow** (the rollout's steps took more "
@@ -752,6 +755,12 @@ int weft_bench_stability(int argc, char **argv)
                 o.scenario = v;
             } else if (strcmp(a, "--fnopt-model") == 0) {
                 o.fnopt_model = v;
+            } else if (strcmp(a, "--ccd") == 0) {
+                if (strcmp(v, "on") != 0 && strcmp(v, "off") != 0) {
+                    fprintf(stderr, "weft bench stability: --ccd takes on or off\n");
+                    return 2;
+                }
+                o.no_ccd = strcmp(v, "off") == 0;
             } else if (strcmp(a, "--axes") == 0) {
                 if (!axes_valid(v)) {
                     fprintf(stderr, "weft bench stability: --axes wants a comma list of resolution, long, unseen, speed\n");
