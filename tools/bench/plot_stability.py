@@ -67,7 +67,10 @@ def main():
         if st != "pass":
             t = st + ("\n" + t if t else "")
         text[i][j] = t
-    fig, ax = plt.subplots(figsize=(1.55 * len(cases) + 2.5, 0.62 * len(methods) + 2.2))
+    # The method labels take their own width; with few cases (e.g. --axes long) the cells would
+    # otherwise be squeezed to nothing, and the title and legend need about 8 inches.
+    label_in = 0.065 * max((len(m) for m in methods), default=10)
+    fig, ax = plt.subplots(figsize=(max(8.0, 1.55 * len(cases) + label_in + 1.0), 0.62 * len(methods) + 2.2))
     ax.imshow(grid, cmap=ListedColormap(COLORS), vmin=0, vmax=3, aspect="auto")
     for i in range(len(methods)):
         for j in range(len(cases)):
@@ -87,7 +90,7 @@ def main():
               loc="upper center", bbox_to_anchor=(0.5, -0.18), ncol=2, fontsize=8, frameon=False)
     ax.set_title("weft stability: where each method fails (cell: status, MVE, first/last-quarter MVE)", fontsize=10)
     fig.tight_layout()
-    fig.savefig(args.out, dpi=110)
+    fig.savefig(args.out, dpi=110, bbox_inches="tight")  # the legend sits below the axes
 
 
 if __name__ == "__main__":
