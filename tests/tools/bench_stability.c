@@ -105,6 +105,16 @@ static size_t count_files(const char *dir, const char *suffix)
     return n;
 }
 
+/* DIR/stability.csv's text (NULL, with a failed check, when it was not written). */
+static char *stability_csv(const char *dir)
+{
+    char path[1400];
+    snprintf(path, sizeof path, "%s/stability.csv", dir);
+    char *csv = slurp(path);
+    CHECK_MSG(csv != NULL, "no %s", path);
+    return csv;
+}
+
 static void runs_and_resumes(void)
 {
     /* The data folder may hold scores of an earlier build or of other models from an earlier
@@ -114,9 +124,8 @@ static void runs_and_resumes(void)
     remove_files(kept, ".json");
     CHECK_EQ_INT(suite("first", true), 0);
     char path[1300];
-    snprintf(path, sizeof path, "%s/first/stability.csv", g_out);
-    char *first = slurp(path);
-    CHECK_MSG(first != NULL, "no %s", path);
+    snprintf(path, sizeof path, "%s/first", g_out);
+    char *first = stability_csv(path);
     if (!first) {
         return;
     }
@@ -148,8 +157,8 @@ static void runs_and_resumes(void)
 
     /* Again: every eval comes from the kept scores, so even the wall times are the same. */
     CHECK_EQ_INT(suite("second", false), 0);
-    snprintf(path, sizeof path, "%s/second/stability.csv", g_out);
-    char *second = slurp(path);
+    snprintf(path, sizeof path, "%s/second", g_out);
+    char *second = stability_csv(path);
     CHECK_MSG(second && strcmp(first, second) == 0, "the resumed run scored differently");
     free(first);
     free(second);
@@ -214,7 +223,7 @@ static void model_scores_follow_the_file(void)
  * --ccd off the page says so. */
 static void axes_choose_the_cases(void)
 {
-    char data[1200], out[1200], models[1200], path[1300], page[1300];
+    char data[1200], out[1200], models[1200], page[1300];
     snprintf(data, sizeof data, "%s/data", g_out);
     snprintf(out, sizeof out, "%s/long_only", g_out);
     snprintf(models, sizeof models, "%s/no_models", g_out);
@@ -224,9 +233,7 @@ static void axes_choose_the_cases(void)
                           models,       "--data", data,      "--out",   out,        "--axes", "long",
                           "--ccd",      "off",    NULL};
     CHECK_EQ_INT(tool_run(argv, NULL), 0);
-    snprintf(path, sizeof path, "%s/stability.csv", out);
-    char *csv = slurp(path);
-    CHECK_MSG(csv != NULL, "no %s", path);
+    char *csv = stability_csv(out);
     if (!csv) {
         return;
     }
