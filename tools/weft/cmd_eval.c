@@ -407,12 +407,15 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
         sim_x0 = malloc((size_t)SV * 3 * sizeof(float));
         sim_gt = malloc((size_t)SV * 3 * sizeof(float));
         mapped = malloc(nv * sizeof(float));
-        near_scored = malloc((size_t)SV * sizeof(uint32_t));
-        near_sim = malloc((size_t)s.V * sizeof(uint32_t));
-        if (lr == WEFT_OK && (!sim_x1 || !sim_x0 || !sim_gt || !mapped || !near_scored || !near_sim)) {
+        if (lr == WEFT_OK && (!sim_x1 || !sim_x0 || !sim_gt || !mapped)) {
             lr = WEFT_ERROR_OUT_OF_MEMORY;
         }
-        if (lr == WEFT_OK) {
+        if (lr == WEFT_OK && s.pinned) { /* the nearest-vertex tables only carry pins */
+            near_scored = malloc((size_t)SV * sizeof(uint32_t));
+            near_sim = malloc((size_t)s.V * sizeof(uint32_t));
+            lr = near_scored && near_sim ? WEFT_OK : WEFT_ERROR_OUT_OF_MEMORY;
+        }
+        if (lr == WEFT_OK && s.pinned) {
             nearest_vertices(sim_rest, SV, s.rest, s.V, near_scored);
             nearest_vertices(s.rest, s.V, sim_rest, SV, near_sim);
         }
