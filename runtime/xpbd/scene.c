@@ -727,6 +727,70 @@ static bool bind_band(xscene *sc)
     return true;
 }
 
+/* The dress's top ring sits at the armpits: pinned there, its side vertices cannot yield when
+ * the arms come down from the bind pose, and the upper arm sweeps through them (measured: every
+ * rejected dress had its first hit on the band, 23-35 frames into the blend). Band vertices whose
+ * pinned target comes within BAND_ARM_CLEARANCE of an arm vertex (skinning weight on the
+ * shoulder..hand joints over one half) during the pre-roll are left free; the rest of the band
+ * holds the garment up. Nothing is released where the arms stay clear (skirts, most waists). */
+#define BAND_ARM_CLEARANCE 0.04
+static bool release_band_near_arms(xscene *sc)
+{
+    const uint32_t nv = weft_body_vertex_count(sc->body);
+    const float *w = weft_body_weights(sc->body);
+    float *body = malloc(sizeof(float) * 3 * nv);
+    double *closest = malloc(sizeof(double) * (sc->band_count ? sc->band_count : 1));
+    uint32_t *arm = malloc(sizeof(uint32_t) * nv);
+    if (!body || !closest || !arm) {
+        free(body), free(closest), free(arm);
+        return false;
+    }
+    uint32_t na = 0;
+    for (uint32_t i = 0; i < nv; ++i) {
+        float s = 0.0f;
+        for (uint32_t j = WEFT_JOINT_LEFT_SHOULDER; j <= WEFT_JOINT_RIGHT_HAND; ++j) {
+            s += w[24 * (size_t)i + j];
+        }
+        if (s > 0.5f) {
+            arm[na++] = i;
+        }
+    }
+    for (uint32_t k = 0; k < sc->band_count; ++k) {
+        closest[k] = INFINITY;
+    }
+    for (uint32_t f = 0; f <= sc->preroll; ++f) { /* the blend, then the held first pose */
+        xscene_collider_at(sc, f, body);
+        for (uint32_t k = 0; k < sc->band_count; ++k) {
+            double q[3], e[3], t[3], n[3], x[3];
+            band_point(sc, body, k, q, e, t, n);
+            const float *o = sc->band_off + 3 * (size_t)k;
+            for (int a = 0; a < 3; ++a) {
+                x[a] = q[a] + o[0] * e[a] + o[1] * t[a] + o[2] * n[a];
+            }
+            for (uint32_t i = 0; i < na; ++i) {
+                const float *p = body + 3 * (size_t)arm[i];
+                double d[3] = {p[0] - x[0], p[1] - x[1], p[2] - x[2]};
+                closest[k] = fmin(closest[k], xv_dot(d, d));
+            }
+        }
+    }
+    uint32_t kept = 0;
+    for (uint32_t k = 0; k < sc->band_count; ++k) {
+        if (closest[k] < BAND_ARM_CLEARANCE * BAND_ARM_CLEARANCE) {
+            continue;
+        }
+        sc->band_idx[kept] = sc->band_idx[k];
+        sc->band_tri[kept] = sc->band_tri[k];
+        memcpy(sc->band_bary + 3 * (size_t)kept, sc->band_bary + 3 * (size_t)k, sizeof(float) * 3);
+        memcpy(sc->band_off + 3 * (size_t)kept, sc->band_off + 3 * (size_t)k, sizeof(float) * 3);
+        kept++;
+    }
+    sc->band_released = sc->band_count - kept;
+    sc->band_count = kept;
+    free(body), free(closest), free(arm);
+    return true;
+}
+
 /* Whether the garment mesh (at the bind pose) intersects the body or itself at the bind pose
  * (exact triangle tests). *out is the answer; the result reports failures to check. */
 static weft_result garment_intersects(weft_context *ctx, const weft_cloth_mesh *mesh, const weft_body *body,
@@ -841,7 +905,7 @@ static weft_result build_garment(weft_context *ctx, xscene *sc, const weft_sim_s
     /* Skirts and dresses hang from an elastic band at their top edge; without it they slide
      * off the body during the drape (measured: below the knees after 90 frames). T-shirts
      * rest on the shoulders. */
-    if ((kind == WEFT_CLOTH_SKIRT || kind == WEFT_CLOTH_DRESS) && !bind_band(sc)) {
+    if ((kind == WEFT_CLOTH_SKIRT || kind == WEFT_CLOTH_DRESS) && (!bind_band(sc) || !release_band_near_arms(sc))) {
         return weft__fail(WEFT_ERROR_OUT_OF_MEMORY, "simgen: out of memory");
     }
     snprintf(sc->objects, sizeof sc->objects, "avatar");

@@ -66,6 +66,7 @@ typedef struct xscene {
      * band. Each band vertex keeps its bind-pose offset in the frame of its closest body
      * triangle (barycentric point + offset along the edge, bitangent and normal). */
     uint32_t band_count;
+    uint32_t band_released; /* band vertices left free because an arm comes down onto them */
     uint32_t *band_idx, *band_tri;
     float *band_bary, *band_off; /* 3 per band vertex each */
 } xscene;

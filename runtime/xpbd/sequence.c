@@ -420,11 +420,13 @@ static bool write_meta(const char *dir, const xscene *sc, const weft_sim_sequenc
                                 "the body blends from its bind pose to the motion's first pose over the first half of "
                                 "the pre-roll and holds it for the second half; recording starts after it");
         cJSON_AddNumberToObject(gm, "waistband_vertices", sc->band_count);
+        cJSON_AddNumberToObject(gm, "waistband_released", sc->band_released);
         cJSON_AddNumberToObject(gm, "clearance_m", sc->garment_clearance);
         if (sc->band_count) {
             cJSON_AddStringToObject(gm, "waistband",
                                     "the top ring is pinned to the body (bind-pose offset in the closest body "
-                                    "triangle's frame), as an elastic band; pinned.npy marks it");
+                                    "triangle's frame), as an elastic band; pinned.npy marks it; vertices an arm comes within "
+                                    "4 cm of during the pre-roll are left free (waistband_released)");
         }
     }
     cJSON *cl = num_obj(m, "cloth");

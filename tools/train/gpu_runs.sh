@@ -25,6 +25,10 @@
 #            shipped `game` cut to 16 and 8 latents (cut_latents.py, into data/gpu/init/) fine-tuned
 #            at their K (data: pack.py --skin of the grown set, with its pin masks, under
 #            data/pack_pins)
+#   long     the shipped `game` and `game_k16` fine-tuned with pins and rollouts to 30 steps, one run
+#            drawing drops three times as often, one rollouts to 10 with a 10x contact weight
+#            (data: sequence folders under data/refsim as `weft simgen` writes them, generated on the
+#            GPU machine's own cores, with their S tracks under data/skin)
 set -u
 cd "$(dirname "$0")/../.." || exit 1
 R=data/gpu/runs
@@ -36,7 +40,9 @@ case "$SET" in
            EXTRA="--eval-every 500 --eval-frames 238 --keep-best --rollout-max 10" ;;
     pins) RUNS="unified_pins game_pins0 game_pins_ft game_k16_ft game_k8_ft"; DATA=${DATA:-data/pack_pins}; BUDGET=${BUDGET:-17}
           EXTRA="--eval-every 1000 --eval-frames 238 --keep-best --rollout-max 10 --pins --max-train-vertices 5000" ;;
-    *) echo "unknown SET=$SET (shipped|skin|skin2|pins)" >&2; exit 2 ;;
+    long) RUNS="long_r30 long_r30_drop long_contact k16_r30"; DATA=${DATA:-data/refsim}; BUDGET=${BUDGET:-14}
+          EXTRA="--skin data/skin --eval-every 400 --eval-frames 238 --keep-best --pins --max-train-vertices 5000" ;;
+    *) echo "unknown SET=$SET (shipped|skin|skin2|pins|long)" >&2; exit 2 ;;
 esac
 
 run_args() {  # the arguments of run $1 (besides the common ones)
@@ -58,6 +64,12 @@ run_args() {  # the arguments of run $1 (besides the common ones)
         game_pins_ft) echo --init-from tools/train/models/game.ckpt.pt --batch 32 --lr 3e-4 ;;
         game_k16_ft) echo --init-from data/gpu/init/game_k16.pt --batch 32 --lr 3e-4 ;;
         game_k8_ft) echo --init-from data/gpu/init/game_k8.pt --batch 32 --lr 3e-4 ;;
+        long_r30) echo --init-from tools/train/models/game.ckpt.pt --batch 32 --lr 3e-4 --rollout-max 30 ;;
+        long_r30_drop) echo --init-from tools/train/models/game.ckpt.pt --batch 32 --lr 3e-4 --rollout-max 30 \
+                            --scenario-weight drop=3 ;;
+        long_contact) echo --init-from tools/train/models/game.ckpt.pt --batch 32 --lr 3e-4 --rollout-max 10 \
+                           --lambda-contact 0.5 --scenario-weight drop=2 ;;
+        k16_r30) echo --init-from tools/train/models/game_k16.ckpt.pt --batch 32 --lr 3e-4 --rollout-max 30 ;;
     esac
 }
 
@@ -93,5 +105,5 @@ case "${1:-}" in
         collect ;;
     launch) start "" ;;
     collect) collect ;;
-    *) echo "usage: SET=shipped|skin|skin2|pins $0 train|launch|collect" >&2; exit 2 ;;
+    *) echo "usage: SET=shipped|skin|skin2|pins|long $0 train|launch|collect" >&2; exit 2 ;;
 esac
