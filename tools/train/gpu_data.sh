@@ -1,12 +1,12 @@
 #!/bin/bash
-# Training data made on a lent GPU machine's own cores, for a session that starts without data.
+# Training data made on a GPU machine's own cores, for a training machine that starts without data.
 # A lent machine has many cores but no libcjson or cglm and no package registry, so the weft
 # tool is built here and carried (x86-64 only, like the machine).
 #
 #   tools/train/gpu_data.sh bundle [DIR]   here: build a minimal `weft` (no samples, tests or
 #                                          renderer) into DIR (default .dev) with the shared
-#                                          libraries it needs besides libc; ignore DIR in git
-#                                          (.git/info/exclude) and name it in the call's carry
+#                                          libraries it needs besides libc (.dev is git-ignored;
+#                                          name it in the device call's carry)
 #   tools/train/gpu_data.sh gen            there: one detached `weft simgen` per core, 1k tier,
 #                                          train names on all but two cores, val names on two
 #                                          (JOBS=N overrides the core count); returns at once
