@@ -1,7 +1,7 @@
 #!/usr/bin/python3
 """Draws docs/img/stability.png from the CSV written by `weft bench stability`.
 
-A heat map, methods down, stress cases across: green pass, amber warning (penetrations after CCD,
+A heat map, methods down, stress cases across: green pass, amber warning (penetrations, after CCD when it is on,
 MVE drift, or too slow to finish), red failure (NaN, explosion, run error), grey not measured. Each cell is
 annotated with the error (MVE cm, or e3D for FNOpt cells) and the first- and last-quarter MVE.
 """
@@ -84,7 +84,7 @@ def main():
     ax.grid(which="minor", color="white", linewidth=2)
     ax.tick_params(which="minor", length=0)
     ax.legend(handles=[Patch(color=COLORS[0], label="pass"),
-                       Patch(color=COLORS[1], label="penetrates after CCD / MVE drifts / too slow"),
+                       Patch(color=COLORS[1], label="penetrates (after CCD when on) / MVE drifts / too slow"),
                        Patch(color=COLORS[2], label="NaN / >1% of edges strained > 25% / run failed"),
                        Patch(color=COLORS[3], label="not measured")],
               loc="upper center", bbox_to_anchor=(0.5, -0.18), ncol=2, fontsize=8, frameon=False)

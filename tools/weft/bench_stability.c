@@ -594,8 +594,8 @@ static int write_tables(const st_run *run)
                "%.0f%% in some frame; a single edge over %.0f%% is common at pins and tight contacts, in the reference "
                "too, so the max strain is shown next to the reference's own), **too slow** (the rollout's steps took more "
                "than %u s, so it was stopped and only its prefix is scored), **error** (the run "
-               "failed, see note), **penetrates** (more than %.0f%% of cloth vertices in collision per frame after "
-               "CCD), **drifts** (last-quarter MVE > %.0fx first-quarter MVE and >= %.1f cm), else **pass**. MVE growth compares "
+               "failed, see note), **penetrates** (more than %.0f%% of cloth vertices in collision per frame, after "
+               "CCD when it is on), **drifts** (last-quarter MVE > %.0fx first-quarter MVE and >= %.1f cm), else **pass**. MVE growth compares "
                "the MVE of the last quarter of the rollout with the first quarter's (exact: rollouts are "
                "deterministic prefixes, scored at 1/4, 3/4 and full length); the ratio is shown only when the "
                "first quarter is at least %.1f cm, since rollouts start from ground truth.\n\n",
