@@ -34,7 +34,25 @@ static weft_result get_pos(const weft_model *m, const char *key, float *out)
     return WEFT_OK;
 }
 
-static const char *const g_prior_names[WEFT_CT_PRIOR_COUNT] = {"inertial", "previous", "skinned"};
+static const char *const g_prior_names[WEFT_CT_PRIOR_COUNT] = {"inertial", "previous", "skinned", "ballistic"};
+
+/* Optional number `key` in [lo, hi]; `*out` keeps its default when the file has no such key. */
+static weft_result get_optional_in(const weft_model *m, const char *key, double lo, double hi, float *out)
+{
+    if (!weft__model_config_find(m, key)) {
+        return WEFT_OK;
+    }
+    double v;
+    weft_result r = weft__model_config_number(m, key, &v);
+    if (r != WEFT_OK) {
+        return r;
+    }
+    if (!isfinite(v) || v < lo || v > hi) {
+        return weft__fail(WEFT_ERROR_BAD_METADATA, "model config '%s' = %g must lie in [%g, %g]", key, v, lo, hi);
+    }
+    *out = (float)v;
+    return WEFT_OK;
+}
 
 /* The prior called `name`; WEFT_CT_PRIOR_COUNT for none. */
 static weft_ct_prior prior_named(const char *name)
@@ -73,7 +91,14 @@ static weft_result read_config(const weft_model *m, weft_ct_config *c)
     t.prior = prior_named(prior);
     if (t.prior == WEFT_CT_PRIOR_COUNT) {
         return weft__fail(WEFT_ERROR_BAD_METADATA,
-                          "model config 'prior' = '%s': expected 'inertial', 'previous' or 'skinned'", prior);
+                          "model config 'prior' = '%s': expected 'inertial', 'previous', 'skinned' or 'ballistic'",
+                          prior);
+    }
+    t.prior_beta = 1.0f;
+    t.gravity_step = (float)(9.81 / 3600.0);
+    if ((r = get_optional_in(m, "prior_beta", 0.0, 1.0, &t.prior_beta)) != WEFT_OK ||
+        (r = get_optional_in(m, "gravity_step", 0.0, 0.1, &t.gravity_step)) != WEFT_OK) {
+        return r;
     }
     /* Optional keys. */
     if (weft__model_config_find(m, "requires_collider") &&
@@ -1318,6 +1343,8 @@ static weft_result ct_output(weft_garment *g, ct_state *s)
             prior = 2.0f * g->x[i] - g->x_prev[i];
         } else if (c->prior == WEFT_CT_PRIOR_SKINNED) {
             prior = g->x[i] + (s->skin_next[i] - s->skin_cur[i]);
+        } else if (c->prior == WEFT_CT_PRIOR_BALLISTIC) {
+            prior = g->x[i] + c->prior_beta * (g->x[i] - g->x_prev[i]) - (i % 3 == 1 ? c->gravity_step : 0.0f);
         }
         g->x_next[i] = prior + c->out_scale * s->out3[i];
     }

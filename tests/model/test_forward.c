@@ -527,26 +527,27 @@ static bool lbs_track(const golden *g, weft_context *ctx, uint32_t frames, float
     return made;
 }
 
-/* The three priors on the same network output: three garments (inertial, previous, skinned) set
- * to the same state every frame of the skinned model's rollout step to
- *   x(previous) - x(inertial) = X_{t-1} - X_t   and   x(skinned) - x(previous) = S_{t+1} - S_t,
+/* The four priors on the same network output: four garments (inertial, previous, skinned,
+ * ballistic) set to the same state every frame of the skinned model's rollout step to
+ *   x(previous) - x(inertial) = X_{t-1} - X_t,   x(skinned) - x(previous) = S_{t+1} - S_t   and
+ *   x(ballistic) - x(previous) = X_t - X_{t-1} - g dt^2 Y   (the default beta 1, g dt^2 9.81/3600 m),
  * S from the LBS method, at every precision. (weft_garment_set_state restarts the latent history
- * each frame, the same in all three.) */
-static void prior_differences(const golden *g, weft_context *ctx, weft_model *const models[3], const float *S,
+ * each frame, the same in all four.) */
+static void prior_differences(const golden *g, weft_context *ctx, weft_model *const models[4], const float *S,
                               uint32_t T)
 {
     const size_t n = (size_t)g->V * 3;
     float *X = malloc(n * sizeof(float)), *Xp = malloc(n * sizeof(float));
-    double worst_prev = 0, worst_skin = 0, skin_motion = 0;
+    double worst_prev = 0, worst_skin = 0, worst_ball = 0, skin_motion = 0;
     for (int prec = 0; prec < 3; ++prec) {
-        weft_garment *gar[3] = {NULL, NULL, NULL};
-        for (int k = 0; k < 3; ++k) {
+        weft_garment *gar[4] = {NULL, NULL, NULL, NULL};
+        for (int k = 0; k < 4; ++k) {
             weft_garment_def d = garment_def(g, models[k], 1);
             d.precision = (weft_precision)prec;
             CHECK_RESULT(weft_garment_create(ctx, &d, &gar[k]), WEFT_OK);
         }
-        if (!gar[0] || !gar[1] || !gar[2]) {
-            for (int k = 0; k < 3; ++k) {
+        if (!gar[0] || !gar[1] || !gar[2] || !gar[3]) {
+            for (int k = 0; k < 4; ++k) {
                 weft_garment_destroy(gar[k]);
             }
             continue;
@@ -554,7 +555,7 @@ static void prior_differences(const golden *g, weft_context *ctx, weft_model *co
         memcpy(X, frame(&g->gt, 1), n * sizeof(float));
         memcpy(Xp, frame(&g->gt, 0), n * sizeof(float));
         for (uint32_t t = 1; t <= T; ++t) {
-            for (int k = 0; k < 3; ++k) {
+            for (int k = 0; k < 4; ++k) {
                 CHECK_RESULT(weft_garment_set_state(gar[k], X, Xp), WEFT_OK);
                 CHECK_RESULT(weft_garment_set_collider(gar[k], frame(&g->cpos, t + 1)), WEFT_OK);
                 CHECK_RESULT(weft_garment_step(gar[k]), WEFT_OK);
@@ -565,23 +566,31 @@ static void prior_differences(const golden *g, weft_context *ctx, weft_model *co
             const double e_prev = diff_of_diffs(xp, xi, Xp, X, n), e_skin = diff_of_diffs(xs, xp, s_next, s_cur, n);
             CHECK_MSG(e_prev <= 1e-5, "precision %d frame %u: previous - inertial off by %.3g m", prec, t, e_prev);
             CHECK_MSG(e_skin <= 1e-5, "precision %d frame %u: skinned - previous off by %.3g m", prec, t, e_skin);
+            const float *xb = weft_garment_positions(gar[3]);
+            double e_ball = 0;
+            for (size_t i = 0; i < n; ++i) {
+                const double want = ((double)X[i] - Xp[i]) - (i % 3 == 1 ? 9.81 / 3600.0 : 0.0);
+                e_ball = fmax(e_ball, fabs(((double)xb[i] - xp[i]) - want));
+            }
+            CHECK_MSG(e_ball <= 1e-5, "precision %d frame %u: ballistic - previous off by %.3g m", prec, t, e_ball);
             worst_prev = fmax(worst_prev, e_prev);
             worst_skin = fmax(worst_skin, e_skin);
+            worst_ball = fmax(worst_ball, e_ball);
             for (size_t i = 0; i < n; ++i) {
                 skin_motion = fmax(skin_motion, fabs((double)s_next[i] - s_cur[i]));
             }
             memcpy(Xp, X, n * sizeof(float));
             memcpy(X, xs, n * sizeof(float));
         }
-        for (int k = 0; k < 3; ++k) {
+        for (int k = 0; k < 4; ++k) {
             weft_garment_destroy(gar[k]);
         }
     }
     /* not vacuous: the collider moves the skinned prior away from the previous one */
     CHECK_MSG(skin_motion > 1e-3, "S moves at most %.3g m per frame", skin_motion);
     printf("priors over %u frames x 3 precisions: previous - inertial off by %.3g m, skinned - previous off by "
-           "%.3g m (S moves up to %.3g m per frame)\n",
-           T, worst_prev, worst_skin, skin_motion);
+           "%.3g m (S moves up to %.3g m per frame), ballistic - previous off by %.3g m\n",
+           T, worst_prev, worst_skin, skin_motion, worst_ball);
     free(X);
     free(Xp);
 }
@@ -629,8 +638,9 @@ static void skinned_rollout(const golden *g, weft_context *ctx, const weft_model
     weft_garment_destroy(twins[1]);
 }
 
-/* The prior "skinned" (X_t + S_{t+1} - S_t) against "previous" and "inertial" on the same
- * weights, its collider requirement and an unknown prior name. */
+/* The priors "skinned" (X_t + S_{t+1} - S_t) and "ballistic" against "previous" and "inertial"
+ * on the same weights, the skinned one's collider requirement, the ballistic one's optional keys
+ * and an unknown prior name. */
 static void priors(void)
 {
     golden g;
@@ -639,9 +649,9 @@ static void priors(void)
         return;
     }
     weft_context *ctx = make_ctx();
-    const char *names[3] = {"inertial", "previous", "skinned"};
-    weft_model *models[3] = {NULL, NULL, NULL};
-    for (int k = 0; k < 3; ++k) {
+    const char *names[4] = {"inertial", "previous", "skinned", "ballistic"};
+    weft_model *models[4] = {NULL, NULL, NULL, NULL};
+    for (int k = 0; k < 4; ++k) {
         weft_result r;
         models[k] = model_with_prior(ctx, names[k], &r);
         CHECK_RESULT(r, WEFT_OK);
@@ -649,7 +659,7 @@ static void priors(void)
     const uint32_t T = 12;
     const size_t n = (size_t)g.V * 3;
     float *S = malloc((T + 1) * n * sizeof(float));
-    if (models[0] && models[1] && models[2] && lbs_track(&g, ctx, T + 1, S)) {
+    if (models[0] && models[1] && models[2] && models[3] && lbs_track(&g, ctx, T + 1, S)) {
         prior_differences(&g, ctx, models, S, T);
         skinned_rollout(&g, ctx, models[2], T);
     }
@@ -658,10 +668,10 @@ static void priors(void)
     weft_model *bad = model_with_prior(ctx, "skinny", &r);
     CHECK(bad == NULL);
     CHECK_RESULT(r, WEFT_ERROR_BAD_METADATA);
-    CHECK_MSG(strstr(weft_last_error(), "'inertial', 'previous' or 'skinned'") != NULL, "message: %s",
+    CHECK_MSG(strstr(weft_last_error(), "'inertial', 'previous', 'skinned' or 'ballistic'") != NULL, "message: %s",
               weft_last_error());
     free(S);
-    for (int k = 0; k < 3; ++k) {
+    for (int k = 0; k < 4; ++k) {
         weft_model_destroy(models[k]);
     }
     weft_context_destroy(ctx);
@@ -669,6 +679,11 @@ static void priors(void)
     /* the skinned prior follows the collider: a garment without one is refused, nothing held */
     expect_create_fails("\\\"prior\\\": \\\"inertial\\\"", "\\\"prior\\\": \\\"skinned\\\"", false,
                         WEFT_ERROR_NO_COLLIDER);
+    /* the ballistic prior's optional terms are range-checked at load */
+    expect_create_fails("\\\"prior\\\": \\\"", "\\\"prior_beta\\\": 1.5, \\\"prior\\\": \\\"", true,
+                        WEFT_ERROR_BAD_METADATA);
+    expect_create_fails("\\\"prior\\\": \\\"", "\\\"gravity_step\\\": -1, \\\"prior\\\": \\\"", true,
+                        WEFT_ERROR_BAD_METADATA);
 }
 
 /* The golden collider (which only translates) also turning about the vertical axis through its

@@ -7,6 +7,9 @@
 Each --method is LABEL=METHOD[:ARG][,strain=PCT][,tether=CM] with METHOD one of model:PATH (fp32),
 int8:PATH, fp16:PATH, lbs, xpbd:S; strain= and tether= add the runtime's strain limit and
 tethers (`weft eval --strain-limit`, `--tether-cm`), e.g. `game+SL10=model:game.safetensors,strain=10`;
+a method chosen per scene is SCENARIO@METHOD alternatives joined by '|', '*' for every other
+scenario, e.g. `'game_k16+drop=drop@model:drop.safetensors|*@model:game_k16.safetensors,strain=10'`
+(each alternative runs on a temporary folder of links to that scenario's sequences);
 every run is `weft eval --seq DATA --split SPLIT --ccd off|on` (240-frame rollouts
 from the first two reference frames). The per-sequence lines eval prints are grouped by the
 scenario in each sequence's name (drop_/garment_/gripper_) and averaged weighted by frames
@@ -18,6 +21,7 @@ import os
 import re
 import subprocess
 import sys
+import tempfile
 
 LINE = re.compile(r"^(\S+)\s+frames\s+(\d+)\s+MVE\s+([-\d.naninf]+) cm\s+coll\s+([-\d.]+)%\s+self\s+([-\d.]+)%\s+"
                   r"([-\d.]+) ms/frame\s+strain\s+([-\d.naninf]+)\s+tokens\s+\S+(\s+NaN)?")
@@ -68,6 +72,27 @@ def run(weft, data, split, spec, ccd, frames, pins="xpbd"):
     return rows
 
 
+def run_chosen(weft, data, split, spec, ccd, frames, pins):
+    """A method chosen per scenario: 'drop@SPEC|*@SPEC'. Each alternative runs on a temporary
+    folder of links to the sequences of its scenarios."""
+    alts = [alt.partition("@") for alt in spec.split("|")]
+    named = {sc for sc, _, _ in alts if sc != "*"}
+    if any(not m for _, _, m in alts) or not named <= set(SCENARIOS):
+        sys.exit(f"heldout_table: '{spec}': want SCENARIO@METHOD alternatives ({', '.join(SCENARIOS)} or *)")
+    rows = []
+    for sc, _, m in alts:
+        wanted = {sc} if sc != "*" else set(SCENARIOS) - named
+        with tempfile.TemporaryDirectory(prefix="heldout_") as tmp:
+            n = 0
+            for name in sorted(os.listdir(data)):
+                if name.split("_")[0] in wanted and os.path.exists(os.path.join(data, name, "meta.json")):
+                    os.symlink(os.path.abspath(os.path.join(data, name)), os.path.join(tmp, name))
+                    n += 1
+            if n:
+                rows += run(weft, tmp, split, m, ccd, frames, pins)
+    return rows
+
+
 def mean(rows, key):
     w = sum(r["frames"] for r in rows)
     return sum(r[key] * r["frames"] for r in rows) / w if w else float("nan")
@@ -92,7 +117,10 @@ def main():
             label, _, spec = m.partition("=")
             if not spec:
                 sys.exit(f"heldout_table: --method wants LABEL=METHOD, got '{m}'")
-            rows = run(a.weft, a.data, split, spec, a.ccd, a.frames, a.pins)
+            if "@" in spec:
+                rows = run_chosen(a.weft, a.data, split, spec, a.ccd, a.frames, a.pins)
+            else:
+                rows = run(a.weft, a.data, split, spec, a.ccd, a.frames, a.pins)
             for r in rows:
                 per_seq.append(dict(r, split=split, method=label))
             cells = [split, label, f"{mean(rows, 'mve_cm'):.2f}"]

@@ -14,8 +14,9 @@ Data flow for one step t -> t+1 (all positions in metres, centred on the garment
   decoder:  rest-shape vertices -> pe -> MLP -> queries cross-attending to Z_{t+1}
             (+ the encoder's vertex tokens when dec_skip) -> 2 x GNN -> Linear -> displacement
   output:   X_{t+1} = prior + out_scale * displacement, prior = 2 X_t - X_{t-1} ("inertial"), X_t
-            ("previous") or X_t + S_{t+1} - S_t ("skinned": S is the skinning baseline on the
-            collider, runtime/xpbd/lbs.c; equal to "previous" when the collider does not move)
+            ("previous"), X_t + S_{t+1} - S_t ("skinned": S is the skinning baseline on the
+            collider, runtime/xpbd/lbs.c; equal to "previous" when the collider does not move) or
+            X_t + beta (X_t - X_{t-1}) + g dt^2 ("ballistic": free fall is in the prior)
 """
 import json
 import math
@@ -40,7 +41,10 @@ DEFAULT_CONFIG = {
     "vel_scale": 100.0,   # multiplies X_t - X_{t-1} (m/frame) before the velocity embedding
     "area_scale": 100.0,  # multiplies sqrt(triangle area) (m) of collider triangles
     "out_scale": 0.01,    # metres per unit of the decoder output
-    "prior": "inertial",  # "inertial" (2 X_t - X_{t-1}), "previous" (X_t), "skinned" (X_t + S_{t+1} - S_t)
+    "prior": "inertial",  # "inertial" (2 X_t - X_{t-1}), "previous" (X_t), "skinned" (X_t + S_{t+1} - S_t),
+                          # "ballistic" (X_t + prior_beta (X_t - X_{t-1}) - gravity_step along Y)
+    "prior_beta": 1.0,    # ballistic prior: fraction of the last frame's displacement carried on
+    "gravity_step": 9.81 / 3600.0,  # ballistic prior: g dt^2 (m) at 60 Hz, applied along -Y
     "crop_margin": 0.15,  # collider triangles farther than this (m) from the garment box are dropped
     "dec_skip": True,     # decoder adds the encoder's per-vertex tokens to its queries' output
     "requires_collider": False,  # set by training when every training sequence had a collider
@@ -48,7 +52,7 @@ DEFAULT_CONFIG = {
 }
 
 GELU_TANH = "tanh"
-PRIORS = ("inertial", "previous", "skinned")
+PRIORS = ("inertial", "previous", "skinned", "ballistic")
 
 
 def full_config(cfg):
@@ -288,6 +292,10 @@ class ClothTransformer(nn.Module):
             if s_next is None or s_cur is None:
                 raise ValueError("the skinned prior needs the S track (S_t and S_{t+1})")
             return x_t + (s_next - s_cur)
+        if p == "ballistic":
+            g = torch.zeros(3, dtype=x_t.dtype, device=x_t.device)
+            g[1] = -self.cfg["gravity_step"]
+            return x_t + self.cfg["prior_beta"] * (x_t - x_prev) + g
         return x_t
 
     # -- one step ----------------------------------------------------------------------------

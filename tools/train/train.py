@@ -62,14 +62,18 @@ class MeshCache:
         return c
 
 
-def data_stats(seqs, prior):
+def data_stats(seqs, cfg):
     """Scales that bring inputs and outputs to unit order (stored in the model config)."""
+    prior = cfg["prior"]
     vel, res, area = [], [], []
     for s in seqs[:64]:
         x = np.asarray(s.pos, dtype=np.float64)
         v = x[1:] - x[:-1]
         vel.append(v.reshape(-1))
         p = 2 * x[1:-1] - x[:-2] if prior == "inertial" else x[1:-1]
+        if prior == "ballistic":
+            p = x[1:-1] + cfg["prior_beta"] * (x[1:-1] - x[:-2])
+            p[..., 1] -= cfg["gravity_step"]
         if prior == "skinned":
             if s.skin is None:   # refused after the config is settled (main)
                 continue
@@ -299,7 +303,7 @@ def main():
     else:
         cfg = dict(PRESETS[a.preset])
         cfg.update(json.loads(a.config))
-        cfg.update(data_stats(train, full_config(cfg)["prior"]))
+        cfg.update(data_stats(train, full_config(cfg)))
         # trained only with colliders: the runtime refuses a garment without one
         cfg["requires_collider"] = all(s.cfaces is not None for s in train)
         cfg.update(json.loads(a.config))   # explicit overrides win over measured scales
