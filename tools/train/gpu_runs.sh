@@ -29,6 +29,10 @@
 #            drawing drops three times as often, one rollouts to 10 with a 10x contact weight
 #            (data: sequence folders under data/refsim as `weft simgen` writes them, generated on the
 #            GPU machine's own cores, with their S tracks under data/skin)
+#   ballistic  drop specialists with the ballistic prior (free fall in the prior, docs/MODEL.md
+#            "A drop specialist"): `game_k16` fine-tuned on drops with beta 1 and 0.9, one on drops
+#            and the gripper, and one from scratch at the game_k16 size; rollouts to 30 steps
+#            (data: as for long, the S tracks are not needed)
 set -u
 cd "$(dirname "$0")/../.." || exit 1
 R=data/gpu/runs
@@ -42,7 +46,9 @@ case "$SET" in
           EXTRA="--eval-every 1000 --eval-frames 238 --keep-best --rollout-max 10 --pins --max-train-vertices 5000" ;;
     long) RUNS="long_r30 long_r30_drop long_contact k16_r30"; DATA=${DATA:-data/refsim}; BUDGET=${BUDGET:-14}
           EXTRA="--skin data/skin --eval-every 400 --eval-frames 238 --keep-best --pins --max-train-vertices 5000" ;;
-    *) echo "unknown SET=$SET (shipped|skin|skin2|pins|long)" >&2; exit 2 ;;
+    ballistic) RUNS="ball_drop ball_drop_b09 ball_dg ball_drop0"; DATA=${DATA:-data/refsim}; BUDGET=${BUDGET:-14}
+          EXTRA="--eval-every 400 --eval-frames 238 --keep-best --pins --max-train-vertices 5000 --rollout-max 30" ;;
+    *) echo "unknown SET=$SET (shipped|skin|skin2|pins|long|ballistic)" >&2; exit 2 ;;
 esac
 
 run_args() {  # the arguments of run $1 (besides the common ones)
@@ -70,6 +76,13 @@ run_args() {  # the arguments of run $1 (besides the common ones)
         long_contact) echo --init-from tools/train/models/game.ckpt.pt --batch 32 --lr 3e-4 --rollout-max 10 \
                            --lambda-contact 0.5 --scenario-weight drop=2 ;;
         k16_r30) echo --init-from tools/train/models/game_k16.ckpt.pt --batch 32 --lr 3e-4 --rollout-max 30 ;;
+        ball_drop) echo "--init-from tools/train/models/game_k16.ckpt.pt --config '{\"prior\":\"ballistic\"}'" \
+                        --scenarios drop --batch 32 --lr 3e-4 ;;
+        ball_drop_b09) echo "--init-from tools/train/models/game_k16.ckpt.pt" \
+                            "--config '{\"prior\":\"ballistic\",\"prior_beta\":0.9}' --scenarios drop --batch 32 --lr 3e-4" ;;
+        ball_dg) echo "--init-from tools/train/models/game_k16.ckpt.pt --config '{\"prior\":\"ballistic\"}'" \
+                      --scenarios drop,gripper --batch 32 --lr 3e-4 ;;
+        ball_drop0) echo "--preset game --config '{\"prior\":\"ballistic\",\"K\":16}' --scenarios drop --batch 32 --lr 1e-3" ;;
     esac
 }
 
@@ -105,5 +118,5 @@ case "${1:-}" in
         collect ;;
     launch) start "" ;;
     collect) collect ;;
-    *) echo "usage: SET=shipped|skin|skin2|pins|long $0 train|launch|collect" >&2; exit 2 ;;
+    *) echo "usage: SET=shipped|skin|skin2|pins|long|ballistic $0 train|launch|collect" >&2; exit 2 ;;
 esac

@@ -215,6 +215,9 @@ def main():
     ap.add_argument("--batch", type=int, default=4, help="windows per step (same sequence)")
     ap.add_argument("--lr", type=float, default=1e-3)
     ap.add_argument("--rollout-max", type=int, default=5)
+    ap.add_argument("--rollout-min", type=int, default=1,
+                    help="shortest rollout of the curriculum (a fine-tune of a model already trained "
+                         "on long rollouts need not start again at 1)")
     ap.add_argument("--lambda-contact", type=float, default=0.05)
     ap.add_argument("--lambda-ccd", type=float, default=1.0)
     ap.add_argument("--lambda-strain", type=float, default=0.0,
@@ -228,6 +231,9 @@ def main():
                          "the runtime does with weft_garment_set_pins (evaluate with weft eval --pins all)")
     ap.add_argument("--scenario-weight", nargs="*", default=[], metavar="SCENARIO=W",
                     help="draw training sequences of a scenario W times as often (default 1 each)")
+    ap.add_argument("--scenarios", default="",
+                    help="comma-separated scenarios (drop,gripper,garment) to train and validate on "
+                         "(default: all): a model for the scenes that need it, e.g. a drop specialist")
     ap.add_argument("--max-train-vertices", type=int, default=0,
                     help="leave training sequences with more cloth vertices out (0: keep all); "
                          "bounds memory at a given batch and rollout length")
@@ -264,6 +270,10 @@ def main():
     train = weft_data.load_sequences(a.data, "train", skin_roots=a.skin)
     val = (weft_data.load_sequences(a.data, "val", skin_roots=a.skin)
            or weft_data.load_sequences(a.data, "test", skin_roots=a.skin))
+    if a.scenarios:
+        keep = set(a.scenarios.split(","))
+        train = [s for s in train if s.scenario in keep]
+        val = [s for s in val if s.scenario in keep]
     if a.max_train_vertices > 0:
         train = [s for s in train if s.rest.shape[0] <= a.max_train_vertices]
     if not train:
@@ -379,6 +389,7 @@ def main():
         for gparam in opt.param_groups:
             gparam["lr"] = lr
         R = 1 + min(a.rollout_max - 1, int(a.rollout_max * progress / 0.7))
+        R = max(R, min(a.rollout_min, a.rollout_max))
         seq = random.choices(train, draw_w)[0] if weights else random.choice(train)
         h = cfg["history"]
         need = (h - 1) + R + 2
