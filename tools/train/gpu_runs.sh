@@ -30,7 +30,7 @@
 #            (data: sequence folders under data/refsim as `weft simgen` writes them, generated on the
 #            GPU machine's own cores, with their S tracks under data/skin)
 #   ballistic  drop specialists with the ballistic prior (free fall in the prior, docs/MODEL.md
-#            "A drop specialist"): `game_k16` fine-tuned on drops with beta 1 and 0.9, one on drops
+#            "Ballistic prior: a drop specialist"): `game_k16` fine-tuned on drops with beta 1 and 0.9, one on drops
 #            and the gripper, and one from scratch at the game_k16 size; rollouts to 30 steps
 #            (data: as for long, the S tracks are not needed)
 set -u

@@ -5,6 +5,8 @@
 Priors:
   still     X_{t+1} = X_t (the cloth does not move)
   inertial  X_{t+1} = 2 X_t - X_{t-1}
+  ballistic X_{t+1} = X_t + beta (X_t - X_{t-1}) - g dt^2 y (free fall through everything; the
+            runtime's ballistic prior, --beta as its prior_beta)
   follow    each vertex moves with the closest point of the collider (nearest triangle at t, same
             barycentric point at t+1), weighted by 1 - distance / --radius, and keeps its
             velocity for the rest of the weight (the collider-following prior)
@@ -82,7 +84,10 @@ def follow_displacement(x, c_now, c_next, faces, candidates=8):
     return best_disp, best_d
 
 
-def rollout(seq, prior, radius, frames):
+GRAVITY_STEP = 9.81 / 3600.0  # g dt^2 at 60 Hz, the model config's default gravity_step
+
+
+def rollout(seq, prior, radius, frames, beta=1.0):
     x = np.asarray(seq.pos, dtype=np.float64)
     T = min(frames, len(x))
     c = None if seq.cpos is None else np.asarray(seq.cpos, dtype=np.float64)
@@ -92,6 +97,9 @@ def rollout(seq, prior, radius, frames):
         vel = xt - xp
         if prior == "still":
             nxt = xt
+        elif prior == "ballistic":
+            nxt = xt + beta * vel
+            nxt[:, 1] -= GRAVITY_STEP
         elif prior == "inertial" or c is None:
             nxt = xt + vel
         else:
@@ -110,12 +118,13 @@ def main():
     ap.add_argument("--priors", default="still,inertial,follow")
     ap.add_argument("--radius", type=float, default=0.05, help="follow prior: influence radius (m)")
     ap.add_argument("--frames", type=int, default=240)
+    ap.add_argument("--beta", type=float, default=1.0, help="ballistic prior: velocity factor")
     a = ap.parse_args()
     seqs = [s for s in weft_data.load_sequences(a.data) if s.split in a.split]
     if not seqs:
         sys.exit(f"no sequences of split {a.split} under {a.data}")
     for prior in a.priors.split(","):
-        rows = [(s.name, *rollout(s, prior, a.radius, a.frames)) for s in seqs]
+        rows = [(s.name, *rollout(s, prior, a.radius, a.frames, a.beta)) for s in seqs]
         total = sum(m * n for _, m, n in rows) / sum(n for _, _, n in rows)
         print(f"{prior:9s} all {total:7.2f} cm | " + "  ".join(f"{n} {m:.2f}" for n, m, _ in rows), flush=True)
 
