@@ -259,9 +259,14 @@ typedef struct weft_garment_def {
      * learned step or a tether clamp moves vertices one by one; this keeps the cloth from being
      * torn open for a few sweeps over the edges. CCD runs after it and may still stretch edges
      * where it holds vertices back. 0 (default) = off; in [0, 10].
-     * strain_limit_iterations: default 8, in [1, 1000] when the limit is on. */
+     * strain_limit_iterations: default 8, in [1, 1000] when the limit is on.
+     * strain_limit_contact: metres; > 0 makes the limit contact-aware: vertices within this
+     * distance of the collider at t+1 stay where the step put them, as pinned ones do, and their
+     * free neighbours take the whole correction (a sheet draped over an object is then not
+     * dragged into it by its hanging part). Needs a collider; 0 (default) = off; in [0, 1]. */
     float strain_limit;
     uint32_t strain_limit_iterations;
+    float strain_limit_contact;
     uint32_t internal_cookie;           /* set by weft_default_garment_def(); do not touch */
 } weft_garment_def;
 

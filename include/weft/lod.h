@@ -55,6 +55,8 @@
  *
  *   tether_cm            tether radius in cm, in (0, 100000]; "-": no tethers
  *   strain_limit_pct     strain limit in %, in (0, 1000]; "-": none
+ *   strain_contact_cm    contact-aware strain limit distance in cm, in (0, 100], only with a
+ *                        strain limit (weft_garment_def.strain_limit_contact); "-": plain limit
  *
  * Columns may come in any order; unknown columns are an error (a misspelt name would otherwise
  * silently drop a measurement). Tables written before the crop columns existed load unchanged.
@@ -86,6 +88,7 @@ typedef struct weft_lod_level {
     uint32_t max_collider_tokens;       /* 0: no cap */
     double tether_cm;                   /* 0: no tethers (weft_garment_def.tether_distance, in cm) */
     double strain_limit_pct;            /* 0: none (weft_garment_def.strain_limit, in %) */
+    double strain_contact_cm;           /* 0: plain limit (weft_garment_def.strain_limit_contact, in cm) */
     double ms_per_frame;
     double mve_cm;
     double max_edge_strain;

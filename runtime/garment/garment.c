@@ -133,6 +133,15 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_garment_create: strain_limit_iterations %u outside [1, 1000]",
                           def->strain_limit_iterations);
     }
+    if (!(def->strain_limit_contact >= 0.0f && def->strain_limit_contact <= 1.0f)) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
+                          "weft_garment_create: strain_limit_contact %g is not in [0, 1] metres (0: off)",
+                          (double)def->strain_limit_contact);
+    }
+    if (def->strain_limit > 0.0f && def->strain_limit_contact > 0.0f && def->collider_vertex_count == 0) {
+        return weft__fail(WEFT_ERROR_NO_COLLIDER,
+                          "weft_garment_create: strain_limit_contact looks for the collider, and the garment has none");
+    }
     if (tethers && def->collider_vertex_count == 0) {
         return weft__fail(WEFT_ERROR_NO_COLLIDER,
                           "weft_garment_create: tethers follow the collider, and the garment has none");
@@ -175,6 +184,7 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
     g->max_collider_tokens = def->max_collider_tokens;
     g->strain_limit = def->strain_limit;
     g->strain_iterations = def->strain_limit_iterations;
+    g->strain_contact = def->strain_limit > 0.0f ? def->strain_limit_contact : 0.0f;
     g->vertex_count = def->vertex_count;
     g->triangle_count = def->triangle_count;
     g->collider_vertex_count = def->collider_vertex_count;

@@ -31,7 +31,12 @@ struct weft_garment {
     uint32_t strain_edge_count;
     uint32_t *strain_edges;             /* unique edges, 2 per edge */
     float *strain_rest;                 /* rest length per edge */
-    uint8_t *strain_fixed;              /* vertex_count: 1 glued (radius-0 tether), | 2 pinned this step */
+    uint8_t *strain_fixed;              /* vertex_count: 1 glued (radius-0 tether), | 2 pinned this step,
+                                         * | 4 near the collider this step (contact-aware limit) */
+    float strain_contact;               /* contact-aware limit distance, metres; 0: off */
+    double *strain_cpos;                /* collider_vertex_count * 3: the collider at t+1, for the tree */
+    struct xbvh *strain_ctree;          /* collider triangles (runtime/xpbd/xpbd_bvh.c); NULL: off */
+    float *strain_normal;               /* vertex_count * 3: away from the collider, where bit 4 is set */
 
     uint32_t vertex_count, triangle_count;
     float *rest;                        /* vertex_count * 3 */

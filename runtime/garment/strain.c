@@ -2,8 +2,13 @@
  * shortened by Gauss-Seidel sweeps, each endpoint moving by its share (pinned vertices and those
  * glued by radius-0 tethers do not move). Learned steps and tether clamps move vertices one by one,
  * so neighbours can end a step far apart; this restores the cloth's near-inextensibility cheaply
- * (a few sweeps over the edges, no allocation) before CCD, which then works on a sane mesh. */
+ * (a few sweeps over the edges, no allocation) before CCD, which then works on a sane mesh.
+ * Contact-aware (strain_contact > 0): a vertex near the collider at t+1 keeps only the part of
+ * its correction that does not point into the collider (it slides along the surface or leaves
+ * it). Without it, the hanging part of a sheet draped over an object drags the part lying on it
+ * into the object (docs/MODEL.md). */
 #include "garment/garment.h"
+#include "xpbd/xpbd.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -40,6 +45,31 @@ weft_result weft__strain_create(weft_garment *g)
         return WEFT_ERROR_OUT_OF_MEMORY;
     }
     g->strain_edge_count = m;
+    if (g->strain_contact > 0.0f && g->collider_vertex_count > 0) {
+        g->strain_cpos = weft__alloc(g->ctx, (size_t)g->collider_vertex_count * 3 * sizeof(double));
+        g->strain_ctree = weft__alloc(g->ctx, sizeof *g->strain_ctree);
+        g->strain_normal = weft__alloc(g->ctx, (size_t)g->vertex_count * 3 * sizeof(float));
+        weft_result r = g->strain_cpos && g->strain_ctree && g->strain_normal ? WEFT_OK : WEFT_ERROR_OUT_OF_MEMORY;
+        if (r == WEFT_OK) {
+            memset(g->strain_ctree, 0, sizeof *g->strain_ctree);
+            r = xbvh_create(g->ctx, g->strain_ctree, g->collider_triangles, g->collider_triangle_count, 3);
+            if (r == WEFT_OK) {
+                /* Built once on the rest collider; each step refits it to the moved one. */
+                for (size_t i = 0; i < (size_t)g->collider_vertex_count * 3; ++i) {
+                    g->strain_cpos[i] = g->collider_rest[i];
+                }
+                xbvh_build(g->strain_ctree, g->strain_cpos);
+            } else {
+                weft__free(g->ctx, g->strain_ctree, sizeof *g->strain_ctree);
+                g->strain_ctree = NULL;
+            }
+        }
+        if (r != WEFT_OK) {
+            weft__free(g->ctx, keys, n * sizeof *keys);
+            weft__strain_destroy(g);
+            return r;
+        }
+    }
     for (uint32_t i = 0; i < g->vertex_count; ++i) {
         g->strain_fixed[i] = g->tether_radius && g->tether_radius[i] == 0.0f; /* glued for good */
     }
@@ -65,10 +95,109 @@ void weft__strain_destroy(weft_garment *g)
     weft__free(g->ctx, g->strain_edges, (size_t)g->strain_edge_count * 2 * sizeof(uint32_t));
     weft__free(g->ctx, g->strain_rest, (size_t)g->strain_edge_count * sizeof(float));
     weft__free(g->ctx, g->strain_fixed, g->vertex_count);
+    if (g->strain_ctree) {
+        xbvh_destroy(g->ctx, g->strain_ctree);
+        weft__free(g->ctx, g->strain_ctree, sizeof *g->strain_ctree);
+    }
+    weft__free(g->ctx, g->strain_cpos, (size_t)g->collider_vertex_count * 3 * sizeof(double));
+    weft__free(g->ctx, g->strain_normal, (size_t)g->vertex_count * 3 * sizeof(float));
+    g->strain_ctree = NULL;
+    g->strain_cpos = NULL;
+    g->strain_normal = NULL;
     g->strain_edges = NULL;
     g->strain_rest = NULL;
     g->strain_fixed = NULL;
     g->strain_edge_count = 0;
+}
+
+typedef struct near_query {
+    const weft_garment *g;
+    double p[3], best_d2;
+    uint32_t best_tri;
+    double best_bary[3];
+} near_query;
+
+static bool visit_near(uint32_t t, void *user)
+{
+    near_query *q = user;
+    const uint32_t *tri = q->g->collider_triangles + 3 * (size_t)t;
+    const double *c = q->g->strain_cpos;
+    double bary[3];
+    double d2 = xg_point_triangle_sq(q->p, c + 3 * (size_t)tri[0], c + 3 * (size_t)tri[1], c + 3 * (size_t)tri[2], bary);
+    if (d2 < q->best_d2) {
+        q->best_d2 = d2;
+        q->best_tri = t;
+        memcpy(q->best_bary, bary, sizeof bary);
+    }
+    return true;
+}
+
+/* Unit direction from the nearest collider point to p (the face normal, oriented toward the
+ * side p was on at t, when p touches the surface). False when it is undefined. */
+static bool away_direction(const weft_garment *g, const near_query *q, float n[3])
+{
+    const uint32_t *tri = g->collider_triangles + 3 * (size_t)q->best_tri;
+    const double *a = g->strain_cpos + 3 * (size_t)tri[0], *b = g->strain_cpos + 3 * (size_t)tri[1],
+                 *c = g->strain_cpos + 3 * (size_t)tri[2];
+    double d[3], len2 = 0.0;
+    for (int k = 0; k < 3; ++k) {
+        d[k] = q->p[k] - (q->best_bary[0] * a[k] + q->best_bary[1] * b[k] + q->best_bary[2] * c[k]);
+        len2 += d[k] * d[k];
+    }
+    if (len2 < 1e-16) {
+        const double u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, w[3] = {c[0] - a[0], c[1] - a[1], c[2] - a[2]};
+        d[0] = u[1] * w[2] - u[2] * w[1];
+        d[1] = u[2] * w[0] - u[0] * w[2];
+        d[2] = u[0] * w[1] - u[1] * w[0];
+        len2 = d[0] * d[0] + d[1] * d[1] + d[2] * d[2];
+        if (len2 < 1e-30) {
+            return false;
+        }
+    }
+    const double inv = 1.0 / sqrt(len2);
+    for (int k = 0; k < 3; ++k) {
+        n[k] = (float)(d[k] * inv);
+    }
+    return true;
+}
+
+/* Sets bit 4 on the vertices of x_next within strain_contact of the collider at t+1, with the
+ * direction away from the nearest collider point in strain_normal. The tree, built on the rest
+ * collider, is refitted to the collider at t+1 (no allocation). */
+static void mark_contacts(weft_garment *g)
+{
+    const size_t nc3 = (size_t)g->collider_vertex_count * 3;
+    for (size_t i = 0; i < nc3; ++i) {
+        g->strain_cpos[i] = g->collider_next[i];
+    }
+    xbvh_refit(g->strain_ctree, g->strain_cpos, NULL, 0.0);
+    const double r = g->strain_contact;
+    near_query q = {.g = g};
+    for (uint32_t v = 0; v < g->vertex_count; ++v) {
+        const float *x = g->x_next + 3 * (size_t)v;
+        double lo[3], hi[3];
+        for (int k = 0; k < 3; ++k) {
+            q.p[k] = x[k];
+            lo[k] = q.p[k] - r;
+            hi[k] = q.p[k] + r;
+        }
+        q.best_d2 = r * r;
+        q.best_tri = UINT32_MAX;
+        xbvh_query(g->strain_ctree, lo, hi, visit_near, &q);
+        if (q.best_tri != UINT32_MAX && away_direction(g, &q, g->strain_normal + 3 * (size_t)v)) {
+            g->strain_fixed[v] |= 4;
+        }
+    }
+}
+
+static inline void drop_inward(float dx[3], const float n[3])
+{
+    const float into = dx[0] * n[0] + dx[1] * n[1] + dx[2] * n[2];
+    if (into < 0.0f) {
+        for (int k = 0; k < 3; ++k) {
+            dx[k] -= into * n[k];
+        }
+    }
 }
 
 void weft__strain_limit(weft_garment *g)
@@ -77,6 +206,9 @@ void weft__strain_limit(weft_garment *g)
     uint8_t *fixed = g->strain_fixed;
     for (uint32_t k = 0; k < g->pin_count; ++k) {
         fixed[g->pin_indices[k]] |= 2;
+    }
+    if (g->strain_ctree) {
+        mark_contacts(g);
     }
     const float grow = 1.0f + g->strain_limit;
     float *x = g->x_next;
@@ -93,14 +225,28 @@ void weft__strain_limit(weft_garment *g)
                 continue;
             }
             n++;
-            float wa = fixed[a] ? 0.0f : 1.0f, wb = fixed[b] ? 0.0f : 1.0f;
+            /* Pinned and glued ends stay put. */
+            float wa = fixed[a] & 3 ? 0.0f : 1.0f, wb = fixed[b] & 3 ? 0.0f : 1.0f;
             if (wa + wb == 0.0f) {
                 continue;
             }
             float s = (len - cap) / (len * (wa + wb)); /* len > cap >= 0 */
+            float dp[3], dq[3];
             for (int k = 0; k < 3; ++k) {
-                p[k] += wa * s * d[k];
-                q[k] -= wb * s * d[k];
+                dp[k] = wa * s * d[k];
+                dq[k] = -wb * s * d[k];
+            }
+            /* An end touching the collider keeps only the part of its move that does not go
+             * into it: it may slide along the surface or leave it. */
+            if (fixed[a] & 4) {
+                drop_inward(dp, g->strain_normal + 3 * (size_t)a);
+            }
+            if (fixed[b] & 4) {
+                drop_inward(dq, g->strain_normal + 3 * (size_t)b);
+            }
+            for (int k = 0; k < 3; ++k) {
+                p[k] += dp[k];
+                q[k] += dq[k];
             }
         }
         if (sweep == 0) {
@@ -109,6 +255,9 @@ void weft__strain_limit(weft_garment *g)
         if (n == 0) {
             break;
         }
+    }
+    for (uint32_t v = 0; g->strain_ctree && v < g->vertex_count; ++v) {
+        fixed[v] &= 3;
     }
     for (uint32_t k = 0; k < g->pin_count; ++k) {
         fixed[g->pin_indices[k]] &= 1;

@@ -30,18 +30,20 @@ enum lod_column {
     COL_CROP_TOKENS,
     COL_TETHER_CM,
     COL_STRAIN_PCT,
+    COL_STRAIN_CONTACT_CM,
     COL_COUNT
 };
 
 static const char *const column_names[COL_COUNT] = {
     "level",     "method",    "model",  "precision", "substeps",      "ccd",
     "resolution", "ms_per_frame", "mve_cm", "max_edge_strain", "sequences", "frames",
-    "crop_cm",   "collider_crop", "max_collider_tokens", "tether_cm", "strain_limit_pct"};
+    "crop_cm",   "collider_crop", "max_collider_tokens", "tether_cm", "strain_limit_pct",
+    "strain_contact_cm"};
 
 /* What an absent optional column means: the model's own crop. */
 static const char *const column_defaults[COL_COUNT] = {[COL_CROP_CM] = "-",     [COL_CROP_RULE] = "-",
                                                        [COL_CROP_TOKENS] = "-", [COL_TETHER_CM] = "-",
-                                                       [COL_STRAIN_PCT] = "-"};
+                                                       [COL_STRAIN_PCT] = "-", [COL_STRAIN_CONTACT_CM] = "-"};
 
 /* One line split at commas into trimmed cells (no quoting: no field needs a comma). */
 typedef struct lod_line {
@@ -289,6 +291,13 @@ static weft_result parse_level(char cells[COL_COUNT][LOD_CELL_CAP], uint32_t ln,
         return weft__fail(WEFT_ERROR_FORMAT,
                           "lod table line %u column 'strain_limit_pct': '%s' is not '-' (no limit) or a number in "
                           "(0, 1000]", ln, c);
+    }
+    c = cells[COL_STRAIN_CONTACT_CM];
+    if (strcmp(c, "-") != 0 && (lv->strain_limit_pct == 0.0 || !parse_f64(c, &lv->strain_contact_cm) ||
+                                !(lv->strain_contact_cm > 0.0) || lv->strain_contact_cm > 100.0)) {
+        return weft__fail(WEFT_ERROR_FORMAT,
+                          "lod table line %u column 'strain_contact_cm': '%s' is not '-' (plain limit) or, with a "
+                          "strain limit, a number in (0, 100]", ln, c);
     }
     return WEFT_OK;
 }

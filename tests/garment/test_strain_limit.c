@@ -1,6 +1,7 @@
 /* Strain limiting (weft_garment_def.strain_limit): after a step that tears the sheet (a pinned
  * corner yanked far away in one frame), no edge is longer than (1 + limit) x rest once the sweeps
- * converge, pins keep their targets, radius-0 tethers stay glued, and bad limits fail at creation. */
+ * converge, pins keep their targets, radius-0 tethers stay glued, the contact-aware limit does not
+ * drag the cloth lying on the box into it, and bad limits fail at creation. */
 #include "../xpbd/scene.h"
 #include "test.h"
 
@@ -135,6 +136,56 @@ static void test_strain_limit_keeps_glued_vertices(void)
     scene_free(&s);
 }
 
+/* Sheet vertices inside the box (below its top, within its footprint). */
+static uint32_t inside_box(const strain_scene *s, const float *x)
+{
+    uint32_t n = 0;
+    for (uint32_t i = 0; i < s->sheet.nv; ++i) {
+        const float *p = x + 3 * (size_t)i;
+        n += fabsf(p[0]) < 0.149f && fabsf(p[2]) < 0.149f && p[1] < 0.2f - 1e-4f;
+    }
+    return n;
+}
+
+/* A corner pulled down past the box's edge: the plain limit drags the sheet lying on the box top
+ * down into it; the contact-aware one lets it slide along the top instead. */
+static void test_strain_limit_contact_keeps_cloth_out(void)
+{
+    strain_scene s;
+    scene_make(&s);
+    weft_garment_def gd = scene_def(&s);
+    gd.strain_limit = 0.1f;
+    gd.strain_limit_iterations = 1000;
+    weft_garment *plain = NULL, *aware = NULL, *torn = NULL;
+    CHECK_RESULT(weft_garment_create(s.ctx, &gd, &plain), WEFT_OK);
+    gd.strain_limit_contact = 0.02f;
+    CHECK_RESULT(weft_garment_create(s.ctx, &gd, &aware), WEFT_OK);
+    gd.strain_limit = 0.0f;
+    CHECK_RESULT(weft_garment_create(s.ctx, &gd, &torn), WEFT_OK);
+    const uint32_t pin = 0;
+    const float target[3] = {s.sheet.pos[0] - 0.1f, s.sheet.pos[1] - 0.4f, s.sheet.pos[2] - 0.1f};
+    weft_garment *all[3] = {plain, aware, torn};
+    for (int k = 0; k < 3; ++k) {
+        CHECK_RESULT(weft_garment_set_collider(all[k], s.box.pos), WEFT_OK);
+        CHECK_RESULT(weft_garment_set_pins(all[k], &pin, target, 1), WEFT_OK);
+        CHECK_RESULT(weft_garment_step(all[k]), WEFT_OK);
+    }
+    uint32_t plain_in = inside_box(&s, weft_garment_positions(plain));
+    uint32_t aware_in = inside_box(&s, weft_garment_positions(aware));
+    CHECK_EQ_INT(inside_box(&s, weft_garment_positions(torn)), 0);
+    CHECK_MSG(plain_in > 0, "the plain limit kept the sheet out of the box: the scene tests nothing");
+    CHECK_MSG(aware_in == 0, "the contact-aware limit put %u vertices into the box (plain: %u)", aware_in, plain_in);
+    double torn_max = max_stretch(&s, weft_garment_positions(torn));
+    double aware_max = max_stretch(&s, weft_garment_positions(aware));
+    CHECK_MSG(aware_max < 0.5 * torn_max, "the contact-aware limit left the worst edge at %g (unlimited %g)",
+              aware_max, torn_max);
+    CHECK(weft_garment_stats(aware).strain_limited_edges > 0);
+    weft_garment_destroy(plain);
+    weft_garment_destroy(aware);
+    weft_garment_destroy(torn);
+    scene_free(&s);
+}
+
 static void test_strain_limit_bad_input(void)
 {
     strain_scene s;
@@ -153,11 +204,29 @@ static void test_strain_limit_bad_input(void)
     CHECK_RESULT(weft_garment_create(s.ctx, &gd, &g), WEFT_ERROR_INVALID_ARGUMENT);
     CHECK(g == NULL);
     CHECK(strstr(weft_last_error(), "strain_limit_iterations") != NULL);
+    gd.strain_limit_iterations = 8;
+    const float bad_contact[] = {-0.01f, NAN, INFINITY, 1.5f};
+    for (size_t k = 0; k < sizeof bad_contact / sizeof bad_contact[0]; ++k) {
+        gd.strain_limit_contact = bad_contact[k];
+        CHECK_RESULT(weft_garment_create(s.ctx, &gd, &g), WEFT_ERROR_INVALID_ARGUMENT);
+        CHECK(g == NULL);
+        CHECK(strstr(weft_last_error(), "strain_limit_contact") != NULL);
+    }
+    gd.strain_limit_contact = 0.01f; /* looks for a collider the garment does not have */
+    gd.collider_vertex_count = 0;
+    gd.collider_rest_positions = NULL;
+    gd.collider_triangles = NULL;
+    gd.collider_triangle_count = 0;
+    CHECK_RESULT(weft_garment_create(s.ctx, &gd, &g), WEFT_ERROR_NO_COLLIDER);
+    CHECK(g == NULL);
+    CHECK(strstr(weft_last_error(), "strain_limit_contact") != NULL);
+    gd = scene_def(&s);
     gd.strain_limit = 0.0f; /* off: the sweep count is not looked at */
+    gd.strain_limit_iterations = 0;
     CHECK_RESULT(weft_garment_create(s.ctx, &gd, &g), WEFT_OK);
     weft_garment_destroy(g);
     scene_free(&s);
 }
 
 TEST_MAIN(TEST_CASE(test_strain_limit_bounds_the_stretch), TEST_CASE(test_strain_limit_keeps_glued_vertices),
-          TEST_CASE(test_strain_limit_bad_input))
+          TEST_CASE(test_strain_limit_contact_keeps_cloth_out), TEST_CASE(test_strain_limit_bad_input))

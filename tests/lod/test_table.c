@@ -87,6 +87,9 @@ static void test_load_good(void)
 #define HEADER_GARMENT                                                                                             \
     "level,method,model,precision,substeps,ccd,resolution,ms_per_frame,mve_cm,max_edge_strain,sequences,frames,"      \
     "tether_cm,strain_limit_pct\n"
+#define HEADER_CONTACT                                                                                             \
+    "level,method,model,precision,substeps,ccd,resolution,ms_per_frame,mve_cm,max_edge_strain,sequences,frames,"      \
+    "strain_limit_pct,strain_contact_cm\n"
 
 /* The optional tether and strain-limit columns: absent means none, "-" means none, numbers in cm
  * and %; every method may have them. */
@@ -106,6 +109,16 @@ static void test_load_garment_columns(void)
         CHECK(a->tether_cm == 3.0 && a->strain_limit_pct == 10.0);
         CHECK(b->tether_cm == 0.0 && b->strain_limit_pct == 0.0 && b->resolution == 0.25);
         CHECK(c->tether_cm == 2.5 && c->strain_limit_pct == 0.0);
+        CHECK(a->strain_contact_cm == 0.0 && c->strain_contact_cm == 0.0);
+    }
+    weft_lod_table_destroy(t);
+    const char *contact = HEADER_CONTACT "x,xpbd,-,-,5,off,1,1,1,0,1,1,10,1\n"
+                                         "p,xpbd,-,-,5,off,1,1,1,0,1,1,10,-\n";
+    t = NULL;
+    CHECK_RESULT(weft_lod_table_load_memory(ctx, contact, strlen(contact), &t), WEFT_OK);
+    if (t) {
+        CHECK(weft_lod_table_level(t, 0)->strain_contact_cm == 1.0);
+        CHECK(weft_lod_table_level(t, 1)->strain_contact_cm == 0.0);
     }
     weft_lod_table_destroy(t);
     weft_context_destroy(ctx);
@@ -160,6 +173,9 @@ static void test_load_malformed(void)
         {NULL, HEADER_GARMENT "x,lbs,-,-,-,on,1,1,1,0,1,1,-,0\n", "strain_limit_pct"},
         {NULL, HEADER_GARMENT "x,lbs,-,-,-,on,1,1,1,0,1,1,-,1001\n", "strain_limit_pct"},
         {NULL, HEADER_GARMENT "x,lbs,-,-,-,on,1,1,1,0,1,1,-,nan\n", "strain_limit_pct"},
+        {NULL, HEADER_CONTACT "x,lbs,-,-,-,on,1,1,1,0,1,1,-,1\n", "strain_contact_cm"},
+        {NULL, HEADER_CONTACT "x,lbs,-,-,-,on,1,1,1,0,1,1,10,0\n", "strain_contact_cm"},
+        {NULL, HEADER_CONTACT "x,lbs,-,-,-,on,1,1,1,0,1,1,10,101\n", "strain_contact_cm"},
     };
     char text[2048];
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; ++i) {

@@ -48,6 +48,7 @@ typedef struct eval_opts {
     uint32_t max_collider_tokens;
     float tether;                       /* m, 0: no tethers */
     float strain_limit;                 /* fraction, 0: off */
+    float strain_contact;               /* metres, 0: off (weft_garment_def.strain_limit_contact) */
     const char *sim_mesh;               /* folder with rest_pos.npy + faces.npy: simulate on this mesh */
     const char *write_pos;              /* folder: write each rollout as <sequence>.npy [frames + 2, N, 3] */
     bool pins_all;                      /* the sequence's pins for every method, not only XPBD */
@@ -459,6 +460,7 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
     float *radii = NULL;
     d.tether_distance = o->tether; /* a bad radius, or tethers without a collider, fail in the library */
     d.strain_limit = o->strain_limit;
+    d.strain_limit_contact = o->strain_contact;
     uint8_t *sim_pinned = up && s.pinned ? calloc(SV, 1) : NULL;
     if (o->tether > 0.0f && s.cpos) {
         radii = malloc((size_t)SV * sizeof(float));
@@ -668,11 +670,13 @@ static void usage(FILE *f)
     fprintf(f, "usage: weft eval --seq DIR [--model M] [--method model|lbs|xpbd:S] [--precision fp32|fp16|int8]\n"
                "                 [--ccd on|off] [--split train|val|test] [--frames N] [--json]\n"
                "                 [--crop-cm X] [--crop box|cells] [--max-collider-tokens N] [--tether-cm X]\n"
-               "                 [--strain-limit PCT] [--sim-mesh DIR] [--time-limit S] [--write-pos DIR]\n"
-               "                 [--pins xpbd|all]\n"
+               "                 [--strain-limit PCT] [--strain-contact-cm X] [--sim-mesh DIR] [--time-limit S]\n"
+               "                 [--write-pos DIR] [--pins xpbd|all]\n"
                "  DIR is one sequence folder (meta.json + .npy) or a folder of them.\n"
                "  --tether-cm X   tethers to the skinned garment, radius X cm (0 on vertices pinned at the start)\n"
                "  --strain-limit PCT  shorten edges stretched over PCT %% after each step (and in CCD)\n"
+               "  --strain-contact-cm X  contact-aware limit: vertices within X cm of the collider stay put\n"
+               "                  while it shortens edges (weft_garment_def.strain_limit_contact)\n"
                "  --sim-mesh DIR  simulate on DIR's rest_pos.npy + faces.npy (the same garment at another\n"
                "                  resolution) and score its map onto the sequence's mesh (ms/frame includes the map);\n"
                "                  a simulated vertex is pinned where its nearest scored vertex is, and so is the\n"
@@ -784,6 +788,13 @@ int weft_cmd_eval(int argc, char **argv)
             o.strain_limit = strtof(v, &end) / 100.0f, ++i;
             if (*end || end == v) {
                 fprintf(stderr, "weft eval: bad --strain-limit '%s'\n", v);
+                return 2;
+            }
+        } else if (strcmp(a, "--strain-contact-cm") == 0) {
+            char *end;
+            o.strain_contact = strtof(v, &end) / 100.0f, ++i;
+            if (*end || end == v) {
+                fprintf(stderr, "weft eval: bad --strain-contact-cm '%s'\n", v);
                 return 2;
             }
         } else if (strcmp(a, "--crop") == 0) {
