@@ -114,6 +114,12 @@ static const golden_layout golden_flat = {DATA, DATA, "rest", "faces", "cfaces",
 static const golden_layout golden_garment_seq = {GARMENT_SEQ, GARMENT_SEQ "golden/", "rest_pos", "faces",
                                                  "collider_faces", "cloth_pos", "collider_pos", "<i4"};
 
+/* tests/data/sample_seq (a 60-frame drop in the simgen layout), with the shipped drop model's
+ * predictions in tests/model/data/drop_golden (see shipped_drop_parity). */
+static const golden_layout golden_drop_seq = {WEFT_SOURCE_DIR "/tests/data/sample_seq/", DATA "drop_golden/",
+                                              "rest_pos", "faces", "collider_faces", "cloth_pos", "collider_pos",
+                                              "<i4"};
+
 static void golden_free(golden *g)
 {
     npy *all[] = {&g->rest, &g->faces, &g->cfaces, &g->gt, &g->cpos, &g->tf_frames, &g->tf_pred, &g->rollout};
@@ -366,6 +372,16 @@ static void rollout_parity_of(const golden_layout *l, const char *model_file)
 }
 
 static void rollout_parity(void) { rollout_parity_of(&golden_flat, DATA "golden_model.safetensors"); }
+
+/* The shipped drop specialist (the ballistic prior, K = 16) on the sample drop, teacher-forced and
+ * rolled out; drop_golden/ is `export.py --ckpt tools/train/models/drop.ckpt.pt --golden
+ * tests/model/data/drop_golden --golden-seq tests/data/sample_seq --tf-frames 1,2,5,10 --rollout 14
+ * --golden-preds-only`. */
+static void shipped_drop_parity(void)
+{
+    teacher_forced_parity_of(&golden_drop_seq, WEFT_SOURCE_DIR "/tools/train/models/drop.safetensors", "tf_pred");
+    rollout_parity_of(&golden_drop_seq, WEFT_SOURCE_DIR "/tools/train/models/drop.safetensors");
+}
 
 /* The skinned prior X_t + S_{t+1} - S_t + out_scale d against PyTorch, on a garment whose collider
  * moves (tests/model/data/garment_seq). Python's S is that sequence's skin_pos.npy, the LBS method's
@@ -904,9 +920,11 @@ static void shipped_models_step(void)
         return;
     }
     static const char *const files[] = {WEFT_SOURCE_DIR "/tools/train/models/game.safetensors",
+                                        WEFT_SOURCE_DIR "/tools/train/models/game_k16.safetensors",
+                                        WEFT_SOURCE_DIR "/tools/train/models/drop.safetensors",
                                         WEFT_SOURCE_DIR "/tools/train/models/unified.safetensors"};
     weft_context *ctx = make_ctx();
-    for (size_t f = 0; f < 2; ++f) {
+    for (size_t f = 0; f < sizeof files / sizeof files[0]; ++f) {
         weft_model *m = NULL;
         CHECK_RESULT(weft_model_load_file(ctx, files[f], &m), WEFT_OK);
         weft_garment *gar = NULL;
@@ -1157,7 +1175,7 @@ static void parallel_for_hook(void)
 }
 
 TEST_MAIN(TEST_CASE(teacher_forced_parity), TEST_CASE(shipped_game_parity), TEST_CASE(shipped_models_step),
-          TEST_CASE(rollout_parity), TEST_CASE(skinned_teacher_forced_parity), TEST_CASE(skinned_rollout_parity),
+          TEST_CASE(rollout_parity), TEST_CASE(shipped_drop_parity), TEST_CASE(skinned_teacher_forced_parity), TEST_CASE(skinned_rollout_parity),
           TEST_CASE(bad_model_files), TEST_CASE(priors), TEST_CASE(skinned_lod_switch),
           TEST_CASE(bad_state_and_collider), TEST_CASE(reduced_precision),
           TEST_CASE(quantized_files), TEST_CASE(parallel_for_hook))
