@@ -20,6 +20,7 @@ import argparse
 import csv
 import os
 import re
+import shlex
 import subprocess
 import sys
 import tempfile
@@ -140,7 +141,7 @@ def main():
     if a.out:
         cmd = "/usr/bin/python3 tools/bench/heldout_table.py " + " ".join(
             [f"--data {a.data}", "--split " + " ".join(a.split), f"--ccd {a.ccd}", f"--pins {a.pins}"] +
-            [f"--method {m}" for m in a.method] + ([f"--frames {a.frames}"] if a.frames else []) +
+            [f"--method {shlex.quote(m)}" for m in a.method] + ([f"--frames {a.frames}"] if a.frames else []) +
             [f"--out {a.out}"])
         with open(a.out, "w") as f:
             f.write(f"MVE in cm, 240-frame rollouts, CCD {a.ccd}, pins for {'every method' if a.pins == 'all' else 'XPBD only'}; made by\n\n```\n{cmd}\n```\n\n" + md)
