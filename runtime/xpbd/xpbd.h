@@ -51,6 +51,7 @@ typedef struct xbvh_node {
     double lo[3], hi[3];
     uint32_t left;   /* child index, or first primitive slot when count > 0 */
     uint32_t count;  /* primitives in a leaf; 0 for interior nodes (right child = left + 1) */
+    uint32_t max_prim; /* largest primitive index below (set by refit) */
 } xbvh_node;
 
 typedef struct xbvh {
@@ -72,6 +73,10 @@ void xbvh_refit(xbvh *bvh, const double *pos0, const double *pos1, double pad);
  * asked to stop. */
 typedef bool xbvh_visit_fn(uint32_t prim, void *user);
 bool xbvh_query(const xbvh *bvh, const double lo[3], const double hi[3], xbvh_visit_fn *fn, void *user);
+/* The same, for primitives with an index above `above` only (each unordered pair once):
+ * subtrees holding no such primitive are skipped. The visit order is xbvh_query's. */
+bool xbvh_query_above(const xbvh *bvh, const double lo[3], const double hi[3], uint32_t above, xbvh_visit_fn *fn,
+                      void *user);
 
 /* ---------------------------------------------------------------------------------------- */
 /* Cloth topology shared by the solver and the validator (xpbd_topo.c).                      */

@@ -128,8 +128,10 @@ void xbvh_refit(xbvh *bvh, const double *pos0, const double *pos1, double pad)
     for (uint32_t ni = bvh->node_count; ni-- > 0;) {
         xbvh_node *nd = &bvh->nodes[ni];
         double lo[3] = {DBL_MAX, DBL_MAX, DBL_MAX}, hi[3] = {-DBL_MAX, -DBL_MAX, -DBL_MAX};
+        uint32_t max_prim = 0;
         if (nd->count > 0) {
             for (uint32_t s = nd->left; s < nd->left + nd->count; ++s) {
+                max_prim = bvh->order[s] > max_prim ? bvh->order[s] : max_prim;
                 const uint32_t *pv = bvh->prim_verts + bvh->arity * (size_t)bvh->order[s];
                 for (uint32_t k = 0; k < bvh->arity; ++k) {
                     for (int pass = 0; pass < (pos1 ? 2 : 1); ++pass) {
@@ -147,6 +149,7 @@ void xbvh_refit(xbvh *bvh, const double *pos0, const double *pos1, double pad)
             }
         } else {
             const xbvh_node *l = &bvh->nodes[nd->left], *r = &bvh->nodes[nd->left + 1];
+            max_prim = l->max_prim > r->max_prim ? l->max_prim : r->max_prim;
             for (int a = 0; a < 3; ++a) {
                 lo[a] = l->lo[a] < r->lo[a] ? l->lo[a] : r->lo[a];
                 hi[a] = l->hi[a] > r->hi[a] ? l->hi[a] : r->hi[a];
@@ -156,10 +159,13 @@ void xbvh_refit(xbvh *bvh, const double *pos0, const double *pos1, double pad)
             nd->lo[a] = lo[a];
             nd->hi[a] = hi[a];
         }
+        nd->max_prim = max_prim;
     }
 }
 
-bool xbvh_query(const xbvh *bvh, const double lo[3], const double hi[3], xbvh_visit_fn *fn, void *user)
+/* all: visit every primitive; else only those with an index above `above`. */
+static inline bool query(const xbvh *bvh, const double lo[3], const double hi[3], bool all, uint32_t above,
+                         xbvh_visit_fn *fn, void *user)
 {
     if (bvh->node_count == 0) {
         return true;
@@ -170,12 +176,12 @@ bool xbvh_query(const xbvh *bvh, const double lo[3], const double hi[3], xbvh_vi
     while (sp > 0) {
         const xbvh_node *nd = &bvh->nodes[stack[--sp]];
         if (nd->lo[0] > hi[0] || nd->hi[0] < lo[0] || nd->lo[1] > hi[1] || nd->hi[1] < lo[1] || nd->lo[2] > hi[2] ||
-            nd->hi[2] < lo[2]) {
+            nd->hi[2] < lo[2] || (!all && nd->max_prim <= above)) {
             continue;
         }
         if (nd->count > 0) {
             for (uint32_t s = nd->left; s < nd->left + nd->count; ++s) {
-                if (!fn(bvh->order[s], user)) {
+                if ((all || bvh->order[s] > above) && !fn(bvh->order[s], user)) {
                     return false;
                 }
             }
@@ -185,4 +191,15 @@ bool xbvh_query(const xbvh *bvh, const double lo[3], const double hi[3], xbvh_vi
         }
     }
     return true;
+}
+
+bool xbvh_query(const xbvh *bvh, const double lo[3], const double hi[3], xbvh_visit_fn *fn, void *user)
+{
+    return query(bvh, lo, hi, true, 0, fn, user);
+}
+
+bool xbvh_query_above(const xbvh *bvh, const double lo[3], const double hi[3], uint32_t above, xbvh_visit_fn *fn,
+                      void *user)
+{
+    return query(bvh, lo, hi, false, above, fn, user);
 }

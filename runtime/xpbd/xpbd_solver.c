@@ -77,6 +77,9 @@ typedef struct xpbd_state {
 
     xbvh bvh_tri, bvh_edge, bvh_ctri, bvh_cedge;
     bool cloth_bvh_built, collider_bvh_built;
+    /* Boxes of every primitive at the snapshot (lo xyz, hi xyz), made once per proximity
+     * pass: the candidate filters test them instead of gathering vertices per pair. */
+    double *box_tri, *box_edge, *box_ctri, *box_cedge;
 
     /* Candidate pairs (a Verlet list): every primitive pair whose boxes were within
      * pair_radius at the snapshot xs_pairs / cs_pairs. A proximity pass with query radius rq
@@ -262,6 +265,10 @@ static void state_free(const weft_context *ctx, xpbd_state *s)
     FREE_ARR(s->pairs, s->pair_cap);
     FREE_ARR(s->xs_pairs, 3 * n);
     FREE_ARR(s->cs_pairs, 3 * nc);
+    FREE_ARR(s->box_tri, 6 * s->ntri);
+    FREE_ARR(s->box_edge, 6 * s->topo.edge_count);
+    FREE_ARR(s->box_ctri, 6 * s->nctri);
+    FREE_ARR(s->box_cedge, 6 * s->ctopo.edge_count);
     xbvh_destroy(ctx, &s->bvh_tri);
     xbvh_destroy(ctx, &s->bvh_edge);
     xbvh_destroy(ctx, &s->bvh_ctri);
@@ -378,11 +385,13 @@ static weft_result xpbd_create(weft_garment *g)
               ALLOC_ARR(s->pin_to, 3 * n) && ALLOC_ARR(s->tri_coef, 6 * s->ntri) &&
               ALLOC_ARR(s->tri_area, s->ntri) && ALLOC_ARR(s->hinge_rest, s->topo.hinge_count + 1) &&
               ALLOC_ARR(s->hinge_len, s->topo.hinge_count + 1) && ALLOC_ARR(s->contacts, s->contact_cap) &&
-              ALLOC_ARR(s->pairs, s->pair_cap) && ALLOC_ARR(s->xs_pairs, 3 * n);
+              ALLOC_ARR(s->pairs, s->pair_cap) && ALLOC_ARR(s->xs_pairs, 3 * n) &&
+              ALLOC_ARR(s->box_tri, 6 * s->ntri) && ALLOC_ARR(s->box_edge, 6 * s->topo.edge_count);
     if (ok && nc > 0) {
         ok = ALLOC_ARR(s->cp, 3 * nc) && ALLOC_ARR(s->cn, 3 * nc) && ALLOC_ARR(s->cs, 3 * nc) &&
              ALLOC_ARR(s->cc, 3 * nc) && ALLOC_ARR(s->cdisp, nc) && ALLOC_ARR(s->csnap, 3 * nc) &&
-             ALLOC_ARR(s->cwin, nc) && ALLOC_ARR(s->cs_pairs, 3 * nc);
+             ALLOC_ARR(s->cwin, nc) && ALLOC_ARR(s->cs_pairs, 3 * nc) && ALLOC_ARR(s->box_ctri, 6 * s->nctri) &&
+             ALLOC_ARR(s->box_cedge, 6 * s->ctopo.edge_count);
     }
 #undef ALLOC_ARR
     /* hinge arrays have one spare slot so a hinge-free mesh still gets a valid pointer */
@@ -499,25 +508,34 @@ typedef struct detect_ctx {
     const uint32_t *tris, *ctris;
     uint32_t query;      /* the vertex or edge being queried */
     double lo[3], hi[3]; /* the query box (BVH leaves report every primitive they hold) */
-    int list;            /* candidate collection: the pair kind being collected */
+    int list;            /* the pair kind being visited or collected */
+    const double *prim_box; /* boxes of that kind's primitives (s->box_*) */
     bool overflow;       /* candidate collection ran out of room */
 } detect_ctx;
 
-/* False when the box of the k points misses the query box: skips the exact distance. */
-static inline bool box_hits(const detect_ctx *dc, const double *pos, const uint32_t *idx, int k)
+/* False when primitive prim's box misses the query box: skips the exact distance. */
+static inline bool box_hits(const detect_ctx *dc, uint32_t prim)
 {
-    for (int a = 0; a < 3; ++a) {
-        double mn = pos[3 * (size_t)idx[0] + a], mx = mn;
-        for (int i = 1; i < k; ++i) {
-            double v = pos[3 * (size_t)idx[i] + a];
-            mn = v < mn ? v : mn;
-            mx = v > mx ? v : mx;
-        }
-        if (mn > dc->hi[a] || mx < dc->lo[a]) {
-            return false;
+    const double *b = dc->prim_box + 6 * (size_t)prim;
+    return !(b[0] > dc->hi[0] || b[3] < dc->lo[0] || b[1] > dc->hi[1] || b[4] < dc->lo[1] || b[2] > dc->hi[2] ||
+             b[5] < dc->lo[2]);
+}
+
+/* Boxes of count primitives of k vertices each. */
+static void prim_boxes(const double *pos, const uint32_t *idx, uint32_t count, int k, double *box)
+{
+    for (uint32_t p = 0; p < count; ++p, idx += k, box += 6) {
+        for (int a = 0; a < 3; ++a) {
+            double mn = pos[3 * (size_t)idx[0] + a], mx = mn;
+            for (int i = 1; i < k; ++i) {
+                double v = pos[3 * (size_t)idx[i] + a];
+                mn = v < mn ? v : mn;
+                mx = v > mx ? v : mx;
+            }
+            box[a] = mn;
+            box[3 + a] = mx;
         }
     }
-    return true;
 }
 
 static void add_contact(xpbd_state *s, const xcontact *c)
@@ -551,9 +569,13 @@ static void lower_collider(xpbd_state *s, uint32_t v, double d, double collider_
     }
 }
 
+/* max/min of finite values, inlined (fmax/fmin are library calls here). */
+static inline double maxd(double a, double b) { return a > b ? a : b; }
+static inline double mind(double a, double b) { return a < b ? a : b; }
+
 static double kin_max3(const xpbd_state *s, const uint32_t *t)
 {
-    return fmax(s->kin[t[0]], fmax(s->kin[t[1]], s->kin[t[2]]));
+    return maxd(s->kin[t[0]], maxd(s->kin[t[1]], s->kin[t[2]]));
 }
 
 /* Cloth vertex vs cloth triangle. */
@@ -563,7 +585,7 @@ static bool visit_self_vt(uint32_t t, void *user)
     xpbd_state *s = dc->s;
     uint32_t v = dc->query;
     const uint32_t *tri = dc->tris + 3 * (size_t)t;
-    if (tri[0] == v || tri[1] == v || tri[2] == v || !box_hits(dc, s->xs, tri, 3)) {
+    if (tri[0] == v || tri[1] == v || tri[2] == v || !box_hits(dc, t)) {
         return true;
     }
     const double *x = s->xs;
@@ -576,7 +598,7 @@ static bool visit_self_vt(uint32_t t, void *user)
     if (d < s->stats.min_self_distance) {
         s->stats.min_self_distance = d;
     }
-    double km = fmax(s->kin[v], kin_max3(s, tri));
+    double km = maxd(s->kin[v], kin_max3(s, tri));
     double de = d - km;
     lower_collider(s, v, de, km);
     for (int k = 0; k < 3; ++k) {
@@ -604,7 +626,7 @@ static bool visit_self_ee(uint32_t e2, void *user)
         return true;
     }
     const uint32_t *a = s->topo.edges + 2 * (size_t)e1, *b = s->topo.edges + 2 * (size_t)e2;
-    if (a[0] == b[0] || a[0] == b[1] || a[1] == b[0] || a[1] == b[1] || !box_hits(dc, s->xs, b, 2)) {
+    if (a[0] == b[0] || a[0] == b[1] || a[1] == b[0] || a[1] == b[1] || !box_hits(dc, e2)) {
         return true;
     }
     const double *x = s->xs;
@@ -617,7 +639,7 @@ static bool visit_self_ee(uint32_t e2, void *user)
     if (d < s->stats.min_self_distance) {
         s->stats.min_self_distance = d;
     }
-    double km = fmax(fmax(s->kin[a[0]], s->kin[a[1]]), fmax(s->kin[b[0]], s->kin[b[1]]));
+    double km = maxd(maxd(s->kin[a[0]], s->kin[a[1]]), maxd(s->kin[b[0]], s->kin[b[1]]));
     double de = d - km;
     lower_collider(s, a[0], de, km), lower_collider(s, a[1], de, km);
     lower_collider(s, b[0], de, km), lower_collider(s, b[1], de, km);
@@ -650,7 +672,7 @@ static bool visit_vt_collider(uint32_t t, void *user)
     if (d < s->stats.min_collider_distance) {
         s->stats.min_collider_distance = d;
     }
-    double D = fmax(s->cwin[tri[0]], fmax(s->cwin[tri[1]], s->cwin[tri[2]]));
+    double D = maxd(s->cwin[tri[0]], maxd(s->cwin[tri[1]], s->cwin[tri[2]]));
     double de = d - D - s->kin[v];
     lower_collider(s, v, de, D);
     /* Only pairs that can come within the contact radius inside the window need a contact. */
@@ -715,9 +737,9 @@ static bool visit_ee_collider(uint32_t ce, void *user)
     if (d < s->stats.min_collider_distance) {
         s->stats.min_collider_distance = d;
     }
-    double de = d - fmax(s->cwin[b[0]], s->cwin[b[1]]) - fmax(s->kin[a[0]], s->kin[a[1]]);
-    lower_collider(s, a[0], de, fmax(s->cwin[b[0]], s->cwin[b[1]]));
-    lower_collider(s, a[1], de, fmax(s->cwin[b[0]], s->cwin[b[1]]));
+    double de = d - maxd(s->cwin[b[0]], s->cwin[b[1]]) - maxd(s->kin[a[0]], s->kin[a[1]]);
+    lower_collider(s, a[0], de, maxd(s->cwin[b[0]], s->cwin[b[1]]));
+    lower_collider(s, a[1], de, maxd(s->cwin[b[0]], s->cwin[b[1]]));
     if (d > 0.0 && de * (1.0 - s->p.bound_gamma) < s->p.collider_radius) {
         xcontact ct = {.v = {a[0], a[1], b[0], b[1]}, .kin = {0, 0, 1, 1}, .type = XC_EE};
         for (int k = 0; k < 3; ++k) {
@@ -741,13 +763,14 @@ static void box_around(const double *p, double r, double lo[3], double hi[3])
 static void box_edge(const double *p, const double *q, double r, double lo[3], double hi[3])
 {
     for (int k = 0; k < 3; ++k) {
-        lo[k] = fmin(p[k], q[k]) - r;
-        hi[k] = fmax(p[k], q[k]) + r;
+        lo[k] = mind(p[k], q[k]) - r;
+        hi[k] = maxd(p[k], q[k]) + r;
     }
 }
 
-/* Candidate collection: topology-only filters (adjacency, each unordered self pair once),
- * then the pair is kept for the distance visits of later passes. */
+/* Candidate collection: topology filters (adjacency, each unordered self pair once) and the
+ * primitive's own box against the query box (the trees report whole leaves), then the pair
+ * is kept for the distance visits of later passes. */
 static bool collect(detect_ctx *dc, uint32_t prim)
 {
     xpbd_state *s = dc->s;
@@ -769,7 +792,7 @@ static bool collect_self_vt(uint32_t t, void *user)
     detect_ctx *dc = user;
     const uint32_t *tri = dc->tris + 3 * (size_t)t;
     uint32_t v = dc->query;
-    return tri[0] == v || tri[1] == v || tri[2] == v || collect(dc, t);
+    return tri[0] == v || tri[1] == v || tri[2] == v || !box_hits(dc, t) || collect(dc, t);
 }
 
 static bool collect_self_ee(uint32_t e2, void *user)
@@ -778,10 +801,11 @@ static bool collect_self_ee(uint32_t e2, void *user)
     const xpbd_state *s = dc->s;
     uint32_t e1 = dc->query;
     const uint32_t *a = s->topo.edges + 2 * (size_t)e1, *b = s->topo.edges + 2 * (size_t)e2;
-    return e2 <= e1 || a[0] == b[0] || a[0] == b[1] || a[1] == b[0] || a[1] == b[1] || collect(dc, e2);
+    return e2 <= e1 || a[0] == b[0] || a[0] == b[1] || a[1] == b[0] || a[1] == b[1] || !box_hits(dc, e2) ||
+           collect(dc, e2);
 }
 
-static bool collect_any(uint32_t prim, void *user) { return collect(user, prim); }
+static bool collect_any(uint32_t prim, void *user) { return !box_hits(user, prim) || collect(user, prim); }
 
 typedef struct pass_fns {
     xbvh_visit_fn *self_vt, *self_ee, *vt_collider, *tv_collider, *ee_collider;
@@ -794,29 +818,33 @@ static bool traverse(weft_garment *g, xpbd_state *s, double r, const pass_fns *f
 {
     if (s->p.self_collision) {
         dc->list = PL_SELF_VT;
+        dc->prim_box = s->box_tri;
         for (uint32_t v = 0; v < s->n && !dc->overflow; ++v) {
             dc->query = v;
             box_around(s->xs + 3 * (size_t)v, r, dc->lo, dc->hi);
             xbvh_query(&s->bvh_tri, dc->lo, dc->hi, fns->self_vt, dc);
         }
         dc->list = PL_SELF_EE;
+        dc->prim_box = s->box_edge;
         for (uint32_t e = 0; e < s->topo.edge_count && !dc->overflow; ++e) {
             const uint32_t *ed = s->topo.edges + 2 * (size_t)e;
             dc->query = e;
             box_edge(s->xs + 3 * (size_t)ed[0], s->xs + 3 * (size_t)ed[1], r, dc->lo, dc->hi);
-            xbvh_query(&s->bvh_edge, dc->lo, dc->hi, fns->self_ee, dc);
+            xbvh_query_above(&s->bvh_edge, dc->lo, dc->hi, e, fns->self_ee, dc);
         }
     }
     if (s->nc > 0) {
         (void)g;
         const xbvh_node *root = &s->bvh_tri.nodes[0];
         dc->list = PL_VT_COLLIDER;
+        dc->prim_box = s->box_ctri;
         for (uint32_t v = 0; v < s->n && !dc->overflow; ++v) {
             dc->query = v;
             box_around(s->xs + 3 * (size_t)v, r, dc->lo, dc->hi);
             xbvh_query(&s->bvh_ctri, dc->lo, dc->hi, fns->vt_collider, dc);
         }
         dc->list = PL_TV_COLLIDER;
+        dc->prim_box = s->box_tri;
         for (uint32_t u = 0; u < s->nc && !dc->overflow; ++u) {
             const double *p = s->csnap + 3 * (size_t)u;
             /* Cheap reject against the whole cloth box. */
@@ -829,6 +857,7 @@ static bool traverse(weft_garment *g, xpbd_state *s, double r, const pass_fns *f
             xbvh_query(&s->bvh_tri, dc->lo, dc->hi, fns->tv_collider, dc);
         }
         dc->list = PL_EE_COLLIDER;
+        dc->prim_box = s->box_cedge;
         for (uint32_t e = 0; e < s->topo.edge_count && !dc->overflow; ++e) {
             const uint32_t *ed = s->topo.edges + 2 * (size_t)e;
             dc->query = e;
@@ -933,13 +962,22 @@ static void detect(weft_garment *g, xpbd_state *s)
         s->dmin[i] = s->rq;
         s->dmin_mov[i] = s->rq;
     }
+    prim_boxes(s->xs, g->triangles, s->ntri, 3, s->box_tri);
+    prim_boxes(s->xs, s->topo.edges, s->topo.edge_count, 2, s->box_edge);
+    if (s->nc > 0) {
+        prim_boxes(s->csnap, g->collider_triangles, s->nctri, 3, s->box_ctri);
+        prim_boxes(s->csnap, s->ctopo.edges, s->ctopo.edge_count, 2, s->box_cedge);
+    }
     detect_ctx dc = {.s = s, .tris = g->triangles, .ctris = g->collider_triangles};
     static xbvh_visit_fn *const visitors[PL_COUNT] = {visit_self_vt, visit_self_ee, visit_vt_collider,
                                                       visit_tv_collider, visit_ee_collider};
     if (pairs_fresh(s) || build_pairs(g, s)) {
         const xpair *pr = s->pairs;
+        const double *const boxes[PL_COUNT] = {s->box_tri, s->box_edge, s->box_ctri, s->box_tri, s->box_cedge};
         for (int list = 0; list < PL_COUNT; ++list) {
             uint32_t last = UINT32_MAX;
+            dc.list = list;
+            dc.prim_box = boxes[list];
             for (uint32_t k = 0; k < s->pair_count[list]; ++k, ++pr) {
                 if (pr->query != last) {
                     last = pr->query;
@@ -947,13 +985,7 @@ static void detect(weft_garment *g, xpbd_state *s)
                     query_box(s, list, last, &dc);
                 }
                 /* The trees only report primitives whose boxes meet the query box. */
-                const uint32_t *prim = list == PL_SELF_VT || list == PL_TV_COLLIDER ? g->triangles + 3 * (size_t)pr->prim
-                                       : list == PL_SELF_EE ? s->topo.edges + 2 * (size_t)pr->prim
-                                       : list == PL_VT_COLLIDER ? g->collider_triangles + 3 * (size_t)pr->prim
-                                                                : s->ctopo.edges + 2 * (size_t)pr->prim;
-                const double *pos = list == PL_VT_COLLIDER || list == PL_EE_COLLIDER ? s->csnap : s->xs;
-                int k_pts = list == PL_SELF_EE || list == PL_EE_COLLIDER ? 2 : 3;
-                if (box_hits(&dc, pos, prim, k_pts)) {
+                if (box_hits(&dc, pr->prim)) {
                     visitors[list](pr->prim, &dc);
                 }
             }

@@ -1,7 +1,8 @@
 /* weft bench xpbd: solver cost per frame at S = 5, 10, 20, 40 (and 80) substeps, one core,
  * and each run's error against the S = 40 and S = 80 references (the classical half of the
  * speed-versus-accuracy chart). Scene: a sheet of about --vertices vertices dropped onto a
- * box on the ground, so contacts and self-contacts are part of the cost. */
+ * box on the ground, so contacts and self-contacts are part of the cost. `--only S` runs one
+ * substep count with a trajectory hash, for checking that a speedup changes nothing. */
 #define _POSIX_C_SOURCE 200809L /* clock_gettime, CLOCK_THREAD_CPUTIME_ID */
 #include "weft.h"
 #include "xpbd/scene.h"
@@ -28,6 +29,7 @@ typedef struct run_out {
     double ms_frame;  /* mean wall time per frame (solver only) */
     double cpu_frame; /* mean thread CPU time per frame */
     double max_strain;
+    double passes, rebuilds; /* proximity passes and candidate-list rebuilds per frame */
 } run_out;
 
 static int run(weft_context *ctx, const xmesh *cloth, const float *init, const xmesh *col, uint32_t S, uint32_t frames,
@@ -72,6 +74,8 @@ static int run(weft_context *ctx, const xmesh *cloth, const float *init, const x
         memcpy(out->traj + (size_t)f * cloth->nv * 3, weft_garment_positions(g), sizeof(float) * 3 * cloth->nv);
         xpbd_frame_stats st = weft__xpbd_last_stats(g);
         out->max_strain = st.max_strain > out->max_strain ? st.max_strain : out->max_strain;
+        out->passes += (double)st.detections / frames;
+        out->rebuilds += (double)st.pair_rebuilds / frames;
     }
     out->ms_frame = total / frames;
     out->cpu_frame = cpu / frames;
@@ -92,7 +96,7 @@ static double rmse(const float *a, const float *b, size_t nv, uint32_t frames)
 
 int weft_bench_xpbd(int argc, char **argv)
 {
-    uint32_t vertices = 4096, frames = 60;
+    uint32_t vertices = 4096, frames = 60, only = 0;
     bool with80 = true;
     for (int i = 1; i < argc; ++i) {
         if (strcmp(argv[i], "--vertices") == 0 && i + 1 < argc) {
@@ -101,13 +105,17 @@ int weft_bench_xpbd(int argc, char **argv)
             frames = (uint32_t)strtoul(argv[++i], NULL, 10);
         } else if (strcmp(argv[i], "--no-80") == 0) {
             with80 = false;
+        } else if (strcmp(argv[i], "--only") == 0 && i + 1 < argc) {
+            only = (uint32_t)strtoul(argv[++i], NULL, 10);
         } else {
-            fprintf(stderr, "usage: weft bench xpbd [--vertices N (4096)] [--frames T (60)] [--no-80]\n");
+            fprintf(stderr, "usage: weft bench xpbd [--vertices N (4096)] [--frames T (60)] [--no-80] [--only S]\n"
+                            "  --only S  run S substeps alone: cost, proximity-pass counters and a hash of the\n"
+                            "            trajectory (equal hashes: bit-identical output, for checking speedups)\n");
             return strcmp(argv[i], "--help") == 0 ? 0 : 2;
         }
     }
-    if (vertices < 64 || frames < 1) {
-        fprintf(stderr, "bench xpbd: --vertices >= 64 and --frames >= 1\n");
+    if (vertices < 64 || frames < 1 || (only != 0 && (only > 1000))) {
+        fprintf(stderr, "bench xpbd: --vertices >= 64, --frames >= 1, --only 1..1000\n");
         return 2;
     }
     weft_context_def cd = weft_default_context_def();
@@ -135,6 +143,28 @@ int weft_bench_xpbd(int argc, char **argv)
     run_out out[5] = {{0}};
     printf("# weft bench xpbd: %u-vertex sheet dropped on a box, %u frames, one core\n", cloth.nv, frames);
     printf("# %s\n", weft_config_string());
+    if (only != 0) {
+        int rc = run(ctx, &cloth, init, &col, only, frames, &out[0]);
+        if (rc == 0) {
+            /* FNV-1a over the trajectory's bytes. */
+            uint64_t hash = 1469598103934665603ull;
+            const unsigned char *b = (const unsigned char *)out[0].traj;
+            for (size_t i = 0; i < sizeof(float) * 3 * (size_t)cloth.nv * frames; ++i) {
+                hash = (hash ^ b[i]) * 1099511628211ull;
+            }
+            printf("| substeps | CPU ms/frame | CPU ms/substep | wall ms/frame | max strain |\n|---|---|---|---|---|\n");
+            printf("| %u | %.1f | %.2f | %.1f | %.2f %% |\n", only, out[0].cpu_frame, out[0].cpu_frame / only,
+                   out[0].ms_frame, 100.0 * out[0].max_strain);
+            printf("# per frame: %.2f proximity passes, %.2f pair-list rebuilds\n", out[0].passes, out[0].rebuilds);
+            printf("# trajectory hash %016llx\n", (unsigned long long)hash);
+        }
+        free(out[0].traj);
+        free(init);
+        xmesh_free(&cloth);
+        xmesh_free(&col);
+        weft_context_destroy(ctx);
+        return rc;
+    }
     for (uint32_t k = 0; k < nruns; ++k) {
         if (run(ctx, &cloth, init, &col, steps[k], frames, &out[k]) != 0) {
             return 1;
