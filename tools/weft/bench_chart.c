@@ -48,6 +48,7 @@ typedef struct chart_method {
     bool ccd;
     char tether_cm[8];  /* "" or `weft eval --tether-cm` */
     char strain_pct[8]; /* "" or `weft eval --strain-limit` */
+    char strain_contact_cm[8]; /* "" or `weft eval --strain-contact-cm` */
     bool garment_only;  /* tethers bind to the wearer: run on garment sequences only */
 } chart_method;
 
@@ -420,6 +421,13 @@ int weft_bench_chart(int argc, char **argv)
     snprintf(m->label, sizeof m->label, "XPBD-%u + tethers 3 cm", o.xpbd[0]);
     snprintf(m->tether_cm, sizeof m->tether_cm, "3");
     m->garment_only = true;
+    /* Every scene: the cheapest XPBD with the contact-aware strain limit, the strongest classical
+     * baseline of docs/heldout_test_contact.md. */
+    m = &methods[nm++];
+    *m = methods[nm - 2 - o.nxpbd];
+    snprintf(m->label, sizeof m->label, "XPBD-%u + strain 10%% + contact 1 cm", o.xpbd[0]);
+    snprintf(m->strain_pct, sizeof m->strain_pct, "10");
+    snprintf(m->strain_contact_cm, sizeof m->strain_contact_cm, "1");
     static char model_names[32][256];
     size_t nmodels = bench_list_models(o.models, model_names, 32);
     if (nmodels == 0) {
@@ -513,7 +521,8 @@ int weft_bench_chart(int argc, char **argv)
                                             is_model ? mm->model : NULL,
                                             is_model ? mm->precision : NULL,
                                             mm->tether_cm,
-                                            mm->strain_pct};
+                                            mm->strain_pct,
+                                            mm->strain_contact_cm};
             const char *extra[20];
             bench_method_args(&spec, extra, 0);
             bench_eval_result e;

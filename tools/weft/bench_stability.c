@@ -320,8 +320,9 @@ static bool eval_method(const char *exe, const st_opts *o, const st_method *m, c
                                     is_model ? m->model : NULL,
                                     is_model ? m->precision : NULL,
                                     m->tether_cm,
-                                    m->strain_pct};
-    const char *extra[20];
+                                    m->strain_pct,
+                                    NULL};
+    const char *extra[24];
     extra[0] = "--time-limit";
     extra[1] = tl;
     const int n = bench_method_args(&spec, extra, 2);

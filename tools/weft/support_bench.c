@@ -494,6 +494,10 @@ int bench_method_args(const bench_method_spec *spec, const char **out, int n)
         out[n++] = "--strain-limit";
         out[n++] = spec->strain_pct;
     }
+    if (spec->strain_contact_cm && spec->strain_contact_cm[0]) {
+        out[n++] = "--strain-contact-cm";
+        out[n++] = spec->strain_contact_cm;
+    }
     if (strncmp(spec->method, "xpbd", 4) != 0) { /* XPBD solves with them already (same arguments as before) */
         out[n++] = "--pins";
         out[n++] = "all";
