@@ -1380,6 +1380,7 @@ weft_result weft__ccd_garment_create(weft_garment *g)
         def.collider_layout_positions = g->collider_rest;
     }
     def.max_hits = 1;
+    def.max_iterations = g->ccd_iterations;
     weft_ccd_world *w = NULL;
     weft_result r = weft_ccd_world_create(g->ctx, &def, &w);
     if (r != WEFT_OK) {

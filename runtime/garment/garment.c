@@ -12,6 +12,7 @@ weft_garment_def weft_default_garment_def(void)
     def.precision = WEFT_PRECISION_FP32;
     def.substeps = 10;
     def.ccd = true;
+    def.ccd_iterations = 16;
     def.strain_limit_iterations = 8;
     def.internal_cookie = WEFT_DEF_COOKIE;
     return def;
@@ -125,6 +126,10 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
                               (double)def->tether_distances[i]);
         }
     }
+    if (def->ccd && (def->ccd_iterations == 0 || def->ccd_iterations > 64)) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_garment_create: ccd_iterations %u outside [1, 64]",
+                          def->ccd_iterations);
+    }
     if (!(def->strain_limit >= 0.0f && def->strain_limit <= 10.0f)) {
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
                           "weft_garment_create: strain_limit %g is not in [0, 10] (0: off)", (double)def->strain_limit);
@@ -179,6 +184,7 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
     g->precision = def->precision;
     g->substeps = def->substeps;
     g->ccd = def->ccd;
+    g->ccd_iterations = def->ccd_iterations;
     g->crop_margin = def->collider_crop_margin;
     g->crop_rule = def->collider_crop;
     g->max_collider_tokens = def->max_collider_tokens;

@@ -17,6 +17,7 @@ struct weft_garment {
     weft_precision precision;
     uint32_t substeps;
     bool ccd;
+    uint32_t ccd_iterations;            /* CCD back-off passes before the fallback */
     float crop_margin;                  /* model collider crop: metres, 0 = the model's own */
     weft_collider_crop crop_rule;
     uint32_t max_collider_tokens;       /* 0: no cap */

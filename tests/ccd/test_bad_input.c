@@ -147,8 +147,10 @@ static void zero_area_and_huge(void)
     weft_context_destroy(ctx);
 }
 
-/* The garment step runs the post-process when def.ccd is set and reports it in the stats. */
-static void garment_step_reports_ccd(void)
+/* The garment step runs the post-process when def.ccd is set and reports it in the stats; with
+ * one back-off pass (def.ccd_iterations) the result is still above the ground. Bad pass counts
+ * are refused. */
+static void garment_step_ccd(uint32_t iterations)
 {
     weft_context *ctx = ctx_make();
     enum { N = 6 };
@@ -183,6 +185,20 @@ static void garment_step_reports_ccd(void)
     gd.collider_triangles = gt;
     gd.collider_triangle_count = 2;
     weft_garment *g = NULL;
+    static const uint32_t bad[] = {0, 65, 1000};
+    for (size_t b = 0; b < sizeof bad / sizeof bad[0]; ++b) {
+        gd.ccd_iterations = bad[b];
+        CHECK_RESULT(weft_garment_create(ctx, &gd, &g), WEFT_ERROR_INVALID_ARGUMENT);
+        CHECK(g == NULL);
+        CHECK(strstr(weft_last_error(), "ccd_iterations") != NULL);
+    }
+    gd.ccd = false;
+    gd.ccd_iterations = 0; /* not looked at without CCD */
+    CHECK_RESULT(weft_garment_create(ctx, &gd, &g), WEFT_OK);
+    weft_garment_destroy(g);
+    g = NULL;
+    gd.ccd = true;
+    gd.ccd_iterations = iterations;
     weft_result r = weft_garment_create(ctx, &gd, &g);
     CHECK_RESULT(r, WEFT_OK);
     if (r == WEFT_OK) {
@@ -191,6 +207,7 @@ static void garment_step_reports_ccd(void)
             CHECK_RESULT(weft_garment_step(g), WEFT_OK);
             weft_step_stats s = weft_garment_stats(g);
             CHECK(s.ccd_iterations >= 1);
+            CHECK(s.ccd_fallback || s.ccd_iterations <= iterations);
             const float *x = weft_garment_positions(g);
             for (int v = 0; v < N * N; ++v) {
                 CHECK_MSG(x[3 * v + 1] > 0.0f, "frame %d vertex %d below the ground: %g", f, v, x[3 * v + 1]);
@@ -201,5 +218,8 @@ static void garment_step_reports_ccd(void)
     weft_context_destroy(ctx);
 }
 
+static void garment_step_reports_ccd(void) { garment_step_ccd(16); }
+static void garment_step_one_ccd_pass(void) { garment_step_ccd(1); }
+
 TEST_MAIN(TEST_CASE(malformed_defs), TEST_CASE(non_finite_frames), TEST_CASE(zero_area_and_huge),
-          TEST_CASE(garment_step_reports_ccd))
+          TEST_CASE(garment_step_reports_ccd), TEST_CASE(garment_step_one_ccd_pass))

@@ -42,6 +42,7 @@ typedef struct eval_opts {
     uint32_t substeps;
     weft_precision precision;
     bool ccd, json;
+    uint32_t ccd_iterations;            /* weft_garment_def.ccd_iterations */
     uint32_t max_frames;
     float crop_margin;                  /* m, 0: the model's own */
     weft_collider_crop crop;
@@ -440,6 +441,7 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
     d.precision = o->precision;
     d.substeps = o->substeps;
     d.ccd = o->ccd;
+    d.ccd_iterations = o->ccd_iterations;
     d.collider_crop_margin = o->crop_margin;
     d.collider_crop = o->crop;
     d.max_collider_tokens = o->max_collider_tokens;
@@ -668,11 +670,12 @@ static int cmp_str(const void *a, const void *b) { return strcmp(*(char *const *
 static void usage(FILE *f)
 {
     fprintf(f, "usage: weft eval --seq DIR [--model M] [--method model|lbs|xpbd:S] [--precision fp32|fp16|int8]\n"
-               "                 [--ccd on|off] [--split train|val|test] [--frames N] [--json]\n"
+               "                 [--ccd on|off] [--ccd-iterations N] [--split train|val|test] [--frames N] [--json]\n"
                "                 [--crop-cm X] [--crop box|cells] [--max-collider-tokens N] [--tether-cm X]\n"
                "                 [--strain-limit PCT] [--strain-contact-cm X] [--sim-mesh DIR] [--time-limit S]\n"
                "                 [--write-pos DIR] [--pins xpbd|all]\n"
                "  DIR is one sequence folder (meta.json + .npy) or a folder of them.\n"
+               "  --ccd-iterations N  CCD back-off passes before its fallback (1..64, default 16)\n"
                "  --tether-cm X   tethers to the skinned garment, radius X cm (0 on vertices pinned at the start)\n"
                "  --strain-limit PCT  shorten edges stretched over PCT %% after each step (and in CCD)\n"
                "  --strain-contact-cm X  contact-aware limit: vertices within X cm of the collider stay put\n"
@@ -690,7 +693,8 @@ static void usage(FILE *f)
 
 int weft_cmd_eval(int argc, char **argv)
 {
-    eval_opts o = {.method = WEFT_METHOD_MODEL, .substeps = 10, .precision = WEFT_PRECISION_FP32, .ccd = true};
+    eval_opts o = {.method = WEFT_METHOD_MODEL, .substeps = 10, .precision = WEFT_PRECISION_FP32, .ccd = true,
+                   .ccd_iterations = 16};
     for (int i = 1; i < argc; ++i) {
         const char *a = argv[i];
         const char *v = i + 1 < argc ? argv[i + 1] : NULL;
@@ -820,6 +824,15 @@ int weft_cmd_eval(int argc, char **argv)
                 return 2;
             }
             o.ccd = strcmp(v, "on") == 0;
+        } else if (strcmp(a, "--ccd-iterations") == 0) {
+            char *end;
+            unsigned long n = strtoul(v, &end, 10);
+            ++i;
+            if (*end || end == v || n < 1 || n > 64) {
+                fprintf(stderr, "weft eval: --ccd-iterations takes 1..64, not '%s'\n", v);
+                return 2;
+            }
+            o.ccd_iterations = (uint32_t)n;
         } else {
             fprintf(stderr, "weft eval: unknown option '%s'\n", a);
             usage(stderr);
