@@ -32,6 +32,7 @@ typedef struct tree {
     uint32_t *order;       /* slot -> primitive */
     box *slot_box;         /* per slot, refreshed by refit */
     uint8_t *node_dirty;   /* per node: a primitive below has a dirty vertex (incremental passes) */
+    uint8_t *slot_dirty;   /* per slot: the primitive has a dirty vertex */
     bool built;
 } tree;
 
@@ -246,15 +247,18 @@ static void tree_mark_dirty(tree *t, const uint8_t *vdirty)
         node *n = &t->nodes[i];
         uint8_t d = 0;
         if (n->count) {
-            for (uint32_t s = n->first; s < n->first + n->count && !d; ++s) {
+            for (uint32_t s = n->first; s < n->first + n->count; ++s) {
                 uint32_t p = t->order[s];
+                uint8_t ds = 0;
                 if (t->arity == 1) {
-                    d = vdirty[p];
+                    ds = vdirty[p];
                 } else {
                     for (uint32_t k = 0; k < t->arity; ++k) {
-                        d |= vdirty[t->verts[(size_t)p * t->arity + k]];
+                        ds |= vdirty[t->verts[(size_t)p * t->arity + k]];
                     }
                 }
+                t->slot_dirty[s] = ds;
+                d |= ds;
             }
         } else {
             d = t->node_dirty[n->first] | t->node_dirty[n->first + 1];
@@ -268,7 +272,8 @@ typedef void pair_fn(void *ctx, uint32_t a, uint32_t b);
 static inline float box_extent(const box *b) { return (b->hi[0] - b->lo[0]) + (b->hi[1] - b->lo[1]) + (b->hi[2] - b->lo[2]); }
 
 /* All primitive pairs (a from A, b from B) whose boxes overlap. With A == B each unordered pair of
- * distinct primitives is visited once. */
+ * distinct primitives is visited once. With filter, pairs where neither primitive has a dirty
+ * vertex are skipped at every level (their narrow tests would all be skipped anyway). */
 static void traverse(const tree *A, const tree *B, pair_fn *fn, void *ctx, bool filter)
 {
     if (A->prims == 0 || B->prims == 0) {
@@ -276,7 +281,7 @@ static void traverse(const tree *A, const tree *B, pair_fn *fn, void *ctx, bool 
     }
     /* With filter, node pairs where neither side has a dirty primitive are skipped; trees without
      * dirty bits (the collider) never have any. */
-    const uint8_t *da = A->node_dirty, *db = B->node_dirty;
+    const uint8_t *da = A->node_dirty, *db = B->node_dirty, *sa = A->slot_dirty, *sb = B->slot_dirty;
     bool self = A == B;
     uint32_t stack[2 * STACK_SIZE];
     uint32_t sp = 0;
@@ -292,6 +297,9 @@ static void traverse(const tree *A, const tree *B, pair_fn *fn, void *ctx, bool 
             if (na->count) {
                 for (uint32_t s = na->first; s < na->first + na->count; ++s) {
                     for (uint32_t r = s + 1; r < na->first + na->count; ++r) {
+                        if (filter && !sa[s] && !sa[r]) {
+                            continue;
+                        }
                         if (overlap(&A->slot_box[s], &A->slot_box[r])) {
                             fn(ctx, A->order[s], A->order[r]);
                         }
@@ -314,6 +322,9 @@ static void traverse(const tree *A, const tree *B, pair_fn *fn, void *ctx, bool 
         if (na->count && nb->count) {
             for (uint32_t s = na->first; s < na->first + na->count; ++s) {
                 for (uint32_t r = nb->first; r < nb->first + nb->count; ++r) {
+                    if (filter && !sa[s] && !sb[r]) {
+                        continue;
+                    }
                     if (overlap(&A->slot_box[s], &B->slot_box[r])) {
                         fn(ctx, A->order[s], B->order[r]);
                     }
@@ -432,6 +443,7 @@ static void tree_setup(alloc_list *l, tree *t, uint32_t prims, uint32_t arity)
     want(l, &t->order, (size_t)prims * sizeof(uint32_t));
     want(l, &t->slot_box, (size_t)prims * sizeof(box));
     want(l, &t->node_dirty, 2 * (size_t)prims);
+    want(l, &t->slot_dirty, (size_t)prims);
 }
 
 static void free_world(weft_ccd_world *w, alloc_list *l)
