@@ -266,10 +266,11 @@ typedef struct weft_garment_def {
      * torn open for a few sweeps over the edges. CCD runs after it and may still stretch edges
      * where it holds vertices back. 0 (default) = off; in [0, 10].
      * strain_limit_iterations: default 8, in [1, 1000] when the limit is on.
-     * strain_limit_contact: metres; > 0 makes the limit contact-aware: vertices within this
-     * distance of the collider at t+1 stay where the step put them, as pinned ones do, and their
-     * free neighbours take the whole correction (a sheet draped over an object is then not
-     * dragged into it by its hanging part). Needs a collider; 0 (default) = off; in [0, 1]. */
+     * strain_limit_contact: metres; > 0 makes the limit contact-aware: a vertex within this
+     * distance of the collider at t+1 keeps only the part of its correction that does not point
+     * into the collider (it may slide along the surface or leave it), so a sheet draped over an
+     * object is not dragged into it by its hanging part. Needs a collider; 0 (default) = off;
+     * in [0, 1]. */
     float strain_limit;
     uint32_t strain_limit_iterations;
     float strain_limit_contact;

@@ -132,8 +132,9 @@ static bool visit_near(uint32_t t, void *user)
     return true;
 }
 
-/* Unit direction from the nearest collider point to p (the face normal, oriented toward the
- * side p was on at t, when p touches the surface). False when it is undefined. */
+/* Unit direction from the nearest collider point to p; when p lies on the surface, the face
+ * normal of the triangle's winding (outward on the closed colliders weft builds). False when it
+ * is undefined. */
 static bool away_direction(const weft_garment *g, const near_query *q, float n[3])
 {
     const uint32_t *tri = g->collider_triangles + 3 * (size_t)q->best_tri;

@@ -521,6 +521,22 @@ static inline bool box_hits(const detect_ctx *dc, uint32_t prim)
              b[5] < dc->lo[2]);
 }
 
+/* The boxes of the primitives a pair list's second member indexes. */
+static const double *list_boxes(const xpbd_state *s, int list)
+{
+    switch (list) {
+    case PL_SELF_VT:
+    case PL_TV_COLLIDER:
+        return s->box_tri;
+    case PL_SELF_EE:
+        return s->box_edge;
+    case PL_VT_COLLIDER:
+        return s->box_ctri;
+    default:
+        return s->box_cedge;
+    }
+}
+
 /* Boxes of count primitives of k vertices each. */
 static void prim_boxes(const double *pos, const uint32_t *idx, uint32_t count, int k, double *box)
 {
@@ -818,14 +834,14 @@ static bool traverse(weft_garment *g, xpbd_state *s, double r, const pass_fns *f
 {
     if (s->p.self_collision) {
         dc->list = PL_SELF_VT;
-        dc->prim_box = s->box_tri;
+        dc->prim_box = list_boxes(s, PL_SELF_VT);
         for (uint32_t v = 0; v < s->n && !dc->overflow; ++v) {
             dc->query = v;
             box_around(s->xs + 3 * (size_t)v, r, dc->lo, dc->hi);
             xbvh_query(&s->bvh_tri, dc->lo, dc->hi, fns->self_vt, dc);
         }
         dc->list = PL_SELF_EE;
-        dc->prim_box = s->box_edge;
+        dc->prim_box = list_boxes(s, PL_SELF_EE);
         for (uint32_t e = 0; e < s->topo.edge_count && !dc->overflow; ++e) {
             const uint32_t *ed = s->topo.edges + 2 * (size_t)e;
             dc->query = e;
@@ -837,14 +853,14 @@ static bool traverse(weft_garment *g, xpbd_state *s, double r, const pass_fns *f
         (void)g;
         const xbvh_node *root = &s->bvh_tri.nodes[0];
         dc->list = PL_VT_COLLIDER;
-        dc->prim_box = s->box_ctri;
+        dc->prim_box = list_boxes(s, PL_VT_COLLIDER);
         for (uint32_t v = 0; v < s->n && !dc->overflow; ++v) {
             dc->query = v;
             box_around(s->xs + 3 * (size_t)v, r, dc->lo, dc->hi);
             xbvh_query(&s->bvh_ctri, dc->lo, dc->hi, fns->vt_collider, dc);
         }
         dc->list = PL_TV_COLLIDER;
-        dc->prim_box = s->box_tri;
+        dc->prim_box = list_boxes(s, PL_TV_COLLIDER);
         for (uint32_t u = 0; u < s->nc && !dc->overflow; ++u) {
             const double *p = s->csnap + 3 * (size_t)u;
             /* Cheap reject against the whole cloth box. */
@@ -857,7 +873,7 @@ static bool traverse(weft_garment *g, xpbd_state *s, double r, const pass_fns *f
             xbvh_query(&s->bvh_tri, dc->lo, dc->hi, fns->tv_collider, dc);
         }
         dc->list = PL_EE_COLLIDER;
-        dc->prim_box = s->box_cedge;
+        dc->prim_box = list_boxes(s, PL_EE_COLLIDER);
         for (uint32_t e = 0; e < s->topo.edge_count && !dc->overflow; ++e) {
             const uint32_t *ed = s->topo.edges + 2 * (size_t)e;
             dc->query = e;
@@ -973,11 +989,10 @@ static void detect(weft_garment *g, xpbd_state *s)
                                                       visit_tv_collider, visit_ee_collider};
     if (pairs_fresh(s) || build_pairs(g, s)) {
         const xpair *pr = s->pairs;
-        const double *const boxes[PL_COUNT] = {s->box_tri, s->box_edge, s->box_ctri, s->box_tri, s->box_cedge};
         for (int list = 0; list < PL_COUNT; ++list) {
             uint32_t last = UINT32_MAX;
             dc.list = list;
-            dc.prim_box = boxes[list];
+            dc.prim_box = list_boxes(s, list);
             for (uint32_t k = 0; k < s->pair_count[list]; ++k, ++pr) {
                 if (pr->query != last) {
                     last = pr->query;

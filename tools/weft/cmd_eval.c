@@ -691,10 +691,34 @@ static void usage(FILE *f)
                "                  reference frames it starts from, then every step (on the scored mesh)\n");
 }
 
+/* A whole-string number in hundredths (cm or %) as a fraction of one: metres or a ratio. */
+static bool parse_hundredths(const char *v, float *out)
+{
+    char *end;
+    float f = strtof(v, &end);
+    if (*end || end == v) {
+        return false;
+    }
+    *out = f / 100.0f;
+    return true;
+}
+
+/* A whole-string unsigned integer in [lo, hi]. */
+static bool parse_u32(const char *v, unsigned long lo, unsigned long hi, uint32_t *out)
+{
+    char *end;
+    unsigned long n = strtoul(v, &end, 10);
+    if (*end || end == v || n < lo || n > hi) {
+        return false;
+    }
+    *out = (uint32_t)n;
+    return true;
+}
+
 int weft_cmd_eval(int argc, char **argv)
 {
     eval_opts o = {.method = WEFT_METHOD_MODEL, .substeps = 10, .precision = WEFT_PRECISION_FP32, .ccd = true,
-                   .ccd_iterations = 16};
+                   .ccd_iterations = weft_default_garment_def().ccd_iterations};
     for (int i = 1; i < argc; ++i) {
         const char *a = argv[i];
         const char *v = i + 1 < argc ? argv[i + 1] : NULL;
@@ -753,12 +777,11 @@ int weft_cmd_eval(int argc, char **argv)
             }
         } else if (strcmp(a, "--crop-cm") == 0) {
             /* model collider crop margin in cm (0: the model's own); the library validates it */
-            char *end;
-            o.crop_margin = strtof(v, &end) / 100.0f, ++i;
-            if (*end || end == v) {
+            if (!parse_hundredths(v, &o.crop_margin)) {
                 fprintf(stderr, "weft eval: bad --crop-cm '%s'\n", v);
                 return 2;
             }
+            ++i;
         } else if (strcmp(a, "--time-limit") == 0) {
             char *end;
             double sec = strtod(v, &end);
@@ -780,27 +803,24 @@ int weft_cmd_eval(int argc, char **argv)
             o.sim_mesh = v, ++i; /* rest_pos.npy + faces.npy of the same garment at another resolution */
         } else if (strcmp(a, "--tether-cm") == 0) {
             /* tethers to the skinned garment, radius in cm (0: off); the library validates it */
-            char *end;
-            o.tether = strtof(v, &end) / 100.0f, ++i;
-            if (*end || end == v) {
+            if (!parse_hundredths(v, &o.tether)) {
                 fprintf(stderr, "weft eval: bad --tether-cm '%s'\n", v);
                 return 2;
             }
+            ++i;
         } else if (strcmp(a, "--strain-limit") == 0) {
             /* percent over rest length (0: off); the library validates it */
-            char *end;
-            o.strain_limit = strtof(v, &end) / 100.0f, ++i;
-            if (*end || end == v) {
+            if (!parse_hundredths(v, &o.strain_limit)) {
                 fprintf(stderr, "weft eval: bad --strain-limit '%s'\n", v);
                 return 2;
             }
+            ++i;
         } else if (strcmp(a, "--strain-contact-cm") == 0) {
-            char *end;
-            o.strain_contact = strtof(v, &end) / 100.0f, ++i;
-            if (*end || end == v) {
+            if (!parse_hundredths(v, &o.strain_contact)) {
                 fprintf(stderr, "weft eval: bad --strain-contact-cm '%s'\n", v);
                 return 2;
             }
+            ++i;
         } else if (strcmp(a, "--crop") == 0) {
             ++i;
             if (strcmp(v, "box") != 0 && strcmp(v, "cells") != 0) {
@@ -809,14 +829,11 @@ int weft_cmd_eval(int argc, char **argv)
             }
             o.crop = strcmp(v, "cells") == 0 ? WEFT_COLLIDER_CROP_CELLS : WEFT_COLLIDER_CROP_BOX;
         } else if (strcmp(a, "--max-collider-tokens") == 0) {
-            char *end;
-            unsigned long n = strtoul(v, &end, 10);
-            ++i;
-            if (*end || end == v || n > UINT32_MAX) {
+            if (!parse_u32(v, 0, UINT32_MAX, &o.max_collider_tokens)) {
                 fprintf(stderr, "weft eval: bad --max-collider-tokens '%s'\n", v);
                 return 2;
             }
-            o.max_collider_tokens = (uint32_t)n;
+            ++i;
         } else if (strcmp(a, "--ccd") == 0) {
             ++i;
             if (strcmp(v, "on") != 0 && strcmp(v, "off") != 0) {
@@ -825,14 +842,11 @@ int weft_cmd_eval(int argc, char **argv)
             }
             o.ccd = strcmp(v, "on") == 0;
         } else if (strcmp(a, "--ccd-iterations") == 0) {
-            char *end;
-            unsigned long n = strtoul(v, &end, 10);
-            ++i;
-            if (*end || end == v || n < 1 || n > 64) {
+            if (!parse_u32(v, 1, 64, &o.ccd_iterations)) {
                 fprintf(stderr, "weft eval: --ccd-iterations takes 1..64, not '%s'\n", v);
                 return 2;
             }
-            o.ccd_iterations = (uint32_t)n;
+            ++i;
         } else {
             fprintf(stderr, "weft eval: unknown option '%s'\n", a);
             usage(stderr);
