@@ -274,6 +274,19 @@ typedef struct weft_garment_def {
     float strain_limit;
     uint32_t strain_limit_iterations;
     float strain_limit_contact;
+
+    /* Collider push (every method). After the strain limit, before CCD: each vertex inside the
+     * collider at t+1 by at most collider_push_depth, or in front of it by less than
+     * collider_push, is moved to collider_push in front of the nearest collider point. Inside is
+     * told by the angle-weighted pseudonormal of the nearest face, edge or corner, which is exact
+     * on a closed collider. A learned step that dips the cloth into the body then hands CCD a
+     * frame the body does not cut; CCD's back-off alone can only hold such cloth back, and the
+     * body drags it along. Deeper penetrations are left to CCD: past about half a limb's
+     * thickness the nearest surface is the far side. Pinned vertices and radius-0 tethers are
+     * not moved. collider_push: metres, 0 (default) = off, in [0, 0.1]; needs a collider.
+     * collider_push_depth: metres, default 0.02, in [0, 0.5]. docs/CCD.md, *Collider push*. */
+    float collider_push;
+    float collider_push_depth;
     uint32_t internal_cookie;           /* set by weft_default_garment_def(); do not touch */
 } weft_garment_def;
 
@@ -286,6 +299,10 @@ typedef struct weft_step_stats {
     uint32_t collider_tokens;           /* collider triangles the last model step turned into tokens */
     uint32_t tether_vertices_clamped;   /* vertices the tethers moved back in the last step */
     uint32_t strain_limited_edges;      /* edges over the strain limit before limiting, last step */
+    uint32_t pushed_vertices;           /* vertices the collider push moved in the last step */
+    uint32_t push_from_far_side;        /* vertices inside that it left to CCD: they came in through
+                                         * the collider's far side, so the nearest surface would
+                                         * push them through it */
 } weft_step_stats;
 
 WEFT_API weft_garment_def weft_default_garment_def(void);

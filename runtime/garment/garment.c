@@ -14,6 +14,7 @@ weft_garment_def weft_default_garment_def(void)
     def.ccd = true;
     def.ccd_iterations = 16;
     def.strain_limit_iterations = 8;
+    def.collider_push_depth = 0.02f;
     def.internal_cookie = WEFT_DEF_COOKIE;
     return def;
 }
@@ -70,6 +71,7 @@ static void free_buffers(weft_garment *g)
     weft__free(ctx, g->tether_radius, (size_t)g->vertex_count * sizeof(float));
     weft__free(ctx, g->tether_target, nv3);
     weft__strain_destroy(g);
+    weft__near_destroy(g);
     weft__free(ctx, g, sizeof *g);
 }
 
@@ -147,6 +149,20 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
         return weft__fail(WEFT_ERROR_NO_COLLIDER,
                           "weft_garment_create: strain_limit_contact looks for the collider, and the garment has none");
     }
+    if (!(def->collider_push >= 0.0f && def->collider_push <= 0.1f)) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
+                          "weft_garment_create: collider_push %g is not in [0, 0.1] metres (0: off)",
+                          (double)def->collider_push);
+    }
+    if (def->collider_push > 0.0f && !(def->collider_push_depth >= 0.0f && def->collider_push_depth <= 0.5f)) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
+                          "weft_garment_create: collider_push_depth %g is not in [0, 0.5] metres",
+                          (double)def->collider_push_depth);
+    }
+    if (def->collider_push > 0.0f && def->collider_vertex_count == 0) {
+        return weft__fail(WEFT_ERROR_NO_COLLIDER,
+                          "weft_garment_create: collider_push pushes cloth out of the collider, and the garment has none");
+    }
     if (tethers && def->collider_vertex_count == 0) {
         return weft__fail(WEFT_ERROR_NO_COLLIDER,
                           "weft_garment_create: tethers follow the collider, and the garment has none");
@@ -191,6 +207,8 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
     g->strain_limit = def->strain_limit;
     g->strain_iterations = def->strain_limit_iterations;
     g->strain_contact = def->strain_limit > 0.0f ? def->strain_limit_contact : 0.0f;
+    g->push_thickness = def->collider_push;
+    g->push_depth = def->collider_push_depth;
     g->vertex_count = def->vertex_count;
     g->triangle_count = def->triangle_count;
     g->collider_vertex_count = def->collider_vertex_count;
@@ -245,6 +263,10 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
         }
     }
     if (g->strain_limit > 0.0f && (r = weft__strain_create(g)) != WEFT_OK) {
+        free_buffers(g);
+        return r;
+    }
+    if ((r = weft__near_create(g)) != WEFT_OK) {
         free_buffers(g);
         return r;
     }
@@ -387,8 +409,12 @@ weft_result weft__garment_finish_step(weft_garment *g)
             return r;
         }
     }
+    weft__near_refit(g); /* the collider tree at t+1, for the contact-aware limit and the push */
     if (g->strain_limit > 0.0f) {
         weft__strain_limit(g);
+    }
+    if (g->push_thickness > 0.0f) {
+        weft__push(g); /* out of the collider, so that CCD starts from a frame the body does not cut */
     }
     weft__ccd_postprocess_garment(g); /* sweeps x -> x_next against the collider and itself */
     /* Rotate: t-1 <- t, t <- t+1 (pointer swaps, no copies). */

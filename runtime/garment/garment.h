@@ -35,9 +35,17 @@ struct weft_garment {
     uint8_t *strain_fixed;              /* vertex_count: 1 glued (radius-0 tether), | 2 pinned this step,
                                          * | 4 near the collider this step (contact-aware limit) */
     float strain_contact;               /* contact-aware limit distance, metres; 0: off */
-    double *strain_cpos;                /* collider_vertex_count * 3: the collider at t+1, for the tree */
-    struct xbvh *strain_ctree;          /* collider triangles (runtime/xpbd/xpbd_bvh.c); NULL: off */
     float *strain_normal;               /* vertex_count * 3: away from the collider, where bit 4 is set */
+
+    float push_thickness;               /* collider push (near.c): metres kept in front; 0: off */
+    float push_depth;                   /* deepest penetration pushed out, metres */
+
+    /* Collider proximity (near.c), made when the contact-aware limit or the push needs it. */
+    double *near_cpos;                  /* collider_vertex_count * 3: the collider at t+1, for the tree */
+    struct xbvh *near_tree;             /* collider triangles (runtime/xpbd/xpbd_bvh.c); NULL: off */
+    uint32_t *near_across;              /* push: per triangle edge (k, k+1), the triangle across or UINT32_MAX */
+    uint32_t *near_vt_start, *near_vt;  /* push: triangles around each collider vertex (CSR) */
+    uint8_t *near_skip;                 /* push: vertex_count, 1 glued, | 2 pinned this step */
 
     uint32_t vertex_count, triangle_count;
     float *rest;                        /* vertex_count * 3 */
@@ -83,6 +91,21 @@ weft_result weft__garment_finish_step(weft_garment *g);
 weft_result weft__strain_create(weft_garment *g);
 void weft__strain_destroy(weft_garment *g);
 void weft__strain_limit(weft_garment *g);
+
+/* Collider proximity and push (near.c). create makes the tree when strain_contact or
+ * push_thickness asks for it; refit moves it to the collider at t+1 (once per step). */
+typedef struct weft_near_hit {
+    uint32_t tri;                       /* nearest collider triangle */
+    double bary[3], point[3], d2;       /* its nearest point (weights, position) and squared distance */
+} weft_near_hit;
+weft_result weft__near_create(weft_garment *g);
+void weft__near_destroy(weft_garment *g);
+void weft__near_refit(weft_garment *g);
+/* Nearest collider point to p within radius; false when there is none. */
+bool weft__near_nearest(const weft_garment *g, const double p[3], double radius, weft_near_hit *hit);
+/* Moves x_next vertices inside the collider (up to push_depth) or closer than push_thickness
+ * to push_thickness in front of it; sets stats.pushed_vertices and push_from_far_side. */
+void weft__push(weft_garment *g);
 
 /* Indices in range, finite positions, no zero-area triangles; `what` names the mesh in errors. */
 weft_result weft__check_mesh(const char *what, const float *positions, uint32_t vertex_count,

@@ -8,7 +8,6 @@
  * it). Without it, the hanging part of a sheet draped over an object drags the part lying on it
  * into the object (docs/MODEL.md). */
 #include "garment/garment.h"
-#include "xpbd/xpbd.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -46,28 +45,11 @@ weft_result weft__strain_create(weft_garment *g)
     }
     g->strain_edge_count = m;
     if (g->strain_contact > 0.0f && g->collider_vertex_count > 0) {
-        g->strain_cpos = weft__alloc(g->ctx, (size_t)g->collider_vertex_count * 3 * sizeof(double));
-        g->strain_ctree = weft__alloc(g->ctx, sizeof *g->strain_ctree);
         g->strain_normal = weft__alloc(g->ctx, (size_t)g->vertex_count * 3 * sizeof(float));
-        weft_result r = g->strain_cpos && g->strain_ctree && g->strain_normal ? WEFT_OK : WEFT_ERROR_OUT_OF_MEMORY;
-        if (r == WEFT_OK) {
-            memset(g->strain_ctree, 0, sizeof *g->strain_ctree);
-            r = xbvh_create(g->ctx, g->strain_ctree, g->collider_triangles, g->collider_triangle_count, 3);
-            if (r == WEFT_OK) {
-                /* Built once on the rest collider; each step refits it to the moved one. */
-                for (size_t i = 0; i < (size_t)g->collider_vertex_count * 3; ++i) {
-                    g->strain_cpos[i] = g->collider_rest[i];
-                }
-                xbvh_build(g->strain_ctree, g->strain_cpos);
-            } else {
-                weft__free(g->ctx, g->strain_ctree, sizeof *g->strain_ctree);
-                g->strain_ctree = NULL;
-            }
-        }
-        if (r != WEFT_OK) {
+        if (!g->strain_normal) {
             weft__free(g->ctx, keys, n * sizeof *keys);
             weft__strain_destroy(g);
-            return r;
+            return WEFT_ERROR_OUT_OF_MEMORY;
         }
     }
     for (uint32_t i = 0; i < g->vertex_count; ++i) {
@@ -95,14 +77,7 @@ void weft__strain_destroy(weft_garment *g)
     weft__free(g->ctx, g->strain_edges, (size_t)g->strain_edge_count * 2 * sizeof(uint32_t));
     weft__free(g->ctx, g->strain_rest, (size_t)g->strain_edge_count * sizeof(float));
     weft__free(g->ctx, g->strain_fixed, g->vertex_count);
-    if (g->strain_ctree) {
-        xbvh_destroy(g->ctx, g->strain_ctree);
-        weft__free(g->ctx, g->strain_ctree, sizeof *g->strain_ctree);
-    }
-    weft__free(g->ctx, g->strain_cpos, (size_t)g->collider_vertex_count * 3 * sizeof(double));
     weft__free(g->ctx, g->strain_normal, (size_t)g->vertex_count * 3 * sizeof(float));
-    g->strain_ctree = NULL;
-    g->strain_cpos = NULL;
     g->strain_normal = NULL;
     g->strain_edges = NULL;
     g->strain_rest = NULL;
@@ -110,39 +85,17 @@ void weft__strain_destroy(weft_garment *g)
     g->strain_edge_count = 0;
 }
 
-typedef struct near_query {
-    const weft_garment *g;
-    double p[3], best_d2;
-    uint32_t best_tri;
-    double best_bary[3];
-} near_query;
-
-static bool visit_near(uint32_t t, void *user)
-{
-    near_query *q = user;
-    const uint32_t *tri = q->g->collider_triangles + 3 * (size_t)t;
-    const double *c = q->g->strain_cpos;
-    double bary[3];
-    double d2 = xg_point_triangle_sq(q->p, c + 3 * (size_t)tri[0], c + 3 * (size_t)tri[1], c + 3 * (size_t)tri[2], bary);
-    if (d2 < q->best_d2) {
-        q->best_d2 = d2;
-        q->best_tri = t;
-        memcpy(q->best_bary, bary, sizeof bary);
-    }
-    return true;
-}
-
 /* Unit direction from the nearest collider point to p; when p lies on the surface, the face
  * normal of the triangle's winding (outward on the closed colliders weft builds). False when it
  * is undefined. */
-static bool away_direction(const weft_garment *g, const near_query *q, float n[3])
+static bool away_direction(const weft_garment *g, const double p[3], const weft_near_hit *q, float n[3])
 {
-    const uint32_t *tri = g->collider_triangles + 3 * (size_t)q->best_tri;
-    const double *a = g->strain_cpos + 3 * (size_t)tri[0], *b = g->strain_cpos + 3 * (size_t)tri[1],
-                 *c = g->strain_cpos + 3 * (size_t)tri[2];
+    const uint32_t *tri = g->collider_triangles + 3 * (size_t)q->tri;
+    const double *a = g->near_cpos + 3 * (size_t)tri[0], *b = g->near_cpos + 3 * (size_t)tri[1],
+                 *c = g->near_cpos + 3 * (size_t)tri[2];
     double d[3], len2 = 0.0;
     for (int k = 0; k < 3; ++k) {
-        d[k] = q->p[k] - (q->best_bary[0] * a[k] + q->best_bary[1] * b[k] + q->best_bary[2] * c[k]);
+        d[k] = p[k] - (q->bary[0] * a[k] + q->bary[1] * b[k] + q->bary[2] * c[k]);
         len2 += d[k] * d[k];
     }
     if (len2 < 1e-16) {
@@ -163,29 +116,15 @@ static bool away_direction(const weft_garment *g, const near_query *q, float n[3
 }
 
 /* Sets bit 4 on the vertices of x_next within strain_contact of the collider at t+1, with the
- * direction away from the nearest collider point in strain_normal. The tree, built on the rest
- * collider, is refitted to the collider at t+1 (no allocation). */
+ * direction away from the nearest collider point in strain_normal (the tree is at t+1 already). */
 static void mark_contacts(weft_garment *g)
 {
-    const size_t nc3 = (size_t)g->collider_vertex_count * 3;
-    for (size_t i = 0; i < nc3; ++i) {
-        g->strain_cpos[i] = g->collider_next[i];
-    }
-    xbvh_refit(g->strain_ctree, g->strain_cpos, NULL, 0.0);
-    const double r = g->strain_contact;
-    near_query q = {.g = g};
+    weft_near_hit hit;
     for (uint32_t v = 0; v < g->vertex_count; ++v) {
         const float *x = g->x_next + 3 * (size_t)v;
-        double lo[3], hi[3];
-        for (int k = 0; k < 3; ++k) {
-            q.p[k] = x[k];
-            lo[k] = q.p[k] - r;
-            hi[k] = q.p[k] + r;
-        }
-        q.best_d2 = r * r;
-        q.best_tri = UINT32_MAX;
-        xbvh_query(g->strain_ctree, lo, hi, visit_near, &q);
-        if (q.best_tri != UINT32_MAX && away_direction(g, &q, g->strain_normal + 3 * (size_t)v)) {
+        const double p[3] = {x[0], x[1], x[2]};
+        if (weft__near_nearest(g, p, g->strain_contact, &hit) &&
+            away_direction(g, p, &hit, g->strain_normal + 3 * (size_t)v)) {
             g->strain_fixed[v] |= 4;
         }
     }
@@ -208,7 +147,7 @@ void weft__strain_limit(weft_garment *g)
     for (uint32_t k = 0; k < g->pin_count; ++k) {
         fixed[g->pin_indices[k]] |= 2;
     }
-    if (g->strain_ctree) {
+    if (g->strain_normal) {
         mark_contacts(g);
     }
     const float grow = 1.0f + g->strain_limit;
@@ -257,7 +196,7 @@ void weft__strain_limit(weft_garment *g)
             break;
         }
     }
-    for (uint32_t v = 0; g->strain_ctree && v < g->vertex_count; ++v) {
+    for (uint32_t v = 0; g->strain_normal && v < g->vertex_count; ++v) {
         fixed[v] &= 3;
     }
     for (uint32_t k = 0; k < g->pin_count; ++k) {

@@ -50,6 +50,7 @@ typedef struct eval_opts {
     float tether;                       /* m, 0: no tethers */
     float strain_limit;                 /* fraction, 0: off */
     float strain_contact;               /* metres, 0: off (weft_garment_def.strain_limit_contact) */
+    float push, push_depth;             /* metres (weft_garment_def.collider_push, collider_push_depth) */
     const char *sim_mesh;               /* folder with rest_pos.npy + faces.npy: simulate on this mesh */
     const char *write_pos;              /* folder: write each rollout as <sequence>.npy [frames + 2, N, 3] */
     bool pins_all;                      /* the sequence's pins for every method, not only XPBD */
@@ -64,6 +65,8 @@ typedef struct eval_acc {
     double ms_sum;
     double tokens_sum;                  /* collider tokens kept by the model's crop, summed per frame */
     double ccd_passes_sum;              /* CCD post-process passes, summed per frame */
+    double pushed_sum;                  /* vertices the collider push moved, summed per frame */
+    double push_far_sum;               /* vertices it found inside and left, summed per frame */
     uint32_t frames;
     bool nan;
     double max_strain, gt_max_strain;
@@ -463,6 +466,8 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
     d.tether_distance = o->tether; /* a bad radius, or tethers without a collider, fail in the library */
     d.strain_limit = o->strain_limit;
     d.strain_limit_contact = o->strain_contact;
+    d.collider_push = o->push;
+    d.collider_push_depth = o->push_depth;
     uint8_t *sim_pinned = up && s.pinned ? calloc(SV, 1) : NULL;
     if (o->tether > 0.0f && s.cpos) {
         radii = malloc((size_t)SV * sizeof(float));
@@ -575,6 +580,8 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
         a.ms_sum += now_ms() - t0;
         a.tokens_sum += weft_garment_stats(g).collider_tokens;
         a.ccd_passes_sum += weft_garment_stats(g).ccd_iterations;
+        a.pushed_sum += weft_garment_stats(g).pushed_vertices;
+        a.push_far_sum += weft_garment_stats(g).push_from_far_side;
         if (r == WEFT_ERROR_NOT_FINITE) {
             a.nan = true;
             break;
@@ -635,6 +642,8 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
     total->ms_sum += a.ms_sum;
     total->tokens_sum += a.tokens_sum;
     total->ccd_passes_sum += a.ccd_passes_sum;
+    total->pushed_sum += a.pushed_sum;
+    total->push_far_sum += a.push_far_sum;
     total->frames += a.frames;
     total->nan = total->nan || a.nan;
     total->max_strain = fmax(total->max_strain, a.max_strain);
@@ -673,13 +682,15 @@ static void usage(FILE *f)
                "                 [--ccd on|off] [--ccd-iterations N] [--split train|val|test] [--frames N] [--json]\n"
                "                 [--crop-cm X] [--crop box|cells] [--max-collider-tokens N] [--tether-cm X]\n"
                "                 [--strain-limit PCT] [--strain-contact-cm X] [--sim-mesh DIR] [--time-limit S]\n"
-               "                 [--write-pos DIR] [--pins xpbd|all]\n"
+               "                 [--push-cm X] [--push-depth-cm X] [--write-pos DIR] [--pins xpbd|all]\n"
                "  DIR is one sequence folder (meta.json + .npy) or a folder of them.\n"
                "  --ccd-iterations N  CCD back-off passes before its fallback (1..64, default 16)\n"
                "  --tether-cm X   tethers to the skinned garment, radius X cm (0 on vertices pinned at the start)\n"
                "  --strain-limit PCT  shorten edges stretched over PCT %% after each step (and in CCD)\n"
                "  --strain-contact-cm X  contact-aware limit: vertices within X cm of the collider stay put\n"
                "                  while it shortens edges (weft_garment_def.strain_limit_contact)\n"
+               "  --push-cm X     push cloth inside the collider (up to --push-depth-cm, default 2) or closer\n"
+               "                  than X cm to X cm in front of it, before CCD (weft_garment_def.collider_push)\n"
                "  --sim-mesh DIR  simulate on DIR's rest_pos.npy + faces.npy (the same garment at another\n"
                "                  resolution) and score its map onto the sequence's mesh (ms/frame includes the map);\n"
                "                  a simulated vertex is pinned where its nearest scored vertex is, and so is the\n"
@@ -718,7 +729,8 @@ static bool parse_u32(const char *v, unsigned long lo, unsigned long hi, uint32_
 int weft_cmd_eval(int argc, char **argv)
 {
     eval_opts o = {.method = WEFT_METHOD_MODEL, .substeps = 10, .precision = WEFT_PRECISION_FP32, .ccd = true,
-                   .ccd_iterations = weft_default_garment_def().ccd_iterations};
+                   .ccd_iterations = weft_default_garment_def().ccd_iterations,
+                   .push_depth = weft_default_garment_def().collider_push_depth};
     for (int i = 1; i < argc; ++i) {
         const char *a = argv[i];
         const char *v = i + 1 < argc ? argv[i + 1] : NULL;
@@ -818,6 +830,13 @@ int weft_cmd_eval(int argc, char **argv)
         } else if (strcmp(a, "--strain-contact-cm") == 0) {
             if (!parse_hundredths(v, &o.strain_contact)) {
                 fprintf(stderr, "weft eval: bad --strain-contact-cm '%s'\n", v);
+                return 2;
+            }
+            ++i;
+        } else if (strcmp(a, "--push-cm") == 0 || strcmp(a, "--push-depth-cm") == 0) {
+            /* the library validates the ranges */
+            if (!parse_hundredths(v, strcmp(a, "--push-cm") == 0 ? &o.push : &o.push_depth)) {
+                fprintf(stderr, "weft eval: bad %s '%s'\n", a, v);
                 return 2;
             }
             ++i;
@@ -923,13 +942,15 @@ int weft_cmd_eval(int argc, char **argv)
     double ms = total.frames ? total.ms_sum / total.frames : 0.0;
     double tokens = total.frames ? total.tokens_sum / total.frames : 0.0;
     double passes = total.frames ? total.ccd_passes_sum / total.frames : 0.0;
+    double pushed = total.frames ? total.pushed_sum / total.frames : 0.0;
+    double push_far = total.frames ? total.push_far_sum / total.frames : 0.0;
     if (o.json) {
         printf("{\"mve_cm\": %.6g, \"collision_rate\": %.6g, \"self_collision_rate\": %.6g, \"ms_per_frame\": %.6g, "
                "\"frames\": %u, \"nan\": %s, \"max_edge_strain\": %.6g, \"collider_tokens\": %.6g, "
                "\"ccd_passes\": %.6g, \"overstretched_pct\": %.6g, \"gt_max_edge_strain\": %.6g, "
-               "\"time_limited\": %s}\n",
+               "\"pushed_vertices\": %.6g, \"push_from_far_side\": %.6g, \"time_limited\": %s}\n",
                mve, coll, self, ms, total.frames, total.nan ? "true" : "false", total.max_strain, tokens, passes,
-               total.overstretched_pct, total.gt_max_strain, total.time_limited ? "true" : "false");
+               total.overstretched_pct, total.gt_max_strain, pushed, push_far, total.time_limited ? "true" : "false");
     } else if (total.sequences > 0) {
         printf("total: %u sequences, %u frames, MVE %.3f cm, collision %.2f%%, self-collision %.2f%%, %.3f ms/frame, "
                "max edge strain %.3f (%.2f%% of edges over %.0f%%, reference %.3f), nan %s, collider tokens %.0f/frame%s\n",

@@ -1,0 +1,261 @@
+/* Collider push (weft_garment_def.collider_push, runtime/garment/near.c): points placed inside
+ * and just outside a box end where the box's exact distance field says (nearest face, edge or
+ * corner plus the thickness); deeper ones, pinned ones and ones that came through from beyond
+ * stay; beyond a thin wedge's sharp edge, where the two faces' normals disagree, both sides are
+ * told outside; bad settings fail at creation and leave no garment.
+ *
+ * The step is LBS on a still collider, which returns the initial positions, so the push is the
+ * only thing that moves a vertex. */
+#include "../xpbd/scene.h"
+#include "test.h"
+
+#include <math.h>
+#include <string.h>
+
+#define THICK 0.01f
+#define DEPTH 0.02f
+
+static const float k_lo[3] = {-0.1f, 0.0f, -0.1f}, k_hi[3] = {0.1f, 0.2f, 0.1f};
+
+/* The garment: a 3 x 3 sheet (its rest mesh only gives the topology) started at `points`. */
+static weft_garment *make(weft_context *ctx, const test_mesh *sheet, const test_mesh *col, const float *points,
+                          float push, weft_result expect)
+{
+    weft_garment_def gd = weft_default_garment_def();
+    gd.method = WEFT_METHOD_LBS;
+    gd.ccd = false; /* the push itself is under test */
+    gd.rest_positions = sheet->pos;
+    gd.vertex_count = sheet->nv;
+    gd.triangles = sheet->tris;
+    gd.triangle_count = sheet->nt;
+    gd.initial_positions = points;
+    gd.collider_rest_positions = col->pos;
+    gd.collider_vertex_count = col->nv;
+    gd.collider_triangles = col->tris;
+    gd.collider_triangle_count = col->nt;
+    gd.collider_push = push;
+    gd.collider_push_depth = DEPTH;
+    weft_garment *g = NULL;
+    CHECK_RESULT(weft_garment_create(ctx, &gd, &g), expect);
+    return g;
+}
+
+/* Where the exact distance field of the box puts p: unchanged when deeper than DEPTH or farther
+ * than THICK, else THICK in front of the nearest surface point. */
+static void box_oracle(const float p[3], float out[3])
+{
+    float q[3], d2 = 0.0f;
+    bool inside = true;
+    for (int k = 0; k < 3; ++k) {
+        q[k] = fminf(fmaxf(p[k], k_lo[k]), k_hi[k]);
+        d2 += (p[k] - q[k]) * (p[k] - q[k]);
+        inside = inside && p[k] > k_lo[k] && p[k] < k_hi[k];
+    }
+    memcpy(out, p, 3 * sizeof(float));
+    if (inside) { /* nearest face */
+        int axis = 0, hi = 0;
+        float best = INFINITY;
+        for (int k = 0; k < 3; ++k) {
+            if (p[k] - k_lo[k] < best) {
+                best = p[k] - k_lo[k], axis = k, hi = 0;
+            }
+            if (k_hi[k] - p[k] < best) {
+                best = k_hi[k] - p[k], axis = k, hi = 1;
+            }
+        }
+        if (best <= DEPTH) {
+            out[axis] = hi ? k_hi[axis] + THICK : k_lo[axis] - THICK;
+        }
+        return;
+    }
+    const float d = sqrtf(d2);
+    if (d < THICK) {
+        for (int k = 0; k < 3; ++k) {
+            out[k] = q[k] + THICK * (p[k] - q[k]) / d;
+        }
+    }
+}
+
+static void test_push_matches_the_box_distance_field(void)
+{
+    weft_context_def cd = weft_default_context_def();
+    weft_context *ctx = NULL;
+    CHECK_RESULT(weft_context_create(&cd, &ctx), WEFT_OK);
+    test_mesh sheet = test_sheet(3, 3, 0.5f, 0.5f, 0.0f, 0.5f, 0.0f), box = test_box(k_lo, k_hi);
+    const float s3 = 0.003f;
+    const float pts[9][3] = {
+        {0.02f, 0.195f, 0.03f},   /* inside, 5 mm under the top */
+        {0.085f, 0.1f, 0.0f},     /* inside, 15 mm from the +x side */
+        {0.0f, 0.1f, 0.0f},       /* inside, 10 cm deep: left */
+        {0.104f, 0.203f, 0.0f},   /* outside, 5 mm off the top +x edge */
+        {0.1f + s3, 0.2f + s3, 0.1f + s3}, /* outside, 5.2 mm off a corner */
+        {0.05f, -0.004f, 0.05f},  /* under the bottom, 4 mm */
+        {0.5f, 0.5f, 0.5f},       /* far away */
+        {-0.02f, 0.195f, 0.0f},   /* inside, pinned */
+        {0.0f, 0.19f, 0.0f},      /* inside, but came up from 15 cm: from beyond the top */
+    };
+    weft_garment *plain = make(ctx, &sheet, &box, &pts[0][0], 0.0f, WEFT_OK);
+    weft_garment *g = make(ctx, &sheet, &box, &pts[0][0], THICK, WEFT_OK);
+    float before[9][3];
+    memcpy(before, pts, sizeof before);
+    before[8][1] = 0.04f; /* vertex 8 at t: 15 cm lower, the far side of the surface point it ends near */
+    CHECK_RESULT(weft_garment_set_state(g, &before[0][0], &before[0][0]), WEFT_OK);
+    const uint32_t pin = 7;
+    weft_garment *both[2] = {plain, g};
+    for (int k = 0; k < 2; ++k) {
+        CHECK_RESULT(weft_garment_set_collider(both[k], box.pos), WEFT_OK);
+        CHECK_RESULT(weft_garment_set_pins(both[k], &pin, pts[7], 1), WEFT_OK);
+        CHECK_RESULT(weft_garment_step(both[k]), WEFT_OK);
+    }
+    /* The control: LBS on a still collider returns the start, so what moves below is the push. */
+    const float *x0 = weft_garment_positions(plain), *x = weft_garment_positions(g);
+    for (int v = 0; v < 9; ++v) {
+        for (int k = 0; k < 3; ++k) {
+            CHECK_MSG(fabsf(x0[3 * v + k] - pts[v][k]) < 1e-6f, "LBS moved vertex %d on a still collider", v);
+        }
+    }
+    for (int v = 0; v < 9; ++v) {
+        float want[3];
+        if (v == 7 || v == 8) {
+            memcpy(want, pts[v], sizeof want);
+        } else {
+            box_oracle(pts[v], want);
+        }
+        for (int k = 0; k < 3; ++k) {
+            CHECK_MSG(fabsf(x[3 * v + k] - want[k]) < 2e-6f, "vertex %d axis %d: %.7f, want %.7f", v, k,
+                      (double)x[3 * v + k], (double)want[k]);
+        }
+    }
+    const weft_step_stats st = weft_garment_stats(g);
+    CHECK_EQ_INT((int)st.pushed_vertices, 5);
+    CHECK_EQ_INT((int)st.push_from_far_side, 1); /* the one from beyond; the deep one is not looked at */
+    CHECK_EQ_INT((int)weft_garment_stats(plain).pushed_vertices, 0);
+    weft_garment_destroy(plain);
+    weft_garment_destroy(g);
+    test_mesh_free(&box);
+    test_mesh_free(&sheet);
+    weft_context_destroy(ctx);
+}
+
+/* A closed triangular prism with a 10-degree edge at x = 0.1 (along z), wound outward. */
+static test_mesh wedge(void)
+{
+    test_mesh m = {0};
+    m.nv = 6;
+    m.nt = 8;
+    m.pos = malloc(sizeof(float) * 18);
+    m.tris = malloc(sizeof(uint32_t) * 24);
+    const float h = 0.2f * tanf(5.0f * 3.14159265f / 180.0f); /* half the base for a 10-degree tip */
+    const float cs[3][2] = {{0.1f, 0.1f}, {-0.1f, 0.1f - h}, {-0.1f, 0.1f + h}}; /* tip, base low, base high */
+    for (int z = 0; z < 2; ++z) {
+        for (int i = 0; i < 3; ++i) {
+            float *p = m.pos + 3 * (3 * z + i);
+            p[0] = cs[i][0], p[1] = cs[i][1], p[2] = z ? 0.1f : -0.1f;
+        }
+    }
+    static const uint32_t t[24] = {0, 1, 2, 3, 4, 5, 0, 1, 4, 0, 4, 3, 1, 2, 5, 1, 5, 4, 2, 0, 3, 2, 3, 5};
+    memcpy(m.tris, t, sizeof t);
+    const float c[3] = {(0.1f - 0.2f) / 3.0f, 0.1f, 0.0f}; /* centroid: flip triangles facing it */
+    for (uint32_t k = 0; k < m.nt; ++k) {
+        uint32_t *tri = m.tris + 3 * k;
+        const float *a = m.pos + 3 * tri[0], *b = m.pos + 3 * tri[1], *d = m.pos + 3 * tri[2];
+        const float u[3] = {b[0] - a[0], b[1] - a[1], b[2] - a[2]}, w[3] = {d[0] - a[0], d[1] - a[1], d[2] - a[2]};
+        const float n[3] = {u[1] * w[2] - u[2] * w[1], u[2] * w[0] - u[0] * w[2], u[0] * w[1] - u[1] * w[0]};
+        if (n[0] * (a[0] - c[0]) + n[1] * (a[1] - c[1]) + n[2] * (a[2] - c[2]) < 0.0f) {
+            const uint32_t s = tri[1];
+            tri[1] = tri[2], tri[2] = s;
+        }
+    }
+    return m;
+}
+
+/* Beyond the sharp edge the nearest point is on the edge, and a direction near one face's
+ * normal is 160 degrees from the other's: a face normal alone would call one of these points
+ * inside and push it into the wedge. The pseudonormal calls both outside. */
+static void test_push_sign_at_a_sharp_edge(void)
+{
+    weft_context_def cd = weft_default_context_def();
+    weft_context *ctx = NULL;
+    CHECK_RESULT(weft_context_create(&cd, &ctx), WEFT_OK);
+    test_mesh sheet = test_sheet(3, 3, 0.5f, 0.5f, 0.0f, 0.5f, 0.0f), col = wedge();
+    const float a = 5.0f * 3.14159265f / 180.0f;
+    const float up[2] = {sinf(a), cosf(a)}, down[2] = {sinf(a), -cosf(a)}; /* the faces' normals (x, y) */
+    float pts[9][3];
+    for (int v = 0; v < 9; ++v) { /* far away by default */
+        pts[v][0] = 1.0f + 0.1f * (float)v, pts[v][1] = 1.0f, pts[v][2] = 0.0f;
+    }
+    float dirs[2][2];
+    for (int s = 0; s < 2; ++s) { /* 90 % one face normal, 10 % the other: in the edge's region */
+        const float *n1 = s ? down : up, *n2 = s ? up : down;
+        const float dx = 0.9f * n1[0] + 0.1f * n2[0], dy = 0.9f * n1[1] + 0.1f * n2[1];
+        const float len = sqrtf(dx * dx + dy * dy);
+        dirs[s][0] = dx / len, dirs[s][1] = dy / len;
+        pts[s][0] = 0.1f + 0.004f * dirs[s][0];
+        pts[s][1] = 0.1f + 0.004f * dirs[s][1];
+        pts[s][2] = 0.03f * (float)(s ? 1 : -1);
+    }
+    weft_garment *g = make(ctx, &sheet, &col, &pts[0][0], THICK, WEFT_OK);
+    CHECK_RESULT(weft_garment_set_collider(g, col.pos), WEFT_OK);
+    CHECK_RESULT(weft_garment_step(g), WEFT_OK);
+    const float *x = weft_garment_positions(g);
+    for (int s = 0; s < 2; ++s) {
+        const float want[3] = {0.1f + THICK * dirs[s][0], 0.1f + THICK * dirs[s][1], pts[s][2]};
+        for (int k = 0; k < 3; ++k) {
+            CHECK_MSG(fabsf(x[3 * s + k] - want[k]) < 2e-6f, "side %d axis %d: %.7f, want %.7f", s, k,
+                      (double)x[3 * s + k], (double)want[k]);
+        }
+    }
+    CHECK_EQ_INT((int)weft_garment_stats(g).pushed_vertices, 2);
+    CHECK_EQ_INT((int)weft_garment_stats(g).push_from_far_side, 0);
+    weft_garment_destroy(g);
+    test_mesh_free(&col);
+    test_mesh_free(&sheet);
+    weft_context_destroy(ctx);
+}
+
+static void test_push_bad_input(void)
+{
+    weft_context_def cd = weft_default_context_def();
+    weft_context *ctx = NULL;
+    CHECK_RESULT(weft_context_create(&cd, &ctx), WEFT_OK);
+    test_mesh sheet = test_sheet(3, 3, 0.5f, 0.5f, 0.0f, 0.5f, 0.0f), box = test_box(k_lo, k_hi);
+    const float bad[] = {-0.001f, NAN, INFINITY, 0.2f};
+    for (size_t k = 0; k < sizeof bad / sizeof bad[0]; ++k) {
+        CHECK(make(ctx, &sheet, &box, sheet.pos, bad[k], WEFT_ERROR_INVALID_ARGUMENT) == NULL);
+        CHECK(strstr(weft_last_error(), "collider_push") != NULL);
+    }
+    weft_garment_def gd = weft_default_garment_def();
+    gd.method = WEFT_METHOD_LBS;
+    gd.rest_positions = sheet.pos;
+    gd.vertex_count = sheet.nv;
+    gd.triangles = sheet.tris;
+    gd.triangle_count = sheet.nt;
+    gd.collider_rest_positions = box.pos;
+    gd.collider_vertex_count = box.nv;
+    gd.collider_triangles = box.tris;
+    gd.collider_triangle_count = box.nt;
+    gd.collider_push = 0.01f;
+    weft_garment *g = NULL;
+    const float bad_depth[] = {-0.01f, NAN, 0.6f};
+    for (size_t k = 0; k < sizeof bad_depth / sizeof bad_depth[0]; ++k) {
+        gd.collider_push_depth = bad_depth[k];
+        CHECK_RESULT(weft_garment_create(ctx, &gd, &g), WEFT_ERROR_INVALID_ARGUMENT);
+        CHECK(g == NULL);
+        CHECK(strstr(weft_last_error(), "collider_push_depth") != NULL);
+    }
+    gd.collider_push_depth = 0.02f;
+    gd.method = WEFT_METHOD_XPBD; /* LBS needs a collider anyway; XPBD does not */
+    gd.collider_vertex_count = 0;
+    gd.collider_rest_positions = NULL;
+    gd.collider_triangles = NULL;
+    gd.collider_triangle_count = 0;
+    CHECK_RESULT(weft_garment_create(ctx, &gd, &g), WEFT_ERROR_NO_COLLIDER);
+    CHECK(g == NULL);
+    CHECK(strstr(weft_last_error(), "collider_push") != NULL);
+    test_mesh_free(&box);
+    test_mesh_free(&sheet);
+    weft_context_destroy(ctx);
+}
+
+TEST_MAIN(TEST_CASE(test_push_matches_the_box_distance_field), TEST_CASE(test_push_sign_at_a_sharp_edge),
+          TEST_CASE(test_push_bad_input))
