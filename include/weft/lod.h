@@ -57,6 +57,8 @@
  *   strain_limit_pct     strain limit in %, in (0, 1000]; "-": none
  *   strain_contact_cm    contact-aware strain limit distance in cm, in (0, 100], only with a
  *                        strain limit (weft_garment_def.strain_limit_contact); "-": plain limit
+ *   push_cm              collider push thickness in cm, in (0, 10] (weft_garment_def.collider_push,
+ *                        with the default depth); "-": no push
  *
  * Columns may come in any order; unknown columns are an error (a misspelt name would otherwise
  * silently drop a measurement). Tables written before the crop columns existed load unchanged.
@@ -89,6 +91,7 @@ typedef struct weft_lod_level {
     double tether_cm;                   /* 0: no tethers (weft_garment_def.tether_distance, in cm) */
     double strain_limit_pct;            /* 0: none (weft_garment_def.strain_limit, in %) */
     double strain_contact_cm;           /* 0: plain limit (weft_garment_def.strain_limit_contact, in cm) */
+    double push_cm;                     /* 0: no push (weft_garment_def.collider_push, in cm) */
     double ms_per_frame;
     double mve_cm;
     double max_edge_strain;

@@ -148,6 +148,7 @@ static weft_result make_garment(weft_lod_garment *lg, const weft_lod_level *lv, 
     d.tether_distance = (float)(lv->tether_cm / 100.0);
     d.strain_limit = (float)(lv->strain_limit_pct / 100.0);
     d.strain_limit_contact = (float)(lv->strain_contact_cm / 100.0);
+    d.collider_push = (float)(lv->push_cm / 100.0);
     d.rest_positions = rest;
     d.vertex_count = nv;
     d.triangles = tris;

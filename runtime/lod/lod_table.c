@@ -31,6 +31,7 @@ enum lod_column {
     COL_TETHER_CM,
     COL_STRAIN_PCT,
     COL_STRAIN_CONTACT_CM,
+    COL_PUSH_CM,
     COL_COUNT
 };
 
@@ -38,12 +39,13 @@ static const char *const column_names[COL_COUNT] = {
     "level",     "method",    "model",  "precision", "substeps",      "ccd",
     "resolution", "ms_per_frame", "mve_cm", "max_edge_strain", "sequences", "frames",
     "crop_cm",   "collider_crop", "max_collider_tokens", "tether_cm", "strain_limit_pct",
-    "strain_contact_cm"};
+    "strain_contact_cm", "push_cm"};
 
 /* What an absent optional column means: the model's own crop. */
 static const char *const column_defaults[COL_COUNT] = {[COL_CROP_CM] = "-",     [COL_CROP_RULE] = "-",
                                                        [COL_CROP_TOKENS] = "-", [COL_TETHER_CM] = "-",
-                                                       [COL_STRAIN_PCT] = "-", [COL_STRAIN_CONTACT_CM] = "-"};
+                                                       [COL_STRAIN_PCT] = "-", [COL_STRAIN_CONTACT_CM] = "-",
+                                                       [COL_PUSH_CM] = "-"};
 
 /* One line split at commas into trimmed cells (no quoting: no field needs a comma). */
 typedef struct lod_line {
@@ -298,6 +300,11 @@ static weft_result parse_level(char cells[COL_COUNT][LOD_CELL_CAP], uint32_t ln,
         return weft__fail(WEFT_ERROR_FORMAT,
                           "lod table line %u column 'strain_contact_cm': '%s' is not '-' (plain limit) or, with a "
                           "strain limit, a number in (0, 100]", ln, c);
+    }
+    c = cells[COL_PUSH_CM];
+    if (strcmp(c, "-") != 0 && (!parse_f64(c, &lv->push_cm) || !(lv->push_cm > 0.0) || lv->push_cm > 10.0)) {
+        return weft__fail(WEFT_ERROR_FORMAT,
+                          "lod table line %u column 'push_cm': '%s' is not '-' (no push) or a number in (0, 10]", ln, c);
     }
     return WEFT_OK;
 }

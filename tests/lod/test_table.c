@@ -90,6 +90,9 @@ static void test_load_good(void)
 #define HEADER_CONTACT                                                                                             \
     "level,method,model,precision,substeps,ccd,resolution,ms_per_frame,mve_cm,max_edge_strain,sequences,frames,"      \
     "strain_limit_pct,strain_contact_cm\n"
+#define HEADER_PUSH                                                                                                \
+    "level,method,model,precision,substeps,ccd,resolution,ms_per_frame,mve_cm,max_edge_strain,sequences,frames,"      \
+    "push_cm\n"
 
 /* The optional tether and strain-limit columns: absent means none, "-" means none, numbers in cm
  * and %; every method may have them. */
@@ -119,6 +122,16 @@ static void test_load_garment_columns(void)
     if (t) {
         CHECK(weft_lod_table_level(t, 0)->strain_contact_cm == 1.0);
         CHECK(weft_lod_table_level(t, 1)->strain_contact_cm == 0.0);
+        CHECK(weft_lod_table_level(t, 0)->push_cm == 0.0);
+    }
+    weft_lod_table_destroy(t);
+    const char *push = HEADER_PUSH "x,model,game,int8,-,on,1,1,1,0,1,1,1\n"
+                                   "p,lbs,-,-,-,on,1,1,1,0,1,1,-\n";
+    t = NULL;
+    CHECK_RESULT(weft_lod_table_load_memory(ctx, push, strlen(push), &t), WEFT_OK);
+    if (t) {
+        CHECK(weft_lod_table_level(t, 0)->push_cm == 1.0);
+        CHECK(weft_lod_table_level(t, 1)->push_cm == 0.0);
     }
     weft_lod_table_destroy(t);
     weft_context_destroy(ctx);
@@ -176,6 +189,9 @@ static void test_load_malformed(void)
         {NULL, HEADER_CONTACT "x,lbs,-,-,-,on,1,1,1,0,1,1,-,1\n", "strain_contact_cm"},
         {NULL, HEADER_CONTACT "x,lbs,-,-,-,on,1,1,1,0,1,1,10,0\n", "strain_contact_cm"},
         {NULL, HEADER_CONTACT "x,lbs,-,-,-,on,1,1,1,0,1,1,10,101\n", "strain_contact_cm"},
+        {NULL, HEADER_PUSH "x,lbs,-,-,-,on,1,1,1,0,1,1,0\n", "push_cm"},
+        {NULL, HEADER_PUSH "x,lbs,-,-,-,on,1,1,1,0,1,1,11\n", "push_cm"},
+        {NULL, HEADER_PUSH "x,lbs,-,-,-,on,1,1,1,0,1,1,inf\n", "push_cm"},
     };
     char text[2048];
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; ++i) {
