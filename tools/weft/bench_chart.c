@@ -49,6 +49,7 @@ typedef struct chart_method {
     char tether_cm[8];  /* "" or `weft eval --tether-cm` */
     char strain_pct[8]; /* "" or `weft eval --strain-limit` */
     char strain_contact_cm[8]; /* "" or `weft eval --strain-contact-cm` */
+    char push_cm[8];    /* "" or `weft eval --push-cm` */
     bool garment_only;  /* tethers bind to the wearer: run on garment sequences only */
 } chart_method;
 
@@ -434,7 +435,7 @@ int weft_bench_chart(int argc, char **argv)
         snprintf(skipped[nskipped++], 300, "learned models: no `*.safetensors` under `%s` yet", o.models);
     }
     static const char *const k_prec[] = {"fp32", "fp16", "int8"};
-    for (size_t i = 0; i < nmodels && nm + 8 <= CHART_MAX_METHODS - 8; ++i) {
+    for (size_t i = 0; i < nmodels && nm + 9 <= CHART_MAX_METHODS - 8; ++i) {
         char stem[256];
         snprintf(stem, sizeof stem, "%s", model_names[i]);
         stem[strlen(stem) - 12] = '\0';
@@ -459,6 +460,13 @@ int weft_bench_chart(int argc, char **argv)
         *m = methods[nm - 2];
         snprintf(m->label, sizeof m->label, "%.60s int8 + tethers 3 cm + strain 10%%", stem);
         snprintf(m->strain_pct, sizeof m->strain_pct, "10");
+        /* Every scene: int8 with the strain limit and the collider push, which hands CCD a frame
+         * the collider does not cut (docs/CCD.md, *Collider push*). */
+        m = &methods[nm++];
+        *m = methods[nm - 5]; /* int8 with CCD */
+        snprintf(m->label, sizeof m->label, "%.60s int8 + strain 10%% + push 1 cm", stem);
+        snprintf(m->strain_pct, sizeof m->strain_pct, "10");
+        snprintf(m->push_cm, sizeof m->push_cm, "1");
     }
     size_t first_fnopt = nm;
     static const char *const k_fnopt_opt[] = {"learned", "gd", "adam", "lbfgs"};
@@ -522,8 +530,9 @@ int weft_bench_chart(int argc, char **argv)
                                             is_model ? mm->precision : NULL,
                                             mm->tether_cm,
                                             mm->strain_pct,
-                                            mm->strain_contact_cm};
-            const char *extra[20];
+                                            mm->strain_contact_cm,
+                                            mm->push_cm};
+            const char *extra[24];
             bench_method_args(&spec, extra, 0);
             bench_eval_result e;
             bench_eval(exe, seqs[s].dir, extra, &e);

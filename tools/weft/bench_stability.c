@@ -321,6 +321,7 @@ static bool eval_method(const char *exe, const st_opts *o, const st_method *m, c
                                     is_model ? m->precision : NULL,
                                     m->tether_cm,
                                     m->strain_pct,
+                                    NULL,
                                     NULL};
     const char *extra[24];
     extra[0] = "--time-limit";

@@ -498,6 +498,10 @@ int bench_method_args(const bench_method_spec *spec, const char **out, int n)
         out[n++] = "--strain-contact-cm";
         out[n++] = spec->strain_contact_cm;
     }
+    if (spec->push_cm && spec->push_cm[0]) {
+        out[n++] = "--push-cm";
+        out[n++] = spec->push_cm;
+    }
     if (strncmp(spec->method, "xpbd", 4) != 0) { /* XPBD solves with them already (same arguments as before) */
         out[n++] = "--pins";
         out[n++] = "all";

@@ -43,13 +43,14 @@ typedef struct bench_method_spec {
     const char *model, *precision;      /* model methods only (NULL otherwise) */
     const char *tether_cm, *strain_pct; /* NULL or "": off */
     const char *strain_contact_cm;      /* NULL or "": the strain limit ignores the collider */
+    const char *push_cm;                /* NULL or "": no collider push */
 } bench_method_spec;
 
 /* Appends spec's `weft eval` arguments (--method, --ccd, --frames, --model, --precision,
- * --tether-cm, --strain-limit, --strain-contact-cm, and `--pins all` for every method but XPBD,
- * which solves with the pins anyway: a scene's grasps and waistbands hold for every method, as a
- * game would set them; at most 18) to out at index n, NULL-terminates, and returns the new count.
- * out needs room for n + 19 entries. */
+ * --tether-cm, --strain-limit, --strain-contact-cm, --push-cm, and `--pins all` for every method
+ * but XPBD, which solves with the pins anyway: a scene's grasps and waistbands hold for every
+ * method, as a game would set them; at most 20) to out at index n, NULL-terminates, and returns
+ * the new count. out needs room for n + 21 entries. */
 int bench_method_args(const bench_method_spec *spec, const char **out, int n);
 
 /* `exe eval --json --seq seq_dir <extra...>` parsed into r. Returns r->ok. */
