@@ -282,8 +282,13 @@ typedef struct weft_garment_def {
      * on a closed collider. A learned step that dips the cloth into the body then hands CCD a
      * frame the body does not cut; CCD's back-off alone can only hold such cloth back, and the
      * body drags it along. Deeper penetrations are left to CCD: past about half a limb's
-     * thickness the nearest surface is the far side. Pinned vertices and radius-0 tethers are
-     * not moved. collider_push: metres, 0 (default) = off, in [0, 0.1]; needs a collider.
+     * thickness the nearest surface is the far side; so is a vertex that moved out, relative to
+     * the collider, by more than its depth (it came in through the far side). With ccd, cloth
+     * that starts the step inside the collider (within collider_push_depth) is let out: CCD
+     * skips its collider contacts that step (weft_ccd_world_let_out), since its way out crosses
+     * the surface. Pinned vertices and radius-0 tethers are not moved. The collider must be
+     * closed and wound outward, as weft's bodies and objects are; the sign needs it.
+     * collider_push: metres, 0 (default) = off, in [0, 0.1]; needs a collider.
      * collider_push_depth: metres, default 0.02, in [0, 0.5]. docs/CCD.md, *Collider push*. */
     float collider_push;
     float collider_push_depth;
@@ -300,6 +305,9 @@ typedef struct weft_step_stats {
     uint32_t tether_vertices_clamped;   /* vertices the tethers moved back in the last step */
     uint32_t strain_limited_edges;      /* edges over the strain limit before limiting, last step */
     uint32_t pushed_vertices;           /* vertices the collider push moved in the last step */
+    uint32_t ccd_let_out;               /* with the push and CCD: vertices that began the step inside
+                                         * the collider (within collider_push_depth), whose collider
+                                         * contacts CCD skipped so they could leave it */
     uint32_t push_from_far_side;        /* vertices inside that it left to CCD: they came in through
                                          * the collider's far side, so the nearest surface would
                                          * push them through it */

@@ -148,11 +148,19 @@ WEFT_API weft_result weft_ccd_detect(weft_ccd_world *world, const float *x0, con
 /* The hits kept by the last weft_ccd_detect (valid until the next call on the world). */
 WEFT_API const weft_ccd_hit *weft_ccd_hits(const weft_ccd_world *world, uint32_t *count);
 
+/* Cloth vertices known to start inside the collider (nonzero entries of `inside`, cloth vertex
+ * count long; NULL clears): until the next call, detection and the post-process skip every
+ * cloth-collider pair with one of them (VF and EE of their features, FV of their triangles), so
+ * they can leave the collider, which the post-process would otherwise stop as a crossing. Their
+ * self contacts are still resolved. x0 is then intersection-free except for these vertices, and
+ * the certificate covers the rest. The garment's collider push sets this (weft.h). */
+WEFT_API weft_result weft_ccd_world_let_out(weft_ccd_world *world, const uint8_t *inside);
+
 /* The iterative post-process: detect all five types (self types when def.self_collision), move the
  * cloth vertices of every hit back along their path to t_safe = max(0, toi - time_margin), repeat
  * until clean or max_iterations; then fall back: cloth vertices hit by the collider move with it
  * (x0 plus the collider's displacement there), the others of the remaining hits are held at x0.
- * x1 is changed in place. x0 must be intersection-free. The result is certified by a final clean
+ * x1 is changed in place. x0 must be intersection-free (but for vertices let out, see above). The result is certified by a final clean
  * detection pass. Returns WEFT_OK, or WEFT_ERROR_NOT_CONVERGED when hits remain after the fallback
  * (stats->unresolved_hits). */
 WEFT_API weft_result weft_ccd_postprocess(weft_ccd_world *world, const float *x0, float *x1, const float *c0,

@@ -58,6 +58,8 @@ struct weft_ccd_world {
     uint8_t *dirty, *next_dirty; /* per cloth vertex: re-test its pairs in the next pass */
     float *carry;                /* fallback: collider displacement a cloth vertex is carried by */
     uint8_t *carry_flag;
+    uint8_t *leaving;            /* per cloth vertex: inside the collider at x0, its collider hits ignored */
+    bool any_leaving;
     float shift[3];              /* broad-phase frame: mean cloth displacement of the last full pass */
 };
 
@@ -467,6 +469,7 @@ static void world_allocs(weft_ccd_world *w, alloc_list *l)
     want(l, &w->next_dirty, (size_t)w->nv);
     want(l, &w->carry, (size_t)w->nv * 3 * sizeof(float));
     want(l, &w->carry_flag, (size_t)w->nv);
+    want(l, &w->leaving, (size_t)w->nv);
     want(l, &w->hits, (size_t)(w->max_hits ? w->max_hits : 1) * sizeof(weft_ccd_hit));
     uint32_t maxp = w->nv;
     maxp = w->nt > maxp ? w->nt : maxp;
@@ -550,6 +553,8 @@ weft_result weft_ccd_world_create(weft_context *context, const weft_ccd_world_de
         free_world(w, &l);
         return WEFT_ERROR_OUT_OF_MEMORY;
     }
+    memset(w->leaving, 0, w->nv);
+    w->any_leaving = false;
     memcpy(w->tris, def->cloth_triangles, (size_t)w->nt * 3 * sizeof(uint32_t));
     w->cloth_t.verts = w->tris;
     ok = ownership(context, w->tris, w->nt, w->nv, w->own, &w->ne);
@@ -710,6 +715,21 @@ static void pair_cloth_collider(void *ctx, uint32_t ta, uint32_t tb)
     const weft_ccd_world *w = d->w;
     const uint32_t *A = w->tris + 3 * (size_t)ta, *B = w->ctris + 3 * (size_t)tb;
     uint8_t ma = w->own[ta], mb = w->cown[tb];
+    if (w->any_leaving) {
+        /* Cloth that starts inside the collider is let out: any pair with one of its vertices is
+         * skipped (an FV pair involves the whole triangle; VF and EE only the owned features). */
+        const uint8_t *lv = w->leaving;
+        if (lv[A[0]] | lv[A[1]] | lv[A[2]]) {
+            for (int k = 0; k < 3; ++k) {
+                if (lv[A[k]]) {
+                    ma &= (uint8_t)~(1u << k);                 /* its corner */
+                    ma &= (uint8_t)~(1u << (3 + k));           /* edge (k, k+1) */
+                    ma &= (uint8_t)~(1u << (3 + (k + 2) % 3)); /* edge (k-1, k) */
+                }
+            }
+            mb &= 0x38u; /* collider corners (FV) against this triangle: skipped; its edges stay */
+        }
+    }
     if (d->types & WEFT_CCD_MASK(WEFT_CCD_VF)) {
         box bb = tri_box(B, w->cbox);
         for (int k = 0; k < 3; ++k) {
@@ -905,6 +925,19 @@ weft_result weft_ccd_detect(weft_ccd_world *w, const float *x0, const float *x1,
     d.rep.hits_stored = w->hits_stored;
     if (report) {
         *report = d.rep;
+    }
+    return WEFT_OK;
+}
+
+weft_result weft_ccd_world_let_out(weft_ccd_world *w, const uint8_t *inside)
+{
+    if (!w) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_ccd_world_let_out: world is NULL");
+    }
+    w->any_leaving = false;
+    for (uint32_t v = 0; v < w->nv; ++v) {
+        w->leaving[v] = inside && inside[v] ? 1 : 0;
+        w->any_leaving = w->any_leaving || w->leaving[v];
     }
     return WEFT_OK;
 }

@@ -1,4 +1,5 @@
 #include "garment/garment.h"
+#include "weft/ccd.h"
 #include "ccd/ccd_internal.h"
 #include "xpbd/xpbd.h"
 
@@ -408,6 +409,12 @@ weft_result weft__garment_finish_step(weft_garment *g)
         if (r != WEFT_OK) {
             return r;
         }
+    }
+    if (g->near_inside && g->ccd_state) {
+        /* Cloth the previous step left inside the collider may leave it: CCD skips its collider
+         * contacts this step (it would stop the way out as a crossing); the push puts it outside. */
+        g->stats.ccd_let_out = weft__near_mark_inside(g);
+        weft_ccd_world_let_out(g->ccd_state, g->near_inside);
     }
     weft__near_refit(g); /* the collider tree at t+1, for the contact-aware limit and the push */
     if (g->strain_limit > 0.0f) {

@@ -46,6 +46,7 @@ struct weft_garment {
     uint32_t *near_across;              /* push: per triangle edge (k, k+1), the triangle across or UINT32_MAX */
     uint32_t *near_vt_start, *near_vt;  /* push: triangles around each collider vertex (CSR) */
     uint8_t *near_skip;                 /* push: vertex_count, 1 glued, | 2 pinned this step */
+    uint8_t *near_inside;               /* push with CCD: vertex_count, inside the collider at t */
 
     uint32_t vertex_count, triangle_count;
     float *rest;                        /* vertex_count * 3 */
@@ -101,6 +102,10 @@ typedef struct weft_near_hit {
 weft_result weft__near_create(weft_garment *g);
 void weft__near_destroy(weft_garment *g);
 void weft__near_refit(weft_garment *g);
+/* Push with CCD: flags the vertices of x inside the collider at t (within push_depth) in
+ * near_inside, with the tree refitted to the collider at t; returns their count. Call before
+ * weft__near_refit. */
+uint32_t weft__near_mark_inside(weft_garment *g);
 /* Nearest collider point to p within radius; false when there is none. */
 bool weft__near_nearest(const weft_garment *g, const double p[3], double radius, weft_near_hit *hit);
 /* Moves x_next vertices inside the collider (up to push_depth) or closer than push_thickness

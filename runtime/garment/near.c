@@ -111,6 +111,13 @@ weft_result weft__near_create(weft_garment *g)
         for (uint32_t v = 0; v < g->vertex_count; ++v) {
             g->near_skip[v] = g->tether_radius && g->tether_radius[v] == 0.0f; /* glued for good */
         }
+        if (g->ccd) {
+            g->near_inside = weft__alloc(g->ctx, g->vertex_count);
+            if (!g->near_inside) {
+                weft__near_destroy(g);
+                return WEFT_ERROR_OUT_OF_MEMORY;
+            }
+        }
     }
     return WEFT_OK;
 }
@@ -127,24 +134,30 @@ void weft__near_destroy(weft_garment *g)
     weft__free(g->ctx, g->near_vt_start, ((size_t)g->collider_vertex_count + 1) * sizeof(uint32_t));
     weft__free(g->ctx, g->near_vt, nt3 * sizeof(uint32_t));
     weft__free(g->ctx, g->near_skip, g->vertex_count);
+    weft__free(g->ctx, g->near_inside, g->vertex_count);
     g->near_tree = NULL;
     g->near_cpos = NULL;
     g->near_across = NULL;
     g->near_vt_start = NULL;
     g->near_vt = NULL;
     g->near_skip = NULL;
+    g->near_inside = NULL;
+}
+
+static void refit_to(weft_garment *g, const float *c)
+{
+    const size_t nc3 = (size_t)g->collider_vertex_count * 3;
+    for (size_t i = 0; i < nc3; ++i) {
+        g->near_cpos[i] = c[i];
+    }
+    xbvh_refit(g->near_tree, g->near_cpos, NULL, 0.0);
 }
 
 void weft__near_refit(weft_garment *g)
 {
-    if (!g->near_tree) {
-        return;
+    if (g->near_tree) {
+        refit_to(g, g->collider_next);
     }
-    const size_t nc3 = (size_t)g->collider_vertex_count * 3;
-    for (size_t i = 0; i < nc3; ++i) {
-        g->near_cpos[i] = g->collider_next[i];
-    }
-    xbvh_refit(g->near_tree, g->near_cpos, NULL, 0.0);
 }
 
 typedef struct near_query {
@@ -251,6 +264,39 @@ static void feature_normal(const weft_garment *g, const weft_near_hit *hit, doub
     }
 }
 
+/* Signed side of p against its nearest collider point within radius: true when inside, with
+ * the hit; false when outside or nothing is that near. */
+static bool inside_near(const weft_garment *g, const double p[3], double radius, weft_near_hit *hit)
+{
+    if (!weft__near_nearest(g, p, radius, hit)) {
+        return false;
+    }
+    double n[3];
+    feature_normal(g, hit, n);
+    double side = 0.0;
+    for (int k = 0; k < 3; ++k) {
+        side += (p[k] - hit->point[k]) * n[k];
+    }
+    return side < 0.0;
+}
+
+uint32_t weft__near_mark_inside(weft_garment *g)
+{
+    if (!g->near_inside) {
+        return 0;
+    }
+    refit_to(g, g->collider_prev); /* the collider at t, where x is */
+    uint32_t count = 0;
+    weft_near_hit hit;
+    for (uint32_t v = 0; v < g->vertex_count; ++v) {
+        const float *x = g->x + 3 * (size_t)v;
+        const double p[3] = {x[0], x[1], x[2]};
+        g->near_inside[v] = inside_near(g, p, g->push_depth, &hit);
+        count += g->near_inside[v];
+    }
+    return count;
+}
+
 void weft__push(weft_garment *g)
 {
     uint32_t pushed = 0, far = 0;
@@ -305,7 +351,7 @@ void weft__push(weft_garment *g)
          * point (its motion less the collider's there) by at least the collider's thickness less
          * its depth, which is more than its depth; pushing it out here would take it through.
          * One that came in through this side moved inward. */
-        if (inside) {
+        if (inside && !(g->near_inside && g->near_inside[v])) { /* (cloth inside at t may go either way) */
             const float *x0 = g->x + 3 * (size_t)v;
             const uint32_t *tri = g->collider_triangles + 3 * (size_t)hit.tri;
             double along = 0.0;

@@ -407,6 +407,44 @@ static void collider_pushes_cloth(void)
     weft_context_destroy(ctx);
 }
 
+/* Cloth that starts inside the collider: the post-process stops it on its way out (a crossing),
+ * unless weft_ccd_world_let_out names it; clearing the mask restores the default. */
+static void let_out_of_collider(void)
+{
+    weft_context *ctx = make_ctx();
+    mesh cl = sheet(6, 0.3f, 0.0f, 0.0f, 0.0f), co = sphere(12, 16, 0.5f);
+    float *x1 = malloc(sizeof(float) * 3 * cl.nv), *out = malloc(sizeof(float) * 3 * cl.nv);
+    uint8_t *inside = malloc(cl.nv);
+    for (uint32_t i = 0; i < cl.nv; ++i) {
+        x1[3 * i] = cl.x[3 * i];
+        x1[3 * i + 1] = 0.7f; /* from the sphere's middle to above it */
+        x1[3 * i + 2] = cl.x[3 * i + 2];
+        inside[i] = 1;
+    }
+    weft_ccd_world *w = make_world(ctx, &cl, &co);
+    weft_ccd_postprocess_stats st = {0};
+    memcpy(out, x1, sizeof(float) * 3 * cl.nv);
+    CHECK_RESULT(weft_ccd_postprocess(w, cl.x, out, co.x, co.x, &st), WEFT_OK);
+    CHECK_MSG(st.vertices_moved == cl.nv, "without let_out %u of %u vertices were stopped", st.vertices_moved, cl.nv);
+    CHECK_RESULT(weft_ccd_world_let_out(w, inside), WEFT_OK);
+    memcpy(out, x1, sizeof(float) * 3 * cl.nv);
+    CHECK_RESULT(weft_ccd_postprocess(w, cl.x, out, co.x, co.x, &st), WEFT_OK);
+    CHECK_EQ_INT((int)st.vertices_moved, 0);
+    CHECK(memcmp(out, x1, sizeof(float) * 3 * cl.nv) == 0);
+    CHECK_RESULT(weft_ccd_world_let_out(w, NULL), WEFT_OK);
+    memcpy(out, x1, sizeof(float) * 3 * cl.nv);
+    CHECK_RESULT(weft_ccd_postprocess(w, cl.x, out, co.x, co.x, &st), WEFT_OK);
+    CHECK_EQ_INT((int)st.vertices_moved, (int)cl.nv);
+    CHECK_RESULT(weft_ccd_world_let_out(NULL, inside), WEFT_ERROR_INVALID_ARGUMENT);
+    weft_ccd_world_destroy(w);
+    free(inside);
+    free(out);
+    free(x1);
+    mesh_free(&cl);
+    mesh_free(&co);
+    weft_context_destroy(ctx);
+}
+
 /* A sphere swept right through a still sheet: either the carried cloth ends clean (certified) or
  * the remaining hits are reported, never hidden. */
 static void moving_collider_resolved_or_reported(void)
@@ -498,4 +536,4 @@ static void exact_triangle_tests(void)
 
 TEST_MAIN(TEST_CASE(broad_phase_matches_brute_force), TEST_CASE(postprocess_through_sphere),
           TEST_CASE(postprocess_self), TEST_CASE(postprocess_random_with_fallback),
-          TEST_CASE(collider_pushes_cloth), TEST_CASE(moving_collider_resolved_or_reported), TEST_CASE(metrics_inside), TEST_CASE(exact_triangle_tests))
+          TEST_CASE(collider_pushes_cloth), TEST_CASE(let_out_of_collider), TEST_CASE(moving_collider_resolved_or_reported), TEST_CASE(metrics_inside), TEST_CASE(exact_triangle_tests))

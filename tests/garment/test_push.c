@@ -213,6 +213,55 @@ static void test_push_sign_at_a_sharp_edge(void)
     weft_context_destroy(ctx);
 }
 
+/* With CCD: a vertex the last step left inside the box leaves it. CCD alone would stop it on its
+ * way out as a crossing; the push with CCD lets it out (stats.ccd_let_out) and it ends where the
+ * distance field says. */
+static void test_push_with_ccd_lets_cloth_out(void)
+{
+    weft_context_def cd = weft_default_context_def();
+    weft_context *ctx = NULL;
+    CHECK_RESULT(weft_context_create(&cd, &ctx), WEFT_OK);
+    test_mesh sheet = test_sheet(3, 3, 0.5f, 0.5f, 0.0f, 0.5f, 0.0f), box = test_box(k_lo, k_hi);
+    float pts[9][3];
+    for (int v = 0; v < 9; ++v) { /* a grid far above the box, its middle vertex in the box */
+        pts[v][0] = -0.3f + 0.3f * (float)(v % 3), pts[v][1] = 0.6f, pts[v][2] = -0.3f + 0.3f * (float)(v / 3);
+    }
+    const float in[3] = {0.02f, 0.195f, 0.03f}; /* 5 mm under the top */
+    memcpy(pts[4], in, sizeof in);
+    weft_garment_def gd = weft_default_garment_def();
+    gd.method = WEFT_METHOD_LBS;
+    gd.rest_positions = sheet.pos;
+    gd.vertex_count = sheet.nv;
+    gd.triangles = sheet.tris;
+    gd.triangle_count = sheet.nt;
+    gd.initial_positions = &pts[0][0];
+    gd.collider_rest_positions = box.pos;
+    gd.collider_vertex_count = box.nv;
+    gd.collider_triangles = box.tris;
+    gd.collider_triangle_count = box.nt;
+    gd.collider_push = THICK;
+    gd.collider_push_depth = DEPTH;
+    gd.ccd = true;
+    weft_garment *g = NULL;
+    CHECK_RESULT(weft_garment_create(ctx, &gd, &g), WEFT_OK);
+    CHECK_RESULT(weft_garment_set_collider(g, box.pos), WEFT_OK);
+    CHECK_RESULT(weft_garment_step(g), WEFT_OK);
+    const float *x = weft_garment_positions(g);
+    float want[3];
+    box_oracle(in, want);
+    for (int k = 0; k < 3; ++k) {
+        CHECK_MSG(fabsf(x[3 * 4 + k] - want[k]) < 2e-6f, "axis %d: %.7f, want %.7f", k, (double)x[3 * 4 + k],
+                  (double)want[k]);
+    }
+    const weft_step_stats st = weft_garment_stats(g);
+    CHECK_EQ_INT((int)st.ccd_let_out, 1);
+    CHECK_EQ_INT((int)st.pushed_vertices, 1);
+    weft_garment_destroy(g);
+    test_mesh_free(&box);
+    test_mesh_free(&sheet);
+    weft_context_destroy(ctx);
+}
+
 static void test_push_bad_input(void)
 {
     weft_context_def cd = weft_default_context_def();
@@ -258,4 +307,4 @@ static void test_push_bad_input(void)
 }
 
 TEST_MAIN(TEST_CASE(test_push_matches_the_box_distance_field), TEST_CASE(test_push_sign_at_a_sharp_edge),
-          TEST_CASE(test_push_bad_input))
+          TEST_CASE(test_push_with_ccd_lets_cloth_out), TEST_CASE(test_push_bad_input))

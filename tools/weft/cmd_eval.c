@@ -66,6 +66,7 @@ typedef struct eval_acc {
     double tokens_sum;                  /* collider tokens kept by the model's crop, summed per frame */
     double ccd_passes_sum;              /* CCD post-process passes, summed per frame */
     double pushed_sum;                  /* vertices the collider push moved, summed per frame */
+    double let_out_sum;                 /* vertices CCD let out of the collider, summed per frame */
     double push_far_sum;               /* vertices it found inside and left, summed per frame */
     uint32_t frames;
     bool nan;
@@ -582,6 +583,7 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
         a.ccd_passes_sum += weft_garment_stats(g).ccd_iterations;
         a.pushed_sum += weft_garment_stats(g).pushed_vertices;
         a.push_far_sum += weft_garment_stats(g).push_from_far_side;
+        a.let_out_sum += weft_garment_stats(g).ccd_let_out;
         if (r == WEFT_ERROR_NOT_FINITE) {
             a.nan = true;
             break;
@@ -644,6 +646,7 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
     total->ccd_passes_sum += a.ccd_passes_sum;
     total->pushed_sum += a.pushed_sum;
     total->push_far_sum += a.push_far_sum;
+    total->let_out_sum += a.let_out_sum;
     total->frames += a.frames;
     total->nan = total->nan || a.nan;
     total->max_strain = fmax(total->max_strain, a.max_strain);
@@ -944,13 +947,14 @@ int weft_cmd_eval(int argc, char **argv)
     double passes = total.frames ? total.ccd_passes_sum / total.frames : 0.0;
     double pushed = total.frames ? total.pushed_sum / total.frames : 0.0;
     double push_far = total.frames ? total.push_far_sum / total.frames : 0.0;
+    double let_out = total.frames ? total.let_out_sum / total.frames : 0.0;
     if (o.json) {
         printf("{\"mve_cm\": %.6g, \"collision_rate\": %.6g, \"self_collision_rate\": %.6g, \"ms_per_frame\": %.6g, "
                "\"frames\": %u, \"nan\": %s, \"max_edge_strain\": %.6g, \"collider_tokens\": %.6g, "
                "\"ccd_passes\": %.6g, \"overstretched_pct\": %.6g, \"gt_max_edge_strain\": %.6g, "
-               "\"pushed_vertices\": %.6g, \"push_from_far_side\": %.6g, \"time_limited\": %s}\n",
+               "\"pushed_vertices\": %.6g, \"push_from_far_side\": %.6g, \"ccd_let_out\": %.6g, \"time_limited\": %s}\n",
                mve, coll, self, ms, total.frames, total.nan ? "true" : "false", total.max_strain, tokens, passes,
-               total.overstretched_pct, total.gt_max_strain, pushed, push_far, total.time_limited ? "true" : "false");
+               total.overstretched_pct, total.gt_max_strain, pushed, push_far, let_out, total.time_limited ? "true" : "false");
     } else if (total.sequences > 0) {
         printf("total: %u sequences, %u frames, MVE %.3f cm, collision %.2f%%, self-collision %.2f%%, %.3f ms/frame, "
                "max edge strain %.3f (%.2f%% of edges over %.0f%%, reference %.3f), nan %s, collider tokens %.0f/frame%s\n",
