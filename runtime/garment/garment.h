@@ -47,6 +47,7 @@ struct weft_garment {
     uint32_t *near_vt_start, *near_vt;  /* push: triangles around each collider vertex (CSR) */
     uint8_t *near_skip;                 /* push: vertex_count, 1 glued, | 2 pinned this step */
     uint8_t *near_inside;               /* push with CCD: vertex_count, inside the collider at t */
+    uint32_t *near_last;                /* push: per vertex, its last nearest collider triangle (a seed) */
 
     uint32_t vertex_count, triangle_count;
     float *rest;                        /* vertex_count * 3 */
@@ -106,8 +107,9 @@ void weft__near_refit(weft_garment *g);
  * near_inside, with the tree refitted to the collider at t; returns their count. Call before
  * weft__near_refit. */
 uint32_t weft__near_mark_inside(weft_garment *g);
-/* Nearest collider point to p within radius; false when there is none. */
-bool weft__near_nearest(const weft_garment *g, const double p[3], double radius, weft_near_hit *hit);
+/* Nearest collider point to p within radius; false when there is none. seed: a triangle likely
+ * to be near (the last answer for this vertex), which narrows the search, or UINT32_MAX. */
+bool weft__near_nearest(const weft_garment *g, const double p[3], double radius, uint32_t seed, weft_near_hit *hit);
 /* Moves x_next vertices inside the collider (up to push_depth) or closer than push_thickness
  * to push_thickness in front of it; sets stats.pushed_vertices and push_from_far_side. */
 void weft__push(weft_garment *g);

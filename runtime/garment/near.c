@@ -103,13 +103,15 @@ weft_result weft__near_create(weft_garment *g)
     xbvh_build(g->near_tree, g->near_cpos);
     if (g->push_thickness > 0.0f) {
         g->near_skip = weft__alloc(g->ctx, g->vertex_count);
-        r = g->near_skip ? make_adjacency(g) : WEFT_ERROR_OUT_OF_MEMORY;
+        g->near_last = weft__alloc(g->ctx, (size_t)g->vertex_count * sizeof(uint32_t));
+        r = g->near_skip && g->near_last ? make_adjacency(g) : WEFT_ERROR_OUT_OF_MEMORY;
         if (r != WEFT_OK) {
             weft__near_destroy(g);
             return r;
         }
         for (uint32_t v = 0; v < g->vertex_count; ++v) {
             g->near_skip[v] = g->tether_radius && g->tether_radius[v] == 0.0f; /* glued for good */
+            g->near_last[v] = UINT32_MAX;
         }
         if (g->ccd) {
             g->near_inside = weft__alloc(g->ctx, g->vertex_count);
@@ -135,6 +137,7 @@ void weft__near_destroy(weft_garment *g)
     weft__free(g->ctx, g->near_vt, nt3 * sizeof(uint32_t));
     weft__free(g->ctx, g->near_skip, g->vertex_count);
     weft__free(g->ctx, g->near_inside, g->vertex_count);
+    weft__free(g->ctx, g->near_last, (size_t)g->vertex_count * sizeof(uint32_t));
     g->near_tree = NULL;
     g->near_cpos = NULL;
     g->near_across = NULL;
@@ -142,6 +145,7 @@ void weft__near_destroy(weft_garment *g)
     g->near_vt = NULL;
     g->near_skip = NULL;
     g->near_inside = NULL;
+    g->near_last = NULL;
 }
 
 static void refit_to(weft_garment *g, const float *c)
@@ -181,16 +185,23 @@ static bool visit_near(uint32_t t, void *user)
     return true;
 }
 
-bool weft__near_nearest(const weft_garment *g, const double p[3], double radius, weft_near_hit *hit)
+bool weft__near_nearest(const weft_garment *g, const double p[3], double radius, uint32_t seed, weft_near_hit *hit)
 {
+    hit->d2 = radius * radius;
+    hit->tri = UINT32_MAX;
+    near_query q = {.g = g, .p = p, .hit = hit};
+    if (seed != UINT32_MAX) {
+        /* A triangle near p already bounds the search: only nearer ones can replace it. */
+        visit_near(seed, &q);
+        if (hit->tri == seed) {
+            radius = sqrt(hit->d2);
+        }
+    }
     double lo[3], hi[3];
     for (int k = 0; k < 3; ++k) {
         lo[k] = p[k] - radius;
         hi[k] = p[k] + radius;
     }
-    hit->d2 = radius * radius;
-    hit->tri = UINT32_MAX;
-    near_query q = {.g = g, .p = p, .hit = hit};
     xbvh_query(g->near_tree, lo, hi, visit_near, &q);
     if (hit->tri == UINT32_MAX) {
         return false;
@@ -266,9 +277,9 @@ static void feature_normal(const weft_garment *g, const weft_near_hit *hit, doub
 
 /* Signed side of p against its nearest collider point within radius: true when inside, with
  * the hit; false when outside or nothing is that near. */
-static bool inside_near(const weft_garment *g, const double p[3], double radius, weft_near_hit *hit)
+static bool inside_near(const weft_garment *g, const double p[3], double radius, uint32_t seed, weft_near_hit *hit)
 {
-    if (!weft__near_nearest(g, p, radius, hit)) {
+    if (!weft__near_nearest(g, p, radius, seed, hit)) {
         return false;
     }
     double n[3];
@@ -291,7 +302,8 @@ uint32_t weft__near_mark_inside(weft_garment *g)
     for (uint32_t v = 0; v < g->vertex_count; ++v) {
         const float *x = g->x + 3 * (size_t)v;
         const double p[3] = {x[0], x[1], x[2]};
-        g->near_inside[v] = inside_near(g, p, g->push_depth, &hit);
+        g->near_inside[v] = inside_near(g, p, g->push_depth, g->near_last[v], &hit);
+        g->near_last[v] = hit.tri;
         count += g->near_inside[v];
     }
     return count;
@@ -315,7 +327,9 @@ void weft__push(weft_garment *g)
         float *x = g->x_next + 3 * (size_t)v;
         const double p[3] = {x[0], x[1], x[2]};
         weft_near_hit hit;
-        if (!weft__near_nearest(g, p, radius, &hit)) {
+        const bool found = weft__near_nearest(g, p, radius, g->near_last[v], &hit);
+        g->near_last[v] = hit.tri; /* UINT32_MAX when nothing is that near */
+        if (!found) {
             continue;
         }
         double n[3], d[3];
