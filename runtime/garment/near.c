@@ -275,20 +275,23 @@ static void feature_normal(const weft_garment *g, const weft_near_hit *hit, doub
     }
 }
 
-/* Signed side of p against its nearest collider point within radius: true when inside, with
- * the hit; false when outside or nothing is that near. */
-static bool inside_near(const weft_garment *g, const double p[3], double radius, uint32_t seed, weft_near_hit *hit)
+/* Which side of the surface p is on: (p - nearest point) . pseudonormal, negative inside; n gets
+ * the pseudonormal. */
+static double side_of(const weft_garment *g, const double p[3], const weft_near_hit *hit, double n[3])
 {
-    if (!weft__near_nearest(g, p, radius, seed, hit)) {
-        return false;
-    }
-    double n[3];
     feature_normal(g, hit, n);
     double side = 0.0;
     for (int k = 0; k < 3; ++k) {
         side += (p[k] - hit->point[k]) * n[k];
     }
-    return side < 0.0;
+    return side;
+}
+
+/* True when p is inside the collider within radius of its surface (hit: the nearest point). */
+static bool inside_near(const weft_garment *g, const double p[3], double radius, uint32_t seed, weft_near_hit *hit)
+{
+    double n[3];
+    return weft__near_nearest(g, p, radius, seed, hit) && side_of(g, p, hit, n) < 0.0;
 }
 
 uint32_t weft__near_mark_inside(weft_garment *g)
@@ -332,15 +335,9 @@ void weft__push(weft_garment *g)
         if (!found) {
             continue;
         }
-        double n[3], d[3];
-        feature_normal(g, &hit, n);
+        double n[3];
+        const bool inside = side_of(g, p, &hit, n) < 0.0;
         const double dist = sqrt(hit.d2);
-        double side = 0.0;
-        for (int k = 0; k < 3; ++k) {
-            d[k] = p[k] - hit.point[k];
-            side += d[k] * n[k];
-        }
-        const bool inside = side < 0.0;
         if (inside ? dist > depth : dist >= thick) {
             continue;
         }
@@ -350,7 +347,7 @@ void weft__push(weft_garment *g)
         if (dist > 1e-12) {
             const double s = (inside ? -1.0 : 1.0) / dist;
             for (int k = 0; k < 3; ++k) {
-                out[k] = d[k] * s;
+                out[k] = (p[k] - hit.point[k]) * s;
             }
         } else {
             const double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
@@ -365,7 +362,7 @@ void weft__push(weft_garment *g)
          * point (its motion less the collider's there) by at least the collider's thickness less
          * its depth, which is more than its depth; pushing it out here would take it through.
          * One that came in through this side moved inward. */
-        if (inside && !(g->near_inside && g->near_inside[v])) { /* (cloth inside at t may go either way) */
+        if (inside && !(g->near_inside && g->near_inside[v])) { /* cloth inside at t may go either way */
             const float *x0 = g->x + 3 * (size_t)v;
             const uint32_t *tri = g->collider_triangles + 3 * (size_t)hit.tri;
             double along = 0.0;
