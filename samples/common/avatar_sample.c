@@ -67,6 +67,8 @@ void weft_avatar_sample_usage(FILE *out, const char *program)
             "                          default 3 for the learned model, off for xpbd)\n"
             "  --strain-limit PCT      shorten garment edges stretched over PCT %% after each step (0: off;\n"
             "                          default 10 for the learned model, off for xpbd)\n"
+            "  --push-cm X             push garment cloth inside the body (up to 2 cm) or nearer than X cm to X cm\n"
+            "                          in front of it before CCD (0: off, the default; docs/CCD.md, Collider push)\n"
             "  --frames N              frames to render at 60 Hz (default 120)\n"
             "  --settle N              simulated frames blending from the bind pose into the motion (default 30)\n"
             "  --out DIR               output folder for frame_NNNN.png and contact_sheet.png (default avatar_frames)\n"
@@ -145,7 +147,7 @@ int weft_avatar_sample_parse(int argc, char **argv, int first, weft_avatar_sampl
         } else if (!v) {
             static const char *const valued[] = {"--motion", "--garment", "--resolution", "--method", "--model",
                                                  "--sim-resolution",
-                                                 "--precision", "--tether-cm", "--strain-limit",
+                                                 "--precision", "--tether-cm", "--strain-limit", "--push-cm",
                                                  "--frames", "--settle",  "--out",        "--size",   "--sheet",
                                                  "--yaw",    "--pitch",   "--start",      "--speed",
                                                  "--cape-model", "--cape-precision"};
@@ -174,6 +176,8 @@ int weft_avatar_sample_parse(int argc, char **argv, int first, weft_avatar_sampl
             ok = parse_float(v, 0.0f, 1000.0f, &o->tether_cm);
         } else if (strcmp(a, "--strain-limit") == 0) {
             ok = parse_float(v, 0.0f, 1000.0f, &o->strain_pct);
+        } else if (strcmp(a, "--push-cm") == 0) {
+            ok = parse_float(v, 0.0f, 10.0f, &o->push_cm);
         } else if (strcmp(a, "--frames") == 0) {
             ok = parse_u32(v, 1, 100000, &o->frames);
         } else if (strcmp(a, "--settle") == 0) {
@@ -533,6 +537,7 @@ weft_result weft_avatar_sample_garment_create(const weft_avatar_sample_options *
         /* The strain limit mends the edges the network and the tether clamps tear (docs/MODEL.md). */
         float strain_pct = o->strain_pct >= 0.0f ? o->strain_pct : (order[m].method == WEFT_METHOD_MODEL ? 10.0f : 0.0f);
         gdef.strain_limit = strain_pct / 100.0f;
+        gdef.collider_push = o->push_cm / 100.0f;
         gdef.rest_positions = cloth->positions;
         gdef.vertex_count = cloth->vertex_count;
         gdef.triangles = cloth->triangles;
@@ -554,6 +559,10 @@ weft_result weft_avatar_sample_garment_create(const weft_avatar_sample_options *
         }
         if (tether_cm > 0.0f) {
             printf("tethers: every garment vertex within %.1f cm of its skinned position\n", (double)tether_cm);
+        }
+        if (o->push_cm > 0.0f) {
+            printf("collider push: garment cloth inside the body goes %.1f cm in front of it before CCD\n",
+                   (double)o->push_cm);
         }
         if (strain_pct > 0.0f) {
             printf("strain limit: garment edges at most %.0f %% over their rest length before CCD\n", (double)strain_pct);

@@ -25,6 +25,7 @@ typedef struct weft_avatar_sample_options {
                                    3 cm for the learned model, none for XPBD; 0: none */
     float strain_pct;           /* strain limit in % (weft_garment_def.strain_limit); < 0 (default): 10 %
                                    for the learned model, none for XPBD; 0: none */
+    float push_cm;              /* collider push in cm (weft_garment_def.collider_push); 0 (default): off */
     const char *out_dir;        /* frames and the contact sheet go here (default "avatar_frames") */
     uint32_t frames;            /* rendered frames at 60 Hz (default 120) */
     uint32_t settle_frames;     /* simulated frames blending from the bind pose into frame 0 (default 30) */
