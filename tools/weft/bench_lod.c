@@ -49,6 +49,7 @@ typedef struct lod_cand {
     bool ccd;
     lod_crop crop;              /* model levels only */
     double tether_cm, strain_pct; /* 0: none */
+    double push_cm;             /* 0: no collider push */
     int sim;                    /* resolution level: 0 the sequence's own mesh, i + 1 lod_opts.sim_data[i] */
     uint32_t sequences, frames, failed, nan_runs;
     double mve_w, ms_w, strain;
@@ -60,6 +61,7 @@ typedef struct lod_opts {
     const char *scenario;               /* only sequences of this scenario; NULL: all */
     const char *name;                   /* OUT/<name>.csv, and its own blocks in OUT/LOD.md unless "lod" */
     double tether_cm, strain_pct;       /* > 0: also measure the deployed garment levels with these */
+    double push_cm;                     /* > 0: ... and with the collider push */
     uint32_t frames, max_seqs, scale_frames;
     unsigned xpbd[8];
     size_t nxpbd;
@@ -81,7 +83,8 @@ static void usage(FILE *f)
             "usage: weft bench lod --data DIR [--split test|val|train|all] [--models DIR] [--out DIR] [--frames N]\n"
             "                      [--max-seqs N] [--xpbd 5,10,20] [--no-scale] [--scale-levels a,b,...]\n"
             "                      [--scale-frames N] [--scale-res 1k|4k] [--scale-only] [--crops model,8,4:cells]\n"
-            "                      [--scenario S] [--name NAME] [--tether-cm X] [--strain-limit P] [--sim-data DIR]\n"
+            "                      [--scenario S] [--name NAME] [--tether-cm X] [--strain-limit P] [--push-cm X]\n"
+            "                      [--sim-data DIR]\n"
             "  Measures every level (LBS, XPBD at the given substeps, each DIR/*.safetensors model at\n"
             "  fp32/fp16/int8 with and without CCD) on the split through `weft eval --json`, writes OUT/lod.csv\n"
             "  (loadable by weft_lod_table_load_file) and the table in OUT/LOD.md, then measures the\n"
@@ -105,7 +108,8 @@ static void usage(FILE *f)
             "  --scenario S  only the split's sequences of scenario S (e.g. garment)\n"
             "  --name NAME   write OUT/NAME.csv and the tables into their own sections of OUT/LOD.md (default lod)\n"
             "  --tether-cm X, --strain-limit P  also measure LBS, the first XPBD and every model's int8 (CCD on and\n"
-            "                off) with tethers of X cm and/or a P %% strain limit (levels named ...-tX-sP)\n",
+            "                off) with tethers of X cm and/or a P %% strain limit (levels named ...-tX-sP)\n"
+            "  --push-cm X   ... and/or the collider push at X cm (levels named ...-pX; docs/CCD.md)\n",
             LOD_MAX_SIM, LOD_MAX_CROPS);
 }
 
@@ -278,14 +282,18 @@ static size_t build_candidates(weft_context *ctx, const lod_opts *o, lod_cand *c
         }
     }
     /* The deployed garment levels: the same methods with tethers and/or the strain limit. */
-    if (o->tether_cm > 0.0 || o->strain_pct > 0.0) {
-        char suffix[32] = "";
+    if (o->tether_cm > 0.0 || o->strain_pct > 0.0 || o->push_cm > 0.0) {
+        char suffix[48] = "";
         if (o->tether_cm > 0.0) {
             snprintf(suffix, sizeof suffix, "-t%.4g", o->tether_cm);
         }
         if (o->strain_pct > 0.0) {
             size_t used = strlen(suffix);
             snprintf(suffix + used, sizeof suffix - used, "-s%.4g", o->strain_pct);
+        }
+        if (o->push_cm > 0.0) {
+            size_t used = strlen(suffix);
+            snprintf(suffix + used, sizeof suffix - used, "-p%.4g", o->push_cm);
         }
         const size_t base = n;
         for (size_t i = 0; i < base && n < LOD_MAX_CANDS; ++i) {
@@ -305,6 +313,7 @@ static size_t build_candidates(weft_context *ctx, const lod_opts *o, lod_cand *c
             memcpy(c[n].name, full, strlen(full) + 1);
             c[n].tether_cm = o->tether_cm;
             c[n].strain_pct = o->strain_pct;
+            c[n].push_cm = o->push_cm;
             n++;
         }
     }
@@ -316,7 +325,7 @@ static size_t build_candidates(weft_context *ctx, const lod_opts *o, lod_cand *c
             const lod_cand *b = &c[j];
             bool first_xpbd = strcmp(b->family, "xpbd") == 0 && o->nxpbd && b->substeps == o->xpbd[0];
             bool model_own = strcmp(b->family, "model") == 0 && b->crop.cm == 0.0 && !b->crop.cells && !b->crop.tokens;
-            if (b->sim || b->tether_cm > 0.0 || b->strain_pct > 0.0 ||
+            if (b->sim || b->tether_cm > 0.0 || b->strain_pct > 0.0 || b->push_cm > 0.0 ||
                 !(strcmp(b->family, "lbs") == 0 || first_xpbd || model_own)) {
                 continue;
             }
@@ -390,9 +399,10 @@ static void run_candidates(const char *exe, const lod_opts *o, const bench_seq *
     char frames_arg[16];
     snprintf(frames_arg, sizeof frames_arg, "%u", o->frames);
     for (size_t k = 0; k < nc; ++k) {
-        char crop_arg[32], tokens_arg[16], tether_arg[32], strain_arg[32];
+        char crop_arg[32], tokens_arg[16], tether_arg[32], strain_arg[32], push_arg[32];
         snprintf(tether_arg, sizeof tether_arg, "%.9g", c[k].tether_cm);
         snprintf(strain_arg, sizeof strain_arg, "%.9g", c[k].strain_pct);
+        snprintf(push_arg, sizeof push_arg, "%.9g", c[k].push_cm);
         snprintf(crop_arg, sizeof crop_arg, "%.9g", c[k].crop.cm);
         snprintf(tokens_arg, sizeof tokens_arg, "%u", c[k].crop.tokens);
         for (size_t s = 0; s < nseq; ++s) {
@@ -431,6 +441,10 @@ static void run_candidates(const char *exe, const lod_opts *o, const bench_seq *
             if (c[k].strain_pct > 0.0) {
                 extra[n++] = "--strain-limit";
                 extra[n++] = strain_arg;
+            }
+            if (c[k].push_cm > 0.0) {
+                extra[n++] = "--push-cm";
+                extra[n++] = push_arg;
             }
             if (strcmp(c[k].family, "xpbd") != 0) { /* the scene's pins for every method (bench_method_args) */
                 extra[n++] = "--pins";
@@ -482,7 +496,7 @@ static bool write_csv(const char *path, const lod_cand *c, size_t nc, const char
     fprintf(f, "# data %s, split %s%s%s; build and machine: %s\n", o->data, o->split, o->scenario ? ", scenario " : "",
             o->scenario ? o->scenario : "", weft_config_string());
     fprintf(f, "level,method,model,precision,substeps,ccd,resolution,ms_per_frame,mve_cm,max_edge_strain,sequences,"
-               "frames,crop_cm,collider_crop,max_collider_tokens,tether_cm,strain_limit_pct\n");
+               "frames,crop_cm,collider_crop,max_collider_tokens,tether_cm,strain_limit_pct,push_cm\n");
     for (size_t k = 0; k < nc; ++k) {
         if (!cand_valid(&c[k])) {
             continue;
@@ -506,10 +520,14 @@ static bool write_csv(const char *path, const lod_cand *c, size_t nc, const char
         if (c[k].strain_pct > 0.0) {
             snprintf(strain, sizeof strain, "%.9g", c[k].strain_pct);
         }
-        fprintf(f, "%s,%s,%s,%s,%s,%s,%.3g,%.6g,%.6g,%.6g,%u,%u,%s,%s,%s,%s,%s\n", c[k].name, c[k].family,
+        char push[32] = "-";
+        if (c[k].push_cm > 0.0) {
+            snprintf(push, sizeof push, "%.9g", c[k].push_cm);
+        }
+        fprintf(f, "%s,%s,%s,%s,%s,%s,%.3g,%.6g,%.6g,%.6g,%u,%u,%s,%s,%s,%s,%s,%s\n", c[k].name, c[k].family,
                 model ? c[k].model_name : "-", model ? c[k].precision : "-", sub, c[k].ccd ? "on" : "off",
                 c[k].sim ? o->sim_res[c[k].sim - 1] : 1.0, c[k].ms_w / c[k].frames, c[k].mve_w / c[k].frames, c[k].strain, c[k].sequences, c[k].frames, crop_cm,
-                model ? (c[k].crop.cells ? "cells" : "box") : "-", tokens, tether, strain);
+                model ? (c[k].crop.cells ? "cells" : "box") : "-", tokens, tether, strain, push);
     }
     fclose(f);
     return true;
@@ -1009,6 +1027,14 @@ int weft_bench_lod(int argc, char **argv)
                     return 2;
                 }
             }
+        } else if (strcmp(a, "--push-cm") == 0) {
+            char *end;
+            double x = strtod(v, &end);
+            if (*end || end == v || !(x > 0.0) || x > 10.0) {
+                fprintf(stderr, "weft bench lod: bad value '%s' for --push-cm (a number in (0, 10])\n", v);
+                return 2;
+            }
+            o.push_cm = x;
         } else if (strcmp(a, "--tether-cm") == 0 || strcmp(a, "--strain-limit") == 0) {
             char *end;
             double x = strtod(v, &end);
