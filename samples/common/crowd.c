@@ -99,8 +99,9 @@ static bool file_exists(const char *p)
 }
 
 /* Loads the model files the table's model levels name, from the folder of --model (or
- * tools/train/models): NAME.PRECISION.safetensors when present, else NAME.safetensors. A level
- * whose model cannot be loaded is not usable (and said so). */
+ * tools/train/models): NAME.PRECISION.safetensors when present, else NAME.safetensors, NAME being
+ * the model's name or the same with '-' as '_'. A level whose model cannot be loaded is not usable
+ * (and said so). */
 static void load_models(crowd *c, const weft_avatar_sample_options *o)
 {
     char dir[1024] = "tools/train/models";
@@ -125,10 +126,23 @@ static void load_models(crowd *c, const weft_avatar_sample_options *o)
             c->usable[i] = 1;
             continue;
         }
-        char path[1400];
-        snprintf(path, sizeof path, "%s/%s.%s.safetensors", dir, l->model, prec_names[l->precision]);
-        if (l->precision == WEFT_PRECISION_FP32 || !file_exists(path)) {
-            snprintf(path, sizeof path, "%s/%s.safetensors", dir, l->model);
+        /* Files are named by the training run's stem (game_k16), the table by the model's
+         * metadata name (game-k16): try the name as it is, then with '-' as '_'. */
+        char stems[2][WEFT_LOD_NAME_CAP], path[1400] = "";
+        snprintf(stems[0], sizeof stems[0], "%s", l->model);
+        snprintf(stems[1], sizeof stems[1], "%s", l->model);
+        for (char *ch = stems[1]; *ch; ++ch) {
+            *ch = *ch == '-' ? '_' : *ch;
+        }
+        for (int k = 1; k >= 0; --k) { /* stems[0] last, so its path is the one reported on failure */
+            char prec_path[1400], base_path[1400];
+            snprintf(prec_path, sizeof prec_path, "%s/%s.%s.safetensors", dir, stems[k], prec_names[l->precision]);
+            snprintf(base_path, sizeof base_path, "%s/%s.safetensors", dir, stems[k]);
+            const char *pick = l->precision != WEFT_PRECISION_FP32 && file_exists(prec_path) ? prec_path : base_path;
+            if (k == 0 || file_exists(pick)) {
+                snprintf(path, sizeof path, "%s", pick);
+                break;
+            }
         }
         /* Already loaded (same name at the wanted stored precision, or the fp32 base)? */
         bool have = false;
