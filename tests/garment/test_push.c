@@ -17,13 +17,13 @@
 
 static const float k_lo[3] = {-0.1f, 0.0f, -0.1f}, k_hi[3] = {0.1f, 0.2f, 0.1f};
 
-/* The garment: a 3 x 3 sheet (its rest mesh only gives the topology) started at `points`. */
-static weft_garment *make(weft_context *ctx, const test_mesh *sheet, const test_mesh *col, const float *points,
-                          float push, weft_result expect)
+/* An LBS garment of the sheet's topology around collider col, started at `points`, pushing at
+ * `push` (CCD off: the push itself is under test). */
+static weft_garment_def push_def(const test_mesh *sheet, const test_mesh *col, const float *points, float push)
 {
     weft_garment_def gd = weft_default_garment_def();
     gd.method = WEFT_METHOD_LBS;
-    gd.ccd = false; /* the push itself is under test */
+    gd.ccd = false;
     gd.rest_positions = sheet->pos;
     gd.vertex_count = sheet->nv;
     gd.triangles = sheet->tris;
@@ -35,6 +35,13 @@ static weft_garment *make(weft_context *ctx, const test_mesh *sheet, const test_
     gd.collider_triangle_count = col->nt;
     gd.collider_push = push;
     gd.collider_push_depth = DEPTH;
+    return gd;
+}
+
+static weft_garment *make(weft_context *ctx, const test_mesh *sheet, const test_mesh *col, const float *points,
+                          float push, weft_result expect)
+{
+    const weft_garment_def gd = push_def(sheet, col, points, push);
     weft_garment *g = NULL;
     CHECK_RESULT(weft_garment_create(ctx, &gd, &g), expect);
     return g;
@@ -228,19 +235,7 @@ static void test_push_with_ccd_lets_cloth_out(void)
     }
     const float in[3] = {0.02f, 0.195f, 0.03f}; /* 5 mm under the top */
     memcpy(pts[4], in, sizeof in);
-    weft_garment_def gd = weft_default_garment_def();
-    gd.method = WEFT_METHOD_LBS;
-    gd.rest_positions = sheet.pos;
-    gd.vertex_count = sheet.nv;
-    gd.triangles = sheet.tris;
-    gd.triangle_count = sheet.nt;
-    gd.initial_positions = &pts[0][0];
-    gd.collider_rest_positions = box.pos;
-    gd.collider_vertex_count = box.nv;
-    gd.collider_triangles = box.tris;
-    gd.collider_triangle_count = box.nt;
-    gd.collider_push = THICK;
-    gd.collider_push_depth = DEPTH;
+    weft_garment_def gd = push_def(&sheet, &box, &pts[0][0], THICK);
     gd.ccd = true;
     weft_garment *g = NULL;
     CHECK_RESULT(weft_garment_create(ctx, &gd, &g), WEFT_OK);
@@ -273,17 +268,7 @@ static void test_push_bad_input(void)
         CHECK(make(ctx, &sheet, &box, sheet.pos, bad[k], WEFT_ERROR_INVALID_ARGUMENT) == NULL);
         CHECK(strstr(weft_last_error(), "collider_push") != NULL);
     }
-    weft_garment_def gd = weft_default_garment_def();
-    gd.method = WEFT_METHOD_LBS;
-    gd.rest_positions = sheet.pos;
-    gd.vertex_count = sheet.nv;
-    gd.triangles = sheet.tris;
-    gd.triangle_count = sheet.nt;
-    gd.collider_rest_positions = box.pos;
-    gd.collider_vertex_count = box.nv;
-    gd.collider_triangles = box.tris;
-    gd.collider_triangle_count = box.nt;
-    gd.collider_push = 0.01f;
+    weft_garment_def gd = push_def(&sheet, &box, NULL, 0.01f);
     weft_garment *g = NULL;
     const float bad_depth[] = {-0.01f, NAN, 0.6f};
     for (size_t k = 0; k < sizeof bad_depth / sizeof bad_depth[0]; ++k) {
