@@ -2,7 +2,7 @@
  * weft_lod_table_load_file accepts, with one level per candidate (LBS with and without CCD,
  * XPBD at the substeps asked for, the `game` model at three precisions with and without CCD),
  * finite measured numbers, and a LOD.md with the generated table between its markers;
- * --max-seqs counts per scenario; --sim-data adds resolution levels simulated on a coarser mesh.
+ * --strain-limit and --push-cm add deployed levels; --max-seqs counts per scenario; --sim-data adds resolution levels simulated on a coarser mesh.
  * argv: weft binary, data folder, models folder, output folder. Exits 77 (skipped) without a
  * sample sequence. */
 #define _POSIX_C_SOURCE 200809L /* posix_spawn, symlink */
@@ -142,6 +142,44 @@ static void bench_measures_crop_levels(void)
     CHECK_EQ_INT(run(bad), 2);
 }
 
+/* --strain-limit and --push-cm: LBS, the first XPBD and each model's int8, with and without
+ * CCD, again with both (named ...-sP-pX), the settings in the CSV's columns. */
+static void bench_measures_deployed_levels(void)
+{
+    char models[1024], out[1100];
+    snprintf(models, sizeof models, "%s/models", g_out); /* linked by the first case */
+    snprintf(out, sizeof out, "%s/deployed", g_out);
+    mkdir(out, 0755);
+    char csv[1200];
+    snprintf(csv, sizeof csv, "%s/lod.csv", out);
+    unlink(csv);
+    const char *argv[] = {g_exe,      "bench", "lod",     "--data",     g_data,      "--split", "all",
+                          "--frames", "3",     "--xpbd",  "1",          "--models",  models,    "--out",
+                          out,        "--no-scale", "--strain-limit", "10", "--push-cm", "1", NULL};
+    weft_context *ctx = NULL;
+    weft_lod_table *t = bench_table(argv, csv, &ctx);
+    if (t) {
+        CHECK_EQ_INT(weft_lod_table_count(t), 14); /* 9 plain + lbs x2, xpbd-1, game-int8 x2 deployed */
+        static const char *const deployed[] = {"lbs-s10-p1", "lbs-noccd-s10-p1", "xpbd-1-s10-p1", "game-int8-s10-p1",
+                                               "game-int8-noccd-s10-p1"};
+        for (size_t i = 0; i < sizeof deployed / sizeof deployed[0]; ++i) {
+            uint32_t idx = 0;
+            CHECK_RESULT(weft_lod_table_find(t, deployed[i], &idx), WEFT_OK);
+            const weft_lod_level *l = weft_lod_table_level(t, idx);
+            CHECK_MSG(l && l->push_cm == 1.0 && l->strain_limit_pct == 10.0 && l->tether_cm == 0.0 && l->frames == 3 &&
+                          isfinite(l->mve_cm),
+                      "%s", deployed[i]);
+        }
+        uint32_t idx = 0;
+        CHECK_RESULT(weft_lod_table_find(t, "game-int8", &idx), WEFT_OK);
+        CHECK(weft_lod_table_level(t, idx)->push_cm == 0.0);
+        weft_lod_table_destroy(t);
+    }
+    weft_context_destroy(ctx);
+    const char *bad[] = {g_exe, "bench", "lod", "--data", g_data, "--push-cm", "11", "--out", out, NULL};
+    CHECK_EQ_INT(run(bad), 2);
+}
+
 /* --max-seqs N keeps N sequences of each scenario (as bench chart), not N of the whole split:
  * two drops (the sample, linked twice) and a garment with --max-seqs 1 measure one of each. */
 static void max_seqs_counts_per_scenario(void)
@@ -246,6 +284,6 @@ int main(int argc, char **argv)
         return 77;
     }
     static const test_case_ cases[] = {TEST_CASE(bench_writes_loadable_table), TEST_CASE(bench_measures_crop_levels),
-                                       TEST_CASE(max_seqs_counts_per_scenario), TEST_CASE(sim_data_adds_resolution_levels)};
+                                       TEST_CASE(bench_measures_deployed_levels), TEST_CASE(max_seqs_counts_per_scenario), TEST_CASE(sim_data_adds_resolution_levels)};
     return test_run_(cases, sizeof cases / sizeof cases[0], 1, argv);
 }
