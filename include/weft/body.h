@@ -207,6 +207,9 @@ typedef struct weft_motion_def {
     float speed;              /* time scale: 2 plays twice as fast (default 1; > 0, <= 8) */
     float amplitude;          /* scales the joint angles (default 1; 0 .. 1.5) */
     float height;             /* body height the motion is scaled to, for translations (default 1.70) */
+    float arm_spread;         /* radians the upper arms are held further from the torso, applied at the
+                               * shoulder before the motion's own rotation (default 0; 0 .. 0.8). Keeps
+                               * arms from closing on cloth at the chest's sides (docs/REFSIM.md) */
     uint32_t internal_cookie;
 } weft_motion_def;
 

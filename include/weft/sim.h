@@ -81,6 +81,10 @@ typedef struct weft_sim_sequence_def {
     float motion_speed;           /* scales the kinematic motion: the avatar's motion (garment) and the
                                    * gripper's schedule; 1 = as drawn from the seed, which stays the same
                                    * draw at any speed; the drop scenario has none (0.1..10, default 1) */
+    float garment_retry_arm_spread; /* a garment sequence still rejected at max_substeps is tried once more,
+                                   * from `substeps`, with the avatar's arms held this many radians further
+                                   * from the torso (weft_motion_def.arm_spread): the same scene otherwise.
+                                   * 0 turns the retry off (0..0.8, default 0.3; docs/REFSIM.md) */
     uint32_t internal_cookie;     /* set by weft_sim_default_sequence_def(); do not touch */
 } weft_sim_sequence_def;
 
@@ -88,6 +92,7 @@ typedef struct weft_sim_sequence_result {
     bool accepted;                /* validated with zero hits: written as ground truth */
     uint32_t substeps_used;
     uint32_t attempts;
+    float arm_spread;             /* the avatar's arm_spread of the last attempt (garments; else 0) */
     uint32_t vertex_count, collider_vertex_count, frames;
     uint32_t ccd_hits, intersection_hits;  /* of the last attempt */
     int32_t first_hit_frame;      /* -1 when none */

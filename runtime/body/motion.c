@@ -65,6 +65,9 @@ static weft_result check_def(const weft_motion_def *def)
     if (def->height < 0.5f || def->height > 2.5f) {
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "motion def: height %g outside [0.5, 2.5]", (double)def->height);
     }
+    if (!(def->arm_spread >= 0.0f && def->arm_spread <= 0.8f)) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "motion def: arm_spread %g outside [0, 0.8]", (double)def->arm_spread);
+    }
     return WEFT_OK;
 }
 
@@ -154,6 +157,19 @@ static void set_arm(weft_pose *pose, int side, double down, double fwd, double b
     /* Elbow: bend about the local Y axis towards the front. */
     double ay[3] = {0, -s * bend, 0};
     quat_to_aa(quat_from_aa(ay), pose->rotations + 3 * (WEFT_JOINT_LEFT_ELBOW + side));
+}
+
+/* Abducts both upper arms by `spread` radians in the shoulder's own frame, before the motion's
+ * rotation: set_arm's R = Rx(fwd) Rz(-s down) becomes Rx(fwd) Rz(-s (down - spread)), and any
+ * other shoulder rotation is opened the same way. */
+static void spread_arms(weft_pose *pose, double spread)
+{
+    for (int side = 0; side < 2; ++side) {
+        double s = side == 0 ? 1.0 : -1.0;
+        float *r = pose->rotations + 3 * (WEFT_JOINT_LEFT_SHOULDER + side);
+        double aa[3] = {r[0], r[1], r[2]}, az[3] = {0, 0, s * spread};
+        quat_to_aa(quat_mul(quat_from_aa(aa), quat_from_aa(az)), r);
+    }
 }
 
 /* Smooth ease between keyframes: values[k] at times[k] (ascending in [0, 1], first 0, last
@@ -303,6 +319,9 @@ weft_result weft_motion_sample(const weft_motion_def *def, double t, weft_pose *
         return weft__fail(WEFT_ERROR_NOT_FINITE, "weft_motion_sample: time is not finite");
     }
     motion_pose(def, t, out_pose);
+    if (def->arm_spread > 0.0f) {
+        spread_arms(out_pose, def->arm_spread);
+    }
     return WEFT_OK;
 }
 

@@ -825,7 +825,8 @@ static weft_result garment_intersects(weft_context *ctx, const weft_cloth_mesh *
     return res;
 }
 
-static weft_result build_garment(weft_context *ctx, xscene *sc, const weft_sim_sequence_def *def, xrng *r)
+static weft_result build_garment(weft_context *ctx, xscene *sc, const weft_sim_sequence_def *def, xrng *r,
+                                 float arm_spread)
 {
     weft_avatar_def ad = weft_default_avatar_def();
     ad.height = (float)xrng_uniform(r, 1.55, 1.9);
@@ -895,6 +896,7 @@ static weft_result build_garment(weft_context *ctx, xscene *sc, const weft_sim_s
     sc->motion.speed = (float)xrng_uniform(r, 0.6, 1.4) * def->motion_speed;
     sc->motion.amplitude = (float)xrng_uniform(r, 0.6, 1.0);
     sc->motion.height = ad.height;
+    sc->motion.arm_spread = arm_spread; /* after every draw: the same scene at any spread */
     weft_body_bind_pose(sc->body, &sc->bind_pose);
     res = weft_motion_sample(&sc->motion, 0.0, &sc->start_pose);
     if (res != WEFT_OK) {
@@ -910,8 +912,9 @@ static weft_result build_garment(weft_context *ctx, xscene *sc, const weft_sim_s
     }
     snprintf(sc->objects, sizeof sc->objects, "avatar");
     snprintf(sc->description, sizeof sc->description,
-             "garment: %s on avatar h=%.2f girth=%.2f, motion %s speed %.2f amplitude %.2f", weft_cloth_kind_name(kind),
-             ad.height, ad.girth, weft_motion_name(m), sc->motion.speed, sc->motion.amplitude);
+             "garment: %s on avatar h=%.2f girth=%.2f, motion %s speed %.2f amplitude %.2f%s", weft_cloth_kind_name(kind),
+             ad.height, ad.girth, weft_motion_name(m), sc->motion.speed, sc->motion.amplitude,
+             arm_spread > 0.0f ? ", arms spread" : "");
     return WEFT_OK;
 }
 
@@ -969,7 +972,8 @@ uint32_t xscene_pins_at(const xscene *sc, uint32_t f, const float *collider, uin
     return sc->grasp_count;
 }
 
-weft_result xscene_build(weft_context *ctx, xscene *sc, const weft_sim_sequence_def *def, uint64_t seed)
+weft_result xscene_build(weft_context *ctx, xscene *sc, const weft_sim_sequence_def *def, uint64_t seed,
+                         float arm_spread)
 {
     *sc = (xscene){0};
     sc->scenario = def->scenario;
@@ -983,7 +987,7 @@ weft_result xscene_build(weft_context *ctx, xscene *sc, const weft_sim_sequence_
         res = build_gripper(sc, def, &r);
         break;
     case WEFT_SIM_SCENARIO_GARMENT:
-        res = build_garment(ctx, sc, def, &r);
+        res = build_garment(ctx, sc, def, &r, arm_spread);
         break;
     default:
         res = weft__fail(WEFT_ERROR_UNSUPPORTED, "simgen: scenario '%s' is not available in this build",

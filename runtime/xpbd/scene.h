@@ -73,7 +73,10 @@ typedef struct xscene {
 
 /* Frame indices passed to the per-frame functions count from the start of the pre-roll
  * (garments drape for `preroll` frames before frame 0 of the recording). */
-weft_result xscene_build(weft_context *ctx, xscene *sc, const weft_sim_sequence_def *def, uint64_t seed);
+/* arm_spread: the avatar's weft_motion_def.arm_spread (garments; the scene is otherwise the
+ * same draw at any value). */
+weft_result xscene_build(weft_context *ctx, xscene *sc, const weft_sim_sequence_def *def, uint64_t seed,
+                         float arm_spread);
 void xscene_free(xscene *sc);
 /* Collider positions at frame f into out (collider.nv * 3). */
 void xscene_collider_at(const xscene *sc, uint32_t f, float *out);

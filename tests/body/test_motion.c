@@ -128,6 +128,58 @@ static void test_motions_do_what_they_say(void)
     CHECK(xf[16 * WEFT_JOINT_PELVIS + 10] < -0.9f);
 }
 
+/* arm_spread opens the shoulders by exactly that angle and touches no other joint. */
+static void test_arm_spread(void)
+{
+    setup();
+    if (!g_body) {
+        return;
+    }
+    float xf[WEFT_BODY_JOINTS * 16], xs[WEFT_BODY_JOINTS * 16];
+    /* Idle at amplitude 0 holds the arms 1.25 rad down from the T-pose with no swing, in the
+     * frontal plane: the upper arm's angle from straight down grows by exactly the spread. */
+    weft_motion_def still = weft_default_motion_def(WEFT_MOTION_IDLE);
+    still.amplitude = 0.0f;
+    double base[2] = {0, 0};
+    for (int k = 0; k < 3; ++k) {
+        still.arm_spread = 0.2f * (float)k;
+        joints_at(&still, 0.0, xf);
+        for (int side = 0; side < 2; ++side) {
+            const int sh = WEFT_JOINT_LEFT_SHOULDER + side, el = WEFT_JOINT_LEFT_ELBOW + side;
+            double dx = xf[16 * el + 12] - xf[16 * sh + 12], dy = JY(xf, el) - JY(xf, sh);
+            double angle = atan2(fabs(dx), -dy);
+            if (k == 0) {
+                base[side] = angle;
+                CHECK(angle > 0.1 && angle < 0.5); /* about pi/2 - 1.25, the skeleton's own slope aside */
+            }
+            CHECK_NEAR(angle - base[side], still.arm_spread, 1e-4);
+            CHECK(dx * (side == 0 ? 1.0 : -1.0) > 0.0); /* each arm on its own side */
+        }
+    }
+    for (int m = 0; m < WEFT_MOTION_COUNT; ++m) {
+        weft_motion_def def = weft_default_motion_def((weft_motion)m), wide = def;
+        wide.arm_spread = 0.3f;
+        for (int i = 0; i < 8; ++i) {
+            double t = weft_motion_period(&def) * i / 8.0;
+            joints_at(&def, t, xf);
+            joints_at(&wide, t, xs);
+            double arm = 0.0, rest = 0.0;
+            for (int j = 0; j < WEFT_BODY_JOINTS; ++j) {
+                for (int c = 12; c < 15; ++c) {
+                    double d = fabs((double)xf[16 * j + c] - xs[16 * j + c]);
+                    if (j >= WEFT_JOINT_LEFT_ELBOW) {
+                        arm = fmax(arm, d);
+                    } else {
+                        rest = fmax(rest, d);
+                    }
+                }
+            }
+            CHECK_MSG(rest == 0.0, "%s: arm_spread moved a joint outside the arms by %g", weft_motion_name((weft_motion)m), rest);
+            CHECK_MSG(arm > 0.02, "%s: arm_spread 0.3 moved the arms by only %g m", weft_motion_name((weft_motion)m), arm);
+        }
+    }
+}
+
 static void test_clips(void)
 {
     setup();
@@ -204,6 +256,13 @@ static void test_bad_input(void)
     CHECK_RESULT(weft_motion_sample(&def, NAN, &p), WEFT_ERROR_NOT_FINITE);
     def.speed = 0;
     CHECK_RESULT(weft_motion_sample(&def, 0.0, &p), WEFT_ERROR_INVALID_ARGUMENT);
+    def = weft_default_motion_def(WEFT_MOTION_RUN);
+    const float spreads[3] = {-0.1f, 0.9f, NAN};
+    for (int k = 0; k < 3; ++k) {
+        def.arm_spread = spreads[k];
+        CHECK_RESULT(weft_motion_sample(&def, 0.0, &p), WEFT_ERROR_INVALID_ARGUMENT);
+        CHECK(strstr(weft_last_error(), "arm_spread") != NULL);
+    }
     def = weft_default_motion_def(WEFT_MOTION_COUNT);
     CHECK_RESULT(weft_motion_sample(&def, 0.0, &p), WEFT_ERROR_INVALID_ARGUMENT);
     weft_motion m;
@@ -225,5 +284,6 @@ static void cleanup(void)
     CHECK(1);
 }
 
-TEST_MAIN(TEST_CASE(test_all_motions_loop_and_are_smooth), TEST_CASE(test_motions_do_what_they_say), TEST_CASE(test_clips),
+TEST_MAIN(TEST_CASE(test_all_motions_loop_and_are_smooth), TEST_CASE(test_motions_do_what_they_say),
+          TEST_CASE(test_arm_spread), TEST_CASE(test_clips),
           TEST_CASE(test_bad_input), TEST_CASE(cleanup))

@@ -1,7 +1,7 @@
 /* `weft simgen` plan options: --tier generates only that tier of --all (here one 16k drop
  * sequence, a few frames, unvalidated, to stay quick) and the manifest lists it; --split
- * generates exactly the names that hash into that split; bad --tier / --shard / --split values
- * fail with a usage exit. argv: weft binary, output folder. */
+ * generates exactly the names that hash into that split; --only keeps one scenario; bad --tier /
+ * --shard / --split / --only / --arm-spread-retry values fail with a usage exit. argv: weft binary, output folder. */
 #define _POSIX_C_SOURCE 200809L /* posix_spawn, stat */
 #include "test.h"
 
@@ -99,6 +99,21 @@ static void manifest_keeps_other_runs(void)
     CHECK_MSG(sc && strncmp(sc, "\"scenario\":\t\"drop\"", strlen("\"scenario\":\t\"drop\"")) == 0, "drop_v64_0001 listed as %.30s", sc ? sc : "-");
 }
 
+/* --only keeps one scenario of --all with the plan's names: the first gripper, no drop. */
+static void only_generates_that_scenario(void)
+{
+    char dir[1024], grip[1200], drop[1200];
+    snprintf(dir, sizeof dir, "%s/only", g_out);
+    snprintf(grip, sizeof grip, "%s/gripper_1k_0000/meta.json", dir);
+    snprintf(drop, sizeof drop, "%s/drop_1k_0000/meta.json", dir);
+    unlink(grip);
+    const char *argv[] = {g_exe, "simgen", "--out", dir, "--all", "--only", "gripper", "--limit", "1",
+                          "--frames", "2", "--no-validate", NULL};
+    CHECK_EQ_INT(tool_run(argv, NULL), 0);
+    CHECK_MSG(exists(grip), "no %s", grip);
+    CHECK_MSG(!exists(drop), "--only gripper generated a drop");
+}
+
 static void bad_plan_options_fail(void)
 {
     char dir[1024];
@@ -111,6 +126,14 @@ static void bad_plan_options_fail(void)
     CHECK_EQ_INT(tool_run(shard, NULL), 2);
     const char *split[] = {g_exe, "simgen", "--out", dir, "--all", "--split", "holdout", NULL};
     CHECK_EQ_INT(tool_run(split, NULL), 2);
+    const char *only[] = {g_exe, "simgen", "--out", dir, "--all", "--only", "shirt", NULL};
+    CHECK_EQ_INT(tool_run(only, NULL), 2);
+    const char *only_alone[] = {g_exe, "simgen", "--out", dir, "--scenario", "drop", "--only", "drop", NULL};
+    CHECK_EQ_INT(tool_run(only_alone, NULL), 2);
+    const char *spread[] = {g_exe, "simgen", "--out", dir, "--all", "--arm-spread-retry", "0.9", NULL};
+    CHECK_EQ_INT(tool_run(spread, NULL), 2);
+    const char *spread_text[] = {g_exe, "simgen", "--out", dir, "--all", "--arm-spread-retry", "wide", NULL};
+    CHECK_EQ_INT(tool_run(spread_text, NULL), 2);
     CHECK_MSG(!exists(dir), "a rejected command created %s", dir);
 }
 
@@ -124,6 +147,6 @@ int main(int argc, char **argv)
     g_out = argv[2];
     static const test_case_ cases[] = {TEST_CASE(tier_generates_only_that_tier),
                                          TEST_CASE(split_generates_only_that_split), TEST_CASE(manifest_keeps_other_runs),
-                                         TEST_CASE(bad_plan_options_fail)};
+                                         TEST_CASE(only_generates_that_scenario), TEST_CASE(bad_plan_options_fail)};
     return test_run_(cases, sizeof cases / sizeof cases[0], argc - 2, argv + 2);
 }

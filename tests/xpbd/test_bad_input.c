@@ -224,6 +224,14 @@ static void test_generate_bad_def(void)
     CHECK_RESULT(weft_sim_generate(ctx_, &d, "/tmp/never", NULL, NULL, &res), WEFT_ERROR_INVALID_ARGUMENT);
     d.motion_speed = NAN;
     CHECK_RESULT(weft_sim_generate(ctx_, &d, "/tmp/never", NULL, NULL, &res), WEFT_ERROR_INVALID_ARGUMENT);
+    const float spreads[3] = {-0.1f, 0.81f, NAN};
+    for (int k = 0; k < 3; ++k) {
+        d = weft_sim_default_sequence_def();
+        d.scenario = WEFT_SIM_SCENARIO_GARMENT;
+        d.garment_retry_arm_spread = spreads[k];
+        CHECK_RESULT(weft_sim_generate(ctx_, &d, "/tmp/never", NULL, NULL, &res), WEFT_ERROR_INVALID_ARGUMENT);
+        CHECK(strstr(weft_last_error(), "garment_retry_arm_spread") != NULL);
+    }
     weft_sim_sequence_def raw = {0};
     CHECK_RESULT(weft_sim_generate(ctx_, &raw, "/tmp/never", NULL, NULL, &res), WEFT_ERROR_INVALID_ARGUMENT);
 }

@@ -41,7 +41,7 @@ static void test_band_clear_of_arms(void)
         def.cloth_vertices = 1024;
         def.seed = seed;
         xscene sc;
-        CHECK_RESULT(xscene_build(ctx, &sc, &def, seed), WEFT_OK);
+        CHECK_RESULT(xscene_build(ctx, &sc, &def, seed, 0.0f), WEFT_OK);
         const bool dress = strstr(sc.description, "dress") != NULL;
         const bool skirt = strstr(sc.description, "skirt") != NULL;
         if (!dress && !skirt) {
@@ -90,4 +90,71 @@ static void test_band_clear_of_arms(void)
     weft_context_destroy(ctx);
 }
 
-TEST_MAIN(TEST_CASE(test_band_clear_of_arms))
+/* Smallest distance between a vertex mostly skinned to the arms and one mostly skinned to the
+ * pelvis and spine (the chest's sides). */
+static double arm_torso_gap(const weft_body *body, const float *verts)
+{
+    const uint32_t nv = weft_body_vertex_count(body);
+    const float *w = weft_body_weights(body);
+    static const uint32_t torso[4] = {WEFT_JOINT_PELVIS, WEFT_JOINT_SPINE1, WEFT_JOINT_SPINE2, WEFT_JOINT_SPINE3};
+    double best = 1e30;
+    for (uint32_t i = 0; i < nv; ++i) {
+        float s = 0.0f;
+        for (uint32_t j = 0; j < 4; ++j) {
+            s += w[24 * (size_t)i + torso[j]];
+        }
+        if (s > 0.5f) {
+            best = fmin(best, arm_distance(body, verts, verts + 3 * (size_t)i));
+        }
+    }
+    return best;
+}
+
+/* The garment retry's wider arms (weft_sim_sequence_def.garment_retry_arm_spread) draw the same
+ * scene, open the gap between arms and chest, and release no more of the band. */
+static void test_arm_spread_same_scene_wider_gap(void)
+{
+    weft_context_def cd = weft_default_context_def();
+    weft_context *ctx = NULL;
+    CHECK_RESULT(weft_context_create(&cd, &ctx), WEFT_OK);
+    uint32_t compared = 0;
+    for (uint64_t seed = 1; seed <= 9; ++seed) {
+        weft_sim_sequence_def def = weft_sim_default_sequence_def();
+        def.scenario = WEFT_SIM_SCENARIO_GARMENT;
+        def.cloth_vertices = 1024;
+        xscene a, b;
+        CHECK_RESULT(xscene_build(ctx, &a, &def, seed, 0.0f), WEFT_OK);
+        if (!strstr(a.description, "dress")) {
+            xscene_free(&a);
+            continue;
+        }
+        CHECK_RESULT(xscene_build(ctx, &b, &def, seed, 0.3f), WEFT_OK);
+        compared++;
+        CHECK(a.motion.arm_spread == 0.0f && b.motion.arm_spread == 0.3f);
+        CHECK(strncmp(a.description, b.description, strlen(a.description)) == 0); /* same draw, "arms spread" added */
+        CHECK(strstr(b.description, "arms spread") != NULL);
+        CHECK(a.cloth.nv == b.cloth.nv && a.collider.nv == b.collider.nv && a.preroll == b.preroll);
+        CHECK(memcmp(a.cloth.pos, b.cloth.pos, sizeof(float) * 3 * a.cloth.nv) == 0);
+        const uint32_t nc = a.collider.nv;
+        float *ca = malloc(sizeof(float) * 3 * nc), *cb = malloc(sizeof(float) * 3 * nc);
+        CHECK(ca && cb);
+        xscene_collider_at(&a, 0, ca); /* the bind pose: the blend starts there at any spread */
+        xscene_collider_at(&b, 0, cb);
+        CHECK(memcmp(ca, cb, sizeof(float) * 3 * nc) == 0);
+        xscene_collider_at(&a, a.preroll, ca); /* the motion's first pose, held before recording */
+        xscene_collider_at(&b, b.preroll, cb);
+        double ga = arm_torso_gap(a.body, ca), gb = arm_torso_gap(b.body, cb);
+        printf("seed %u: arm-torso gap %.1f mm, %.1f mm with arms spread; band released %u, %u\n", (unsigned)seed,
+               1e3 * ga, 1e3 * gb, a.band_released, b.band_released);
+        CHECK_MSG(gb > ga + 0.005, "seed %u: spread arms open the gap only from %.4f to %.4f m", (unsigned)seed, ga, gb);
+        CHECK(b.band_released <= a.band_released);
+        free(ca);
+        free(cb);
+        xscene_free(&a);
+        xscene_free(&b);
+    }
+    CHECK_MSG(compared >= 1, "no dress among the seeds");
+    weft_context_destroy(ctx);
+}
+
+TEST_MAIN(TEST_CASE(test_band_clear_of_arms), TEST_CASE(test_arm_spread_same_scene_wider_gap))

@@ -225,5 +225,42 @@ static void test_sequence_split(void)
     CHECK(weft_sim_sequence_split(NULL) == NULL && weft_sim_sequence_split("") == NULL);
 }
 
-TEST_MAIN(TEST_CASE(test_drop_deterministic), TEST_CASE(test_gripper_lifts), TEST_CASE(test_gripper_speed),
+/* A coarse dress (seed found by `weft simgen --scenario garment --count 12 --vertices 256
+ * --frames 10 --substeps 10 --max-substeps 20`, garment_v256_0004) whose arms close on it in
+ * the pre-roll: rejected at both substep counts, then accepted by the retry with the arms held
+ * 0.3 rad wider, and rejected when that retry is off. */
+static void test_garment_arm_spread_retry(void)
+{
+    weft_context_def cd = weft_default_context_def();
+    weft_context *ctx = NULL;
+    CHECK_RESULT(weft_context_create(&cd, &ctx), WEFT_OK);
+    char dir[512], path[600];
+    snprintf(dir, sizeof dir, "%s/xpbd_scenarios/dress_spread", WEFT_BINARY_DIR);
+    weft_sim_sequence_def d = weft_sim_default_sequence_def();
+    d.scenario = WEFT_SIM_SCENARIO_GARMENT;
+    d.seed = 2996802168190148522ull;
+    d.frames = 10;
+    d.substeps = 10;
+    d.max_substeps = 20;
+    d.cloth_vertices = 256;
+    weft_sim_sequence_result r = {0};
+    CHECK_RESULT(weft_sim_generate(ctx, &d, dir, NULL, NULL, &r), WEFT_OK);
+    CHECK(strstr(r.description, "dress") && strstr(r.description, "arms spread"));
+    CHECK_MSG(r.accepted && r.attempts == 3 && r.substeps_used == 10 && r.arm_spread == 0.3f,
+              "accepted %d after %u attempts at S = %u, arm_spread %g", r.accepted, r.attempts, r.substeps_used,
+              (double)r.arm_spread);
+    snprintf(path, sizeof path, "%s/meta.json", dir);
+    long n = 0;
+    unsigned char *meta = read_all(path, &n);
+    CHECK(meta && strstr((const char *)meta, "\"arm_spread\":\t0.3"));
+    free(meta);
+    snprintf(dir, sizeof dir, "%s/xpbd_scenarios/dress_no_spread", WEFT_BINARY_DIR);
+    d.garment_retry_arm_spread = 0.0f;
+    CHECK_RESULT(weft_sim_generate(ctx, &d, dir, NULL, NULL, &r), WEFT_OK);
+    CHECK_MSG(!r.accepted && r.attempts == 2 && r.arm_spread == 0.0f, "accepted %d after %u attempts", r.accepted,
+              r.attempts);
+    weft_context_destroy(ctx);
+}
+
+TEST_MAIN(TEST_CASE(test_drop_deterministic), TEST_CASE(test_garment_arm_spread_retry), TEST_CASE(test_gripper_lifts), TEST_CASE(test_gripper_speed),
           TEST_CASE(test_split), TEST_CASE(test_sequence_split))

@@ -36,11 +36,15 @@ typedef struct plan_filter {
     uint32_t shard_i, shard_n;
     const char *tier;
     const char *split; /* "train", "val" or "test": only names that would land in that split if accepted */
+    int only;          /* a weft_sim_scenario, or -1 for all */
 } plan_filter;
 
 static bool plan_wanted(const plan_filter *f, const plan_item *items, uint32_t i)
 {
     if (i % f->shard_n != f->shard_i) {
+        return false;
+    }
+    if (f->only >= 0 && (int)items[i].scenario != f->only) {
         return false;
     }
     if (f->split && strcmp(weft_sim_split_of(items[i].name), f->split) != 0) {
@@ -288,7 +292,7 @@ static void usage(FILE *f)
             "                   [--shard I/N] [--frames T] [--substeps S] [--max-substeps S] [--seed X]\n"
             "                   [--garment-substeps S] [--no-validate] [--manifest-only] [--limit N]\n"
             "                   [--no-garments] [--speed X] [--resolution-series] [--tier 1k|4k|16k]\n"
-            "                   [--split train|val|test]\n"
+            "                   [--split train|val|test] [--only drop|gripper|garment] [--arm-spread-retry R]\n"
             "  --all            the whole planned set: per scenario (drop, gripper, garment) 150 x 1k,\n"
             "                   30 x 4k and 2 x 16k vertices, smallest first\n"
             "  --tier T         generate only that tier of --all (e.g. the 16k cross-resolution\n"
@@ -296,6 +300,9 @@ static void usage(FILE *f)
             "  --split S        only sequences whose name falls in split S (the split is a hash of the\n"
             "                   name): e.g. the held-out test sequences without the training set\n"
             "  --no-garments    leave the garment scenario out of --all (it is the slowest)\n"
+            "  --only S         only the scenario S of --all (same names and seeds as in the full plan)\n"
+            "  --arm-spread-retry R  a garment still rejected at --max-substeps is retried with the avatar's\n"
+            "                   arms R radians further from the torso (0..0.8, default 0.3; 0: no retry)\n"
             "  --speed X        scale the avatar's motion and the gripper's schedule (0.1..10, default 1;\n"
             "                   the stability suite's speed axis); same draws as at speed 1\n"
             "  --resolution-series  seed each sequence from <scenario>_<index>, not its full name, so the\n"
@@ -311,7 +318,8 @@ static void usage(FILE *f)
 
 int weft_cmd_simgen(int argc, char **argv)
 {
-    const char *out = NULL, *scenario = NULL, *tier = NULL, *split = NULL;
+    const char *out = NULL, *scenario = NULL, *tier = NULL, *split = NULL, *only = NULL;
+    float arm_spread_retry = weft_sim_default_sequence_def().garment_retry_arm_spread;
     bool all = false, manifest_only = false, validate = true, garments = true, resolution_series = false;
     uint32_t garment_substeps = 0;
     float motion_speed = 1.0f;
@@ -332,6 +340,15 @@ int weft_cmd_simgen(int argc, char **argv)
             motion_speed = strtof(v, NULL), ++i;
         } else if (v && strcmp(a, "--garment-substeps") == 0) {
             garment_substeps = (uint32_t)strtoul(v, NULL, 10), ++i;
+        } else if (v && strcmp(a, "--only") == 0) {
+            only = v, ++i;
+        } else if (v && strcmp(a, "--arm-spread-retry") == 0) {
+            char *end = NULL;
+            arm_spread_retry = strtof(v, &end), ++i;
+            if (!end || *end || !(arm_spread_retry >= 0.0f && arm_spread_retry <= 0.8f)) {
+                fprintf(stderr, "simgen: --arm-spread-retry wants radians in [0, 0.8], got '%s'\n", v);
+                return 2;
+            }
         } else if (strcmp(a, "--resolution-series") == 0) {
             resolution_series = true;
         } else if (strcmp(a, "--manifest-only") == 0) {
@@ -385,8 +402,16 @@ int weft_cmd_simgen(int argc, char **argv)
             return 2;
         }
     }
-    if (tier && !all) {
-        fprintf(stderr, "simgen: --tier selects part of --all; add --all\n");
+    if ((tier || only) && !all) {
+        fprintf(stderr, "simgen: --tier and --only select part of --all; add --all\n");
+        return 2;
+    }
+    int only_scenario = -1;
+    for (int s = 0; only && s < WEFT_SIM_SCENARIO_COUNT; ++s) {
+        only_scenario = strcmp(only, weft_sim_scenario_name((weft_sim_scenario)s)) == 0 ? s : only_scenario;
+    }
+    if (only && only_scenario < 0) {
+        fprintf(stderr, "simgen: --only wants drop, gripper or garment, got '%s'\n", only);
         return 2;
     }
     if (!out || (!all && !scenario && !manifest_only)) {
@@ -462,7 +487,7 @@ int weft_cmd_simgen(int argc, char **argv)
             free(plan);
             return 1;
         }
-        const plan_filter filter = {shard_i, shard_n, tier, split};
+        const plan_filter filter = {shard_i, shard_n, tier, split, only_scenario};
         uint32_t todo = 0;
         for (uint32_t i = 0; i < n; ++i) {
             char path[1200];
@@ -497,6 +522,7 @@ int weft_cmd_simgen(int argc, char **argv)
             def.cloth_vertices = plan[i].vertices;
             def.validate = validate;
             def.motion_speed = motion_speed;
+            def.garment_retry_arm_spread = arm_spread_retry;
             ps.name = plan[i].name;
             weft_sim_sequence_result res;
             weft_result r = weft_sim_generate(ctx, &def, dir, on_frame, &ps, &res);
