@@ -81,10 +81,13 @@ typedef struct weft_sim_sequence_def {
     float motion_speed;           /* scales the kinematic motion: the avatar's motion (garment) and the
                                    * gripper's schedule; 1 = as drawn from the seed, which stays the same
                                    * draw at any speed; the drop scenario has none (0.1..10, default 1) */
-    float garment_retry_arm_spread; /* a garment sequence still rejected at max_substeps is tried once more,
-                                   * from `substeps`, with the avatar's arms held this many radians further
-                                   * from the torso (weft_motion_def.arm_spread): the same scene otherwise.
-                                   * 0 turns the retry off (0..0.8, default 0.3; docs/REFSIM.md) */
+    /* A garment sequence still rejected at max_substeps is tried once more, from `substeps`, as
+     * a gentler take of the same scene: the avatar's arms held garment_retry_arm_spread radians
+     * further from the torso (weft_motion_def.arm_spread; 0..0.8, default 0.3), and the motion
+     * eased in from rest over garment_retry_ease_in seconds after the drape (0..2, default 0.5).
+     * Both 0 turn the retry off (docs/REFSIM.md, Dress rejections). */
+    float garment_retry_arm_spread;
+    float garment_retry_ease_in;
     uint32_t internal_cookie;     /* set by weft_sim_default_sequence_def(); do not touch */
 } weft_sim_sequence_def;
 
@@ -93,6 +96,7 @@ typedef struct weft_sim_sequence_result {
     uint32_t substeps_used;
     uint32_t attempts;
     float arm_spread;             /* the avatar's arm_spread of the last attempt (garments; else 0) */
+    float ease_in_s;              /* the motion's ease-in of the last attempt (garments; else 0) */
     uint32_t vertex_count, collider_vertex_count, frames;
     uint32_t ccd_hits, intersection_hits;  /* of the last attempt */
     int32_t first_hit_frame;      /* -1 when none */

@@ -629,7 +629,11 @@ static weft_result build_gripper(xscene *sc, const weft_sim_sequence_def *def, x
 static void garment_pose_at(const xscene *sc, uint32_t f, weft_pose *pose)
 {
     if (f >= sc->preroll) {
-        weft_motion_sample(&sc->motion, (f - sc->preroll) / 60.0, pose);
+        /* Eased in, the motion's clock speeds up linearly from 0 to 1 over ease_in_s (tau = t^2/2T,
+         * then t - T/2): the limbs start from rest instead of at full speed (a run's hands move
+         * 12 cm in its first frame). */
+        double t = (f - sc->preroll) / 60.0, T = sc->ease_in_s;
+        weft_motion_sample(&sc->motion, t >= T ? t - 0.5 * T : t * t / (2.0 * T), pose);
         return;
     }
     double a = smooth01((double)f / (sc->preroll / 2));
@@ -826,7 +830,7 @@ static weft_result garment_intersects(weft_context *ctx, const weft_cloth_mesh *
 }
 
 static weft_result build_garment(weft_context *ctx, xscene *sc, const weft_sim_sequence_def *def, xrng *r,
-                                 float arm_spread)
+                                 const xscene_gentle *gentle)
 {
     weft_avatar_def ad = weft_default_avatar_def();
     ad.height = (float)xrng_uniform(r, 1.55, 1.9);
@@ -896,7 +900,10 @@ static weft_result build_garment(weft_context *ctx, xscene *sc, const weft_sim_s
     sc->motion.speed = (float)xrng_uniform(r, 0.6, 1.4) * def->motion_speed;
     sc->motion.amplitude = (float)xrng_uniform(r, 0.6, 1.0);
     sc->motion.height = ad.height;
-    sc->motion.arm_spread = arm_spread; /* after every draw: the same scene at any spread */
+    if (gentle) { /* after every draw: the same scene either way */
+        sc->motion.arm_spread = gentle->arm_spread;
+        sc->ease_in_s = gentle->ease_in_s;
+    }
     weft_body_bind_pose(sc->body, &sc->bind_pose);
     res = weft_motion_sample(&sc->motion, 0.0, &sc->start_pose);
     if (res != WEFT_OK) {
@@ -914,7 +921,7 @@ static weft_result build_garment(weft_context *ctx, xscene *sc, const weft_sim_s
     snprintf(sc->description, sizeof sc->description,
              "garment: %s on avatar h=%.2f girth=%.2f, motion %s speed %.2f amplitude %.2f%s", weft_cloth_kind_name(kind),
              ad.height, ad.girth, weft_motion_name(m), sc->motion.speed, sc->motion.amplitude,
-             arm_spread > 0.0f ? ", arms spread" : "");
+             gentle ? ", gentle retry" : "");
     return WEFT_OK;
 }
 
@@ -973,7 +980,7 @@ uint32_t xscene_pins_at(const xscene *sc, uint32_t f, const float *collider, uin
 }
 
 weft_result xscene_build(weft_context *ctx, xscene *sc, const weft_sim_sequence_def *def, uint64_t seed,
-                         float arm_spread)
+                         const xscene_gentle *gentle)
 {
     *sc = (xscene){0};
     sc->scenario = def->scenario;
@@ -987,7 +994,7 @@ weft_result xscene_build(weft_context *ctx, xscene *sc, const weft_sim_sequence_
         res = build_gripper(sc, def, &r);
         break;
     case WEFT_SIM_SCENARIO_GARMENT:
-        res = build_garment(ctx, sc, def, &r, arm_spread);
+        res = build_garment(ctx, sc, def, &r, gentle);
         break;
     default:
         res = weft__fail(WEFT_ERROR_UNSUPPORTED, "simgen: scenario '%s' is not available in this build",

@@ -61,6 +61,7 @@ typedef struct xscene {
     weft_motion_def motion;
     weft_pose bind_pose, start_pose;
     uint32_t preroll;
+    float ease_in_s;             /* the motion's time ramps in over this after the pre-roll (0: none) */
     float garment_clearance;     /* the wardrobe clearance the garment was made with */
     /* Waistband (skirts, dresses): the garment's top ring rides on the body like an elastic
      * band. Each band vertex keeps its bind-pose offset in the frame of its closest body
@@ -73,10 +74,17 @@ typedef struct xscene {
 
 /* Frame indices passed to the per-frame functions count from the start of the pre-roll
  * (garments drape for `preroll` frames before frame 0 of the recording). */
-/* arm_spread: the avatar's weft_motion_def.arm_spread (garments; the scene is otherwise the
- * same draw at any value). */
+/* A gentler take of the same garment scene, for a sequence the validator rejected: the avatar's
+ * arms held wider (weft_motion_def.arm_spread, radians) and the motion eased in from rest over
+ * ease_in_s seconds after the pre-roll instead of starting at full speed. */
+typedef struct xscene_gentle {
+    float arm_spread;
+    float ease_in_s;
+} xscene_gentle;
+
+/* gentle: NULL for the scene as drawn (garments only; every other draw is the same either way). */
 weft_result xscene_build(weft_context *ctx, xscene *sc, const weft_sim_sequence_def *def, uint64_t seed,
-                         float arm_spread);
+                         const xscene_gentle *gentle);
 void xscene_free(xscene *sc);
 /* Collider positions at frame f into out (collider.nv * 3). */
 void xscene_collider_at(const xscene *sc, uint32_t f, float *out);

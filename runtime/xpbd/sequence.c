@@ -47,6 +47,7 @@ weft_sim_sequence_def weft_sim_default_sequence_def(void)
     d.validate = true;
     d.motion_speed = 1.0f;
     d.garment_retry_arm_spread = 0.3f;
+    d.garment_retry_ease_in = 0.5f;
     d.internal_cookie = WEFT_DEF_COOKIE;
     return d;
 }
@@ -417,6 +418,7 @@ static bool write_meta(const char *dir, const xscene *sc, const weft_sim_sequenc
         cJSON_AddNumberToObject(gm, "motion_speed", sc->motion.speed);
         cJSON_AddNumberToObject(gm, "motion_amplitude", sc->motion.amplitude);
         cJSON_AddNumberToObject(gm, "arm_spread", sc->motion.arm_spread);
+        cJSON_AddNumberToObject(gm, "ease_in_s", sc->ease_in_s);
         cJSON_AddNumberToObject(gm, "drape_preroll_frames", sc->preroll);
         cJSON_AddStringToObject(gm, "drape",
                                 "the body blends from its bind pose to the motion's first pose over the first half of "
@@ -532,14 +534,15 @@ weft_result weft_sim_generate(weft_context *ctx, const weft_sim_sequence_def *de
         def->substeps == 0 || def->substeps > 1000 || def->max_substeps < def->substeps || def->max_substeps > 1000 ||
         def->cloth_vertices < 16 || def->cloth_vertices > 200000 || strlen(out_dir) > 900 ||
         !(def->motion_speed >= 0.1f && def->motion_speed <= 10.0f) ||
-        !(def->garment_retry_arm_spread >= 0.0f && def->garment_retry_arm_spread <= 0.8f)) {
+        !(def->garment_retry_arm_spread >= 0.0f && def->garment_retry_arm_spread <= 0.8f) ||
+        !(def->garment_retry_ease_in >= 0.0f && def->garment_retry_ease_in <= 2.0f)) {
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
                           "weft_sim_generate: scenario, frames (2..100000), substeps (1..max_substeps<=1000), "
-                          "cloth_vertices (16..200000), motion_speed (0.1..10), garment_retry_arm_spread (0..0.8) "
-                          "or out_dir length out of range");
+                          "cloth_vertices (16..200000), motion_speed (0.1..10), garment_retry_arm_spread (0..0.8), "
+                          "garment_retry_ease_in (0..2) or out_dir length out of range");
     }
     xscene sc;
-    weft_result r = xscene_build(ctx, &sc, def, def->seed, 0.0f);
+    weft_result r = xscene_build(ctx, &sc, def, def->seed, NULL);
     if (r != WEFT_OK) {
         return r;
     }
@@ -563,17 +566,20 @@ weft_result weft_sim_generate(weft_context *ctx, const weft_sim_sequence_def *de
         return weft__fail(WEFT_ERROR_OUT_OF_MEMORY, "weft_sim_generate: out of memory for %zu frames", T);
     }
     /* Retry a rejected sequence with doubled substeps, up to max_substeps. A garment still
-     * rejected then gets one more round with the arms held wider: the arms closing on the
-     * chest's sides pinch cloth in a gap thinner than its contact thickness (docs/REFSIM.md,
-     * Dress rejections). Accepted sequences of the first round never see the second. */
-    const bool spread_round = def->scenario == WEFT_SIM_SCENARIO_GARMENT && def->garment_retry_arm_spread > 0.0f;
-    for (int round = 0; r == WEFT_OK && !res.accepted && round < (spread_round ? 2 : 1); ++round) {
+     * rejected then gets one more round as a gentler take of the same scene: the arms closing on
+     * the chest's sides pinch cloth in a gap thinner than its contact thickness, and a motion
+     * starting at full speed (a run) throws the body into the draped cloth (docs/REFSIM.md, Dress
+     * rejections). Accepted sequences of the first round never see the second. */
+    const xscene_gentle gentle = {def->garment_retry_arm_spread, def->garment_retry_ease_in};
+    const bool gentle_round = def->scenario == WEFT_SIM_SCENARIO_GARMENT &&
+                              (gentle.arm_spread > 0.0f || gentle.ease_in_s > 0.0f);
+    for (int round = 0; r == WEFT_OK && !res.accepted && round < (gentle_round ? 2 : 1); ++round) {
         if (round == 1) {
             xscene_free(&sc);
-            r = xscene_build(ctx, &sc, def, def->seed, def->garment_retry_arm_spread);
+            r = xscene_build(ctx, &sc, def, def->seed, &gentle);
             if (r == WEFT_OK && (sc.cloth.nv != nv || sc.collider.nv != nc || (size_t)def->frames + sc.preroll != T)) {
                 xscene_free(&sc);
-                r = weft__fail(WEFT_ERROR_SIZE_MISMATCH, "weft_sim_generate: the arm-spread retry changed the scene's sizes");
+                r = weft__fail(WEFT_ERROR_SIZE_MISMATCH, "weft_sim_generate: the gentle retry changed the scene's sizes");
             }
             if (r != WEFT_OK) {
                 sc = (xscene){0}; /* freed: the cleanup below frees nothing twice */
@@ -585,6 +591,7 @@ weft_result weft_sim_generate(weft_context *ctx, const weft_sim_sequence_def *de
             res.attempts++;
             res.substeps_used = s;
             res.arm_spread = sc.motion.arm_spread;
+            res.ease_in_s = sc.ease_in_s;
             r = simulate(ctx, &sc, def, s, &b, &res, progress, user);
             if (r != WEFT_OK) {
                 break;

@@ -231,6 +231,9 @@ static void test_generate_bad_def(void)
         d.garment_retry_arm_spread = spreads[k];
         CHECK_RESULT(weft_sim_generate(ctx_, &d, "/tmp/never", NULL, NULL, &res), WEFT_ERROR_INVALID_ARGUMENT);
         CHECK(strstr(weft_last_error(), "garment_retry_arm_spread") != NULL);
+        d.garment_retry_arm_spread = 0.3f;
+        d.garment_retry_ease_in = k == 0 ? -0.5f : (k == 1 ? 2.5f : NAN);
+        CHECK_RESULT(weft_sim_generate(ctx_, &d, "/tmp/never", NULL, NULL, &res), WEFT_ERROR_INVALID_ARGUMENT);
     }
     weft_sim_sequence_def raw = {0};
     CHECK_RESULT(weft_sim_generate(ctx_, &raw, "/tmp/never", NULL, NULL, &res), WEFT_ERROR_INVALID_ARGUMENT);

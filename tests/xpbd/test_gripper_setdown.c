@@ -18,7 +18,7 @@ static void test_setdown_height(void)
         def.cloth_vertices = 256;
         def.seed = seed;
         xscene sc;
-        CHECK_RESULT(xscene_build(ctx, &sc, &def, seed, 0.0f), WEFT_OK);
+        CHECK_RESULT(xscene_build(ctx, &sc, &def, seed, NULL), WEFT_OK);
         const uint32_t nv = sc.cloth.nv, nc = sc.collider.nv;
         float *col = malloc(sizeof(float) * 3 * nc), *tgt = malloc(sizeof(float) * 3 * nv);
         uint32_t *idx = malloc(sizeof(uint32_t) * nv);

@@ -227,8 +227,8 @@ static void test_sequence_split(void)
 
 /* A coarse dress (seed found by `weft simgen --scenario garment --count 12 --vertices 256
  * --frames 10 --substeps 10 --max-substeps 20`, garment_v256_0004) whose arms close on it in
- * the pre-roll: rejected at both substep counts, then accepted by the retry with the arms held
- * 0.3 rad wider, and rejected when that retry is off. */
+ * the pre-roll: rejected at both substep counts, then accepted by the gentle retry (arms held
+ * 0.3 rad wider, motion eased in), and rejected when that retry is off. */
 static void test_garment_arm_spread_retry(void)
 {
     weft_context_def cd = weft_default_context_def();
@@ -245,10 +245,10 @@ static void test_garment_arm_spread_retry(void)
     d.cloth_vertices = 256;
     weft_sim_sequence_result r = {0};
     CHECK_RESULT(weft_sim_generate(ctx, &d, dir, NULL, NULL, &r), WEFT_OK);
-    CHECK(strstr(r.description, "dress") && strstr(r.description, "arms spread"));
-    CHECK_MSG(r.accepted && r.attempts == 3 && r.substeps_used == 10 && r.arm_spread == 0.3f,
-              "accepted %d after %u attempts at S = %u, arm_spread %g", r.accepted, r.attempts, r.substeps_used,
-              (double)r.arm_spread);
+    CHECK(strstr(r.description, "dress") && strstr(r.description, "gentle retry"));
+    CHECK_MSG(r.accepted && r.attempts == 3 && r.substeps_used == 10 && r.arm_spread == 0.3f && r.ease_in_s == 0.5f,
+              "accepted %d after %u attempts at S = %u, arm_spread %g, ease-in %g s", r.accepted, r.attempts,
+              r.substeps_used, (double)r.arm_spread, (double)r.ease_in_s);
     snprintf(path, sizeof path, "%s/meta.json", dir);
     long n = 0;
     unsigned char *meta = read_all(path, &n);
@@ -256,6 +256,7 @@ static void test_garment_arm_spread_retry(void)
     free(meta);
     snprintf(dir, sizeof dir, "%s/xpbd_scenarios/dress_no_spread", WEFT_BINARY_DIR);
     d.garment_retry_arm_spread = 0.0f;
+    d.garment_retry_ease_in = 0.0f;
     CHECK_RESULT(weft_sim_generate(ctx, &d, dir, NULL, NULL, &r), WEFT_OK);
     CHECK_MSG(!r.accepted && r.attempts == 2 && r.arm_spread == 0.0f, "accepted %d after %u attempts", r.accepted,
               r.attempts);

@@ -252,6 +252,9 @@ def main():
     ap.add_argument("--init-from", default=None,
                     help="start from this checkpoint's weights and config (fine-tuning: fresh optimiser, "
                          "step 0, new schedule); ignored when --resume finds OUT/ckpt.pt")
+    ap.add_argument("--init-head-scale", type=float, default=1.0,
+                    help="with --init-from, multiply the output head (dec_head) by this: 0 starts the "
+                         "fine-tune exactly at its prior (the skinned prior: at LBS), as a fresh model does")
     ap.add_argument("--threads", type=int, default=1)
     ap.add_argument("--cuda", action="store_true", help="use a CUDA GPU when present")
     ap.add_argument("--seed", type=int, default=0)
@@ -331,6 +334,10 @@ def main():
     elapsed_before = 0.0
     if init is not None:
         net.load_state_dict(init["model"])
+        if a.init_head_scale != 1.0:
+            with torch.no_grad():
+                net.dec_head.weight.mul_(a.init_head_scale)
+                net.dec_head.bias.mul_(a.init_head_scale)
     if state is not None:
         net.load_state_dict(state["model"])
         step = state["step"]
