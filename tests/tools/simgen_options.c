@@ -114,6 +114,33 @@ static void only_generates_that_scenario(void)
     CHECK_MSG(!exists(drop), "--only gripper generated a drop");
 }
 
+/* --redo-rejected runs a finished but rejected sequence again; without it the sequence counts as
+ * done. The rejection is written into a tiny unvalidated sequence's meta.json by hand. */
+static void redo_rejected_runs_rejected_again(void)
+{
+    char dir[1024], meta[1200];
+    snprintf(dir, sizeof dir, "%s/redo", g_out);
+    snprintf(meta, sizeof meta, "%s/drop_v64_0000/meta.json", dir);
+    const char *make[] = {g_exe, "simgen", "--out", dir, "--scenario", "drop", "--count", "1", "--vertices", "64",
+                          "--frames", "2", "--no-validate", NULL};
+    CHECK_EQ_INT(tool_run(make, NULL), 0);
+    FILE *f = fopen(meta, "wb");
+    CHECK(f != NULL);
+    if (f) {
+        fputs("{\"scenario\": \"drop\", \"accepted\": false}\n", f);
+        fclose(f);
+    }
+    static char text[1 << 16];
+    CHECK_EQ_INT(tool_run(make, NULL), 0); /* finished: left alone */
+    slurp(meta, text, sizeof text);
+    CHECK_MSG(strstr(text, "\"accepted\": false") != NULL, "a plain rerun regenerated a finished sequence");
+    const char *redo[] = {g_exe, "simgen", "--out", dir, "--scenario", "drop", "--count", "1", "--vertices", "64",
+                          "--frames", "2", "--no-validate", "--redo-rejected", NULL};
+    CHECK_EQ_INT(tool_run(redo, NULL), 0);
+    slurp(meta, text, sizeof text);
+    CHECK_MSG(strstr(text, "\"accepted\":\ttrue") != NULL, "--redo-rejected left the rejected sequence: %.200s", text);
+}
+
 static void bad_plan_options_fail(void)
 {
     char dir[1024];
@@ -149,6 +176,7 @@ int main(int argc, char **argv)
     g_out = argv[2];
     static const test_case_ cases[] = {TEST_CASE(tier_generates_only_that_tier),
                                          TEST_CASE(split_generates_only_that_split), TEST_CASE(manifest_keeps_other_runs),
-                                         TEST_CASE(only_generates_that_scenario), TEST_CASE(bad_plan_options_fail)};
+                                         TEST_CASE(only_generates_that_scenario),
+                                         TEST_CASE(redo_rejected_runs_rejected_again), TEST_CASE(bad_plan_options_fail)};
     return test_run_(cases, sizeof cases / sizeof cases[0], argc - 2, argv + 2);
 }

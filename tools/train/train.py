@@ -19,9 +19,15 @@ import random
 import sys
 import time
 
-import numpy as np
-import torch
-import torch.distributed as dist
+# OpenBLAS (Debian's torch) keeps its own thread pool, sized to the machine, not to --threads;
+# beside other busy processes its idle threads spin in sched_yield (measured on 2 cores beside
+# two simgen shards: 100 % system time, 50 steps in 3.4 minutes). Size it before numpy loads it.
+_threads_arg = [sys.argv[i + 1] for i, v in enumerate(sys.argv[:-1]) if v == "--threads"]
+os.environ.setdefault("OPENBLAS_NUM_THREADS", _threads_arg[-1] if _threads_arg else "1")
+
+import numpy as np  # noqa: E402
+import torch  # noqa: E402
+import torch.distributed as dist  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import data as weft_data  # noqa: E402

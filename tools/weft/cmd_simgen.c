@@ -69,6 +69,38 @@ static uint64_t seq_seed(uint64_t seed0, const char *name)
     return mix64(h);
 }
 
+/* The parsed meta.json at path; NULL when missing or unreadable. */
+static cJSON *read_meta(const char *path)
+{
+    FILE *f = fopen(path, "rb");
+    if (!f) {
+        return NULL;
+    }
+    fseek(f, 0, SEEK_END);
+    long len = ftell(f);
+    fseek(f, 0, SEEK_SET);
+    char *text = len > 0 ? malloc((size_t)len + 1) : NULL;
+    bool read_ok = text && fread(text, 1, (size_t)len, f) == (size_t)len;
+    fclose(f);
+    cJSON *meta = NULL;
+    if (read_ok) {
+        text[len] = '\0';
+        meta = cJSON_Parse(text);
+    }
+    free(text);
+    return meta;
+}
+
+/* Whether the sequence whose meta.json is at path still needs generating: not finished, or (with
+ * redo_rejected) finished and rejected. */
+static bool needs_run(const char *path, bool redo_rejected)
+{
+    cJSON *meta = read_meta(path);
+    bool todo = !meta || (redo_rejected && cJSON_IsFalse(cJSON_GetObjectItem(meta, "accepted")));
+    cJSON_Delete(meta);
+    return todo;
+}
+
 static bool file_exists(const char *path)
 {
     struct stat st;
@@ -198,23 +230,7 @@ static int write_manifest(const char *out, const plan_item *plan, uint32_t n_pla
     }
     for (uint32_t i = 0; i < n; ++i) {
         snprintf(path, sizeof path, "%s/%s/meta.json", out, items[i].name);
-        FILE *f = fopen(path, "rb");
-        if (!f) {
-            continue;
-        }
-        fseek(f, 0, SEEK_END);
-        long len = ftell(f);
-        fseek(f, 0, SEEK_SET);
-        char *text = len > 0 ? malloc((size_t)len + 1) : NULL;
-        bool read_ok = text && fread(text, 1, (size_t)len, f) == (size_t)len;
-        fclose(f);
-        if (!read_ok) {
-            free(text);
-            continue;
-        }
-        text[len] = '\0';
-        cJSON *meta = cJSON_Parse(text);
-        free(text);
+        cJSON *meta = read_meta(path);
         if (!meta) {
             continue;
         }
@@ -293,7 +309,7 @@ static void usage(FILE *f)
             "                   [--garment-substeps S] [--no-validate] [--manifest-only] [--limit N]\n"
             "                   [--no-garments] [--speed X] [--resolution-series] [--tier 1k|4k|16k]\n"
             "                   [--split train|val|test] [--only drop|gripper|garment] [--arm-spread-retry R]\n"
-            "                   [--ease-in-retry S]\n"
+            "                   [--ease-in-retry S] [--redo-rejected]\n"
             "  --all            the whole planned set: per scenario (drop, gripper, garment) 150 x 1k,\n"
             "                   30 x 4k and 2 x 16k vertices, smallest first\n"
             "  --tier T         generate only that tier of --all (e.g. the 16k cross-resolution\n"
@@ -313,6 +329,8 @@ static void usage(FILE *f)
             "                   (objects, body, motion, garment type) at another resolution\n"
             "  --garment-substeps S  first attempt of a garment sequence when above --substeps\n"
             "                   (default: none, garments start at --substeps like the others)\n"
+            "  --redo-rejected  generate the finished but rejected sequences again (after a generator\n"
+            "                   change, e.g. the gentle garment retry), besides the unfinished ones\n"
             "  --shard I/N      only sequences whose plan index is I modulo N (job arrays)\n"
             "  --limit N        stop after generating N new sequences\n"
             "Finished sequences (DIR/<name>/meta.json present) are skipped, so a run resumes.\n"
@@ -325,6 +343,7 @@ int weft_cmd_simgen(int argc, char **argv)
     float arm_spread_retry = weft_sim_default_sequence_def().garment_retry_arm_spread;
     float ease_in_retry = weft_sim_default_sequence_def().garment_retry_ease_in;
     bool all = false, manifest_only = false, validate = true, garments = true, resolution_series = false;
+    bool redo_rejected = false;
     uint32_t garment_substeps = 0;
     float motion_speed = 1.0f;
     uint32_t count = 10, vertices = 1024, frames = 240, substeps = 40, max_substeps = 80, shard_i = 0, shard_n = 1;
@@ -358,6 +377,8 @@ int weft_cmd_simgen(int argc, char **argv)
                 return 2;
             }
             *(spread ? &arm_spread_retry : &ease_in_retry) = x;
+        } else if (strcmp(a, "--redo-rejected") == 0) {
+            redo_rejected = true;
         } else if (strcmp(a, "--resolution-series") == 0) {
             resolution_series = true;
         } else if (strcmp(a, "--manifest-only") == 0) {
@@ -501,7 +522,7 @@ int weft_cmd_simgen(int argc, char **argv)
         for (uint32_t i = 0; i < n; ++i) {
             char path[1200];
             snprintf(path, sizeof path, "%s/%s/meta.json", out, plan[i].name);
-            todo += plan_wanted(&filter, plan, i) && !file_exists(path);
+            todo += plan_wanted(&filter, plan, i) && needs_run(path, redo_rejected);
         }
         if (todo > limit) {
             todo = limit;
@@ -512,7 +533,7 @@ int weft_cmd_simgen(int argc, char **argv)
             char dir[1100], path[1200];
             snprintf(dir, sizeof dir, "%s/%s", out, plan[i].name);
             snprintf(path, sizeof path, "%s/meta.json", dir);
-            if (!plan_wanted(&filter, plan, i) || file_exists(path)) {
+            if (!plan_wanted(&filter, plan, i) || !needs_run(path, redo_rejected)) {
                 continue;
             }
             weft_sim_sequence_def def = weft_sim_default_sequence_def();
