@@ -83,11 +83,14 @@ typedef struct weft_sim_sequence_def {
                                    * draw at any speed; the drop scenario has none (0.1..10, default 1) */
     /* A garment sequence still rejected at max_substeps is tried once more, from `substeps`, as
      * a gentler take of the same scene: the avatar's arms held garment_retry_arm_spread radians
-     * further from the torso (weft_motion_def.arm_spread; 0..0.8, default 0.3), and the motion
-     * eased in from rest over garment_retry_ease_in seconds after the drape (0..2, default 0.5).
-     * Both 0 turn the retry off (docs/REFSIM.md, Dress rejections). */
+     * further from the torso (weft_motion_def.arm_spread; 0..0.8, default 0.3), the motion eased
+     * in from rest over garment_retry_ease_in seconds after the drape (0..2, default 0.5) and its
+     * amplitude scaled by garment_retry_amplitude (0.1..1, default 0.75). garment_retry = false
+     * turns the retry off (default true; docs/REFSIM.md, Dress rejections). */
+    bool garment_retry;
     float garment_retry_arm_spread;
     float garment_retry_ease_in;
+    float garment_retry_amplitude;
     uint32_t internal_cookie;     /* set by weft_sim_default_sequence_def(); do not touch */
 } weft_sim_sequence_def;
 
@@ -97,6 +100,7 @@ typedef struct weft_sim_sequence_result {
     uint32_t attempts;
     float arm_spread;             /* the avatar's arm_spread of the last attempt (garments; else 0) */
     float ease_in_s;              /* the motion's ease-in of the last attempt (garments; else 0) */
+    bool gentle;                  /* the last attempt was the gentle garment retry */
     uint32_t vertex_count, collider_vertex_count, frames;
     uint32_t ccd_hits, intersection_hits;  /* of the last attempt */
     int32_t first_hit_frame;      /* -1 when none */

@@ -903,6 +903,7 @@ static weft_result build_garment(weft_context *ctx, xscene *sc, const weft_sim_s
     if (gentle) { /* after every draw: the same scene either way */
         sc->motion.arm_spread = gentle->arm_spread;
         sc->ease_in_s = gentle->ease_in_s;
+        sc->motion.amplitude *= gentle->amplitude_scale;
     }
     weft_body_bind_pose(sc->body, &sc->bind_pose);
     res = weft_motion_sample(&sc->motion, 0.0, &sc->start_pose);

@@ -75,11 +75,13 @@ typedef struct xscene {
 /* Frame indices passed to the per-frame functions count from the start of the pre-roll
  * (garments drape for `preroll` frames before frame 0 of the recording). */
 /* A gentler take of the same garment scene, for a sequence the validator rejected: the avatar's
- * arms held wider (weft_motion_def.arm_spread, radians) and the motion eased in from rest over
- * ease_in_s seconds after the pre-roll instead of starting at full speed. */
+ * arms held wider (weft_motion_def.arm_spread, radians), the motion eased in from rest over
+ * ease_in_s seconds after the pre-roll instead of starting at full speed, and its joint angles
+ * scaled by amplitude_scale (a run's or a jump's hip flexion pinches cloth against the belly). */
 typedef struct xscene_gentle {
     float arm_spread;
     float ease_in_s;
+    float amplitude_scale;
 } xscene_gentle;
 
 /* gentle: NULL for the scene as drawn (garments only; every other draw is the same either way). */

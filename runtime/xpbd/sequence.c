@@ -46,8 +46,10 @@ weft_sim_sequence_def weft_sim_default_sequence_def(void)
     d.cloth_vertices = 1024;
     d.validate = true;
     d.motion_speed = 1.0f;
+    d.garment_retry = true;
     d.garment_retry_arm_spread = 0.3f;
     d.garment_retry_ease_in = 0.5f;
+    d.garment_retry_amplitude = 0.75f;
     d.internal_cookie = WEFT_DEF_COOKIE;
     return d;
 }
@@ -419,6 +421,7 @@ static bool write_meta(const char *dir, const xscene *sc, const weft_sim_sequenc
         cJSON_AddNumberToObject(gm, "motion_amplitude", sc->motion.amplitude);
         cJSON_AddNumberToObject(gm, "arm_spread", sc->motion.arm_spread);
         cJSON_AddNumberToObject(gm, "ease_in_s", sc->ease_in_s);
+        cJSON_AddBoolToObject(gm, "gentle_retry", res->gentle);
         cJSON_AddNumberToObject(gm, "drape_preroll_frames", sc->preroll);
         cJSON_AddStringToObject(gm, "drape",
                                 "the body blends from its bind pose to the motion's first pose over the first half of "
@@ -535,11 +538,13 @@ weft_result weft_sim_generate(weft_context *ctx, const weft_sim_sequence_def *de
         def->cloth_vertices < 16 || def->cloth_vertices > 200000 || strlen(out_dir) > 900 ||
         !(def->motion_speed >= 0.1f && def->motion_speed <= 10.0f) ||
         !(def->garment_retry_arm_spread >= 0.0f && def->garment_retry_arm_spread <= 0.8f) ||
-        !(def->garment_retry_ease_in >= 0.0f && def->garment_retry_ease_in <= 2.0f)) {
+        !(def->garment_retry_ease_in >= 0.0f && def->garment_retry_ease_in <= 2.0f) ||
+        !(def->garment_retry_amplitude >= 0.1f && def->garment_retry_amplitude <= 1.0f)) {
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
                           "weft_sim_generate: scenario, frames (2..100000), substeps (1..max_substeps<=1000), "
                           "cloth_vertices (16..200000), motion_speed (0.1..10), garment_retry_arm_spread (0..0.8), "
-                          "garment_retry_ease_in (0..2) or out_dir length out of range");
+                          "garment_retry_ease_in (0..2), garment_retry_amplitude (0.1..1) or out_dir length out of "
+                          "range");
     }
     xscene sc;
     weft_result r = xscene_build(ctx, &sc, def, def->seed, NULL);
@@ -567,12 +572,13 @@ weft_result weft_sim_generate(weft_context *ctx, const weft_sim_sequence_def *de
     }
     /* Retry a rejected sequence with doubled substeps, up to max_substeps. A garment still
      * rejected then gets one more round as a gentler take of the same scene: the arms closing on
-     * the chest's sides pinch cloth in a gap thinner than its contact thickness, and a motion
-     * starting at full speed (a run) throws the body into the draped cloth (docs/REFSIM.md, Dress
-     * rejections). Accepted sequences of the first round never see the second. */
-    const xscene_gentle gentle = {def->garment_retry_arm_spread, def->garment_retry_ease_in};
-    const bool gentle_round = def->scenario == WEFT_SIM_SCENARIO_GARMENT &&
-                              (gentle.arm_spread > 0.0f || gentle.ease_in_s > 0.0f);
+     * the chest's sides, and the thighs on the belly in a run or a jump, pinch cloth in a gap
+     * thinner than its contact thickness, and a motion starting at full speed throws the body
+     * into the draped cloth (docs/REFSIM.md, Dress rejections). Accepted sequences of the first
+     * round never see the second. */
+    const xscene_gentle gentle = {def->garment_retry_arm_spread, def->garment_retry_ease_in,
+                                  def->garment_retry_amplitude};
+    const bool gentle_round = def->scenario == WEFT_SIM_SCENARIO_GARMENT && def->garment_retry;
     for (int round = 0; r == WEFT_OK && !res.accepted && round < (gentle_round ? 2 : 1); ++round) {
         if (round == 1) {
             xscene_free(&sc);
@@ -592,6 +598,7 @@ weft_result weft_sim_generate(weft_context *ctx, const weft_sim_sequence_def *de
             res.substeps_used = s;
             res.arm_spread = sc.motion.arm_spread;
             res.ease_in_s = sc.ease_in_s;
+            res.gentle = round == 1;
             r = simulate(ctx, &sc, def, s, &b, &res, progress, user);
             if (r != WEFT_OK) {
                 break;

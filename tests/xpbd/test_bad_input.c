@@ -234,6 +234,9 @@ static void test_generate_bad_def(void)
         d.garment_retry_arm_spread = 0.3f;
         d.garment_retry_ease_in = k == 0 ? -0.5f : (k == 1 ? 2.5f : NAN);
         CHECK_RESULT(weft_sim_generate(ctx_, &d, "/tmp/never", NULL, NULL, &res), WEFT_ERROR_INVALID_ARGUMENT);
+        d.garment_retry_ease_in = 0.5f;
+        d.garment_retry_amplitude = k == 0 ? 0.0f : (k == 1 ? 1.5f : NAN);
+        CHECK_RESULT(weft_sim_generate(ctx_, &d, "/tmp/never", NULL, NULL, &res), WEFT_ERROR_INVALID_ARGUMENT);
     }
     weft_sim_sequence_def raw = {0};
     CHECK_RESULT(weft_sim_generate(ctx_, &raw, "/tmp/never", NULL, NULL, &res), WEFT_ERROR_INVALID_ARGUMENT);

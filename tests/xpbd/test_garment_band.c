@@ -125,14 +125,15 @@ static double body_step(const xscene *sc, uint32_t f, float *a, float *b)
 
 /* The garment retry's gentler take (weft_sim_sequence_def.garment_retry_*) draws the same scene;
  * its wider arms open the gap between arms and chest and release no more of the band; its
- * ease-in starts the motion from rest and then plays it unchanged, half the ramp later. */
+ * ease-in starts the motion from rest and then plays it unchanged, half the ramp later; its
+ * amplitude scale scales the drawn amplitude and nothing else. */
 static void test_gentle_retry_same_scene(void)
 {
     weft_context_def cd = weft_default_context_def();
     weft_context *ctx = NULL;
     CHECK_RESULT(weft_context_create(&cd, &ctx), WEFT_OK);
     uint32_t compared = 0;
-    const xscene_gentle wide = {0.3f, 0.0f}, eased = {0.0f, 0.5f};
+    const xscene_gentle wide = {0.3f, 0.0f, 1.0f}, eased = {0.0f, 0.5f, 1.0f}, calm = {0.0f, 0.0f, 0.5f};
     for (uint64_t seed = 1; seed <= 9; ++seed) {
         weft_sim_sequence_def def = weft_sim_default_sequence_def();
         def.scenario = WEFT_SIM_SCENARIO_GARMENT;
@@ -154,6 +155,9 @@ static void test_gentle_retry_same_scene(void)
         xscene_collider_at(&e, P, cb); /* the pre-roll is untouched */
         xscene_collider_at(&a, P, ca);
         CHECK(memcmp(ca, cb, sizeof(float) * 3 * nc) == 0);
+        xscene_free(&e);
+        CHECK_RESULT(xscene_build(ctx, &e, &def, seed, &calm), WEFT_OK);
+        CHECK(e.motion.amplitude == 0.5f * a.motion.amplitude && e.motion.speed == a.motion.speed);
         xscene_free(&e);
         if (!strstr(a.description, "dress")) {
             free(ca), free(cb);

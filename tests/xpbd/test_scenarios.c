@@ -228,7 +228,7 @@ static void test_sequence_split(void)
 /* A coarse dress (seed found by `weft simgen --scenario garment --count 12 --vertices 256
  * --frames 10 --substeps 10 --max-substeps 20`, garment_v256_0004) whose arms close on it in
  * the pre-roll: rejected at both substep counts, then accepted by the gentle retry (arms held
- * 0.3 rad wider, motion eased in), and rejected when that retry is off. */
+ * 0.3 rad wider, motion eased in, amplitude x 0.75), and rejected when that retry is off. */
 static void test_garment_arm_spread_retry(void)
 {
     weft_context_def cd = weft_default_context_def();
@@ -246,6 +246,7 @@ static void test_garment_arm_spread_retry(void)
     weft_sim_sequence_result r = {0};
     CHECK_RESULT(weft_sim_generate(ctx, &d, dir, NULL, NULL, &r), WEFT_OK);
     CHECK(strstr(r.description, "dress") && strstr(r.description, "gentle retry"));
+    CHECK(r.gentle);
     CHECK_MSG(r.accepted && r.attempts == 3 && r.substeps_used == 10 && r.arm_spread == 0.3f && r.ease_in_s == 0.5f,
               "accepted %d after %u attempts at S = %u, arm_spread %g, ease-in %g s", r.accepted, r.attempts,
               r.substeps_used, (double)r.arm_spread, (double)r.ease_in_s);
@@ -255,11 +256,10 @@ static void test_garment_arm_spread_retry(void)
     CHECK(meta && strstr((const char *)meta, "\"arm_spread\":\t0.3"));
     free(meta);
     snprintf(dir, sizeof dir, "%s/xpbd_scenarios/dress_no_spread", WEFT_BINARY_DIR);
-    d.garment_retry_arm_spread = 0.0f;
-    d.garment_retry_ease_in = 0.0f;
+    d.garment_retry = false;
     CHECK_RESULT(weft_sim_generate(ctx, &d, dir, NULL, NULL, &r), WEFT_OK);
-    CHECK_MSG(!r.accepted && r.attempts == 2 && r.arm_spread == 0.0f, "accepted %d after %u attempts", r.accepted,
-              r.attempts);
+    CHECK_MSG(!r.accepted && r.attempts == 2 && r.arm_spread == 0.0f && !r.gentle, "accepted %d after %u attempts",
+              r.accepted, r.attempts);
     weft_context_destroy(ctx);
 }
 

@@ -309,7 +309,7 @@ static void usage(FILE *f)
             "                   [--garment-substeps S] [--no-validate] [--manifest-only] [--limit N]\n"
             "                   [--no-garments] [--speed X] [--resolution-series] [--tier 1k|4k|16k]\n"
             "                   [--split train|val|test] [--only drop|gripper|garment] [--arm-spread-retry R]\n"
-            "                   [--ease-in-retry S] [--redo-rejected]\n"
+            "                   [--ease-in-retry S] [--amplitude-retry A] [--no-garment-retry] [--redo-rejected]\n"
             "  --all            the whole planned set: per scenario (drop, gripper, garment) 150 x 1k,\n"
             "                   30 x 4k and 2 x 16k vertices, smallest first\n"
             "  --tier T         generate only that tier of --all (e.g. the 16k cross-resolution\n"
@@ -318,10 +318,11 @@ static void usage(FILE *f)
             "                   name): e.g. the held-out test sequences without the training set\n"
             "  --no-garments    leave the garment scenario out of --all (it is the slowest)\n"
             "  --only S         only the scenario S of --all (same names and seeds as in the full plan)\n"
-            "  --arm-spread-retry R, --ease-in-retry S  a garment still rejected at --max-substeps is\n"
-            "                   retried with the avatar's arms R radians further from the torso (0..0.8,\n"
-            "                   default 0.3) and its motion eased in from rest over S seconds (0..2, default\n"
-            "                   0.5); both 0: no retry\n"
+            "  --arm-spread-retry R, --ease-in-retry S, --amplitude-retry A  a garment still rejected at\n"
+            "                   --max-substeps is retried with the avatar's arms R radians further from the\n"
+            "                   torso (0..0.8, default 0.3), its motion eased in from rest over S seconds\n"
+            "                   (0..2, default 0.5) and its amplitude scaled by A (0.1..1, default 0.75)\n"
+            "  --no-garment-retry  no such retry\n"
             "  --speed X        scale the avatar's motion and the gripper's schedule (0.1..10, default 1;\n"
             "                   the stability suite's speed axis); same draws as at speed 1\n"
             "  --resolution-series  seed each sequence from <scenario>_<index>, not its full name, so the\n"
@@ -342,6 +343,8 @@ int weft_cmd_simgen(int argc, char **argv)
     const char *out = NULL, *scenario = NULL, *tier = NULL, *split = NULL, *only = NULL;
     float arm_spread_retry = weft_sim_default_sequence_def().garment_retry_arm_spread;
     float ease_in_retry = weft_sim_default_sequence_def().garment_retry_ease_in;
+    float amplitude_retry = weft_sim_default_sequence_def().garment_retry_amplitude;
+    bool garment_retry = true;
     bool all = false, manifest_only = false, validate = true, garments = true, resolution_series = false;
     bool redo_rejected = false;
     uint32_t garment_substeps = 0;
@@ -365,18 +368,24 @@ int weft_cmd_simgen(int argc, char **argv)
             garment_substeps = (uint32_t)strtoul(v, NULL, 10), ++i;
         } else if (v && strcmp(a, "--only") == 0) {
             only = v, ++i;
-        } else if (v && (strcmp(a, "--arm-spread-retry") == 0 || strcmp(a, "--ease-in-retry") == 0)) {
-            const bool spread = strcmp(a, "--arm-spread-retry") == 0;
-            const float hi = spread ? 0.8f : 2.0f;
+        } else if (strcmp(a, "--no-garment-retry") == 0) {
+            garment_retry = false;
+        } else if (v && (strcmp(a, "--arm-spread-retry") == 0 || strcmp(a, "--ease-in-retry") == 0 ||
+                         strcmp(a, "--amplitude-retry") == 0)) {
+            /* option, range, unit and target of the three gentle-retry settings */
+            const int k = strcmp(a, "--arm-spread-retry") == 0 ? 0 : (strcmp(a, "--ease-in-retry") == 0 ? 1 : 2);
+            static const float lo[3] = {0.0f, 0.0f, 0.1f}, hi[3] = {0.8f, 2.0f, 1.0f};
+            static const char *const unit[3] = {"radians", "seconds", "a scale"};
+            float *target[3] = {&arm_spread_retry, &ease_in_retry, &amplitude_retry};
             char *end = NULL;
             float x = strtof(v, &end);
             ++i;
-            if (!end || end == v || *end || !(x >= 0.0f && x <= hi)) {
-                fprintf(stderr, "simgen: %s wants %s in [0, %g], got '%s'\n", a, spread ? "radians" : "seconds",
-                        (double)hi, v);
+            if (!end || end == v || *end || !(x >= lo[k] && x <= hi[k])) {
+                fprintf(stderr, "simgen: %s wants %s in [%g, %g], got '%s'\n", a, unit[k], (double)lo[k], (double)hi[k],
+                        v);
                 return 2;
             }
-            *(spread ? &arm_spread_retry : &ease_in_retry) = x;
+            *target[k] = x;
         } else if (strcmp(a, "--redo-rejected") == 0) {
             redo_rejected = true;
         } else if (strcmp(a, "--resolution-series") == 0) {
@@ -554,6 +563,8 @@ int weft_cmd_simgen(int argc, char **argv)
             def.motion_speed = motion_speed;
             def.garment_retry_arm_spread = arm_spread_retry;
             def.garment_retry_ease_in = ease_in_retry;
+            def.garment_retry_amplitude = amplitude_retry;
+            def.garment_retry = garment_retry;
             ps.name = plan[i].name;
             weft_sim_sequence_result res;
             weft_result r = weft_sim_generate(ctx, &def, dir, on_frame, &ps, &res);
