@@ -77,7 +77,7 @@ typedef struct xscene {
 /* A gentler take of the same garment scene, for a sequence the validator rejected: the avatar's
  * arms held wider (weft_motion_def.arm_spread, radians), the motion eased in from rest over
  * ease_in_s seconds after the pre-roll instead of starting at full speed, and its joint angles
- * scaled by amplitude_scale (a run's or a jump's hip flexion pinches cloth against the belly). */
+ * scaled by amplitude_scale (runs and jumps at full amplitude make most of the other rejections). */
 typedef struct xscene_gentle {
     float arm_spread;
     float ease_in_s;

@@ -572,10 +572,10 @@ weft_result weft_sim_generate(weft_context *ctx, const weft_sim_sequence_def *de
     }
     /* Retry a rejected sequence with doubled substeps, up to max_substeps. A garment still
      * rejected then gets one more round as a gentler take of the same scene: the arms closing on
-     * the chest's sides, and the thighs on the belly in a run or a jump, pinch cloth in a gap
-     * thinner than its contact thickness, and a motion starting at full speed throws the body
-     * into the draped cloth (docs/REFSIM.md, Dress rejections). Accepted sequences of the first
-     * round never see the second. */
+     * the chest's sides pinch cloth in a gap thinner than its contact thickness, a motion starting
+     * at full speed throws the body into the draped cloth, and the rest of the rejections are
+     * runs and jumps at full amplitude (docs/REFSIM.md, Dress rejections). Accepted sequences of
+     * the first round never see the second. */
     const xscene_gentle gentle = {def->garment_retry_arm_spread, def->garment_retry_ease_in,
                                   def->garment_retry_amplitude};
     const bool gentle_round = def->scenario == WEFT_SIM_SCENARIO_GARMENT && def->garment_retry;
