@@ -98,9 +98,7 @@ typedef struct weft_sim_sequence_result {
     bool accepted;                /* validated with zero hits: written as ground truth */
     uint32_t substeps_used;
     uint32_t attempts;
-    float arm_spread;             /* the avatar's arm_spread of the last attempt (garments; else 0) */
-    float ease_in_s;              /* the motion's ease-in of the last attempt (garments; else 0) */
-    bool gentle;                  /* the last attempt was the gentle garment retry */
+    bool gentle;                  /* the last attempt was the gentle garment retry (its settings: the def's) */
     uint32_t vertex_count, collider_vertex_count, frames;
     uint32_t ccd_hits, intersection_hits;  /* of the last attempt */
     int32_t first_hit_frame;      /* -1 when none */

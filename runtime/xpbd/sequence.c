@@ -588,16 +588,13 @@ weft_result weft_sim_generate(weft_context *ctx, const weft_sim_sequence_def *de
                 r = weft__fail(WEFT_ERROR_SIZE_MISMATCH, "weft_sim_generate: the gentle retry changed the scene's sizes");
             }
             if (r != WEFT_OK) {
-                sc = (xscene){0}; /* freed: the cleanup below frees nothing twice */
-                break;
+                break; /* sc is zeroed: the cleanup below frees nothing twice */
             }
             snprintf(res.description, sizeof res.description, "%s", sc.description);
         }
         for (uint32_t s = def->substeps; s <= def->max_substeps; s *= 2) {
             res.attempts++;
             res.substeps_used = s;
-            res.arm_spread = sc.motion.arm_spread;
-            res.ease_in_s = sc.ease_in_s;
             res.gentle = round == 1;
             r = simulate(ctx, &sc, def, s, &b, &res, progress, user);
             if (r != WEFT_OK) {

@@ -72,39 +72,32 @@ static uint64_t seq_seed(uint64_t seed0, const char *name)
 /* The parsed meta.json at path; NULL when missing or unreadable. */
 static cJSON *read_meta(const char *path)
 {
-    FILE *f = fopen(path, "rb");
-    if (!f) {
-        return NULL;
-    }
-    fseek(f, 0, SEEK_END);
-    long len = ftell(f);
-    fseek(f, 0, SEEK_SET);
-    char *text = len > 0 ? malloc((size_t)len + 1) : NULL;
-    bool read_ok = text && fread(text, 1, (size_t)len, f) == (size_t)len;
-    fclose(f);
-    cJSON *meta = NULL;
-    if (read_ok) {
-        text[len] = '\0';
-        meta = cJSON_Parse(text);
-    }
+    char *text = bench_slurp(path, NULL);
+    cJSON *meta = text ? cJSON_Parse(text) : NULL;
     free(text);
     return meta;
-}
-
-/* Whether the sequence whose meta.json is at path still needs generating: not finished, or (with
- * redo_rejected) finished and rejected. */
-static bool needs_run(const char *path, bool redo_rejected)
-{
-    cJSON *meta = read_meta(path);
-    bool todo = !meta || (redo_rejected && cJSON_IsFalse(cJSON_GetObjectItem(meta, "accepted")));
-    cJSON_Delete(meta);
-    return todo;
 }
 
 static bool file_exists(const char *path)
 {
     struct stat st;
     return stat(path, &st) == 0;
+}
+
+/* Whether the sequence whose meta.json is at path still needs generating: not finished (no
+ * meta.json), or with redo_rejected finished and rejected. */
+static bool needs_run(const char *path, bool redo_rejected)
+{
+    if (!file_exists(path)) {
+        return true;
+    }
+    if (!redo_rejected) {
+        return false;
+    }
+    cJSON *meta = read_meta(path);
+    bool rejected = meta && cJSON_IsFalse(cJSON_GetObjectItem(meta, "accepted"));
+    cJSON_Delete(meta);
+    return rejected;
 }
 
 typedef struct progress_state {
