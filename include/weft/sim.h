@@ -16,6 +16,7 @@
 #ifndef WEFT_SIM_H
 #define WEFT_SIM_H
 
+#include "ccd.h"
 #include "weft.h"
 
 #ifdef __cplusplus
@@ -32,6 +33,10 @@ typedef struct weft_sim_validation {
     uint32_t intersection_hits;   /* intersecting triangle pairs at the later frame */
     uint32_t pairs_tested;        /* swept candidate pairs examined */
     uint32_t motions_checked;     /* linear motions swept (1 per frame pair, S for an S-substep path) */
+    /* Where it failed: one swept hit (the first the traversal kept) when ccd_hits > 0; its type is
+     * WEFT_CCD_TYPE_COUNT when there is none (no hit, or only intersecting triangles, which the
+     * exact test counts without naming). */
+    weft_ccd_hit hit;
 } weft_sim_validation;
 
 /* Separation below which a sweep counts as a hit (metres): 10 micrometres. */
@@ -102,6 +107,13 @@ typedef struct weft_sim_sequence_result {
     uint32_t vertex_count, collider_vertex_count, frames;
     uint32_t ccd_hits, intersection_hits;  /* of the last attempt */
     int32_t first_hit_frame;      /* -1 when none */
+    /* The hit that rejected the last attempt (type WEFT_CCD_TYPE_COUNT when none was named), the
+     * position of its first vertex at that frame (a cloth vertex, or the collider vertex of an FV
+     * hit), and for garments the body joint whose skinning weight dominates the body vertex
+     * nearest that point (weft_joint_name, e.g. "left_hip"); "" otherwise. */
+    weft_ccd_hit hit;
+    float hit_position[3];
+    char hit_joint[24];
     uint32_t chord_retries;       /* frames redone with one proximity pass (see docs/REFSIM.md) */
     uint32_t path_frames;         /* frames whose chord grazed but whose substep path is clean */
     double simulate_s, validate_s; /* wall time of the last attempt */

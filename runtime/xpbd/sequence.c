@@ -7,6 +7,7 @@
 
 #include <cjson/cJSON.h>
 #include <errno.h>
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -217,6 +218,46 @@ static weft_result validate_frame(weft_sim_validator *val, const weft_garment *g
     return r;
 }
 
+/* Says where frame f was rejected: the hit's first vertex at f and, on the avatar, the joint
+ * that dominates the skinning of the body vertex nearest to it (a scan of the body, once per
+ * rejected attempt). */
+static void locate_hit(const xscene *sc, const run_buffers *b, uint32_t f, const weft_ccd_hit *hit,
+                       weft_sim_sequence_result *res)
+{
+    const uint32_t nv = sc->cloth.nv, nc = sc->collider.nv;
+    res->hit = *hit;
+    memset(res->hit_position, 0, sizeof res->hit_position);
+    res->hit_joint[0] = '\0';
+    if (hit->type >= WEFT_CCD_TYPE_COUNT) {
+        return;
+    }
+    const bool on_collider = hit->type == WEFT_CCD_FV;
+    const float *p = on_collider ? b->collider + ((size_t)f * nc + hit->v[0]) * 3 : b->cloth + ((size_t)f * nv + hit->v[0]) * 3;
+    memcpy(res->hit_position, p, sizeof res->hit_position);
+    if (!sc->body) {
+        return;
+    }
+    const float *body = b->collider + (size_t)f * nc * 3;
+    uint32_t nearest = hit->v[0];
+    if (!on_collider) {
+        float best = INFINITY;
+        for (uint32_t i = 0; i < nc; ++i) {
+            const float *q = body + (size_t)i * 3;
+            const float d = (q[0] - p[0]) * (q[0] - p[0]) + (q[1] - p[1]) * (q[1] - p[1]) + (q[2] - p[2]) * (q[2] - p[2]);
+            if (d < best) {
+                best = d;
+                nearest = i;
+            }
+        }
+    }
+    const float *w = weft_body_weights(sc->body) + (size_t)nearest * WEFT_BODY_JOINTS;
+    uint32_t j = 0;
+    for (uint32_t k = 1; k < WEFT_BODY_JOINTS; ++k) {
+        j = w[k] > w[j] ? k : j;
+    }
+    snprintf(res->hit_joint, sizeof res->hit_joint, "%s", weft_joint_name(j));
+}
+
 /* Simulates all frames at `substeps`; stops at the first validator hit. */
 static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_sequence_def *def, uint32_t substeps,
                             run_buffers *b, weft_sim_sequence_result *res, weft_sim_progress_fn *progress, void *user)
@@ -263,6 +304,7 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
     memset(b->pinned, 0, (size_t)T * nv);
     res->ccd_hits = res->intersection_hits = 0;
     res->first_hit_frame = -1;
+    locate_hit(sc, b, 0, &(weft_ccd_hit){.type = WEFT_CCD_TYPE_COUNT}, res);
     res->chord_retries = res->path_frames = 0;
     res->simulate_s = res->validate_s = 0.0;
     for (uint32_t f = 1; f < T && r == WEFT_OK; ++f) {
@@ -348,6 +390,7 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
             }
             if ((v.ccd_hits || v.intersection_hits) && res->first_hit_frame < 0) {
                 res->first_hit_frame = (int32_t)f;
+                locate_hit(sc, b, f, &v.hit, res);
                 break; /* rejected: no point simulating further */
             }
         }
@@ -366,6 +409,12 @@ static cJSON *num_obj(cJSON *parent, const char *name)
     cJSON_AddItemToObject(parent, name, o);
     return o;
 }
+
+/* weft_ccd_type in meta.json, and what its four vertex indices refer to. */
+static const char *const hit_type_names[WEFT_CCD_TYPE_COUNT] = {"vf", "ee", "fv", "self_vf", "self_ee"};
+static const char *const hit_type_vertices[WEFT_CCD_TYPE_COUNT] = {
+    "cloth vertex, collider triangle", "cloth edge, collider edge", "collider vertex, cloth triangle",
+    "cloth vertex, cloth triangle", "cloth edge, cloth edge"};
 
 static bool write_meta(const char *dir, const xscene *sc, const weft_sim_sequence_def *def,
                        const weft_sim_sequence_result *res)
@@ -393,6 +442,18 @@ static bool write_meta(const char *dir, const xscene *sc, const weft_sim_sequenc
     cJSON_AddNumberToObject(val, "ccd_hits", res->ccd_hits);
     cJSON_AddNumberToObject(val, "intersection_hits", res->intersection_hits);
     cJSON_AddNumberToObject(val, "first_hit_frame", res->first_hit_frame);
+    if (res->hit.type < WEFT_CCD_TYPE_COUNT) {
+        /* Where the last attempt failed, so rejections can be told apart without a rerun. */
+        cJSON *hit = num_obj(val, "first_hit");
+        cJSON_AddStringToObject(hit, "type", hit_type_names[res->hit.type]);
+        cJSON_AddStringToObject(hit, "vertices_are", hit_type_vertices[res->hit.type]);
+        const int vi[4] = {(int)res->hit.v[0], (int)res->hit.v[1], (int)res->hit.v[2], (int)res->hit.v[3]};
+        cJSON_AddItemToObject(hit, "vertices", cJSON_CreateIntArray(vi, 4));
+        cJSON_AddItemToObject(hit, "position", cJSON_CreateFloatArray(res->hit_position, 3));
+        if (res->hit_joint[0]) {
+            cJSON_AddStringToObject(hit, "body_joint", res->hit_joint);
+        }
+    }
     cJSON_AddNumberToObject(val, "tolerance_m", WEFT_SIM_VALIDATOR_TOLERANCE);
     cJSON_AddBoolToObject(val, "run", def->validate);
     cJSON_AddStringToObject(val, "method", "weft_ccd five-type CCD over the frame chord, else over the substep path; "

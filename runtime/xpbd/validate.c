@@ -74,7 +74,7 @@ weft_result weft_sim_validator_create(weft_context *ctx, const uint32_t *cloth_t
     }
     wd.self_collision = true;
     wd.min_separation = WEFT_SIM_VALIDATOR_TOLERANCE;
-    wd.max_hits = 1; /* counts are exact; the hits themselves are not needed */
+    wd.max_hits = 1; /* counts are exact; one hit is kept to say where a rejected motion failed */
     weft_result r = weft_ccd_world_create(ctx, &wd, &v->world);
     if (r != WEFT_OK) {
         weft_sim_validator_destroy(v);
@@ -108,6 +108,11 @@ static weft_result sweep(weft_sim_validator *v, const float *x0, const float *x1
     weft_ccd_report rep;
     weft_result r = weft_ccd_detect(v->world, x0, x1, v->nc ? c0 : NULL, v->nc ? c1 : NULL, WEFT_CCD_MASK_ALL, &rep);
     if (r == WEFT_OK) {
+        uint32_t kept = 0;
+        const weft_ccd_hit *h = weft_ccd_hits(v->world, &kept);
+        if (kept > 0 && res->ccd_hits == 0) {
+            res->hit = h[0];
+        }
         res->ccd_hits += rep.hit_total;
         res->pairs_tested += rep.narrow_tests;
         res->motions_checked++;
@@ -136,7 +141,7 @@ weft_result weft_sim_validator_check(weft_sim_validator *v, const float *cloth0,
     if (!weft__all_finite(cloth1, 3 * (size_t)v->n)) {
         return weft__fail(WEFT_ERROR_NOT_FINITE, "weft_sim_validator_check: positions contain NaN or infinity");
     }
-    weft_sim_validation res = {0};
+    weft_sim_validation res = {.hit.type = WEFT_CCD_TYPE_COUNT};
     r = sweep(v, cloth0, cloth1, collider0, collider1, &res);
     if (r == WEFT_OK) {
         r = intersect(v, cloth1, collider1, &res);
@@ -159,7 +164,7 @@ weft_result weft_sim_validator_check_path(weft_sim_validator *v, const float *cl
     if (r != WEFT_OK) {
         return r;
     }
-    weft_sim_validation res = {0};
+    weft_sim_validation res = {.hit.type = WEFT_CCD_TYPE_COUNT};
     const size_t nc3 = 3 * (size_t)v->nc;
     const uint32_t segs = state_count - 1;
     for (uint32_t k = 0; k < segs && r == WEFT_OK; ++k) {

@@ -192,6 +192,15 @@ static void test_validator_catches_penetration(void)
     weft_sim_validation res;
     CHECK_RESULT(weft_sim_validator_check(v, sheet.pos, below, box.pos, box.pos, &res), WEFT_OK);
     CHECK(res.ccd_hits > 0);
+    /* It names one hit: a cloth-against-box contact with indices into the right meshes. */
+    CHECK_MSG(res.hit.type <= WEFT_CCD_FV, "hit type %u", res.hit.type);
+    if (res.hit.type == WEFT_CCD_VF) {
+        CHECK(res.hit.v[0] < sheet.nv && res.hit.v[1] < box.nv && res.hit.v[2] < box.nv && res.hit.v[3] < box.nv);
+    } else if (res.hit.type == WEFT_CCD_EE) {
+        CHECK(res.hit.v[0] < sheet.nv && res.hit.v[1] < sheet.nv && res.hit.v[2] < box.nv && res.hit.v[3] < box.nv);
+    } else {
+        CHECK(res.hit.v[0] < box.nv && res.hit.v[1] < sheet.nv && res.hit.v[2] < sheet.nv && res.hit.v[3] < sheet.nv);
+    }
     /* A sheet crossing the top face. */
     float *cross = malloc(sizeof(float) * 3 * sheet.nv);
     memcpy(cross, sheet.pos, sizeof(float) * 3 * sheet.nv);
@@ -203,6 +212,7 @@ static void test_validator_catches_penetration(void)
     /* Still above: clean. */
     CHECK_RESULT(weft_sim_validator_check(v, sheet.pos, sheet.pos, box.pos, box.pos, &res), WEFT_OK);
     CHECK_EQ_INT(res.ccd_hits + res.intersection_hits, 0);
+    CHECK_EQ_INT(res.hit.type, WEFT_CCD_TYPE_COUNT);
     free(below);
     free(cross);
     weft_sim_validator_destroy(v);

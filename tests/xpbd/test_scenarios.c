@@ -2,8 +2,10 @@
  * validated, deterministic for a seed, and the gripper really holds the cloth up. */
 #define _POSIX_C_SOURCE 200809L /* mkdir */
 #include "test.h"
+#include "weft/body.h"
 #include "weft/sim.h"
 
+#include <math.h>
 #include <stdint.h>
 #include <sys/stat.h>
 
@@ -255,14 +257,26 @@ static void test_garment_arm_spread_retry(void)
     char *meta = (char *)read_all(path, &n);
     CHECK(meta && strstr(meta, "\"arm_spread\":\t0.3") && strstr(meta, "\"ease_in_s\":\t0.5") &&
           strstr(meta, "\"gentle_retry\":\ttrue"));
+    CHECK(meta && !strstr(meta, "first_hit\":\t{")); /* accepted: nothing to locate */
+    CHECK_EQ_INT(r.hit.type, WEFT_CCD_TYPE_COUNT);
     free(meta);
     snprintf(dir, sizeof dir, "%s/xpbd_scenarios/dress_no_spread", WEFT_BINARY_DIR);
     d.garment_retry = false;
     CHECK_RESULT(weft_sim_generate(ctx, &d, dir, NULL, NULL, &r), WEFT_OK);
     CHECK_MSG(!r.accepted && r.attempts == 2 && !r.gentle, "accepted %d after %u attempts", r.accepted, r.attempts);
+    /* The rejection says where: a hit on the cloth near the avatar, and the joint there. */
+    CHECK_MSG(r.hit.type < WEFT_CCD_TYPE_COUNT, "hit type %u", r.hit.type);
+    bool joint_known = false;
+    for (uint32_t j = 0; j < WEFT_BODY_JOINTS; ++j) {
+        joint_known = joint_known || strcmp(r.hit_joint, weft_joint_name(j)) == 0;
+    }
+    CHECK_MSG(joint_known, "hit joint '%s'", r.hit_joint);
+    CHECK(isfinite(r.hit_position[0]) && r.hit_position[1] > 0.0f && r.hit_position[1] < 2.0f);
     snprintf(path, sizeof path, "%s/meta.json", dir);
     meta = (char *)read_all(path, &n);
     CHECK(meta && strstr(meta, "\"arm_spread\":\t0,") && strstr(meta, "\"gentle_retry\":\tfalse"));
+    CHECK(meta && strstr(meta, "\"first_hit\":\t{") && strstr(meta, "\"body_joint\":\t\"") &&
+          strstr(meta, r.hit_joint));
     free(meta);
     weft_context_destroy(ctx);
 }

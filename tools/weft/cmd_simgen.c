@@ -571,8 +571,9 @@ int weft_cmd_simgen(int argc, char **argv)
             rejected += !res.accepted;
             if (!res.accepted) {
                 fprintf(stderr, "\nsimgen: %s rejected by the validator (%u CCD, %u intersection hits, first at frame %d, "
-                                "substeps %u)\n",
-                        plan[i].name, res.ccd_hits, res.intersection_hits, res.first_hit_frame, res.substeps_used);
+                                "substeps %u%s%s)\n",
+                        plan[i].name, res.ccd_hits, res.intersection_hits, res.first_hit_frame, res.substeps_used,
+                        res.hit_joint[0] ? ", near " : "", res.hit_joint);
             }
         }
         draw_bar(&ps, 0, 0);
