@@ -105,6 +105,12 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_garment_create: substeps %u outside [1, 1000]",
                           def->substeps);
     }
+    if (def->method == WEFT_METHOD_XPBD && def->substeps_max != 0 &&
+        (def->substeps_max < def->substeps || def->substeps_max > 4000)) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
+                          "weft_garment_create: substeps_max %u must be 0 or in [substeps = %u, 4000]", def->substeps_max,
+                          def->substeps);
+    }
     /* Checked for every method so that a level table or a host passing a bad crop hears of it
      * whatever the method of the moment. */
     if (!isfinite(def->collider_crop_margin) || def->collider_crop_margin < 0.0f) {
@@ -200,6 +206,7 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
     g->method = def->method;
     g->precision = def->precision;
     g->substeps = def->substeps;
+    g->substeps_max = def->substeps_max > def->substeps ? def->substeps_max : def->substeps;
     g->ccd = def->ccd;
     g->ccd_iterations = def->ccd_iterations;
     g->crop_margin = def->collider_crop_margin;

@@ -44,6 +44,7 @@ weft_sim_sequence_def weft_sim_default_sequence_def(void)
     d.frames = 240;
     d.substeps = 40;
     d.max_substeps = 80;
+    d.fast_collider_factor = 1;
     d.cloth_vertices = 1024;
     d.validate = true;
     d.motion_speed = 1.0f;
@@ -176,7 +177,7 @@ typedef struct run_buffers {
     float *collider;  /* frames * nc * 3 */
     uint8_t *pinned;  /* frames * nv */
     float *stats;     /* frames * ST_COUNT (row 0 is the initial state) */
-    float *path;      /* (max_substeps + 1) * nv * 3: the solver's substep path of a frame */
+    float *path;      /* (max_substeps * fast_collider_factor + 1) * nv * 3: the solver's substep path of a frame */
     uint32_t *pin_idx;
     float *pin_tgt;
 } run_buffers;
@@ -268,6 +269,7 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
     weft_garment_def gd = weft_default_garment_def();
     gd.method = WEFT_METHOD_XPBD;
     gd.substeps = substeps;
+    gd.substeps_max = def->fast_collider_factor > 1 ? substeps * def->fast_collider_factor : 0;
     gd.ccd = false; /* ground truth is certified by the validator, never post-processed */
     gd.rest_positions = sc->cloth.pos;
     gd.vertex_count = nv;
@@ -292,7 +294,7 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
             weft_garment_destroy(g);
             return r;
         }
-        r = weft__xpbd_record_substeps(g, b->path, def->max_substeps);
+        r = weft__xpbd_record_substeps(g, b->path, def->max_substeps * def->fast_collider_factor);
         if (r != WEFT_OK) {
             weft_sim_validator_destroy(val);
             weft_garment_destroy(g);
@@ -596,6 +598,8 @@ weft_result weft_sim_generate(weft_context *ctx, const weft_sim_sequence_def *de
     }
     if ((unsigned)def->scenario >= WEFT_SIM_SCENARIO_COUNT || def->frames < 2 || def->frames > 100000 ||
         def->substeps == 0 || def->substeps > 1000 || def->max_substeps < def->substeps || def->max_substeps > 1000 ||
+        def->fast_collider_factor < 1 || def->fast_collider_factor > 16 ||
+        def->max_substeps * def->fast_collider_factor > 4000 ||
         def->cloth_vertices < 16 || def->cloth_vertices > 200000 || strlen(out_dir) > 900 ||
         !(def->motion_speed >= 0.1f && def->motion_speed <= 10.0f) ||
         !(def->garment_retry_arm_spread >= 0.0f && def->garment_retry_arm_spread <= 0.8f) ||
@@ -603,6 +607,7 @@ weft_result weft_sim_generate(weft_context *ctx, const weft_sim_sequence_def *de
         !(def->garment_retry_amplitude >= 0.1f && def->garment_retry_amplitude <= 1.0f)) {
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
                           "weft_sim_generate: scenario, frames (2..100000), substeps (1..max_substeps<=1000), "
+                          "fast_collider_factor (1..16, times max_substeps <= 4000), "
                           "cloth_vertices (16..200000), motion_speed (0.1..10), garment_retry_arm_spread (0..0.8), "
                           "garment_retry_ease_in (0..2), garment_retry_amplitude (0.1..1) or out_dir length out of "
                           "range");
@@ -625,7 +630,7 @@ weft_result weft_sim_generate(weft_context *ctx, const weft_sim_sequence_def *de
     b.stats = malloc(sizeof(float) * ST_COUNT * T);
     b.pin_idx = malloc(sizeof(uint32_t) * nv);
     b.pin_tgt = malloc(sizeof(float) * 3 * nv);
-    b.path = malloc(sizeof(float) * 3 * nv * ((size_t)def->max_substeps + 1));
+    b.path = malloc(sizeof(float) * 3 * nv * ((size_t)def->max_substeps * def->fast_collider_factor + 1));
     if (!b.cloth || !b.collider || !b.pinned || !b.stats || !b.pin_idx || !b.pin_tgt || !b.path) {
         buffers_free(&b);
         xscene_free(&sc);

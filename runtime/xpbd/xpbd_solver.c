@@ -1213,10 +1213,40 @@ static void measure(weft_garment *g, xpbd_state *s)
     s->stats.elastic_energy = energy;
 }
 
+/* The most a collider vertex may move per window when substeps adapt to it: cloth held at the
+ * contact radius r and pushed by geometry moving D per window retreats at most gamma (gap - D)
+ * per window, so the gap shrinks window after window unless D < gamma / (1 + gamma) r (the
+ * window rule in xpbd_step); 0.8 of that leaves a margin, as for pinned vertices. */
+static double fast_collider_step(const xpbd_params *p)
+{
+    return 0.8 * p->bound_gamma / (1.0 + p->bound_gamma) * p->collider_radius;
+}
+
+/* The frame's substep count. A window is at least one substep, so a collider faster than
+ * fast_collider_step per substep (a hand swinging at 15 m/s, a foot at 7) runs over the cloth
+ * it presses. With substeps_max above substeps, such a frame gets just enough substeps. */
+static uint32_t frame_substeps(const weft_garment *g, const xpbd_state *s)
+{
+    if (g->substeps_max <= g->substeps || s->nc == 0) {
+        return g->substeps;
+    }
+    double d2max = 0.0;
+    for (uint32_t u = 0; u < s->nc; ++u) {
+        double d2 = 0.0;
+        for (int a = 0; a < 3; ++a) {
+            double d = (double)g->collider_next[3 * (size_t)u + a] - (double)g->collider_prev[3 * (size_t)u + a];
+            d2 += d * d;
+        }
+        d2max = d2 > d2max ? d2 : d2max;
+    }
+    const double need = ceil(sqrt(d2max) / fast_collider_step(&s->p));
+    return need <= g->substeps ? g->substeps : need >= g->substeps_max ? g->substeps_max : (uint32_t)need;
+}
+
 static weft_result xpbd_step(weft_garment *g)
 {
     xpbd_state *s = g->method_state;
-    const uint32_t n = s->n, nc = s->nc, S = g->substeps;
+    const uint32_t n = s->n, nc = s->nc, S = frame_substeps(g, s);
     const double h = FRAME_DT / S;
     /* The double state continues the previous frame unless the positions were replaced
      * (set_state, or a post-process that moved vertices). */
@@ -1350,8 +1380,12 @@ static weft_result xpbd_step(weft_garment *g)
              * it changed no gripper result, where pins and fingers move together and the pin
              * rule binds first). */
             const double kin_frac = 0.8 * s->p.bound_gamma / (1.0 + s->p.bound_gamma);
+            /* With adaptive substeps the collider gets the same rule (fast_collider_step); fixed
+             * substeps keep the third, so their trajectories stay as they were. */
+            const double collider_window = g->substeps_max > g->substeps ? fast_collider_step(&s->p)
+                                                                          : s->p.collider_radius / 3.0;
             while (!frame_only && window > 1 &&
-                   (cdisp_max * window > s->p.collider_radius / 3.0 ||
+                   (cdisp_max * window > collider_window ||
                     (s->p.self_collision && pin_step_max * window > kin_frac * s->p.self_radius))) {
                 window--;
             }

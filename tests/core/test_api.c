@@ -190,6 +190,13 @@ static void test_garment_rejects_bad_meshes(void)
     def.substeps = 0;
     CHECK_RESULT(weft_garment_create(ctx, &def, &g), WEFT_ERROR_INVALID_ARGUMENT);
     def.substeps = 10;
+    def.method = WEFT_METHOD_XPBD;
+    def.substeps_max = 5; /* below substeps */
+    CHECK_RESULT(weft_garment_create(ctx, &def, &g), WEFT_ERROR_INVALID_ARGUMENT);
+    CHECK(strstr(weft_last_error(), "substeps_max") != NULL);
+    def.substeps_max = 4001;
+    CHECK_RESULT(weft_garment_create(ctx, &def, &g), WEFT_ERROR_INVALID_ARGUMENT);
+    def.substeps_max = 0;
     def.collider_vertex_count = 3; /* collider count without arrays */
     CHECK_RESULT(weft_garment_create(ctx, &def, &g), WEFT_ERROR_INVALID_ARGUMENT);
     CHECK(g == NULL);

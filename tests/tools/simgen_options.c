@@ -1,7 +1,7 @@
 /* `weft simgen` plan options: --tier generates only that tier of --all (here one 16k drop
  * sequence, a few frames, unvalidated, to stay quick) and the manifest lists it; --split
  * generates exactly the names that hash into that split; --only keeps one scenario; bad --tier /
- * --shard / --split / --only / --arm-spread-retry / --ease-in-retry / --amplitude-retry values fail with a usage exit. argv: weft binary, output folder. */
+ * --shard / --split / --only / --arm-spread-retry / --ease-in-retry / --amplitude-retry / --fast-collider values fail with a usage exit. argv: weft binary, output folder. */
 #define _POSIX_C_SOURCE 200809L /* posix_spawn, stat */
 #include "test.h"
 
@@ -165,6 +165,10 @@ static void bad_plan_options_fail(void)
     CHECK_EQ_INT(tool_run(ease, NULL), 2);
     const char *amplitude[] = {g_exe, "simgen", "--out", dir, "--all", "--amplitude-retry", "0", NULL};
     CHECK_EQ_INT(tool_run(amplitude, NULL), 2);
+    const char *fast[] = {g_exe, "simgen", "--out", dir, "--all", "--fast-collider", "0", NULL};
+    CHECK_EQ_INT(tool_run(fast, NULL), 2);
+    const char *fast_big[] = {g_exe, "simgen", "--out", dir, "--all", "--fast-collider", "17", NULL};
+    CHECK_EQ_INT(tool_run(fast_big, NULL), 2);
     CHECK_MSG(!exists(dir), "a rejected command created %s", dir);
 }
 

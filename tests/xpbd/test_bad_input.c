@@ -248,6 +248,14 @@ static void test_generate_bad_def(void)
         d.garment_retry_amplitude = k == 0 ? 0.0f : (k == 1 ? 1.5f : NAN);
         CHECK_RESULT(weft_sim_generate(ctx_, &d, "/tmp/never", NULL, NULL, &res), WEFT_ERROR_INVALID_ARGUMENT);
     }
+    d = weft_sim_default_sequence_def();
+    const uint32_t factors[3] = {0, 17, 16}; /* 16 x max_substeps 300 exceeds 4000 substeps */
+    for (int k = 0; k < 3; ++k) {
+        d.fast_collider_factor = factors[k];
+        d.max_substeps = k == 2 ? 300 : 80;
+        CHECK_RESULT(weft_sim_generate(ctx_, &d, "/tmp/never", NULL, NULL, &res), WEFT_ERROR_INVALID_ARGUMENT);
+        CHECK(strstr(weft_last_error(), "fast_collider_factor") != NULL);
+    }
     weft_sim_sequence_def raw = {0};
     CHECK_RESULT(weft_sim_generate(ctx_, &raw, "/tmp/never", NULL, NULL, &res), WEFT_ERROR_INVALID_ARGUMENT);
 }

@@ -223,6 +223,83 @@ static void test_two_layers(void)
     weft_context_destroy(ctx);
 }
 
+/* A box lifts a sheet resting on it at 3.6 m/s (6 cm a frame). At 10 substeps the box moves 6 mm
+ * per substep, more than the 2.5 mm contact radius it must stay within a third of, and runs over
+ * the sheet. With substeps_max the moving frames get enough substeps (72) and the sheet rides
+ * up on the box, certified by the validator frame by frame; frames with the box at rest keep 10. */
+static uint32_t lift_sheet(weft_context *ctx, uint32_t substeps_max, uint32_t *inside, uint32_t *moving_substeps,
+                           uint32_t *resting_substeps)
+{
+    test_mesh sheet = test_sheet(11, 11, 0.16f, 0.16f, 0.0f, 0.2025f, 0.0f);
+    const float lo[3] = {-0.15f, 0.0f, -0.15f}, hi[3] = {0.15f, 0.2f, 0.15f};
+    test_mesh box = test_box(lo, hi);
+    weft_garment_def gd = weft_default_garment_def();
+    gd.method = WEFT_METHOD_XPBD;
+    gd.substeps = 10;
+    gd.substeps_max = substeps_max;
+    gd.ccd = false;
+    gd.rest_positions = sheet.pos;
+    gd.vertex_count = sheet.nv;
+    gd.triangles = sheet.tris;
+    gd.triangle_count = sheet.nt;
+    gd.collider_rest_positions = box.pos;
+    gd.collider_vertex_count = box.nv;
+    gd.collider_triangles = box.tris;
+    gd.collider_triangle_count = box.nt;
+    weft_garment *g = NULL;
+    CHECK_RESULT(weft_garment_create(ctx, &gd, &g), WEFT_OK);
+    weft_sim_validator *v = NULL;
+    CHECK_RESULT(weft_sim_validator_create(ctx, sheet.tris, sheet.nt, sheet.nv, box.tris, box.nt, box.nv, &v), WEFT_OK);
+    float *prev = malloc(sizeof(float) * 3 * sheet.nv), *box_prev = malloc(sizeof(float) * 3 * box.nv);
+    uint32_t hits = 0;
+    float top = hi[1];
+    for (int f = 0; f < 15; ++f) {
+        memcpy(prev, weft_garment_positions(g), sizeof(float) * 3 * sheet.nv);
+        memcpy(box_prev, box.pos, sizeof(float) * 3 * box.nv);
+        const float rise = f >= 3 && f < 12 ? 0.06f : 0.0f;
+        for (uint32_t k = 0; k < box.nv; ++k) {
+            box.pos[3 * k + 1] += rise;
+        }
+        top += rise;
+        CHECK_RESULT(weft_garment_set_collider(g, box.pos), WEFT_OK);
+        CHECK_RESULT(weft_garment_step(g), WEFT_OK);
+        *(rise > 0.0f ? moving_substeps : resting_substeps) = weft__xpbd_last_stats(g).substeps;
+        weft_sim_validation val;
+        CHECK_RESULT(weft_sim_validator_check(v, prev, weft_garment_positions(g), box_prev, box.pos, &val), WEFT_OK);
+        hits += val.ccd_hits + val.intersection_hits;
+    }
+    const float *x = weft_garment_positions(g);
+    *inside = 0;
+    for (uint32_t i = 0; i < sheet.nv; ++i) {
+        *inside += x[3 * i + 1] < top && fabsf(x[3 * i]) < hi[0] && fabsf(x[3 * i + 2]) < hi[2];
+    }
+    free(prev);
+    free(box_prev);
+    weft_sim_validator_destroy(v);
+    weft_garment_destroy(g);
+    test_mesh_free(&box);
+    test_mesh_free(&sheet);
+    return hits;
+}
+
+static void test_fast_collider(void)
+{
+    weft_context *ctx = make_ctx();
+    uint32_t inside = 0, moving = 0, resting = 0;
+    uint32_t hits = lift_sheet(ctx, 0, &inside, &moving, &resting);
+    CHECK_MSG(hits > 0 && inside > 0, "fixed substeps: %u hits, %u vertices inside the box", hits, inside);
+    CHECK_EQ_INT(moving, 10);
+    hits = lift_sheet(ctx, 200, &inside, &moving, &resting);
+    CHECK_MSG(hits == 0 && inside == 0, "adaptive substeps: %u hits, %u vertices inside the box", hits, inside);
+    /* 60 mm / (0.8 * 0.4 / 1.4 * 2.5 mm) = 105.0, and the float box positions round either way */
+    CHECK_MSG(moving == 105 || moving == 106, "%u substeps", moving);
+    CHECK_EQ_INT(resting, 10);
+    /* The cap holds: at most substeps_max. */
+    hits = lift_sheet(ctx, 40, &inside, &moving, &resting);
+    CHECK_EQ_INT(moving, 40);
+    weft_context_destroy(ctx);
+}
+
 static void test_determinism(void)
 {
     weft_context *ctx = make_ctx();
@@ -249,4 +326,4 @@ static void test_determinism(void)
 }
 
 TEST_MAIN(TEST_CASE(test_free_fall), TEST_CASE(test_hanging_sheet), TEST_CASE(test_sheet_on_box),
-          TEST_CASE(test_two_layers), TEST_CASE(test_determinism))
+          TEST_CASE(test_two_layers), TEST_CASE(test_fast_collider), TEST_CASE(test_determinism))

@@ -303,6 +303,7 @@ static void usage(FILE *f)
             "                   [--no-garments] [--speed X] [--resolution-series] [--tier 1k|4k|16k]\n"
             "                   [--split train|val|test] [--only drop|gripper|garment] [--arm-spread-retry R]\n"
             "                   [--ease-in-retry S] [--amplitude-retry A] [--no-garment-retry] [--redo-rejected]\n"
+            "                   [--fast-collider F]\n"
             "  --all            the whole planned set: per scenario (drop, gripper, garment) 150 x 1k,\n"
             "                   30 x 4k and 2 x 16k vertices, smallest first\n"
             "  --tier T         generate only that tier of --all (e.g. the 16k cross-resolution\n"
@@ -321,6 +322,9 @@ static void usage(FILE *f)
             "  --resolution-series  seed each sequence from <scenario>_<index>, not its full name, so the\n"
             "                   same --scenario/--count/--seed at another --vertices draws the same scene\n"
             "                   (objects, body, motion, garment type) at another resolution\n"
+            "  --fast-collider F  a frame whose collider moves fast gets up to F times the attempt's substeps,\n"
+            "                   so no collider vertex moves more than a third of the contact radius per\n"
+            "                   substep (1..16; default %u, 1 = fixed substeps)\n"
             "  --garment-substeps S  first attempt of a garment sequence when above --substeps\n"
             "                   (default: none, garments start at --substeps like the others)\n"
             "  --redo-rejected  generate the finished but rejected sequences again (after a generator\n"
@@ -328,7 +332,8 @@ static void usage(FILE *f)
             "  --shard I/N      only sequences whose plan index is I modulo N (job arrays)\n"
             "  --limit N        stop after generating N new sequences\n"
             "Finished sequences (DIR/<name>/meta.json present) are skipped, so a run resumes.\n"
-            "Writes DIR/manifest.json and DIR/splits/<scenario>_{train,val,test}.txt (8:1:1).\n");
+            "Writes DIR/manifest.json and DIR/splits/<scenario>_{train,val,test}.txt (8:1:1).\n",
+            weft_sim_default_sequence_def().fast_collider_factor);
 }
 
 int weft_cmd_simgen(int argc, char **argv)
@@ -340,7 +345,7 @@ int weft_cmd_simgen(int argc, char **argv)
     bool garment_retry = true;
     bool all = false, manifest_only = false, validate = true, garments = true, resolution_series = false;
     bool redo_rejected = false;
-    uint32_t garment_substeps = 0;
+    uint32_t garment_substeps = 0, fast_collider = weft_sim_default_sequence_def().fast_collider_factor;
     float motion_speed = 1.0f;
     uint32_t count = 10, vertices = 1024, frames = 240, substeps = 40, max_substeps = 80, shard_i = 0, shard_n = 1;
     uint32_t limit = UINT32_MAX;
@@ -357,6 +362,8 @@ int weft_cmd_simgen(int argc, char **argv)
             garments = false;
         } else if (v && strcmp(a, "--speed") == 0) {
             motion_speed = strtof(v, NULL), ++i;
+        } else if (v && strcmp(a, "--fast-collider") == 0) {
+            fast_collider = (uint32_t)strtoul(v, NULL, 10), ++i;
         } else if (v && strcmp(a, "--garment-substeps") == 0) {
             garment_substeps = (uint32_t)strtoul(v, NULL, 10), ++i;
         } else if (v && strcmp(a, "--only") == 0) {
@@ -453,6 +460,10 @@ int weft_cmd_simgen(int argc, char **argv)
     if (max_substeps < substeps) {
         max_substeps = substeps;
     }
+    if (fast_collider < 1 || fast_collider > 16) {
+        fprintf(stderr, "simgen: --fast-collider must be in 1..16\n");
+        return 2;
+    }
     /* The plan: every sequence name and its parameters, in generation order. */
     const int plan_scenarios = garments ? WEFT_SIM_SCENARIO_COUNT : WEFT_SIM_SCENARIO_GARMENT;
     uint32_t cap = 0;
@@ -547,6 +558,7 @@ int weft_cmd_simgen(int argc, char **argv)
             def.frames = frames;
             def.substeps = substeps;
             def.max_substeps = max_substeps;
+            def.fast_collider_factor = fast_collider;
             if (def.scenario == WEFT_SIM_SCENARIO_GARMENT && garment_substeps > def.substeps) {
                 def.substeps = garment_substeps;
                 def.max_substeps = def.max_substeps > def.substeps ? def.max_substeps : def.substeps;
