@@ -91,9 +91,15 @@ typedef struct weft_sim_sequence_def {
     float motion_speed;           /* scales the kinematic motion: the avatar's motion (garment) and the
                                    * gripper's schedule; 1 = as drawn from the seed, which stays the same
                                    * draw at any speed; the drop scenario has none (0.1..10, default 1) */
+    /* Radians the avatar's upper arms are held further from the torso than the motion has them, in
+     * every garment sequence (weft_motion_def.arm_spread; default 0.3). As drawn, the skinned avatar
+     * intersects itself at the armpits in nearly every frame of idle, walk and run for the default
+     * and broader shapes (`weft bench body --self-contact`), and cloth caught in that fold cannot
+     * be made penetration-free. 0 reproduces sequences made before this setting. */
+    float garment_arm_spread;
     /* A garment sequence still rejected at max_substeps is tried once more, from `substeps`, as
      * a gentler take of the same scene: the avatar's arms held garment_retry_arm_spread radians
-     * further from the torso (weft_motion_def.arm_spread; 0..0.8, default 0.3), the motion eased
+     * further still (garment_arm_spread + this <= 0.8; default 0.3), the motion eased
      * in from rest over garment_retry_ease_in seconds after the drape (0..2, default 0.5) and its
      * amplitude scaled by garment_retry_amplitude (0.1..1, default 0.75). garment_retry = false
      * turns the retry off (default true; docs/REFSIM.md, Dress rejections). */

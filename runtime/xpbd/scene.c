@@ -900,8 +900,9 @@ static weft_result build_garment(weft_context *ctx, xscene *sc, const weft_sim_s
     sc->motion.speed = (float)xrng_uniform(r, 0.6, 1.4) * def->motion_speed;
     sc->motion.amplitude = (float)xrng_uniform(r, 0.6, 1.0);
     sc->motion.height = ad.height;
+    sc->motion.arm_spread = def->garment_arm_spread;
     if (gentle) { /* after every draw: the same scene either way */
-        sc->motion.arm_spread = gentle->arm_spread;
+        sc->motion.arm_spread += gentle->arm_spread;
         sc->ease_in_s = gentle->ease_in_s;
         sc->motion.amplitude *= gentle->amplitude_scale;
     }

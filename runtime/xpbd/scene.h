@@ -75,7 +75,7 @@ typedef struct xscene {
 /* Frame indices passed to the per-frame functions count from the start of the pre-roll
  * (garments drape for `preroll` frames before frame 0 of the recording). */
 /* A gentler take of the same garment scene, for a sequence the validator rejected: the avatar's
- * arms held wider (weft_motion_def.arm_spread, radians), the motion eased in from rest over
+ * arms held wider still (added to the def's garment_arm_spread, radians), the motion eased in from rest over
  * ease_in_s seconds after the pre-roll instead of starting at full speed, and its joint angles
  * scaled by amplitude_scale (runs and jumps at full amplitude make most of the other rejections). */
 typedef struct xscene_gentle {

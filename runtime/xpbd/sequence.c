@@ -49,6 +49,7 @@ weft_sim_sequence_def weft_sim_default_sequence_def(void)
     d.validate = true;
     d.motion_speed = 1.0f;
     d.garment_retry = true;
+    d.garment_arm_spread = 0.3f;
     d.garment_retry_arm_spread = 0.3f;
     d.garment_retry_ease_in = 0.5f;
     d.garment_retry_amplitude = 0.75f;
@@ -603,12 +604,14 @@ weft_result weft_sim_generate(weft_context *ctx, const weft_sim_sequence_def *de
         def->cloth_vertices < 16 || def->cloth_vertices > 200000 || strlen(out_dir) > 900 ||
         !(def->motion_speed >= 0.1f && def->motion_speed <= 10.0f) ||
         !(def->garment_retry_arm_spread >= 0.0f && def->garment_retry_arm_spread <= 0.8f) ||
+        !(def->garment_arm_spread >= 0.0f && def->garment_arm_spread + def->garment_retry_arm_spread <= 0.8f) ||
         !(def->garment_retry_ease_in >= 0.0f && def->garment_retry_ease_in <= 2.0f) ||
         !(def->garment_retry_amplitude >= 0.1f && def->garment_retry_amplitude <= 1.0f)) {
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
                           "weft_sim_generate: scenario, frames (2..100000), substeps (1..max_substeps<=1000), "
                           "fast_collider_factor (1..16, times max_substeps <= 4000), "
                           "cloth_vertices (16..200000), motion_speed (0.1..10), garment_retry_arm_spread (0..0.8), "
+                          "garment_arm_spread (0.., plus the retry's <= 0.8), "
                           "garment_retry_ease_in (0..2), garment_retry_amplitude (0.1..1) or out_dir length out of "
                           "range");
     }

@@ -228,9 +228,11 @@ static void test_sequence_split(void)
 }
 
 /* A coarse dress (seed found by `weft simgen --scenario garment --count 12 --vertices 256
- * --frames 10 --substeps 10 --max-substeps 20`, garment_v256_0004) whose arms close on it in
- * the pre-roll: rejected at both substep counts, then accepted by the gentle retry (arms held
- * 0.3 rad wider, motion eased in, amplitude x 0.75), and rejected when that retry is off. */
+ * --frames 10 --substeps 10 --max-substeps 20 --arm-spread 0`, garment_v256_0004) whose arms,
+ * as drawn, close on it in the pre-roll: rejected at both substep counts, then accepted by the
+ * gentle retry (arms held 0.3 rad wider, motion eased in, amplitude x 0.75), and rejected when
+ * that retry is off. With the arms held wider from the start (garment_arm_spread, default) it is
+ * accepted at once. */
 static void test_garment_arm_spread_retry(void)
 {
     weft_context_def cd = weft_default_context_def();
@@ -245,6 +247,7 @@ static void test_garment_arm_spread_retry(void)
     d.substeps = 10;
     d.max_substeps = 20;
     d.cloth_vertices = 256;
+    d.garment_arm_spread = 0.0f; /* the arms as drawn, as before garment_arm_spread */
     weft_sim_sequence_result r = {0};
     CHECK_RESULT(weft_sim_generate(ctx, &d, dir, NULL, NULL, &r), WEFT_OK);
     CHECK(strstr(r.description, "dress") && strstr(r.description, "gentle retry"));
@@ -277,6 +280,15 @@ static void test_garment_arm_spread_retry(void)
     CHECK(meta && strstr(meta, "\"arm_spread\":\t0,") && strstr(meta, "\"gentle_retry\":\tfalse"));
     CHECK(meta && strstr(meta, "\"first_hit\":\t{") && strstr(meta, "\"body_joint\":\t\"") &&
           strstr(meta, r.hit_joint));
+    free(meta);
+    /* With the default garment_arm_spread (0.3) the same dress is accepted in the first round. */
+    snprintf(dir, sizeof dir, "%s/xpbd_scenarios/dress_default", WEFT_BINARY_DIR);
+    d.garment_arm_spread = weft_sim_default_sequence_def().garment_arm_spread;
+    CHECK_RESULT(weft_sim_generate(ctx, &d, dir, NULL, NULL, &r), WEFT_OK);
+    CHECK_MSG(r.accepted && r.attempts == 1 && !r.gentle, "accepted %d after %u attempts", r.accepted, r.attempts);
+    snprintf(path, sizeof path, "%s/meta.json", dir);
+    meta = (char *)read_all(path, &n);
+    CHECK(meta && strstr(meta, "\"arm_spread\":\t0.3") && strstr(meta, "\"gentle_retry\":\tfalse"));
     free(meta);
     weft_context_destroy(ctx);
 }

@@ -1,7 +1,9 @@
 /* weft bench body: avatar build time, pose (LBS) time per frame, garment build times and
- * vertex counts at every resolution, LBS placement time per garment frame. */
+ * vertex counts at every resolution, LBS placement time per garment frame; with --self-contact,
+ * how often each procedural motion makes the skinned avatar intersect itself. */
 #include "weft.h"
 #include "weft/body.h"
+#include "weft/ccd.h"
 
 #include <stdio.h>
 #include <stdlib.h>
@@ -17,14 +19,99 @@ static double now_ms(void)
     return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec * 1e-6;
 }
 
+/* Skinned-body self-intersection per motion: LBS folds the armpit and the groin, and cloth caught
+ * in such a fold cannot be made penetration-free (docs/REFSIM.md, Bad input), so these frames
+ * are where reference sequences get rejected. For the avatar shapes the dataset draws at their
+ * extremes (girth and chest 0.85/1.15 and 1.15, shoulders 0.9/1.1), each motion at amplitude
+ * 0.6 and 1, speed 1, one period at 60 Hz, with the arms as drawn and 0.3 rad wider: the share
+ * of frames with intersecting body triangles (exact predicates, triangles sharing no vertex) and
+ * the most pairs in a frame. */
+static int self_contact(weft_context *ctx)
+{
+    static const float shapes[3][3] = {{0.85f, 0.9f, 0.9f}, {1.0f, 1.0f, 1.0f}, {1.15f, 1.15f, 1.1f}};
+    static const char *shape_names[3] = {"slim", "default", "broad"};
+    printf("| motion | amplitude | arms | %s | %s | %s |\n|---|---:|---|---:|---:|---:|\n", shape_names[0],
+           shape_names[1], shape_names[2]);
+    weft_body *bodies[3] = {NULL, NULL, NULL};
+    weft_ccd_world *worlds[3] = {NULL, NULL, NULL};
+    float *x = NULL;
+    int rc = 0;
+    for (int k = 0; k < 3 && rc == 0; ++k) {
+        weft_avatar_def ad = weft_default_avatar_def();
+        ad.girth = shapes[k][0];
+        ad.chest = shapes[k][1];
+        ad.shoulder_width = shapes[k][2];
+        ad.target_vertices = 4000; /* as the garment scenario */
+        weft_ccd_world_def wd = weft_default_ccd_world_def();
+        if (weft_avatar_create(ctx, &ad, &bodies[k]) != WEFT_OK) {
+            rc = 1;
+            break;
+        }
+        wd.cloth_triangles = weft_body_triangles(bodies[k]);
+        wd.cloth_triangle_count = weft_body_triangle_count(bodies[k]);
+        wd.cloth_vertex_count = weft_body_vertex_count(bodies[k]);
+        rc = weft_ccd_world_create(ctx, &wd, &worlds[k]) == WEFT_OK ? 0 : 1;
+    }
+    uint32_t nmax = 0;
+    for (int k = 0; k < 3 && rc == 0; ++k) {
+        nmax = weft_body_vertex_count(bodies[k]) > nmax ? weft_body_vertex_count(bodies[k]) : nmax;
+    }
+    x = rc == 0 ? malloc((size_t)nmax * 3 * sizeof(float)) : NULL;
+    rc = rc == 0 && !x ? 1 : rc;
+    static const float amplitudes[2] = {0.6f, 1.0f};
+    for (int m = 0; m < WEFT_MOTION_COUNT && rc == 0; ++m) {
+        if (m == WEFT_MOTION_FLIP) {
+            continue; /* not drawn by the dataset */
+        }
+        for (int a = 0; a < 2 && rc == 0; ++a) {
+            for (int spread = 0; spread < 2 && rc == 0; ++spread) {
+                printf("| %s | %.1f | %s |", weft_motion_name((weft_motion)m), amplitudes[a], spread ? "+0.3 rad" : "as drawn");
+                for (int k = 0; k < 3 && rc == 0; ++k) {
+                    weft_motion_def md = weft_default_motion_def((weft_motion)m);
+                    md.amplitude = amplitudes[a];
+                    md.arm_spread = spread ? 0.3f : 0.0f;
+                    const int frames = (int)(weft_motion_period(&md) * 60.0 + 0.5);
+                    int hit_frames = 0;
+                    uint32_t most = 0;
+                    for (int f = 0; f < frames && rc == 0; ++f) {
+                        weft_pose pose;
+                        weft_ccd_intersections in;
+                        rc = weft_motion_sample(&md, f / 60.0, &pose) == WEFT_OK &&
+                                     weft_body_pose(bodies[k], &pose, x, NULL) == WEFT_OK &&
+                                     weft_ccd_intersect_frame(worlds[k], x, NULL, &in) == WEFT_OK
+                                 ? 0
+                                 : 1;
+                        hit_frames += rc == 0 && in.cloth_cloth > 0;
+                        most = rc == 0 && in.cloth_cloth > most ? in.cloth_cloth : most;
+                    }
+                    printf(" %.0f %% (%u) |", 100.0 * hit_frames / (frames > 0 ? frames : 1), most);
+                }
+                printf("\n");
+            }
+        }
+    }
+    if (rc != 0) {
+        fprintf(stderr, "bench body: %s\n", weft_last_error());
+    }
+    free(x);
+    for (int k = 0; k < 3; ++k) {
+        weft_ccd_world_destroy(worlds[k]);
+        weft_body_destroy(bodies[k]);
+    }
+    return rc;
+}
+
 int weft_bench_body(int argc, char **argv)
 {
     int frames = 600;
+    bool contact = false;
     for (int i = 1; i < argc; ++i) {
         if (strcmp(argv[i], "--frames") == 0 && i + 1 < argc) {
             frames = atoi(argv[++i]);
+        } else if (strcmp(argv[i], "--self-contact") == 0) {
+            contact = true;
         } else {
-            fprintf(stderr, "usage: weft bench body [--frames N]\n");
+            fprintf(stderr, "usage: weft bench body [--frames N] [--self-contact]\n");
             return 2;
         }
     }
@@ -36,6 +123,11 @@ int weft_bench_body(int argc, char **argv)
         return 1;
     }
     printf("%s\n", weft_config_string());
+    if (contact) {
+        int rc = self_contact(ctx);
+        weft_context_destroy(ctx);
+        return rc;
+    }
     weft_avatar_def ad = weft_default_avatar_def();
     weft_body *body = NULL;
     double t0 = now_ms();

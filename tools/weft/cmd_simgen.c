@@ -303,7 +303,7 @@ static void usage(FILE *f)
             "                   [--no-garments] [--speed X] [--resolution-series] [--tier 1k|4k|16k]\n"
             "                   [--split train|val|test] [--only drop|gripper|garment] [--arm-spread-retry R]\n"
             "                   [--ease-in-retry S] [--amplitude-retry A] [--no-garment-retry] [--redo-rejected]\n"
-            "                   [--fast-collider F]\n"
+            "                   [--fast-collider F] [--arm-spread R]\n"
             "  --all            the whole planned set: per scenario (drop, gripper, garment) 150 x 1k,\n"
             "                   30 x 4k and 2 x 16k vertices, smallest first\n"
             "  --tier T         generate only that tier of --all (e.g. the 16k cross-resolution\n"
@@ -312,9 +312,12 @@ static void usage(FILE *f)
             "                   name): e.g. the held-out test sequences without the training set\n"
             "  --no-garments    leave the garment scenario out of --all (it is the slowest)\n"
             "  --only S         only the scenario S of --all (same names and seeds as in the full plan)\n"
+            "  --arm-spread R   the avatar's arms held R radians further from the torso than the motion has\n"
+            "                   them, in every garment sequence (0..0.8, default 0.3; 0: as before, when the\n"
+            "                   skinned avatar intersects itself at the armpits in most frames)\n"
             "  --arm-spread-retry R, --ease-in-retry S, --amplitude-retry A  a garment still rejected at\n"
-            "                   --max-substeps is retried with the avatar's arms R radians further from the\n"
-            "                   torso (0..0.8, default 0.3), its motion eased in from rest over S seconds\n"
+            "                   --max-substeps is retried with the avatar's arms R radians further still\n"
+            "                   (--arm-spread + R <= 0.8, default 0.3), its motion eased in from rest over S seconds\n"
             "                   (0..2, default 0.5) and its amplitude scaled by A (0.1..1, default 0.75)\n"
             "  --no-garment-retry  no such retry\n"
             "  --speed X        scale the avatar's motion and the gripper's schedule (0.1..10, default 1;\n"
@@ -340,6 +343,7 @@ int weft_cmd_simgen(int argc, char **argv)
 {
     const char *out = NULL, *scenario = NULL, *tier = NULL, *split = NULL, *only = NULL;
     float arm_spread_retry = weft_sim_default_sequence_def().garment_retry_arm_spread;
+    float arm_spread = weft_sim_default_sequence_def().garment_arm_spread;
     float ease_in_retry = weft_sim_default_sequence_def().garment_retry_ease_in;
     float amplitude_retry = weft_sim_default_sequence_def().garment_retry_amplitude;
     bool garment_retry = true;
@@ -371,12 +375,15 @@ int weft_cmd_simgen(int argc, char **argv)
         } else if (strcmp(a, "--no-garment-retry") == 0) {
             garment_retry = false;
         } else if (v && (strcmp(a, "--arm-spread-retry") == 0 || strcmp(a, "--ease-in-retry") == 0 ||
-                         strcmp(a, "--amplitude-retry") == 0)) {
-            /* option, range, unit and target of the three gentle-retry settings */
-            const int k = strcmp(a, "--arm-spread-retry") == 0 ? 0 : (strcmp(a, "--ease-in-retry") == 0 ? 1 : 2);
-            static const float lo[3] = {0.0f, 0.0f, 0.1f}, hi[3] = {0.8f, 2.0f, 1.0f};
-            static const char *const unit[3] = {"radians", "seconds", "a scale"};
-            float *target[3] = {&arm_spread_retry, &ease_in_retry, &amplitude_retry};
+                         strcmp(a, "--amplitude-retry") == 0 || strcmp(a, "--arm-spread") == 0)) {
+            /* option, range, unit and target of the garment arm spread and the gentle-retry settings */
+            const int k = strcmp(a, "--arm-spread-retry") == 0 ? 0
+                          : strcmp(a, "--ease-in-retry") == 0  ? 1
+                          : strcmp(a, "--amplitude-retry") == 0 ? 2
+                                                                : 3;
+            static const float lo[4] = {0.0f, 0.0f, 0.1f, 0.0f}, hi[4] = {0.8f, 2.0f, 1.0f, 0.8f};
+            static const char *const unit[4] = {"radians", "seconds", "a scale", "radians"};
+            float *target[4] = {&arm_spread_retry, &ease_in_retry, &amplitude_retry, &arm_spread};
             char *end = NULL;
             float x = strtof(v, &end);
             ++i;
@@ -459,6 +466,10 @@ int weft_cmd_simgen(int argc, char **argv)
     }
     if (max_substeps < substeps) {
         max_substeps = substeps;
+    }
+    if (arm_spread + arm_spread_retry > 0.8f) {
+        fprintf(stderr, "simgen: --arm-spread plus --arm-spread-retry must stay within 0.8 radians\n");
+        return 2;
     }
     if (fast_collider < 1 || fast_collider > 16) {
         fprintf(stderr, "simgen: --fast-collider must be in 1..16\n");
@@ -566,6 +577,7 @@ int weft_cmd_simgen(int argc, char **argv)
             def.cloth_vertices = plan[i].vertices;
             def.validate = validate;
             def.motion_speed = motion_speed;
+            def.garment_arm_spread = arm_spread;
             def.garment_retry_arm_spread = arm_spread_retry;
             def.garment_retry_ease_in = ease_in_retry;
             def.garment_retry_amplitude = amplitude_retry;
