@@ -1222,31 +1222,66 @@ static double fast_collider_step(const xpbd_params *p)
     return 0.8 * p->bound_gamma / (1.0 + p->bound_gamma) * p->collider_radius;
 }
 
+/* How far the collider geometry that can reach the cloth this frame moves in it: the largest
+ * frame displacement of the vertices of collider triangles whose swept box (start and end of
+ * the frame) meets the cloth's box grown by a margin (5 cm, or twice the cloth's fastest travel
+ * over the last frame). A foot far below a T-shirt does not count. The validator still
+ * certifies every frame, so this only decides the substeps, never what is accepted. */
+static double near_collider_travel(const weft_garment *g, const xpbd_state *s)
+{
+    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    double fastest2 = 0.0;
+    for (uint32_t i = 0; i < s->n; ++i) {
+        const float *x = g->x + 3 * (size_t)i, *xp = g->x_prev + 3 * (size_t)i;
+        double d2 = 0.0;
+        for (int a = 0; a < 3; ++a) {
+            lo[a] = fminf(lo[a], x[a]);
+            hi[a] = fmaxf(hi[a], x[a]);
+            d2 += ((double)x[a] - xp[a]) * ((double)x[a] - xp[a]);
+        }
+        fastest2 = d2 > fastest2 ? d2 : fastest2;
+    }
+    const float margin = (float)fmax(0.05, 2.0 * sqrt(fastest2));
+    double travel2 = 0.0;
+    for (uint32_t t = 0; t < s->nctri; ++t) {
+        const uint32_t *tri = g->collider_triangles + 3 * (size_t)t;
+        bool meets = true;
+        for (int a = 0; a < 3 && meets; ++a) {
+            float tlo = INFINITY, thi = -INFINITY;
+            for (int k = 0; k < 3; ++k) {
+                const float p = g->collider_prev[3 * (size_t)tri[k] + a], q = g->collider_next[3 * (size_t)tri[k] + a];
+                tlo = fminf(tlo, fminf(p, q));
+                thi = fmaxf(thi, fmaxf(p, q));
+            }
+            meets = thi >= lo[a] - margin && tlo <= hi[a] + margin;
+        }
+        for (int k = 0; k < 3 && meets; ++k) {
+            double d2 = 0.0;
+            for (int a = 0; a < 3; ++a) {
+                const double d = (double)g->collider_next[3 * (size_t)tri[k] + a] - g->collider_prev[3 * (size_t)tri[k] + a];
+                d2 += d * d;
+            }
+            travel2 = d2 > travel2 ? d2 : travel2;
+        }
+    }
+    return sqrt(travel2);
+}
+
 /* The frame's substep count. A window is at least one substep, so a collider faster than
  * fast_collider_step per substep (a hand swinging at 15 m/s, a foot at 7) runs over the cloth
  * it presses. With substeps_max above substeps, such a frame gets just enough substeps. */
-static uint32_t frame_substeps(const weft_garment *g, const xpbd_state *s)
+static uint32_t frame_substeps(const weft_garment *g, double near_travel)
 {
-    if (g->substeps_max <= g->substeps || s->nc == 0) {
-        return g->substeps;
-    }
-    double d2max = 0.0;
-    for (uint32_t u = 0; u < s->nc; ++u) {
-        double d2 = 0.0;
-        for (int a = 0; a < 3; ++a) {
-            double d = (double)g->collider_next[3 * (size_t)u + a] - (double)g->collider_prev[3 * (size_t)u + a];
-            d2 += d * d;
-        }
-        d2max = d2 > d2max ? d2 : d2max;
-    }
-    const double need = ceil(sqrt(d2max) / fast_collider_step(&s->p));
+    const double need = ceil(near_travel / fast_collider_step(&((const xpbd_state *)g->method_state)->p));
     return need <= g->substeps ? g->substeps : need >= g->substeps_max ? g->substeps_max : (uint32_t)need;
 }
 
 static weft_result xpbd_step(weft_garment *g)
 {
     xpbd_state *s = g->method_state;
-    const uint32_t n = s->n, nc = s->nc, S = frame_substeps(g, s);
+    const bool adaptive = g->substeps_max > g->substeps && s->nc > 0;
+    const double near_travel = adaptive ? near_collider_travel(g, s) : 0.0;
+    const uint32_t n = s->n, nc = s->nc, S = adaptive ? frame_substeps(g, near_travel) : g->substeps;
     const double h = FRAME_DT / S;
     /* The double state continues the previous frame unless the positions were replaced
      * (set_state, or a post-process that moved vertices). */
@@ -1380,12 +1415,13 @@ static weft_result xpbd_step(weft_garment *g)
              * it changed no gripper result, where pins and fingers move together and the pin
              * rule binds first). */
             const double kin_frac = 0.8 * s->p.bound_gamma / (1.0 + s->p.bound_gamma);
-            /* With adaptive substeps the collider gets the same rule (fast_collider_step); fixed
-             * substeps keep the third, so their trajectories stay as they were. */
-            const double collider_window = g->substeps_max > g->substeps ? fast_collider_step(&s->p)
-                                                                          : s->p.collider_radius / 3.0;
+            /* With adaptive substeps the collider gets the same rule (fast_collider_step), for the
+             * geometry near the cloth (near_collider_travel); fixed substeps keep the third of
+             * the fastest collider vertex, so their trajectories stay as they were. */
+            const double collider_window = adaptive ? fast_collider_step(&s->p) : s->p.collider_radius / 3.0;
+            const double collider_step = adaptive ? near_travel / S : cdisp_max;
             while (!frame_only && window > 1 &&
-                   (cdisp_max * window > collider_window ||
+                   (collider_step * window > collider_window ||
                     (s->p.self_collision && pin_step_max * window > kin_frac * s->p.self_radius))) {
                 window--;
             }
