@@ -44,7 +44,7 @@ weft_sim_sequence_def weft_sim_default_sequence_def(void)
     d.frames = 240;
     d.substeps = 40;
     d.max_substeps = 80;
-    d.fast_collider_factor = 1;
+    d.fast_collider_factor = 8;
     d.cloth_vertices = 1024;
     d.validate = true;
     d.motion_speed = 1.0f;

@@ -1282,6 +1282,7 @@ static weft_result xpbd_step(weft_garment *g)
     const bool adaptive = g->substeps_max > g->substeps && s->nc > 0;
     const double near_travel = adaptive ? near_collider_travel(g, s) : 0.0;
     const uint32_t n = s->n, nc = s->nc, S = adaptive ? frame_substeps(g, near_travel) : g->substeps;
+    const bool raised = S > g->substeps;
     const double h = FRAME_DT / S;
     /* The double state continues the previous frame unless the positions were replaced
      * (set_state, or a post-process that moved vertices). */
@@ -1415,11 +1416,12 @@ static weft_result xpbd_step(weft_garment *g)
              * it changed no gripper result, where pins and fingers move together and the pin
              * rule binds first). */
             const double kin_frac = 0.8 * s->p.bound_gamma / (1.0 + s->p.bound_gamma);
-            /* With adaptive substeps the collider gets the same rule (fast_collider_step), for the
-             * geometry near the cloth (near_collider_travel); fixed substeps keep the third of
-             * the fastest collider vertex, so their trajectories stay as they were. */
-            const double collider_window = adaptive ? fast_collider_step(&s->p) : s->p.collider_radius / 3.0;
-            const double collider_step = adaptive ? near_travel / S : cdisp_max;
+            /* A frame given more substeps holds the collider near the cloth (near_collider_travel)
+             * to the same rule (fast_collider_step). Every other frame keeps the third of the
+             * fastest collider vertex, so it runs exactly as with fixed substeps: drops, and
+             * grippers whose fingers never outrun the condition, come out bit-identical. */
+            const double collider_window = raised ? fast_collider_step(&s->p) : s->p.collider_radius / 3.0;
+            const double collider_step = raised ? near_travel / S : cdisp_max;
             while (!frame_only && window > 1 &&
                    (collider_step * window > collider_window ||
                     (s->p.self_collision && pin_step_max * window > kin_frac * s->p.self_radius))) {
