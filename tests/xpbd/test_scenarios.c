@@ -31,10 +31,13 @@ static unsigned char *read_all(const char *path, long *n)
         }
         return NULL;
     }
-    unsigned char *b = malloc((size_t)*n);
+    unsigned char *b = malloc((size_t)*n + 1); /* NUL-terminated: meta.json is searched as text */
     if (b && fread(b, 1, (size_t)*n, f) != (size_t)*n) {
         free(b);
         b = NULL;
+    }
+    if (b) {
+        b[*n] = 0;
     }
     fclose(f);
     return b;
