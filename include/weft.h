@@ -227,11 +227,13 @@ typedef struct weft_garment_def {
     const float *initial_positions;
 
     uint32_t substeps;                  /* WEFT_METHOD_XPBD: substeps per frame (default 10) */
-    /* WEFT_METHOD_XPBD: when above `substeps`, a frame whose collider moves fast gets more
-     * substeps, up to this many, so that no collider vertex moves more than a third of the
-     * collider contact radius in one substep: the condition under which the solver's bounds keep
-     * cloth pushed by the collider outside it (docs/REFSIM.md, *Fast colliders*). Ground truth
-     * uses it; 0 (default) keeps every frame at `substeps`, a game's fixed budget. At most 4000. */
+    /* WEFT_METHOD_XPBD: when above `substeps`, a frame whose collider moves fast near the cloth
+     * gets more substeps, up to this many, so that the collider geometry that can reach the cloth
+     * moves at most 0.8 gamma / (1 + gamma) of the collider contact radius per substep (0.57 mm by
+     * default): the condition under which the solver's bounds keep cloth pushed by the collider
+     * outside it (docs/REFSIM.md, *Where the last rejections came from*). Frames that need no more
+     * run as with fixed substeps. Ground truth uses it; 0 (default) keeps every frame at
+     * `substeps`, a game's fixed budget. At most 4000. */
     uint32_t substeps_max;
     bool ccd;                           /* run CCD post-processing after each step (default true) */
     /* CCD back-off passes before the fallback that carries cloth with the collider or holds it
