@@ -83,8 +83,9 @@ typedef struct weft_sim_sequence_def {
     uint32_t max_substeps;        /* a rejected sequence is retried with doubled substeps up to this (default 80) */
     /* Frames whose collider moves fast near the cloth get up to this factor times the attempt's
      * substeps, so that the bounds can keep pushed cloth outside it (weft_garment_def.substeps_max;
-     * docs/REFSIM.md, Where the last rejections came from). Frames that need no more run exactly as with fixed
-     * substeps. 1: fixed substeps, as sequences made before this setting (1..16, default 8). */
+     * docs/REFSIM.md, Where the last rejections came from). Frames that need no more run exactly
+     * as with fixed substeps. 1: fixed substeps, as sequences made before this setting (1..16,
+     * default 8). */
     uint32_t fast_collider_factor;
     uint32_t cloth_vertices;      /* approximate vertex count of the sheet (default 1024) */
     bool validate;                /* run the validator on every frame (default true) */
