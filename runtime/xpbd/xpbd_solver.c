@@ -1270,9 +1270,9 @@ static double near_collider_travel(const weft_garment *g, const xpbd_state *s)
 /* The frame's substep count. A window is at least one substep, so a collider faster than
  * fast_collider_step per substep (a hand swinging at 15 m/s, a foot at 7) runs over the cloth
  * it presses. With substeps_max above substeps, such a frame gets just enough substeps. */
-static uint32_t frame_substeps(const weft_garment *g, double near_travel)
+static uint32_t frame_substeps(const weft_garment *g, const xpbd_params *p, double near_travel)
 {
-    const double need = ceil(near_travel / fast_collider_step(&((const xpbd_state *)g->method_state)->p));
+    const double need = ceil(near_travel / fast_collider_step(p));
     return need <= g->substeps ? g->substeps : need >= g->substeps_max ? g->substeps_max : (uint32_t)need;
 }
 
@@ -1281,7 +1281,7 @@ static weft_result xpbd_step(weft_garment *g)
     xpbd_state *s = g->method_state;
     const bool adaptive = g->substeps_max > g->substeps && s->nc > 0;
     const double near_travel = adaptive ? near_collider_travel(g, s) : 0.0;
-    const uint32_t n = s->n, nc = s->nc, S = adaptive ? frame_substeps(g, near_travel) : g->substeps;
+    const uint32_t n = s->n, nc = s->nc, S = adaptive ? frame_substeps(g, &s->p, near_travel) : g->substeps;
     const bool raised = S > g->substeps;
     const double h = FRAME_DT / S;
     /* The double state continues the previous frame unless the positions were replaced

@@ -14,12 +14,14 @@ static weft_context *make_ctx(void)
     return ctx;
 }
 
+/* substeps_max: 0 for fixed substeps (weft_garment_def.substeps_max). */
 static weft_garment *make_garment(weft_context *ctx, const test_mesh *cloth, const test_mesh *collider,
-                                  uint32_t substeps)
+                                  uint32_t substeps, uint32_t substeps_max)
 {
     weft_garment_def gd = weft_default_garment_def();
     gd.method = WEFT_METHOD_XPBD;
     gd.substeps = substeps;
+    gd.substeps_max = substeps_max;
     gd.ccd = false;
     gd.rest_positions = cloth->pos;
     gd.vertex_count = cloth->nv;
@@ -41,7 +43,7 @@ static void test_free_fall(void)
     weft_context *ctx = make_ctx();
     test_mesh sheet = test_sheet(10, 10, 1.0f, 1.0f, 0.0f, 2.0f, 0.0f);
     const uint32_t S = 10, frames = 30;
-    weft_garment *g = make_garment(ctx, &sheet, NULL, S);
+    weft_garment *g = make_garment(ctx, &sheet, NULL, S, 0);
     double com0 = 0.0;
     for (uint32_t i = 0; i < sheet.nv; ++i) {
         com0 += sheet.pos[3 * i + 1];
@@ -91,7 +93,7 @@ static void test_hanging_sheet(void)
         sheet.pos[3 * i + 1] = 1.0f - z; /* rows of constant z become rows of constant height */
         sheet.pos[3 * i + 2] = 0.0f;
     }
-    weft_garment *g = make_garment(ctx, &sheet, NULL, 20);
+    weft_garment *g = make_garment(ctx, &sheet, NULL, 20, 0);
     uint32_t pins[21];
     float targets[63];
     for (uint32_t i = 0; i < N; ++i) {
@@ -157,7 +159,7 @@ static void test_sheet_on_box(void)
     test_mesh sheet = test_sheet(21, 21, 0.6f, 0.6f, 0.0f, 0.3f, 0.0f);
     const float lo[3] = {-0.15f, 0.0f, -0.15f}, hi[3] = {0.15f, 0.2f, 0.15f};
     test_mesh box = test_box(lo, hi);
-    weft_garment *g = make_garment(ctx, &sheet, &box, 20);
+    weft_garment *g = make_garment(ctx, &sheet, &box, 20, 0);
     uint32_t hits = run_validated(ctx, g, &sheet, &box, 90);
     CHECK_EQ_INT(hits, 0);
     const float *x = weft_garment_positions(g);
@@ -199,7 +201,7 @@ static void test_two_layers(void)
     }
     const float lo[3] = {-0.1f, 0.0f, -0.1f}, hi[3] = {0.1f, 0.2f, 0.1f};
     test_mesh box = test_box(lo, hi);
-    weft_garment *g = make_garment(ctx, &both, &box, 20);
+    weft_garment *g = make_garment(ctx, &both, &box, 20, 0);
     uint32_t hits = run_validated(ctx, g, &both, &box, 60);
     CHECK_EQ_INT(hits, 0);
     /* Over the box top the upper sheet stays above the lower one. */
@@ -234,21 +236,7 @@ static uint32_t lift_sheet(weft_context *ctx, uint32_t substeps_max, float box_x
     test_mesh sheet = test_sheet(11, 11, 0.16f, 0.16f, 0.0f, 0.2025f, 0.0f);
     const float lo[3] = {box_x - 0.15f, 0.0f, -0.15f}, hi[3] = {box_x + 0.15f, 0.2f, 0.15f};
     test_mesh box = test_box(lo, hi);
-    weft_garment_def gd = weft_default_garment_def();
-    gd.method = WEFT_METHOD_XPBD;
-    gd.substeps = 10;
-    gd.substeps_max = substeps_max;
-    gd.ccd = false;
-    gd.rest_positions = sheet.pos;
-    gd.vertex_count = sheet.nv;
-    gd.triangles = sheet.tris;
-    gd.triangle_count = sheet.nt;
-    gd.collider_rest_positions = box.pos;
-    gd.collider_vertex_count = box.nv;
-    gd.collider_triangles = box.tris;
-    gd.collider_triangle_count = box.nt;
-    weft_garment *g = NULL;
-    CHECK_RESULT(weft_garment_create(ctx, &gd, &g), WEFT_OK);
+    weft_garment *g = make_garment(ctx, &sheet, &box, 10, substeps_max);
     weft_sim_validator *v = NULL;
     CHECK_RESULT(weft_sim_validator_create(ctx, sheet.tris, sheet.nt, sheet.nv, box.tris, box.nt, box.nv, &v), WEFT_OK);
     float *prev = malloc(sizeof(float) * 3 * sheet.nv), *box_prev = malloc(sizeof(float) * 3 * box.nv);
@@ -320,7 +308,7 @@ static void test_determinism(void)
     test_mesh box = test_box(lo, hi);
     float *out[2];
     for (int run = 0; run < 2; ++run) {
-        weft_garment *g = make_garment(ctx, &sheet, &box, 10);
+        weft_garment *g = make_garment(ctx, &sheet, &box, 10, 0);
         for (int f = 0; f < 40; ++f) {
             CHECK_RESULT(weft_garment_set_collider(g, box.pos), WEFT_OK);
             CHECK_RESULT(weft_garment_step(g), WEFT_OK);

@@ -339,6 +339,18 @@ static void usage(FILE *f)
             weft_sim_default_sequence_def().fast_collider_factor);
 }
 
+/* Index of a garment float option (the arm spread and the gentle retry's three), -1 for others. */
+static int garment_option(const char *arg)
+{
+    static const char *const names[4] = {"--arm-spread-retry", "--ease-in-retry", "--amplitude-retry", "--arm-spread"};
+    for (int k = 0; k < 4; ++k) {
+        if (strcmp(arg, names[k]) == 0) {
+            return k;
+        }
+    }
+    return -1;
+}
+
 int weft_cmd_simgen(int argc, char **argv)
 {
     const char *out = NULL, *scenario = NULL, *tier = NULL, *split = NULL, *only = NULL;
@@ -374,13 +386,9 @@ int weft_cmd_simgen(int argc, char **argv)
             only = v, ++i;
         } else if (strcmp(a, "--no-garment-retry") == 0) {
             garment_retry = false;
-        } else if (v && (strcmp(a, "--arm-spread-retry") == 0 || strcmp(a, "--ease-in-retry") == 0 ||
-                         strcmp(a, "--amplitude-retry") == 0 || strcmp(a, "--arm-spread") == 0)) {
-            /* option, range, unit and target of the garment arm spread and the gentle-retry settings */
-            const int k = strcmp(a, "--arm-spread-retry") == 0 ? 0
-                          : strcmp(a, "--ease-in-retry") == 0  ? 1
-                          : strcmp(a, "--amplitude-retry") == 0 ? 2
-                                                                : 3;
+        } else if (v && garment_option(a) >= 0) {
+            /* range, unit and target of the garment arm spread and the gentle-retry settings */
+            const int k = garment_option(a);
             static const float lo[4] = {0.0f, 0.0f, 0.1f, 0.0f}, hi[4] = {0.8f, 2.0f, 1.0f, 0.8f};
             static const char *const unit[4] = {"radians", "seconds", "a scale", "radians"};
             float *target[4] = {&arm_spread_retry, &ease_in_retry, &amplitude_retry, &arm_spread};
