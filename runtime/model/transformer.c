@@ -95,8 +95,10 @@ static weft_result read_config(const weft_model *m, weft_ct_config *c)
                           prior);
     }
     t.prior_beta = 1.0f;
+    t.prior_decay = 1.0f;
     t.gravity_step = (float)(9.81 / 3600.0);
     if ((r = get_optional_in(m, "prior_beta", 0.0, 1.0, &t.prior_beta)) != WEFT_OK ||
+        (r = get_optional_in(m, "prior_decay", 0.0, 1.0, &t.prior_decay)) != WEFT_OK ||
         (r = get_optional_in(m, "gravity_step", 0.0, 0.1, &t.gravity_step)) != WEFT_OK) {
         return r;
     }
@@ -1342,7 +1344,9 @@ static weft_result ct_output(weft_garment *g, ct_state *s)
         if (c->prior == WEFT_CT_PRIOR_INERTIAL) {
             prior = 2.0f * g->x[i] - g->x_prev[i];
         } else if (c->prior == WEFT_CT_PRIOR_SKINNED) {
-            prior = g->x[i] + (s->skin_next[i] - s->skin_cur[i]);
+            /* decay 1 keeps the form the models shipped before it were trained with */
+            prior = c->prior_decay == 1.0f ? g->x[i] + (s->skin_next[i] - s->skin_cur[i])
+                                           : s->skin_next[i] + c->prior_decay * (g->x[i] - s->skin_cur[i]);
         } else if (c->prior == WEFT_CT_PRIOR_BALLISTIC) {
             prior = g->x[i] + c->prior_beta * (g->x[i] - g->x_prev[i]) - (i % 3 == 1 ? c->gravity_step : 0.0f);
         }

@@ -21,7 +21,8 @@ typedef enum weft_ct_prior {
     WEFT_CT_PRIOR_INERTIAL,             /* "inertial": 2 X_t - X_{t-1} */
     WEFT_CT_PRIOR_PREVIOUS,             /* "previous": X_t */
     WEFT_CT_PRIOR_SKINNED,              /* "skinned": X_t + S_{t+1} - S_t, S the LBS method's
-                                           binding (runtime/xpbd/lbs.c) on the collider */
+                                           binding (runtime/xpbd/lbs.c) on the collider; with
+                                           prior_decay a < 1, S_{t+1} + a (X_t - S_t) */
     WEFT_CT_PRIOR_BALLISTIC,            /* "ballistic": X_t + prior_beta (X_t - X_{t-1}) - gravity_step Y:
                                            free fall is in the prior, the network adds contact */
     WEFT_CT_PRIOR_COUNT
@@ -32,6 +33,7 @@ typedef struct weft_ct_config {
     float vel_scale, area_scale, out_scale, crop_margin, ln_eps;
     weft_ct_prior prior;
     float prior_beta, gravity_step;     /* the ballistic prior's terms (optional keys: 1, 9.81/3600 m) */
+    float prior_decay;                  /* the skinned prior's kept offset (optional key: 1) */
     bool dec_skip;
     bool requires_collider;             /* trained only with colliders */
     uint32_t vertex_count;              /* 0: any garment; else the one mesh it was trained for */

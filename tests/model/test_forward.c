@@ -500,18 +500,24 @@ static void bad_model_files(void)
     expect_create_fails("\\\"D\\\": ", "\\\"D\\\": 1", true, WEFT_ERROR_TENSOR_SHAPE);
 }
 
-/* The golden model (prior "inertial") with its prior renamed in the config; NULL on failure. */
-static weft_model *model_with_prior(weft_context *ctx, const char *prior, weft_result *result)
+/* The golden model (prior "inertial") with its config's prior entry replaced by `to` (a JSON
+ * fragment as it appears escaped in the metadata string); NULL on failure. */
+static weft_model *model_patched(weft_context *ctx, const char *to, weft_result *result)
 {
-    char to[64];
-    snprintf(to, sizeof to, "\\\"prior\\\": \\\"%s\\\"", prior);
     size_t size = 0;
     void *bytes = patched_model("\\\"prior\\\": \\\"inertial\\\"", to, &size);
-    CHECK_MSG(bytes != NULL, "could not patch the prior to '%s'", prior);
+    CHECK_MSG(bytes != NULL, "could not patch the prior to '%s'", to);
     weft_model *m = NULL;
     *result = bytes ? weft_model_load_memory(ctx, bytes, size, &m) : WEFT_ERROR_IO;
     free(bytes);
     return m;
+}
+
+static weft_model *model_with_prior(weft_context *ctx, const char *prior, weft_result *result)
+{
+    char to[64];
+    snprintf(to, sizeof to, "\\\"prior\\\": \\\"%s\\\"", prior);
+    return model_patched(ctx, to, result);
 }
 
 /* max over i of |(a_i - b_i) - (c_i - d_i)| */
@@ -543,27 +549,33 @@ static bool lbs_track(const golden *g, weft_context *ctx, uint32_t frames, float
     return made;
 }
 
-/* The four priors on the same network output: four garments (inertial, previous, skinned,
- * ballistic) set to the same state every frame of the skinned model's rollout step to
- *   x(previous) - x(inertial) = X_{t-1} - X_t,   x(skinned) - x(previous) = S_{t+1} - S_t   and
- *   x(ballistic) - x(previous) = X_t - X_{t-1} - g dt^2 Y   (the default beta 1, g dt^2 9.81/3600 m),
+/* The priors on the same network output: five garments (inertial, previous, skinned,
+ * ballistic, skinned with prior_decay 0.5) set to the same state every frame of the skinned
+ * model's rollout step to
+ *   x(previous) - x(inertial) = X_{t-1} - X_t,   x(skinned) - x(previous) = S_{t+1} - S_t,
+ *   x(ballistic) - x(previous) = X_t - X_{t-1} - g dt^2 Y   (the default beta 1, g dt^2 9.81/3600 m) and
+ *   x(decayed) - x(previous) = S_{t+1} + 0.5 (X_t - S_t) - X_t,
  * S from the LBS method, at every precision. (weft_garment_set_state restarts the latent history
  * each frame, the same in all four.) */
-static void prior_differences(const golden *g, weft_context *ctx, weft_model *const models[4], const float *S,
-                              uint32_t T)
+enum { PRIOR_MODELS = 5 };
+
+static void prior_differences(const golden *g, weft_context *ctx, weft_model *const models[PRIOR_MODELS],
+                              const float *S, uint32_t T)
 {
     const size_t n = (size_t)g->V * 3;
     float *X = malloc(n * sizeof(float)), *Xp = malloc(n * sizeof(float));
-    double worst_prev = 0, worst_skin = 0, worst_ball = 0, skin_motion = 0;
+    double worst_prev = 0, worst_skin = 0, worst_ball = 0, worst_decay = 0, skin_motion = 0, offset = 0;
     for (int prec = 0; prec < 3; ++prec) {
-        weft_garment *gar[4] = {NULL, NULL, NULL, NULL};
-        for (int k = 0; k < 4; ++k) {
+        weft_garment *gar[PRIOR_MODELS] = {NULL};
+        bool all = true;
+        for (int k = 0; k < PRIOR_MODELS; ++k) {
             weft_garment_def d = garment_def(g, models[k], 1);
             d.precision = (weft_precision)prec;
             CHECK_RESULT(weft_garment_create(ctx, &d, &gar[k]), WEFT_OK);
+            all = all && gar[k];
         }
-        if (!gar[0] || !gar[1] || !gar[2] || !gar[3]) {
-            for (int k = 0; k < 4; ++k) {
+        if (!all) {
+            for (int k = 0; k < PRIOR_MODELS; ++k) {
                 weft_garment_destroy(gar[k]);
             }
             continue;
@@ -571,7 +583,7 @@ static void prior_differences(const golden *g, weft_context *ctx, weft_model *co
         memcpy(X, frame(&g->gt, 1), n * sizeof(float));
         memcpy(Xp, frame(&g->gt, 0), n * sizeof(float));
         for (uint32_t t = 1; t <= T; ++t) {
-            for (int k = 0; k < 4; ++k) {
+            for (int k = 0; k < PRIOR_MODELS; ++k) {
                 CHECK_RESULT(weft_garment_set_state(gar[k], X, Xp), WEFT_OK);
                 CHECK_RESULT(weft_garment_set_collider(gar[k], frame(&g->cpos, t + 1)), WEFT_OK);
                 CHECK_RESULT(weft_garment_step(gar[k]), WEFT_OK);
@@ -589,6 +601,16 @@ static void prior_differences(const golden *g, weft_context *ctx, weft_model *co
                 e_ball = fmax(e_ball, fabs(((double)xb[i] - xp[i]) - want));
             }
             CHECK_MSG(e_ball <= 1e-5, "precision %d frame %u: ballistic - previous off by %.3g m", prec, t, e_ball);
+            const float *xd = weft_garment_positions(gar[4]);
+            double e_decay = 0;
+            for (size_t i = 0; i < n; ++i) {
+                const double want = (double)s_next[i] + 0.5 * ((double)X[i] - s_cur[i]) - X[i];
+                e_decay = fmax(e_decay, fabs(((double)xd[i] - xp[i]) - want));
+                offset = fmax(offset, fabs((double)X[i] - s_cur[i]));
+            }
+            CHECK_MSG(e_decay <= 1e-5, "precision %d frame %u: decayed skinned - previous off by %.3g m", prec, t,
+                      e_decay);
+            worst_decay = fmax(worst_decay, e_decay);
             worst_prev = fmax(worst_prev, e_prev);
             worst_skin = fmax(worst_skin, e_skin);
             worst_ball = fmax(worst_ball, e_ball);
@@ -598,15 +620,18 @@ static void prior_differences(const golden *g, weft_context *ctx, weft_model *co
             memcpy(Xp, X, n * sizeof(float));
             memcpy(X, xs, n * sizeof(float));
         }
-        for (int k = 0; k < 4; ++k) {
+        for (int k = 0; k < PRIOR_MODELS; ++k) {
             weft_garment_destroy(gar[k]);
         }
     }
-    /* not vacuous: the collider moves the skinned prior away from the previous one */
+    /* not vacuous: the collider moves the skinned prior away from the previous one, and the
+     * rollout leaves S, so the decay has an offset to act on */
     CHECK_MSG(skin_motion > 1e-3, "S moves at most %.3g m per frame", skin_motion);
+    CHECK_MSG(offset > 1e-3, "X_t stays within %.3g m of S_t", offset);
     printf("priors over %u frames x 3 precisions: previous - inertial off by %.3g m, skinned - previous off by "
-           "%.3g m (S moves up to %.3g m per frame), ballistic - previous off by %.3g m\n",
-           T, worst_prev, worst_skin, skin_motion, worst_ball);
+           "%.3g m (S moves up to %.3g m per frame), ballistic - previous off by %.3g m, decayed skinned - "
+           "previous off by %.3g m (X_t - S_t up to %.3g m)\n",
+           T, worst_prev, worst_skin, skin_motion, worst_ball, worst_decay, offset);
     free(X);
     free(Xp);
 }
@@ -666,16 +691,19 @@ static void priors(void)
     }
     weft_context *ctx = make_ctx();
     const char *names[4] = {"inertial", "previous", "skinned", "ballistic"};
-    weft_model *models[4] = {NULL, NULL, NULL, NULL};
-    for (int k = 0; k < 4; ++k) {
+    weft_model *models[PRIOR_MODELS] = {NULL};
+    bool loaded = true;
+    for (int k = 0; k < PRIOR_MODELS; ++k) {
         weft_result r;
-        models[k] = model_with_prior(ctx, names[k], &r);
+        models[k] = k < 4 ? model_with_prior(ctx, names[k], &r)
+                          : model_patched(ctx, "\\\"prior_decay\\\": 0.5, \\\"prior\\\": \\\"skinned\\\"", &r);
         CHECK_RESULT(r, WEFT_OK);
+        loaded = loaded && models[k];
     }
     const uint32_t T = 12;
     const size_t n = (size_t)g.V * 3;
     float *S = malloc((T + 1) * n * sizeof(float));
-    if (models[0] && models[1] && models[2] && models[3] && lbs_track(&g, ctx, T + 1, S)) {
+    if (loaded && lbs_track(&g, ctx, T + 1, S)) {
         prior_differences(&g, ctx, models, S, T);
         skinned_rollout(&g, ctx, models[2], T);
     }
@@ -687,7 +715,7 @@ static void priors(void)
     CHECK_MSG(strstr(weft_last_error(), "'inertial', 'previous', 'skinned' or 'ballistic'") != NULL, "message: %s",
               weft_last_error());
     free(S);
-    for (int k = 0; k < 4; ++k) {
+    for (int k = 0; k < PRIOR_MODELS; ++k) {
         weft_model_destroy(models[k]);
     }
     weft_context_destroy(ctx);
@@ -699,6 +727,9 @@ static void priors(void)
     expect_create_fails("\\\"prior\\\": \\\"", "\\\"prior_beta\\\": 1.5, \\\"prior\\\": \\\"", true,
                         WEFT_ERROR_BAD_METADATA);
     expect_create_fails("\\\"prior\\\": \\\"", "\\\"gravity_step\\\": -1, \\\"prior\\\": \\\"", true,
+                        WEFT_ERROR_BAD_METADATA);
+    /* and so is the skinned prior's decay */
+    expect_create_fails("\\\"prior\\\": \\\"", "\\\"prior_decay\\\": 1.5, \\\"prior\\\": \\\"", true,
                         WEFT_ERROR_BAD_METADATA);
 }
 

@@ -15,7 +15,8 @@ Data flow for one step t -> t+1 (all positions in metres, centred on the garment
             (+ the encoder's vertex tokens when dec_skip) -> 2 x GNN -> Linear -> displacement
   output:   X_{t+1} = prior + out_scale * displacement, prior = 2 X_t - X_{t-1} ("inertial"), X_t
             ("previous"), X_t + S_{t+1} - S_t ("skinned": S is the skinning baseline on the
-            collider, runtime/xpbd/lbs.c; equal to "previous" when the collider does not move) or
+            collider, runtime/xpbd/lbs.c; equal to "previous" when the collider does not move;
+            with prior_decay a < 1, S_{t+1} + a (X_t - S_t)) or
             X_t + beta (X_t - X_{t-1}) + g dt^2 ("ballistic": free fall is in the prior)
 """
 import json
@@ -44,6 +45,8 @@ DEFAULT_CONFIG = {
     "prior": "inertial",  # "inertial" (2 X_t - X_{t-1}), "previous" (X_t), "skinned" (X_t + S_{t+1} - S_t),
                           # "ballistic" (X_t + prior_beta (X_t - X_{t-1}) - gravity_step along Y)
     "prior_beta": 1.0,    # ballistic prior: fraction of the last frame's displacement carried on
+    "prior_decay": 1.0,   # skinned prior: S_{t+1} + prior_decay (X_t - S_t), the offset from the skinned
+                          # garment kept per step (1: X_t + S_{t+1} - S_t; < 1: drift decays toward it)
     "gravity_step": 9.81 / 3600.0,  # ballistic prior: g dt^2 (m) at 60 Hz, applied along -Y
     "crop_margin": 0.15,  # collider triangles farther than this (m) from the garment box are dropped
     "dec_skip": True,     # decoder adds the encoder's per-vertex tokens to its queries' output
@@ -62,6 +65,8 @@ def full_config(cfg):
         raise ValueError("D must be a multiple of H")
     if out["prior"] not in PRIORS:
         raise ValueError("prior must be one of " + ", ".join(PRIORS))
+    if not 0.0 <= out["prior_decay"] <= 1.0:
+        raise ValueError("prior_decay must be in [0, 1]")
     return out
 
 
@@ -291,7 +296,10 @@ class ClothTransformer(nn.Module):
         if p == "skinned":
             if s_next is None or s_cur is None:
                 raise ValueError("the skinned prior needs the S track (S_t and S_{t+1})")
-            return x_t + (s_next - s_cur)
+            a = self.cfg["prior_decay"]
+            if a == 1.0:
+                return x_t + (s_next - s_cur)
+            return s_next + a * (x_t - s_cur)
         if p == "ballistic":
             g = torch.zeros(3, dtype=x_t.dtype, device=x_t.device)
             g[1] = -self.cfg["gravity_step"]

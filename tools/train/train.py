@@ -84,7 +84,8 @@ def data_stats(seqs, cfg):
             if s.skin is None:   # refused after the config is settled (main)
                 continue
             sk = np.asarray(s.skin, dtype=np.float64)
-            p = p + sk[2:] - sk[1:-1]
+            a = cfg["prior_decay"]
+            p = p + sk[2:] - sk[1:-1] if a == 1.0 else sk[2:] + a * (p - sk[1:-1])
         res.append((x[2:] - p).reshape(-1))
         if s.cfaces is not None:
             c = np.asarray(s.cpos[0], dtype=np.float64)
