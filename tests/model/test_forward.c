@@ -120,6 +120,11 @@ static const golden_layout golden_drop_seq = {WEFT_SOURCE_DIR "/tests/data/sampl
                                               "rest_pos", "faces", "collider_faces", "cloth_pos", "collider_pos",
                                               "<i4"};
 
+/* tests/model/data/garment_seq again, with the shipped garment specialist's predictions in
+ * tests/model/data/garment_golden (see shipped_garment_parity). */
+static const golden_layout golden_garment_specialist = {GARMENT_SEQ, DATA "garment_golden/", "rest_pos", "faces",
+                                                        "collider_faces", "cloth_pos", "collider_pos", "<i4"};
+
 static void golden_free(golden *g)
 {
     npy *all[] = {&g->rest, &g->faces, &g->cfaces, &g->gt, &g->cpos, &g->tf_frames, &g->tf_pred, &g->rollout};
@@ -381,6 +386,18 @@ static void shipped_drop_parity(void)
 {
     teacher_forced_parity_of(&golden_drop_seq, WEFT_SOURCE_DIR "/tools/train/models/drop.safetensors", "tf_pred");
     rollout_parity_of(&golden_drop_seq, WEFT_SOURCE_DIR "/tools/train/models/drop.safetensors");
+}
+
+/* The shipped garment specialist (the skinned prior with prior_decay 0.9, K = 16) on the garment
+ * sequence, teacher-forced and rolled out (the rollout leaves S, so the decay acts);
+ * garment_golden/ is `export.py --ckpt tools/train/models/garment.ckpt.pt --golden
+ * tests/model/data/garment_golden --golden-seq tests/model/data/garment_seq --tf-frames 1,2,5,10
+ * --rollout 14 --golden-preds-only`. */
+static void shipped_garment_parity(void)
+{
+    teacher_forced_parity_of(&golden_garment_specialist, WEFT_SOURCE_DIR "/tools/train/models/garment.safetensors",
+                             "tf_pred");
+    rollout_parity_of(&golden_garment_specialist, WEFT_SOURCE_DIR "/tools/train/models/garment.safetensors");
 }
 
 /* The skinned prior X_t + S_{t+1} - S_t + out_scale d against PyTorch, on a garment whose collider
@@ -953,6 +970,7 @@ static void shipped_models_step(void)
     static const char *const files[] = {WEFT_SOURCE_DIR "/tools/train/models/game.safetensors",
                                         WEFT_SOURCE_DIR "/tools/train/models/game_k16.safetensors",
                                         WEFT_SOURCE_DIR "/tools/train/models/drop.safetensors",
+                                        WEFT_SOURCE_DIR "/tools/train/models/garment.safetensors",
                                         WEFT_SOURCE_DIR "/tools/train/models/unified.safetensors"};
     weft_context *ctx = make_ctx();
     for (size_t f = 0; f < sizeof files / sizeof files[0]; ++f) {
@@ -1206,7 +1224,7 @@ static void parallel_for_hook(void)
 }
 
 TEST_MAIN(TEST_CASE(teacher_forced_parity), TEST_CASE(shipped_game_parity), TEST_CASE(shipped_models_step),
-          TEST_CASE(rollout_parity), TEST_CASE(shipped_drop_parity), TEST_CASE(skinned_teacher_forced_parity), TEST_CASE(skinned_rollout_parity),
+          TEST_CASE(rollout_parity), TEST_CASE(shipped_drop_parity), TEST_CASE(shipped_garment_parity), TEST_CASE(skinned_teacher_forced_parity), TEST_CASE(skinned_rollout_parity),
           TEST_CASE(bad_model_files), TEST_CASE(priors), TEST_CASE(skinned_lod_switch),
           TEST_CASE(bad_state_and_collider), TEST_CASE(reduced_precision),
           TEST_CASE(quantized_files), TEST_CASE(parallel_for_hook))

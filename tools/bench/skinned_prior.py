@@ -8,6 +8,8 @@ LBS method and the tethers use). Rolled out from reference frames 0 and 1 with n
   skinned   X_t = X_1 + S_t - S_1      (X_{t+1} = X_t + S_{t+1} - S_t)
   previous  X_t = X_1
 MVE in cm over frames 2.. (as `weft eval`), per sequence, then per scenario (mean of sequences).
+A second table gives, per scenario, how far the reference lies from the skinned garment, |X_t - S_t|
+over every vertex of frames 1.. (percentiles in cm): what a tether of a given radius would cut off.
 """
 import argparse
 import glob
@@ -27,6 +29,7 @@ def main():
     a = ap.parse_args()
     priors = ("lbs", "skinned", "previous")
     per_scenario = {}
+    offsets = {}
     with tempfile.TemporaryDirectory() as tmp:
         for split in a.split:
             cmd = [a.weft, "eval", "--seq", a.data, "--split", split, "--method", "lbs", "--ccd", "off",
@@ -41,9 +44,18 @@ def main():
             mve = {p: np.linalg.norm(tracks[p][2:] - g[2:], axis=-1).mean() * 100.0 for p in priors}
             print(f"{name:24s} " + "  ".join(f"{p} {mve[p]:6.2f}" for p in priors))
             per_scenario.setdefault(name.split("_")[0], []).append(mve)
+            offsets.setdefault(name.split("_")[0], []).append(
+                (np.linalg.norm(s[1:] - g[1:], axis=-1) * 100.0).astype(np.float32).ravel())
     print("\n| scenario (n) | " + " | ".join(priors) + " |\n|---|" + "---:|" * len(priors))
     for sc, rows in sorted(per_scenario.items()):
         print(f"| {sc} ({len(rows)}) | " + " | ".join(f"{np.mean([r[p] for r in rows]):.2f}" for p in priors) + " |")
+    pct = (50, 75, 90, 95, 99)
+    print("\n|X_t - S_t| (cm) over all vertices and frames\n\n| scenario (n) | mean | "
+          + " | ".join(f"p{q}" for q in pct) + " | max |\n|---|---:|" + "---:|" * (len(pct) + 1))
+    for sc, rows in sorted(offsets.items()):
+        d = np.concatenate(rows)
+        print(f"| {sc} ({len(rows)}) | {d.mean():.2f} | " + " | ".join(f"{v:.2f}" for v in np.percentile(d, pct))
+              + f" | {d.max():.2f} |")
 
 
 if __name__ == "__main__":
