@@ -4,7 +4,7 @@ retry, S = 80), the rejections with where they failed, the share of frames that 
 attempt's substeps (fast-collider frames), and the simulation + validation time, optionally against
 an earlier set with the same names.
 
-    /usr/bin/python3 tools/bench/garment_tier_stats.py data/refsim [--compare data/refsim_garment_v1]
+    /usr/bin/python3 tools/bench/garment_tier_stats.py data/refsim --tier 1k [--compare data/refsim_garment_v1]
 """
 import argparse
 import collections
@@ -19,12 +19,13 @@ def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("data")
     ap.add_argument("--compare", help="an earlier set: its time and acceptance on the same names")
+    ap.add_argument("--tier", default="*", help="only garment_<TIER>_* (1k, 4k, 16k; default: every tier)")
     a = ap.parse_args()
     names, accepted, gentle = collections.Counter(), collections.Counter(), collections.Counter()
     at80 = raised = frames = max_s = 0
     seconds = seconds_old = 0.0
     rejected, old_accepted = [], 0
-    for d in sorted(glob.glob(os.path.join(a.data, "garment_*"))):
+    for d in sorted(glob.glob(os.path.join(a.data, f"garment_{a.tier}_*"))):
         m = json.load(open(os.path.join(d, "meta.json")))
         kind = m["description"].split()[1]
         names[kind] += 1
