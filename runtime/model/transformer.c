@@ -34,7 +34,8 @@ static weft_result get_pos(const weft_model *m, const char *key, float *out)
     return WEFT_OK;
 }
 
-static const char *const g_prior_names[WEFT_CT_PRIOR_COUNT] = {"inertial", "previous", "skinned", "ballistic"};
+static const char *const g_prior_names[WEFT_CT_PRIOR_COUNT] = {"inertial", "previous", "skinned", "ballistic",
+                                                                      "grasp"};
 
 /* Optional number `key` in [lo, hi]; `*out` keeps its default when the file has no such key. */
 static weft_result get_optional_in(const weft_model *m, const char *key, double lo, double hi, float *out)
@@ -91,7 +92,8 @@ static weft_result read_config(const weft_model *m, weft_ct_config *c)
     t.prior = prior_named(prior);
     if (t.prior == WEFT_CT_PRIOR_COUNT) {
         return weft__fail(WEFT_ERROR_BAD_METADATA,
-                          "model config 'prior' = '%s': expected 'inertial', 'previous', 'skinned' or 'ballistic'",
+                          "model config 'prior' = '%s': expected 'inertial', 'previous', 'skinned', 'ballistic' "
+                          "or 'grasp'",
                           prior);
     }
     t.prior_beta = 1.0f;
@@ -1339,6 +1341,19 @@ static weft_result ct_output(weft_garment *g, ct_state *s)
             return r;
         }
     }
+    /* The grasp prior's step: the mean move of the pinned vertices to their targets. */
+    float held[3] = {0.0f, 0.0f, 0.0f};
+    if (c->prior == WEFT_CT_PRIOR_GRASP && g->pin_count > 0) {
+        for (uint32_t k = 0; k < g->pin_count; ++k) {
+            const float *p = g->pin_targets + 3 * (size_t)k, *x = g->x + 3 * (size_t)g->pin_indices[k];
+            for (int j = 0; j < 3; ++j) {
+                held[j] += p[j] - x[j];
+            }
+        }
+        for (int j = 0; j < 3; ++j) {
+            held[j] /= (float)g->pin_count;
+        }
+    }
     for (size_t i = 0; i < (size_t)s->N * 3; ++i) {
         float prior = g->x[i]; /* previous */
         if (c->prior == WEFT_CT_PRIOR_INERTIAL) {
@@ -1349,6 +1364,8 @@ static weft_result ct_output(weft_garment *g, ct_state *s)
                                            : s->skin_next[i] + c->prior_decay * (g->x[i] - s->skin_cur[i]);
         } else if (c->prior == WEFT_CT_PRIOR_BALLISTIC) {
             prior = g->x[i] + c->prior_beta * (g->x[i] - g->x_prev[i]) - (i % 3 == 1 ? c->gravity_step : 0.0f);
+        } else if (c->prior == WEFT_CT_PRIOR_GRASP) {
+            prior = g->pin_count > 0 ? g->x[i] + held[i % 3] : g->x[i] + c->prior_beta * (g->x[i] - g->x_prev[i]);
         }
         g->x_next[i] = prior + c->out_scale * s->out3[i];
     }

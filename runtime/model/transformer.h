@@ -25,6 +25,10 @@ typedef enum weft_ct_prior {
                                            prior_decay a < 1, S_{t+1} + a (X_t - S_t) */
     WEFT_CT_PRIOR_BALLISTIC,            /* "ballistic": X_t + prior_beta (X_t - X_{t-1}) - gravity_step Y:
                                            free fall is in the prior, the network adds contact */
+    WEFT_CT_PRIOR_GRASP,                /* "grasp": X_t + the mean of P_k - X_t[i_k] over the pins
+                                           (weft_garment_set_pins: vertex i_k to P_k at t+1), so a held
+                                           cloth moves with its hand; without pins X_t + prior_beta
+                                           (X_t - X_{t-1}) */
     WEFT_CT_PRIOR_COUNT
 } weft_ct_prior;
 
@@ -32,7 +36,8 @@ typedef struct weft_ct_config {
     uint32_t K, D, L, H, history, ffn, nfreq, gnn_layers;
     float vel_scale, area_scale, out_scale, crop_margin, ln_eps;
     weft_ct_prior prior;
-    float prior_beta, gravity_step;     /* the ballistic prior's terms (optional keys: 1, 9.81/3600 m) */
+    float prior_beta, gravity_step;     /* the ballistic (and grasp) prior's terms (optional keys: 1,
+                                           9.81/3600 m) */
     float prior_decay;                  /* the skinned prior's kept offset (optional key: 1) */
     bool dec_skip;
     bool requires_collider;             /* trained only with colliders */

@@ -1,5 +1,6 @@
-"""Cut a small test sequence out of a simgen sequence: the first --frames frames, the collider
-cropped to the triangles the model's crop can ever keep (pack.crop_support), in the simgen layout.
+"""Cut a small test sequence out of a simgen sequence: --frames frames from --start (default the
+first), the collider cropped to the triangles the model's crop can ever keep (pack.crop_support), and
+the pin masks when the sequence has them, in the simgen layout.
 
   /usr/bin/python3 tools/train/cut_seq.py --seq data/refsim/garment_1k_0053 --frames 16 \
       --out tests/model/data/garment_seq
@@ -36,20 +37,26 @@ def main():
     ap.add_argument("--seq", required=True)
     ap.add_argument("--out", required=True)
     ap.add_argument("--frames", type=int, default=24)
+    ap.add_argument("--start", type=int, default=0, help="first frame kept")
     ap.add_argument("--crop-margin", type=float, default=0.15)
     a = ap.parse_args()
     s = weft_data.Sequence(a.seq)
-    T = min(a.frames, s.frames)
-    pos = np.asarray(s.pos[:T], dtype=np.float32)
+    if not 0 <= a.start < s.frames:
+        sys.exit(f"--start {a.start}: the sequence has {s.frames} frames")
+    T = min(a.frames, s.frames - a.start)
+    cut = slice(a.start, a.start + T)
+    pos = np.asarray(s.pos[cut], dtype=np.float32)
     os.makedirs(a.out, exist_ok=True)
     np.save(os.path.join(a.out, "cloth_pos.npy"), pos)
     np.save(os.path.join(a.out, "rest_pos.npy"), s.rest.astype(np.float32))
     np.save(os.path.join(a.out, "faces.npy"), s.faces.astype(np.int32))
     meta = dict(s.meta)
     meta["frames"] = T
-    meta["cut_from"] = {"sequence": s.name, "frames": T, "collider_crop_margin_m": a.crop_margin}
+    meta["cut_from"] = {"sequence": s.name, "start": a.start, "frames": T, "collider_crop_margin_m": a.crop_margin}
+    if s.pinned is not None:
+        np.save(os.path.join(a.out, "pinned.npy"), (np.asarray(s.pinned[cut]) != 0).astype(np.uint8))
     if s.cpos is not None:
-        cpos, cfaces, kept = crop_collider(pos, np.asarray(s.cpos[:T], dtype=np.float32), s.cfaces, a.crop_margin)
+        cpos, cfaces, kept = crop_collider(pos, np.asarray(s.cpos[cut], dtype=np.float32), s.cfaces, a.crop_margin)
         np.save(os.path.join(a.out, "collider_pos.npy"), cpos)
         np.save(os.path.join(a.out, "collider_faces.npy"), cfaces)
         meta["cut_from"]["collider_triangles_kept"] = [int(kept), int(len(s.cfaces))]

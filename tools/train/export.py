@@ -91,6 +91,14 @@ def golden(model, seq, out_dir, tf_frames, rollout_len, seq_arrays=True):
     ctri = None if seq.cfaces is None else torch.from_numpy(seq.cfaces)
     xa = torch.from_numpy(x).unsqueeze(0)
     ca = None if c is None else torch.from_numpy(c).unsqueeze(0)
+    # pins (pinned.npy): the vertices pinned at t+1 take their reference positions, as `weft eval
+    # --pins all` sets them (weft_garment_set_pins), and the grasp prior reads them
+    pw = seq.pin_window(0, T)
+    pa = None if pw is None else torch.from_numpy(pw).unsqueeze(0)
+
+    def pinned(xn, t):
+        return xn if pa is None else torch.where(pa[:, t + 1].unsqueeze(-1), xa[:, t + 1], xn)
+
     tf = []
     frames = [t for t in tf_frames if 1 <= t < T - 1]
     with torch.no_grad():
@@ -99,15 +107,18 @@ def golden(model, seq, out_dir, tf_frames, rollout_len, seq_arrays=True):
             cc = None if ca is None else ca[:, t]
             sn = None if sa is None else sa[:, t + 1]
             sc = None if sa is None else sa[:, t]
-            xn, _ = model.step([], xa[:, t], xa[:, t - 1], rest, adj, cn, cc, ctri, sn, sc)
-            tf.append(xn[0].numpy())
+            pm = None if pa is None else pa[:, t + 1]
+            xn, _ = model.step([], xa[:, t], xa[:, t - 1], rest, adj, cn, cc, ctri, sn, sc, pm, xa[:, t + 1])
+            tf.append(pinned(xn, t)[0].numpy())
         hist, xp, xc, roll = [], xa[:, 0], xa[:, 1], []
         for t in range(1, T - 1):
             cn = None if ca is None else ca[:, t + 1]
             cc = None if ca is None else ca[:, t]
             sn = None if sa is None else sa[:, t + 1]
             sc = None if sa is None else sa[:, t]
-            xn, hist = model.step(hist, xc, xp, rest, adj, cn, cc, ctri, sn, sc)
+            pm = None if pa is None else pa[:, t + 1]
+            xn, hist = model.step(hist, xc, xp, rest, adj, cn, cc, ctri, sn, sc, pm, xa[:, t + 1])
+            xn = pinned(xn, t)
             roll.append(xn[0].numpy())
             xp, xc = xc, xn
     save = lambda n, a, dt="<f4": np.save(os.path.join(out_dir, n + ".npy"), np.ascontiguousarray(a, dtype=dt))  # noqa: E731

@@ -16,12 +16,17 @@
 #                                          launch` trains on data/refsim
 #   tools/train/gpu_data.sh count          finished and accepted sequences so far
 #
+# ONLY=drop|gripper|garment generates one scenario (simgen --only); DATA=DIR writes elsewhere than
+# data/refsim; NO_SKIN=1 makes `prepare` skip the S tracks (priors other than the skinned one).
+#
 # Generation is resumable and deterministic per name (docs/DATASET.md), so the sequences a lent
 # machine makes are the ones `weft simgen --out data/refsim --all --tier 1k` makes anywhere.
 set -u
 cd "$(dirname "$0")/../.." || exit 1
 B=${BUNDLE:-.dev}
 W=$PWD/$B/weft
+D=${DATA:-data/refsim}
+O=${ONLY:+--only $ONLY}
 export LD_LIBRARY_PATH=$PWD/$B${LD_LIBRARY_PATH:+:$LD_LIBRARY_PATH}
 
 case "${1:-}" in
@@ -39,28 +44,31 @@ case "${1:-}" in
         ldd "$W" | grep 'not found' && exit 3
         n=${JOBS:-$(nproc)}
         t=$((n > 4 ? n - 2 : n - 1))
-        mkdir -p data/refsim
+        mkdir -p "$D"
         for i in $(seq 0 $((t - 1))); do
-            setsid nohup "$W" simgen --out data/refsim --all --tier 1k --split train --shard "$i/$t" \
+            # shellcheck disable=SC2086
+            setsid nohup "$W" simgen --out "$D" --all --tier 1k $O --split train --shard "$i/$t" \
                 > "/tmp/simgen_train_$i.log" 2>&1 < /dev/null &
         done
         for i in $(seq 0 $((n - t - 1))); do
-            setsid nohup "$W" simgen --out data/refsim --all --tier 1k --split val --shard "$i/$((n - t))" \
+            # shellcheck disable=SC2086
+            setsid nohup "$W" simgen --out "$D" --all --tier 1k $O --split val --shard "$i/$((n - t))" \
                 > "/tmp/simgen_val_$i.log" 2>&1 < /dev/null &
         done
         sleep 2
         echo "$(pgrep -fc '[w]eft simgen') simgen processes" ;;
     prepare)
-        pkill -f '[w]eft simgen'
+        pkill -f "[w]eft simgen --out $D "   # this set's generators only
         sleep 2
-        "$W" simgen --out data/refsim --manifest-only 2>&1 | tail -1
+        "$W" simgen --out "$D" --manifest-only 2>&1 | tail -1
+        [ -n "${NO_SKIN:-}" ] && exit 0
         for s in train val; do
-            "$W" eval --seq data/refsim --split $s --method lbs --ccd off --write-pos data/skin 2>&1 | tail -1 &
+            "$W" eval --seq "$D" --split $s --method lbs --ccd off --write-pos data/skin 2>&1 | tail -1 &
         done
         wait
         echo "$(ls data/skin | wc -l) S tracks" ;;
     count)
-        echo "finished $(find data/refsim -name meta.json | wc -l)," \
-             "accepted $(grep -l '"accepted":[[:space:]]*true' data/refsim/*/meta.json 2>/dev/null | wc -l)" ;;
+        echo "finished $(find "$D" -name meta.json | wc -l)," \
+             "accepted $(grep -l '"accepted":[[:space:]]*true' "$D"/*/meta.json 2>/dev/null | wc -l)" ;;
     *) echo "usage: $0 bundle [DIR] | gen | prepare | count" >&2; exit 2 ;;
 esac

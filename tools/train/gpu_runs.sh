@@ -33,6 +33,11 @@
 #            "Ballistic prior: a drop specialist"): `game_k16` fine-tuned on drops with beta 1 and 0.9, one on drops
 #            and the gripper, and one from scratch at the game_k16 size; rollouts to 30 steps
 #            (data: as for long, the S tracks are not needed)
+#   dropgpu  the shipped drop specialist `drop` continued at batch 64 (rollouts 8 -> 20, and
+#            8 -> 30 with a 10x contact weight), beside `game_k16` fine-tuned with the ballistic prior
+#            as `drop` began; snapshots every 100 steps, chosen afterwards on all 14 validation
+#            drops with `weft eval` (data: drops only, ONLY=drop DATA=data/drops gpu_data.sh gen,
+#            made on the machine's cores just before; NO_SKIN=1)
 set -u
 cd "$(dirname "$0")/../.." || exit 1
 R=data/gpu/runs
@@ -48,7 +53,9 @@ case "$SET" in
           EXTRA="--skin data/skin --eval-every 400 --eval-frames 238 --keep-best --pins --max-train-vertices 5000" ;;
     ballistic) RUNS="ball_drop ball_drop_b09 ball_dg ball_drop0"; DATA=${DATA:-data/refsim}; BUDGET=${BUDGET:-14}
           EXTRA="--eval-every 400 --eval-frames 238 --keep-best --pins --max-train-vertices 5000 --rollout-max 30" ;;
-    *) echo "unknown SET=$SET (shipped|skin|skin2|pins|long|ballistic)" >&2; exit 2 ;;
+    dropgpu) RUNS="drop_r20 drop_r30c ball_k16"; DATA=${DATA:-data/drops}; BUDGET=${BUDGET:-5}
+          EXTRA="--eval-every 150 --eval-frames 238 --keep-best --snapshot-every 100 --scenarios drop" ;;
+    *) echo "unknown SET=$SET (shipped|skin|skin2|pins|long|ballistic|dropgpu)" >&2; exit 2 ;;
 esac
 
 run_args() {  # the arguments of run $1 (besides the common ones)
@@ -82,6 +89,12 @@ run_args() {  # the arguments of run $1 (besides the common ones)
                             "--config '{\"prior\":\"ballistic\",\"prior_beta\":0.9}' --scenarios drop --batch 32 --lr 3e-4" ;;
         ball_dg) echo "--init-from tools/train/models/game_k16.ckpt.pt --config '{\"prior\":\"ballistic\"}'" \
                       --scenarios drop,gripper --batch 32 --lr 3e-4 ;;
+        drop_r20) echo --init-from tools/train/models/drop.ckpt.pt --batch 64 --lr 1.5e-4 --rollout-min 8 \
+                       --rollout-max 20 ;;
+        drop_r30c) echo --init-from tools/train/models/drop.ckpt.pt --batch 64 --lr 1.5e-4 --rollout-min 8 \
+                        --rollout-max 30 --lambda-contact 0.5 ;;
+        ball_k16) echo "--init-from tools/train/models/game_k16.ckpt.pt --config '{\"prior\":\"ballistic\"}'" \
+                       --batch 64 --lr 3e-4 --rollout-max 20 ;;
         ball_drop0) echo "--preset game --config '{\"prior\":\"ballistic\",\"K\":16}' --scenarios drop --batch 32 --lr 1e-3" ;;
     esac
 }
@@ -107,7 +120,10 @@ collect() {
         echo "== $n: $(grep -c . $R/$n/log.csv 2>/dev/null) log rows"
         tail -c 400 $R/$n.err 2>/dev/null | tr '\r' '\n' | tail -3
         awk -F, '$9 != ""' $R/$n/log.csv 2>/dev/null | tail -3
-        if [ -n "$dest" ] && [ -d $R/$n ]; then tar czf "$dest/$n.tgz" -C $R $n $n.err; fi
+        # with snapshots the optimizer state (ckpt.pt) stays behind: a returned file is at most 16 MiB
+        local x=""
+        compgen -G "$R/$n/snap_*.pt" > /dev/null && x=--exclude=ckpt.pt
+        if [ -n "$dest" ] && [ -d $R/$n ]; then tar czf "$dest/$n.tgz" $x -C $R $n $n.err; fi
     done
 }
 
@@ -118,5 +134,5 @@ case "${1:-}" in
         collect ;;
     launch) start "" ;;
     collect) collect ;;
-    *) echo "usage: SET=shipped|skin|skin2|pins|long|ballistic $0 train|launch|collect" >&2; exit 2 ;;
+    *) echo "usage: SET=shipped|skin|skin2|pins|long|ballistic|dropgpu $0 train|launch|collect" >&2; exit 2 ;;
 esac

@@ -17,7 +17,9 @@ Data flow for one step t -> t+1 (all positions in metres, centred on the garment
             ("previous"), X_t + S_{t+1} - S_t ("skinned": S is the skinning baseline on the
             collider, runtime/xpbd/lbs.c; equal to "previous" when the collider does not move;
             with prior_decay a < 1, S_{t+1} + a (X_t - S_t)) or
-            X_t + beta (X_t - X_{t-1}) + g dt^2 ("ballistic": free fall is in the prior)
+            X_t + beta (X_t - X_{t-1}) + g dt^2 ("ballistic": free fall is in the prior) or
+            X_t + mean_pins(P_{t+1} - X_t) ("grasp": the whole cloth moves as its pinned vertices,
+            P their targets at t+1; with no pins X_t + beta (X_t - X_{t-1}))
 """
 import json
 import math
@@ -43,8 +45,10 @@ DEFAULT_CONFIG = {
     "area_scale": 100.0,  # multiplies sqrt(triangle area) (m) of collider triangles
     "out_scale": 0.01,    # metres per unit of the decoder output
     "prior": "inertial",  # "inertial" (2 X_t - X_{t-1}), "previous" (X_t), "skinned" (X_t + S_{t+1} - S_t),
-                          # "ballistic" (X_t + prior_beta (X_t - X_{t-1}) - gravity_step along Y)
-    "prior_beta": 1.0,    # ballistic prior: fraction of the last frame's displacement carried on
+                          # "ballistic" (X_t + prior_beta (X_t - X_{t-1}) - gravity_step along Y),
+                          # "grasp" (X_t + the mean step of the pinned vertices; unpinned: as ballistic
+                          # without gravity)
+    "prior_beta": 1.0,    # ballistic and grasp priors: fraction of the last frame's displacement carried on
     "prior_decay": 1.0,   # skinned prior: S_{t+1} + prior_decay (X_t - S_t), the offset from the skinned
                           # garment kept per step (1: X_t + S_{t+1} - S_t; < 1: drift decays toward it)
     "gravity_step": 9.81 / 3600.0,  # ballistic prior: g dt^2 (m) at 60 Hz, applied along -Y
@@ -55,7 +59,7 @@ DEFAULT_CONFIG = {
 }
 
 GELU_TANH = "tanh"
-PRIORS = ("inertial", "previous", "skinned", "ballistic")
+PRIORS = ("inertial", "previous", "skinned", "ballistic", "grasp")
 
 
 def full_config(cfg):
@@ -289,8 +293,18 @@ class ClothTransformer(nn.Module):
             h = g(h, adj)
         return self.dec_head(self.dec_ln(h))
 
-    def prior(self, x_t, x_prev, s_next=None, s_cur=None):
+    def prior(self, x_t, x_prev, s_next=None, s_cur=None, pin_mask=None, pin_next=None):
         p = self.cfg["prior"]
+        if p == "grasp":
+            # a held cloth moves with its hand: every vertex takes the mean step of the pinned ones
+            # (targets P_{t+1} minus their X_t); a cloth that nothing holds carries its velocity on
+            free = x_t + self.cfg["prior_beta"] * (x_t - x_prev)
+            if pin_mask is None:
+                return free
+            m = pin_mask.to(x_t.dtype).unsqueeze(-1)                      # (B, V, 1)
+            n = m.sum(dim=1, keepdim=True)                                # (B, 1, 1)
+            step = ((pin_next - x_t) * m).sum(dim=1, keepdim=True) / n.clamp(min=1.0)
+            return torch.where(n > 0, x_t + step, free)
         if p == "inertial":
             return 2.0 * x_t - x_prev
         if p == "skinned":
@@ -308,16 +322,19 @@ class ClothTransformer(nn.Module):
 
     # -- one step ----------------------------------------------------------------------------
 
-    def step(self, hist, x_t, x_prev, rest, adj, c_next=None, c_cur=None, ctri=None, s_next=None, s_cur=None):
+    def step(self, hist, x_t, x_prev, rest, adj, c_next=None, c_cur=None, ctri=None, s_next=None, s_cur=None,
+             pin_mask=None, pin_next=None):
         """hist: list of past latents (B, K, D) (oldest first, may be empty: reset); s_next/s_cur:
-        the S track at t+1 and t (the skinned prior only). Returns (x_next, new hist list)."""
+        the S track at t+1 and t (the skinned prior only); pin_mask (B, V) bool and pin_next
+        (B, V, 3): the vertices pinned at t+1 and their targets (the grasp prior only). Returns
+        (x_next, new hist list)."""
         z, vtok = self.encode(x_t, x_prev, adj, c_next, c_cur, ctri)
         hist = (list(hist) + [z])[-self.cfg["history"]:]
         while len(hist) < self.cfg["history"]:
             hist = [hist[0]] + hist            # repeat the oldest after a reset
         z_next = self.temporal(torch.stack(hist, dim=1))
         d = self.decode(z_next, rest, adj, vtok)
-        return self.prior(x_t, x_prev, s_next, s_cur) + self.cfg["out_scale"] * d, hist
+        return self.prior(x_t, x_prev, s_next, s_cur, pin_mask, pin_next) + self.cfg["out_scale"] * d, hist
 
     def metadata(self, name=""):
         return {"architecture": ARCHITECTURE, "name": name, "config": json.dumps(self.cfg, sort_keys=True)}

@@ -80,6 +80,13 @@ def data_stats(seqs, cfg):
         if prior == "ballistic":
             p = x[1:-1] + cfg["prior_beta"] * (x[1:-1] - x[:-2])
             p[..., 1] -= cfg["gravity_step"]
+        if prior == "grasp":
+            p = x[1:-1] + cfg["prior_beta"] * (x[1:-1] - x[:-2])
+            if s.pinned is not None:
+                pm = np.asarray(s.pinned[2:]) != 0                       # pinned at t+1
+                n = pm.sum(axis=1)
+                step = ((x[2:] - x[1:-1]) * pm[..., None]).sum(axis=1) / np.maximum(n, 1)[:, None]
+                p = np.where((n > 0)[:, None, None], x[1:-1] + step[:, None, :], p)
         if prior == "skinned":
             if s.skin is None:   # refused after the config is settled (main)
                 continue
@@ -151,7 +158,8 @@ class Rollout(torch.nn.Module):
             cc = None if c_all is None else c_all[:, t]
             sn = None if s_all is None else s_all[:, t + 1]
             sc = None if s_all is None else s_all[:, t]
-            xn, hist = m.step(hist, x, xp, rest, adj, cn, cc, ctri, sn, sc)
+            pm = None if p_all is None else p_all[:, t + 1]
+            xn, hist = m.step(hist, x, xp, rest, adj, cn, cc, ctri, sn, sc, pm, x_all[:, t + 1])
             if p_all is not None:
                 xn = torch.where(p_all[:, t + 1].unsqueeze(-1), x_all[:, t + 1], xn)
             preds.append(xn)
@@ -251,6 +259,9 @@ def main():
                          "the run ends after this many minutes in all, resumes included")
     ap.add_argument("--ckpt-every", type=int, default=200)
     ap.add_argument("--eval-every", type=int, default=500)
+    ap.add_argument("--snapshot-every", type=int, default=0,
+                    help="also keep the weights of every Nth step as snap_STEP.pt (weights and config only), "
+                         "to choose among them afterwards on a larger validation set than the run sees")
     ap.add_argument("--eval-frames", type=int, default=60)
     ap.add_argument("--keep-best", action="store_true",
                     help="also keep OUT/best.pt: the weights with the lowest validation MVE so far (use a "
@@ -472,6 +483,9 @@ def main():
             msg = (f"[{bar}] {step}/{a.steps} rms {run_avg:.3f} cm R={R} lr {lr:.2g} "
                    f"{elapsed / 60:.1f} min" + (f" val MVE {val_mve} cm" if val_mve else ""))
             print(("\r" + msg) if tty else msg, end="" if tty and not val_mve else "\n", file=sys.stderr, flush=True)
+        if rank == 0 and a.snapshot_every > 0 and step % a.snapshot_every == 0:
+            save_ckpt(os.path.join(a.out, f"snap_{step:06d}.pt"), {"model": net.state_dict(), "config": cfg,
+                                                                  "step": step, "elapsed": elapsed})
         out_of_time = a.max_minutes > 0 and (time.time() - t_start) > 60 * a.max_minutes
         if rank == 0 and (step % a.ckpt_every == 0 or step == a.steps or out_of_time):
             save_ckpt(ckpt_path, {"model": net.state_dict(), "opt": opt.state_dict(), "step": step,
