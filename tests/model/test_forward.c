@@ -57,9 +57,10 @@ static int npy_load_in(const char *dir, const char *name, const char *descr, npy
         }
     }
     ok = ok && sh && out->rank > 0;
+    const size_t item = strstr(descr, "u1") ? 1 : 4; /* pin masks are bytes, the rest 4-byte */
     if (ok) {
-        out->data = malloc(out->count * 4 + 1);
-        ok = out->data && fread(out->data, 4, out->count, f) == out->count;
+        out->data = malloc(out->count * item + 1);
+        ok = out->data && fread(out->data, item, out->count, f) == out->count;
     }
     fclose(f);
     if (!ok) {
@@ -92,7 +93,7 @@ static void *read_file(const char *path, size_t *size)
 /* ---- fixture --------------------------------------------------------------------------- */
 
 typedef struct golden {
-    npy rest, faces, cfaces, gt, cpos, tf_frames, tf_pred, rollout;
+    npy rest, faces, cfaces, gt, cpos, tf_frames, tf_pred, rollout, pinned; /* pinned: data NULL without pins */
     uint32_t V, F, Vc, Fc;
 } golden;
 
@@ -102,32 +103,34 @@ typedef struct golden {
 typedef struct golden_layout {
     const char *seq_dir, *pred_dir;
     const char *rest, *faces, *cfaces, *gt, *cpos, *index_descr;
+    const char *pinned; /* [T, V] u1 pin masks in seq_dir, or NULL */
 } golden_layout;
 
 /* tests/model/data: everything written by export.py --golden (of tests/data/sample_seq). */
-static const golden_layout golden_flat = {DATA, DATA, "rest", "faces", "cfaces", "gt_pos", "c_pos", "<u4"};
+static const golden_layout golden_flat = {DATA, DATA, "rest", "faces", "cfaces", "gt_pos", "c_pos", "<u4", NULL};
 
 /* tests/model/data/garment_seq (tools/train/cut_seq.py): a garment on a moving body, in the simgen
  * layout, with the predictions of export.py --golden-preds-only in golden/ (see
  * skinned_teacher_forced_parity). */
 #define GARMENT_SEQ DATA "garment_seq/"
 static const golden_layout golden_garment_seq = {GARMENT_SEQ, GARMENT_SEQ "golden/", "rest_pos", "faces",
-                                                 "collider_faces", "cloth_pos", "collider_pos", "<i4"};
+                                                 "collider_faces", "cloth_pos", "collider_pos", "<i4", NULL};
 
 /* tests/data/sample_seq (a 60-frame drop in the simgen layout), with the shipped drop model's
  * predictions in tests/model/data/drop_golden (see shipped_drop_parity). */
 static const golden_layout golden_drop_seq = {WEFT_SOURCE_DIR "/tests/data/sample_seq/", DATA "drop_golden/",
                                               "rest_pos", "faces", "collider_faces", "cloth_pos", "collider_pos",
-                                              "<i4"};
+                                              "<i4", NULL};
 
 /* tests/model/data/garment_seq again, with the shipped garment specialist's predictions in
  * tests/model/data/garment_golden (see shipped_garment_parity). */
 static const golden_layout golden_garment_specialist = {GARMENT_SEQ, DATA "garment_golden/", "rest_pos", "faces",
-                                                        "collider_faces", "cloth_pos", "collider_pos", "<i4"};
+                                                        "collider_faces", "cloth_pos", "collider_pos", "<i4", NULL};
 
 static void golden_free(golden *g)
 {
-    npy *all[] = {&g->rest, &g->faces, &g->cfaces, &g->gt, &g->cpos, &g->tf_frames, &g->tf_pred, &g->rollout};
+    npy *all[] = {&g->rest,      &g->faces,   &g->cfaces,  &g->gt,    &g->cpos,
+                  &g->tf_frames, &g->tf_pred, &g->rollout, &g->pinned};
     for (size_t i = 0; i < sizeof all / sizeof all[0]; ++i) {
         free(all[i]->data);
     }
@@ -142,7 +145,8 @@ static int golden_load_from(golden *g, const golden_layout *l)
              npy_load_in(l->seq_dir, l->gt, "<f4", &g->gt) && npy_load_in(l->seq_dir, l->cpos, "<f4", &g->cpos) &&
              npy_load_in(l->pred_dir, "tf_frames", "<u4", &g->tf_frames) &&
              npy_load_in(l->pred_dir, "tf_pred", "<f4", &g->tf_pred) &&
-             npy_load_in(l->pred_dir, "rollout", "<f4", &g->rollout);
+             npy_load_in(l->pred_dir, "rollout", "<f4", &g->rollout) &&
+             (!l->pinned || npy_load_in(l->seq_dir, l->pinned, "|u1", &g->pinned));
     /* shapes: V x 3 rest, [T, V, 3] cloth, [T, Vc, 3] collider; frames t-1 .. t+1 of each
      * teacher-forced t and frames 0 .. R+1 of the rollout are in the sequence */
     ok = ok && g->rest.rank == 2 && g->rest.shape[1] == 3 && g->faces.rank == 2 && g->faces.shape[1] == 3 &&
@@ -150,7 +154,9 @@ static int golden_load_from(golden *g, const golden_layout *l)
          g->cpos.rank == 3 && g->cpos.shape[0] == g->gt.shape[0] && g->rollout.rank == 3 &&
          g->rollout.shape[1] == g->rest.shape[0] && g->rollout.shape[0] + 2 <= g->gt.shape[0] &&
          g->tf_frames.rank == 1 && g->tf_pred.rank == 3 && g->tf_pred.shape[0] == g->tf_frames.shape[0] &&
-         g->tf_pred.shape[1] == g->rest.shape[0];
+         g->tf_pred.shape[1] == g->rest.shape[0] &&
+         (!l->pinned || (g->pinned.rank == 2 && g->pinned.shape[0] == g->gt.shape[0] &&
+                         g->pinned.shape[1] == g->rest.shape[0]));
     for (size_t i = 0; ok && i < g->tf_frames.count; ++i) {
         const uint32_t t = ((const uint32_t *)g->tf_frames.data)[i];
         ok = t >= 1 && t + 1 < g->gt.shape[0];
@@ -198,6 +204,29 @@ static weft_context *make_ctx(void)
     weft_context *ctx = NULL;
     CHECK_RESULT(weft_context_create(&cd, &ctx), WEFT_OK);
     return ctx;
+}
+
+/* The pins of frame t (the golden's mask, targets its ground truth), as `weft eval --pins all`
+ * sets them before the step to t; nothing without pin masks. */
+static void set_frame_pins(weft_garment *gar, const golden *g, size_t t)
+{
+    if (!g->pinned.data) {
+        return;
+    }
+    const uint8_t *mask = (const uint8_t *)g->pinned.data + t * g->V;
+    uint32_t *idx = malloc(g->V * sizeof(uint32_t));
+    float *to = malloc((size_t)g->V * 3 * sizeof(float));
+    uint32_t n = 0;
+    for (uint32_t v = 0; idx && to && v < g->V; ++v) {
+        if (mask[v]) {
+            idx[n] = v;
+            memcpy(to + 3 * (size_t)n, frame(&g->gt, t) + 3 * (size_t)v, 3 * sizeof(float));
+            n++;
+        }
+    }
+    CHECK_RESULT(weft_garment_set_pins(gar, idx, to, n), WEFT_OK);
+    free(idx);
+    free(to);
 }
 
 static weft_garment_def garment_def(const golden *g, const weft_model *m, size_t t)
@@ -272,6 +301,7 @@ static void teacher_forced_parity_of(const golden_layout *l, const char *model_f
     for (uint32_t t = 1; gar && t <= last; ++t) {
         CHECK_RESULT(weft_garment_set_state(gar, frame(&g.gt, t), frame(&g.gt, t - 1)), WEFT_OK);
         CHECK_RESULT(weft_garment_set_collider(gar, frame(&g.cpos, t + 1)), WEFT_OK);
+        set_frame_pins(gar, &g, t + 1);
         weft_result r = weft_garment_step(gar);
         CHECK_RESULT(r, WEFT_OK);
         if (r != WEFT_OK) {
@@ -348,6 +378,7 @@ static void rollout_parity_of(const golden_layout *l, const char *model_file)
     for (size_t i = 0; i < R; ++i) {
         memcpy(prev, weft_garment_positions(gar), (size_t)g.V * 3 * sizeof(float));
         CHECK_RESULT(weft_garment_set_collider(gar, frame(&g.cpos, i + 2)), WEFT_OK);
+        set_frame_pins(gar, &g, i + 2);
         weft_result r = weft_garment_step(gar);
         CHECK_RESULT(r, WEFT_OK);
         if (r != WEFT_OK) {
@@ -566,15 +597,17 @@ static bool lbs_track(const golden *g, weft_context *ctx, uint32_t frames, float
     return made;
 }
 
-/* The priors on the same network output: five garments (inertial, previous, skinned,
- * ballistic, skinned with prior_decay 0.5) set to the same state every frame of the skinned
- * model's rollout step to
+/* The priors on the same network output: six garments (inertial, previous, skinned,
+ * ballistic, skinned with prior_decay 0.5, grasp with prior_beta 0.5) set to the same state every
+ * frame of the skinned model's rollout step to
  *   x(previous) - x(inertial) = X_{t-1} - X_t,   x(skinned) - x(previous) = S_{t+1} - S_t,
- *   x(ballistic) - x(previous) = X_t - X_{t-1} - g dt^2 Y   (the default beta 1, g dt^2 9.81/3600 m) and
- *   x(decayed) - x(previous) = S_{t+1} + 0.5 (X_t - S_t) - X_t,
+ *   x(ballistic) - x(previous) = X_t - X_{t-1} - g dt^2 Y   (the default beta 1, g dt^2 9.81/3600 m),
+ *   x(decayed) - x(previous) = S_{t+1} + 0.5 (X_t - S_t) - X_t and
+ *   x(grasp) - x(previous) = mean_k (P_k - X_t[i_k]) on the unpinned vertices of a frame with pins
+ *   (three, every other frame), 0.5 (X_t - X_{t-1}) on a frame without,
  * S from the LBS method, at every precision. (weft_garment_set_state restarts the latent history
- * each frame, the same in all four.) */
-enum { PRIOR_MODELS = 5 };
+ * each frame, the same in all six.) */
+enum { PRIOR_MODELS = 6, GRASP_PINS = 3 };
 
 static void prior_differences(const golden *g, weft_context *ctx, weft_model *const models[PRIOR_MODELS],
                               const float *S, uint32_t T)
@@ -582,6 +615,8 @@ static void prior_differences(const golden *g, weft_context *ctx, weft_model *co
     const size_t n = (size_t)g->V * 3;
     float *X = malloc(n * sizeof(float)), *Xp = malloc(n * sizeof(float));
     double worst_prev = 0, worst_skin = 0, worst_ball = 0, worst_decay = 0, skin_motion = 0, offset = 0;
+    double worst_grasp = 0, held_motion = 0;
+    const uint32_t pin_idx[GRASP_PINS] = {0, g->V / 2, g->V - 1};
     for (int prec = 0; prec < 3; ++prec) {
         weft_garment *gar[PRIOR_MODELS] = {NULL};
         bool all = true;
@@ -600,6 +635,17 @@ static void prior_differences(const golden *g, weft_context *ctx, weft_model *co
         memcpy(X, frame(&g->gt, 1), n * sizeof(float));
         memcpy(Xp, frame(&g->gt, 0), n * sizeof(float));
         for (uint32_t t = 1; t <= T; ++t) {
+            /* the grasp garment's hand: three vertices pulled along a frame-dependent step */
+            float pin_to[GRASP_PINS * 3], held[3] = {0, 0, 0};
+            const uint32_t pins = t % 2 == 0 ? GRASP_PINS : 0;
+            for (uint32_t k = 0; k < pins; ++k) {
+                for (int j = 0; j < 3; ++j) {
+                    const float move = 0.004f * (float)t * (float)(j + 1) - 0.01f * (float)k;
+                    pin_to[3 * k + j] = X[3 * (size_t)pin_idx[k] + j] + move;
+                    held[j] += move / (float)pins;
+                }
+            }
+            CHECK_RESULT(weft_garment_set_pins(gar[5], pin_idx, pin_to, pins), WEFT_OK);
             for (int k = 0; k < PRIOR_MODELS; ++k) {
                 CHECK_RESULT(weft_garment_set_state(gar[k], X, Xp), WEFT_OK);
                 CHECK_RESULT(weft_garment_set_collider(gar[k], frame(&g->cpos, t + 1)), WEFT_OK);
@@ -628,6 +674,23 @@ static void prior_differences(const golden *g, weft_context *ctx, weft_model *co
             CHECK_MSG(e_decay <= 1e-5, "precision %d frame %u: decayed skinned - previous off by %.3g m", prec, t,
                       e_decay);
             worst_decay = fmax(worst_decay, e_decay);
+            const float *xg = weft_garment_positions(gar[5]);
+            double e_grasp = 0;
+            for (size_t i = 0; i < n; ++i) {
+                const size_t v = i / 3;
+                if (pins && (v == pin_idx[0] || v == pin_idx[1] || v == pin_idx[2])) {
+                    continue; /* pinned: at their targets after the step */
+                }
+                const double want = pins ? held[i % 3] : 0.5 * ((double)X[i] - Xp[i]);
+                e_grasp = fmax(e_grasp, fabs(((double)xg[i] - xp[i]) - want));
+                held_motion = fmax(held_motion, fabs(want));
+            }
+            for (uint32_t k = 0; k < pins; ++k) {
+                CHECK(memcmp(xg + 3 * (size_t)pin_idx[k], pin_to + 3 * k, 3 * sizeof(float)) == 0);
+            }
+            CHECK_MSG(e_grasp <= 1e-5, "precision %d frame %u (%u pins): grasp - previous off by %.3g m", prec, t, pins,
+                      e_grasp);
+            worst_grasp = fmax(worst_grasp, e_grasp);
             worst_prev = fmax(worst_prev, e_prev);
             worst_skin = fmax(worst_skin, e_skin);
             worst_ball = fmax(worst_ball, e_ball);
@@ -645,10 +708,11 @@ static void prior_differences(const golden *g, weft_context *ctx, weft_model *co
      * rollout leaves S, so the decay has an offset to act on */
     CHECK_MSG(skin_motion > 1e-3, "S moves at most %.3g m per frame", skin_motion);
     CHECK_MSG(offset > 1e-3, "X_t stays within %.3g m of S_t", offset);
+    CHECK_MSG(held_motion > 1e-2, "the grasp prior's steps stay within %.3g m", held_motion);
     printf("priors over %u frames x 3 precisions: previous - inertial off by %.3g m, skinned - previous off by "
            "%.3g m (S moves up to %.3g m per frame), ballistic - previous off by %.3g m, decayed skinned - "
-           "previous off by %.3g m (X_t - S_t up to %.3g m)\n",
-           T, worst_prev, worst_skin, skin_motion, worst_ball, worst_decay, offset);
+           "previous off by %.3g m (X_t - S_t up to %.3g m), grasp - previous off by %.3g m (steps up to %.3g m)\n",
+           T, worst_prev, worst_skin, skin_motion, worst_ball, worst_decay, offset, worst_grasp, held_motion);
     free(X);
     free(Xp);
 }
@@ -712,8 +776,9 @@ static void priors(void)
     bool loaded = true;
     for (int k = 0; k < PRIOR_MODELS; ++k) {
         weft_result r;
-        models[k] = k < 4 ? model_with_prior(ctx, names[k], &r)
-                          : model_patched(ctx, "\\\"prior_decay\\\": 0.5, \\\"prior\\\": \\\"skinned\\\"", &r);
+        models[k] = k < 4    ? model_with_prior(ctx, names[k], &r)
+                    : k == 4 ? model_patched(ctx, "\\\"prior_decay\\\": 0.5, \\\"prior\\\": \\\"skinned\\\"", &r)
+                             : model_patched(ctx, "\\\"prior_beta\\\": 0.5, \\\"prior\\\": \\\"grasp\\\"", &r);
         CHECK_RESULT(r, WEFT_OK);
         loaded = loaded && models[k];
     }
@@ -724,12 +789,13 @@ static void priors(void)
         prior_differences(&g, ctx, models, S, T);
         skinned_rollout(&g, ctx, models[2], T);
     }
-    /* an unknown prior is refused at load, naming the three */
+    /* an unknown prior is refused at load, naming the known ones */
     weft_result r;
     weft_model *bad = model_with_prior(ctx, "skinny", &r);
     CHECK(bad == NULL);
     CHECK_RESULT(r, WEFT_ERROR_BAD_METADATA);
-    CHECK_MSG(strstr(weft_last_error(), "'inertial', 'previous', 'skinned' or 'ballistic'") != NULL, "message: %s",
+    CHECK_MSG(strstr(weft_last_error(), "'inertial', 'previous', 'skinned', 'ballistic' or 'grasp'") != NULL,
+              "message: %s",
               weft_last_error());
     free(S);
     for (int k = 0; k < PRIOR_MODELS; ++k) {
