@@ -113,6 +113,10 @@ static weft_result read_config(const weft_model *m, weft_ct_config *c)
         (r = get_u32(m, "vertex_count", 0, UINT32_MAX, &t.vertex_count)) != WEFT_OK) {
         return r;
     }
+    if (weft__model_config_find(m, "attach_output") &&
+        (r = weft__model_config_bool(m, "attach_output", &t.attach_output)) != WEFT_OK) {
+        return r;
+    }
     *c = t;
     return WEFT_OK;
 }
@@ -1330,6 +1334,54 @@ static weft_result skin_eval(const weft_garment *g, ct_state *s)
     return r;
 }
 
+/* The grasp prior plus the displacement: the carried velocity X_t + beta (X_t - X_{t-1}), each
+ * vertex then pulled back to its rest distance from the pins' centroid when it is farther (a
+ * long-range attachment to the hand; the rest distance never exceeds the path through the cloth),
+ * as tools/train/model.py computes it; with attach_output the attachment bounds the sum, so the
+ * network cannot carry a held cloth away from its hand either. */
+static void grasp_output(weft_garment *g, const ct_state *s)
+{
+    const weft_ct_config *c = &s->c;
+    float hand[3] = {0.0f, 0.0f, 0.0f}, hand_rest[3] = {0.0f, 0.0f, 0.0f};
+    for (uint32_t k = 0; k < g->pin_count; ++k) {
+        const float *p = g->pin_targets + 3 * (size_t)k, *r = g->rest + 3 * (size_t)g->pin_indices[k];
+        for (int j = 0; j < 3; ++j) {
+            hand[j] += p[j];
+            hand_rest[j] += r[j];
+        }
+    }
+    for (int j = 0; j < 3 && g->pin_count > 0; ++j) {
+        hand[j] /= (float)g->pin_count;
+        hand_rest[j] /= (float)g->pin_count;
+    }
+    for (uint32_t v = 0; v < s->N; ++v) {
+        const float *x = g->x + 3 * (size_t)v, *xp = g->x_prev + 3 * (size_t)v, *r = g->rest + 3 * (size_t)v;
+        const float *o = s->out3 + 3 * (size_t)v;
+        float y[3], d[3];
+        for (int j = 0; j < 3; ++j) {
+            y[j] = x[j] + c->prior_beta * (x[j] - xp[j]);
+            if (c->attach_output) {
+                y[j] += c->out_scale * o[j];
+            }
+            d[j] = y[j] - hand[j];
+        }
+        if (g->pin_count > 0) {
+            const float e[3] = {r[0] - hand_rest[0], r[1] - hand_rest[1], r[2] - hand_rest[2]};
+            const float reach = sqrtf(e[0] * e[0] + e[1] * e[1] + e[2] * e[2]);
+            const float len = sqrtf(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+            if (len > reach) { /* len > reach >= 0 */
+                for (int j = 0; j < 3; ++j) {
+                    y[j] = hand[j] + d[j] * (reach / len);
+                }
+            }
+        }
+        float *out = g->x_next + 3 * (size_t)v;
+        for (int j = 0; j < 3; ++j) {
+            out[j] = c->attach_output ? y[j] : y[j] + c->out_scale * o[j];
+        }
+    }
+}
+
 /* X_{t+1} = prior + out_scale * displacement into g->x_next, the prior computed as
  * tools/train/model.py computes it. The one output of every precision and of batched steps. */
 static weft_result ct_output(weft_garment *g, ct_state *s)
@@ -1341,18 +1393,9 @@ static weft_result ct_output(weft_garment *g, ct_state *s)
             return r;
         }
     }
-    /* The grasp prior's step: the mean move of the pinned vertices to their targets. */
-    float held[3] = {0.0f, 0.0f, 0.0f};
-    if (c->prior == WEFT_CT_PRIOR_GRASP && g->pin_count > 0) {
-        for (uint32_t k = 0; k < g->pin_count; ++k) {
-            const float *p = g->pin_targets + 3 * (size_t)k, *x = g->x + 3 * (size_t)g->pin_indices[k];
-            for (int j = 0; j < 3; ++j) {
-                held[j] += p[j] - x[j];
-            }
-        }
-        for (int j = 0; j < 3; ++j) {
-            held[j] /= (float)g->pin_count;
-        }
+    if (c->prior == WEFT_CT_PRIOR_GRASP) {
+        grasp_output(g, s);
+        return WEFT_OK;
     }
     for (size_t i = 0; i < (size_t)s->N * 3; ++i) {
         float prior = g->x[i]; /* previous */
@@ -1364,8 +1407,6 @@ static weft_result ct_output(weft_garment *g, ct_state *s)
                                            : s->skin_next[i] + c->prior_decay * (g->x[i] - s->skin_cur[i]);
         } else if (c->prior == WEFT_CT_PRIOR_BALLISTIC) {
             prior = g->x[i] + c->prior_beta * (g->x[i] - g->x_prev[i]) - (i % 3 == 1 ? c->gravity_step : 0.0f);
-        } else if (c->prior == WEFT_CT_PRIOR_GRASP) {
-            prior = g->pin_count > 0 ? g->x[i] + held[i % 3] : g->x[i] + c->prior_beta * (g->x[i] - g->x_prev[i]);
         }
         g->x_next[i] = prior + c->out_scale * s->out3[i];
     }

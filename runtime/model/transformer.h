@@ -25,10 +25,10 @@ typedef enum weft_ct_prior {
                                            prior_decay a < 1, S_{t+1} + a (X_t - S_t) */
     WEFT_CT_PRIOR_BALLISTIC,            /* "ballistic": X_t + prior_beta (X_t - X_{t-1}) - gravity_step Y:
                                            free fall is in the prior, the network adds contact */
-    WEFT_CT_PRIOR_GRASP,                /* "grasp": X_t + the mean of P_k - X_t[i_k] over the pins
-                                           (weft_garment_set_pins: vertex i_k to P_k at t+1), so a held
-                                           cloth moves with its hand; without pins X_t + prior_beta
-                                           (X_t - X_{t-1}) */
+    WEFT_CT_PRIOR_GRASP,                /* "grasp": X_t + prior_beta (X_t - X_{t-1}), each vertex then
+                                           kept within its rest distance of the pins' centroid
+                                           (weft_garment_set_pins: vertex i_k to P_k at t+1), a
+                                           long-range attachment: a held cloth hangs from its hand */
     WEFT_CT_PRIOR_COUNT
 } weft_ct_prior;
 
@@ -39,6 +39,8 @@ typedef struct weft_ct_config {
     float prior_beta, gravity_step;     /* the ballistic (and grasp) prior's terms (optional keys: 1,
                                            9.81/3600 m) */
     float prior_decay;                  /* the skinned prior's kept offset (optional key: 1) */
+    bool attach_output;                 /* grasp prior: the attachment bounds prior + displacement
+                                           (optional key: false, the prior alone) */
     bool dec_skip;
     bool requires_collider;             /* trained only with colliders */
     uint32_t vertex_count;              /* 0: any garment; else the one mesh it was trained for */

@@ -603,11 +603,14 @@ static bool lbs_track(const golden *g, weft_context *ctx, uint32_t frames, float
  *   x(previous) - x(inertial) = X_{t-1} - X_t,   x(skinned) - x(previous) = S_{t+1} - S_t,
  *   x(ballistic) - x(previous) = X_t - X_{t-1} - g dt^2 Y   (the default beta 1, g dt^2 9.81/3600 m),
  *   x(decayed) - x(previous) = S_{t+1} + 0.5 (X_t - S_t) - X_t and
- *   x(grasp) - x(previous) = mean_k (P_k - X_t[i_k]) on the unpinned vertices of a frame with pins
- *   (three, every other frame), 0.5 (X_t - X_{t-1}) on a frame without,
+ *   x(grasp) - x(previous) = Y - X_t with Y = X_t + 0.5 (X_t - X_{t-1}), on a frame with pins (three,
+ *   every other frame) each Y_v farther from the targets' centroid c than |rest_v - rest_c| (rest_c
+ *   the pinned vertices' rest centroid) pulled back to that distance along Y_v - c (unpinned
+ *   vertices; the pinned ones sit at their targets), and with attach_output (the seventh garment)
+ *   the same attachment applied to Y plus the network's displacement, x(previous) - X_t,
  * S from the LBS method, at every precision. (weft_garment_set_state restarts the latent history
  * each frame, the same in all six.) */
-enum { PRIOR_MODELS = 6, GRASP_PINS = 3 };
+enum { PRIOR_MODELS = 7, GRASP_PINS = 3 };
 
 static void prior_differences(const golden *g, weft_context *ctx, weft_model *const models[PRIOR_MODELS],
                               const float *S, uint32_t T)
@@ -616,6 +619,8 @@ static void prior_differences(const golden *g, weft_context *ctx, weft_model *co
     float *X = malloc(n * sizeof(float)), *Xp = malloc(n * sizeof(float));
     double worst_prev = 0, worst_skin = 0, worst_ball = 0, worst_decay = 0, skin_motion = 0, offset = 0;
     double worst_grasp = 0, held_motion = 0;
+    size_t attached = 0;
+    const float *rest = g->rest.data;
     const uint32_t pin_idx[GRASP_PINS] = {0, g->V / 2, g->V - 1};
     for (int prec = 0; prec < 3; ++prec) {
         weft_garment *gar[PRIOR_MODELS] = {NULL};
@@ -636,16 +641,19 @@ static void prior_differences(const golden *g, weft_context *ctx, weft_model *co
         memcpy(Xp, frame(&g->gt, 0), n * sizeof(float));
         for (uint32_t t = 1; t <= T; ++t) {
             /* the grasp garment's hand: three vertices pulled along a frame-dependent step */
-            float pin_to[GRASP_PINS * 3], held[3] = {0, 0, 0};
+            float pin_to[GRASP_PINS * 3];
+            double hand[3] = {0, 0, 0}, hand_rest[3] = {0, 0, 0};
             const uint32_t pins = t % 2 == 0 ? GRASP_PINS : 0;
             for (uint32_t k = 0; k < pins; ++k) {
                 for (int j = 0; j < 3; ++j) {
                     const float move = 0.004f * (float)t * (float)(j + 1) - 0.01f * (float)k;
                     pin_to[3 * k + j] = X[3 * (size_t)pin_idx[k] + j] + move;
-                    held[j] += move / (float)pins;
+                    hand[j] += pin_to[3 * k + j] / (double)pins;
+                    hand_rest[j] += rest[3 * (size_t)pin_idx[k] + j] / (double)pins;
                 }
             }
             CHECK_RESULT(weft_garment_set_pins(gar[5], pin_idx, pin_to, pins), WEFT_OK);
+            CHECK_RESULT(weft_garment_set_pins(gar[6], pin_idx, pin_to, pins), WEFT_OK);
             for (int k = 0; k < PRIOR_MODELS; ++k) {
                 CHECK_RESULT(weft_garment_set_state(gar[k], X, Xp), WEFT_OK);
                 CHECK_RESULT(weft_garment_set_collider(gar[k], frame(&g->cpos, t + 1)), WEFT_OK);
@@ -674,19 +682,44 @@ static void prior_differences(const golden *g, weft_context *ctx, weft_model *co
             CHECK_MSG(e_decay <= 1e-5, "precision %d frame %u: decayed skinned - previous off by %.3g m", prec, t,
                       e_decay);
             worst_decay = fmax(worst_decay, e_decay);
-            const float *xg = weft_garment_positions(gar[5]);
             double e_grasp = 0;
-            for (size_t i = 0; i < n; ++i) {
-                const size_t v = i / 3;
-                if (pins && (v == pin_idx[0] || v == pin_idx[1] || v == pin_idx[2])) {
-                    continue; /* pinned: at their targets after the step */
+            for (int out = 0; out < 2; ++out) { /* the prior attached; the output attached */
+                const float *xg = weft_garment_positions(gar[5 + out]);
+                for (uint32_t v = 0; v < g->V; ++v) {
+                    if (pins && (v == pin_idx[0] || v == pin_idx[1] || v == pin_idx[2])) {
+                        continue; /* pinned: at their targets after the step */
+                    }
+                    double y[3], d[3], len = 0, reach = 0;
+                    for (int j = 0; j < 3; ++j) {
+                        const size_t i = 3 * (size_t)v + j;
+                        y[j] = X[i] + 0.5 * ((double)X[i] - Xp[i]) + (out ? (double)xp[i] - X[i] : 0.0);
+                        d[j] = y[j] - hand[j];
+                        len += d[j] * d[j];
+                        reach += (rest[i] - hand_rest[j]) * (rest[i] - hand_rest[j]);
+                    }
+                    len = sqrt(len);
+                    reach = sqrt(reach);
+                    if (pins && len > reach) {
+                        attached++;
+                        for (int j = 0; j < 3; ++j) {
+                            y[j] = hand[j] + d[j] * (reach / len);
+                        }
+                    }
+                    for (int j = 0; j < 3; ++j) {
+                        const size_t i = 3 * (size_t)v + j;
+                        /* x(previous) - X_t is the network's displacement, which the first adds
+                         * after the attachment and the second before it */
+                        const double want = out ? y[j] : y[j] + ((double)xp[i] - X[i]);
+                        e_grasp = fmax(e_grasp, fabs((double)xg[i] - want));
+                        held_motion = fmax(held_motion, fabs(y[j] - X[i]));
+                    }
                 }
-                const double want = pins ? held[i % 3] : 0.5 * ((double)X[i] - Xp[i]);
-                e_grasp = fmax(e_grasp, fabs(((double)xg[i] - xp[i]) - want));
-                held_motion = fmax(held_motion, fabs(want));
             }
             for (uint32_t k = 0; k < pins; ++k) {
-                CHECK(memcmp(xg + 3 * (size_t)pin_idx[k], pin_to + 3 * k, 3 * sizeof(float)) == 0);
+                for (int out = 0; out < 2; ++out) {
+                    CHECK(memcmp(weft_garment_positions(gar[5 + out]) + 3 * (size_t)pin_idx[k], pin_to + 3 * k,
+                                 3 * sizeof(float)) == 0);
+                }
             }
             CHECK_MSG(e_grasp <= 1e-5, "precision %d frame %u (%u pins): grasp - previous off by %.3g m", prec, t, pins,
                       e_grasp);
@@ -709,10 +742,11 @@ static void prior_differences(const golden *g, weft_context *ctx, weft_model *co
     CHECK_MSG(skin_motion > 1e-3, "S moves at most %.3g m per frame", skin_motion);
     CHECK_MSG(offset > 1e-3, "X_t stays within %.3g m of S_t", offset);
     CHECK_MSG(held_motion > 1e-2, "the grasp prior's steps stay within %.3g m", held_motion);
+    CHECK_MSG(attached > 100, "the attachment pulled back only %zu vertex-frames", attached);
     printf("priors over %u frames x 3 precisions: previous - inertial off by %.3g m, skinned - previous off by "
            "%.3g m (S moves up to %.3g m per frame), ballistic - previous off by %.3g m, decayed skinned - "
-           "previous off by %.3g m (X_t - S_t up to %.3g m), grasp - previous off by %.3g m (steps up to %.3g m)\n",
-           T, worst_prev, worst_skin, skin_motion, worst_ball, worst_decay, offset, worst_grasp, held_motion);
+           "previous off by %.3g m (X_t - S_t up to %.3g m), grasp - previous off by %.3g m (steps up to %.3g m, %zu vertex-frames pulled back)\n",
+           T, worst_prev, worst_skin, skin_motion, worst_ball, worst_decay, offset, worst_grasp, held_motion, attached);
     free(X);
     free(Xp);
 }
@@ -778,7 +812,11 @@ static void priors(void)
         weft_result r;
         models[k] = k < 4    ? model_with_prior(ctx, names[k], &r)
                     : k == 4 ? model_patched(ctx, "\\\"prior_decay\\\": 0.5, \\\"prior\\\": \\\"skinned\\\"", &r)
-                             : model_patched(ctx, "\\\"prior_beta\\\": 0.5, \\\"prior\\\": \\\"grasp\\\"", &r);
+                    : k == 5 ? model_patched(ctx, "\\\"prior_beta\\\": 0.5, \\\"prior\\\": \\\"grasp\\\"", &r)
+                             : model_patched(ctx,
+                                             "\\\"attach_output\\\": true, \\\"prior_beta\\\": 0.5, "
+                                             "\\\"prior\\\": \\\"grasp\\\"",
+                                             &r);
         CHECK_RESULT(r, WEFT_OK);
         loaded = loaded && models[k];
     }

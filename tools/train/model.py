@@ -18,8 +18,8 @@ Data flow for one step t -> t+1 (all positions in metres, centred on the garment
             collider, runtime/xpbd/lbs.c; equal to "previous" when the collider does not move;
             with prior_decay a < 1, S_{t+1} + a (X_t - S_t)) or
             X_t + beta (X_t - X_{t-1}) + g dt^2 ("ballistic": free fall is in the prior) or
-            X_t + mean_pins(P_{t+1} - X_t) ("grasp": the whole cloth moves as its pinned vertices,
-            P their targets at t+1; with no pins X_t + beta (X_t - X_{t-1}))
+            X_t + beta (X_t - X_{t-1}) kept within each vertex's rest distance of the pins' centroid
+            ("grasp": a long-range attachment to the hand, P the pins' targets at t+1)
 """
 import json
 import math
@@ -46,12 +46,14 @@ DEFAULT_CONFIG = {
     "out_scale": 0.01,    # metres per unit of the decoder output
     "prior": "inertial",  # "inertial" (2 X_t - X_{t-1}), "previous" (X_t), "skinned" (X_t + S_{t+1} - S_t),
                           # "ballistic" (X_t + prior_beta (X_t - X_{t-1}) - gravity_step along Y),
-                          # "grasp" (X_t + the mean step of the pinned vertices; unpinned: as ballistic
-                          # without gravity)
+                          # "grasp" (as ballistic without gravity, then every vertex kept within its rest
+                          # distance of the pinned vertices' centroid: a long-range attachment to the hand)
     "prior_beta": 1.0,    # ballistic and grasp priors: fraction of the last frame's displacement carried on
     "prior_decay": 1.0,   # skinned prior: S_{t+1} + prior_decay (X_t - S_t), the offset from the skinned
                           # garment kept per step (1: X_t + S_{t+1} - S_t; < 1: drift decays toward it)
     "gravity_step": 9.81 / 3600.0,  # ballistic prior: g dt^2 (m) at 60 Hz, applied along -Y
+    "attach_output": False,  # grasp prior: the attachment to the hand bounds the output (prior plus
+                             # displacement), not the prior alone
     "crop_margin": 0.15,  # collider triangles farther than this (m) from the garment box are dropped
     "dec_skip": True,     # decoder adds the encoder's per-vertex tokens to its queries' output
     "requires_collider": False,  # set by training when every training sequence had a collider
@@ -293,18 +295,34 @@ class ClothTransformer(nn.Module):
             h = g(h, adj)
         return self.dec_head(self.dec_ln(h))
 
-    def prior(self, x_t, x_prev, s_next=None, s_cur=None, pin_mask=None, pin_next=None):
+    @staticmethod
+    def attach(y, pin_mask, pin_next, rest):
+        """The grasp prior's long-range attachment: every vertex of y (B, V, 3) farther from the
+        centroid of the pinned vertices' targets than it is from their centroid at rest is pulled
+        back to that distance (no pins: y unchanged)."""
+        if pin_mask is None:
+            return y
+        if rest is None:
+            raise ValueError("the grasp prior needs the rest positions")
+        m = pin_mask.to(y.dtype).unsqueeze(-1)                        # (B, V, 1)
+        n = m.sum(dim=1, keepdim=True).clamp(min=1.0)                 # (B, 1, 1)
+        c = (pin_next * m).sum(dim=1, keepdim=True) / n               # (B, 1, 3)
+        rest = rest.expand_as(y)
+        rc = (rest * m).sum(dim=1, keepdim=True) / n
+        r = (rest - rc).norm(dim=-1, keepdim=True)                    # (B, V, 1)
+        d = y - c
+        L = d.norm(dim=-1, keepdim=True)
+        held = torch.where(L > r, c + d * (r / L.clamp(min=1e-12)), y)
+        return torch.where(m.sum(dim=1, keepdim=True) > 0, held, y)
+
+    def prior(self, x_t, x_prev, s_next=None, s_cur=None, pin_mask=None, pin_next=None, rest=None):
         p = self.cfg["prior"]
         if p == "grasp":
-            # a held cloth moves with its hand: every vertex takes the mean step of the pinned ones
-            # (targets P_{t+1} minus their X_t); a cloth that nothing holds carries its velocity on
-            free = x_t + self.cfg["prior_beta"] * (x_t - x_prev)
-            if pin_mask is None:
-                return free
-            m = pin_mask.to(x_t.dtype).unsqueeze(-1)                      # (B, V, 1)
-            n = m.sum(dim=1, keepdim=True)                                # (B, 1, 1)
-            step = ((pin_next - x_t) * m).sum(dim=1, keepdim=True) / n.clamp(min=1.0)
-            return torch.where(n > 0, x_t + step, free)
+            # the cloth carries its velocity on, and a held cloth hangs from its hand: no vertex
+            # ends farther from the pins' centroid at t+1 than it is from their centroid at rest
+            # (a long-range attachment; the rest distance is a lower bound of the path in the cloth)
+            y = x_t + self.cfg["prior_beta"] * (x_t - x_prev)
+            return y if self.cfg["attach_output"] else self.attach(y, pin_mask, pin_next, rest)
         if p == "inertial":
             return 2.0 * x_t - x_prev
         if p == "skinned":
@@ -334,7 +352,10 @@ class ClothTransformer(nn.Module):
             hist = [hist[0]] + hist            # repeat the oldest after a reset
         z_next = self.temporal(torch.stack(hist, dim=1))
         d = self.decode(z_next, rest, adj, vtok)
-        return self.prior(x_t, x_prev, s_next, s_cur, pin_mask, pin_next) + self.cfg["out_scale"] * d, hist
+        x_next = self.prior(x_t, x_prev, s_next, s_cur, pin_mask, pin_next, rest) + self.cfg["out_scale"] * d
+        if self.cfg["prior"] == "grasp" and self.cfg["attach_output"]:
+            x_next = self.attach(x_next, pin_mask, pin_next, rest)
+        return x_next, hist
 
     def metadata(self, name=""):
         return {"architecture": ARCHITECTURE, "name": name, "config": json.dumps(self.cfg, sort_keys=True)}

@@ -7,10 +7,20 @@ Priors:
   inertial  X_{t+1} = 2 X_t - X_{t-1}
   ballistic X_{t+1} = X_t + beta (X_t - X_{t-1}) - g dt^2 y (free fall through everything; the
             runtime's ballistic prior, --beta as its prior_beta)
+  translate X_t + the mean step of the vertices pinned at t+1 to their targets (with --pins;
+            without pins X_t + beta (X_t - X_{t-1}))
+  grasp     X_t + beta (X_t - X_{t-1}), each vertex then kept within its rest distance of the
+            centroid of the pins' targets (the runtime's grasp prior, --beta as its prior_beta;
+            with --pins)
   follow    each vertex moves with the closest point of the collider (nearest triangle at t, same
             barycentric point at t+1), weighted by 1 - distance / --radius, and keeps its
             velocity for the rest of the weight (the collider-following prior)
-The rollout starts from ground-truth frames 0 and 1 and then sees only the collider, as `weft eval`.
+The rollout starts from ground-truth frames 0 and 1 and then sees only the collider, as `weft eval`;
+with --pins the vertices pinned in a frame (pinned.npy) take their reference positions, as `weft eval
+--pins all`:
+
+  /usr/bin/python3 tools/train/prior_eval.py --data data/grippers --split test --pins \
+      --priors still,translate,grasp --beta 0.9
 These numbers say how much a learned model must add to its prior.
 """
 import argparse
@@ -87,15 +97,29 @@ def follow_displacement(x, c_now, c_next, faces, candidates=8):
 GRAVITY_STEP = 9.81 / 3600.0  # g dt^2 at 60 Hz, the model config's default gravity_step
 
 
-def rollout(seq, prior, radius, frames, beta=1.0):
+def rollout(seq, prior, radius, frames, beta=1.0, pins=False):
     x = np.asarray(seq.pos, dtype=np.float64)
+    rest = np.asarray(seq.rest, dtype=np.float64)
+    pinned = np.asarray(seq.pinned) != 0 if pins and seq.pinned is not None else None
     T = min(frames, len(x))
     c = None if seq.cpos is None else np.asarray(seq.cpos, dtype=np.float64)
     pred = [x[0], x[1]]
     for t in range(1, T - 1):
         xt, xp = pred[-1], pred[-2]
         vel = xt - xp
-        if prior == "still":
+        pm = None if pinned is None or not pinned[t + 1].any() else pinned[t + 1]
+        if prior == "translate":
+            nxt = xt + (x[t + 1][pm] - xt[pm]).mean(axis=0) if pm is not None else xt + beta * vel
+        elif prior == "grasp":
+            nxt = xt + beta * vel
+            if pm is not None:
+                hand, hand_rest = x[t + 1][pm].mean(axis=0), rest[pm].mean(axis=0)
+                reach = np.linalg.norm(rest - hand_rest, axis=1)
+                d = nxt - hand
+                L = np.linalg.norm(d, axis=1)
+                far = L > reach
+                nxt[far] = hand + d[far] * (reach[far] / L[far])[:, None]
+        elif prior == "still":
             nxt = xt
         elif prior == "ballistic":
             nxt = xt + beta * vel
@@ -106,6 +130,8 @@ def rollout(seq, prior, radius, frames, beta=1.0):
             disp, dist = follow_displacement(xt, c[t], c[t + 1], seq.cfaces)
             w = np.clip(1.0 - dist / radius, 0.0, 1.0)[:, None]
             nxt = xt + w * disp + (1.0 - w) * vel
+        if pm is not None:
+            nxt = np.where(pm[:, None], x[t + 1], nxt)
         pred.append(nxt)
     pred = np.asarray(pred)
     return float(np.linalg.norm(pred[2:T] - x[2:T], axis=-1).mean() * 100.0), T - 2
@@ -118,13 +144,15 @@ def main():
     ap.add_argument("--priors", default="still,inertial,follow")
     ap.add_argument("--radius", type=float, default=0.05, help="follow prior: influence radius (m)")
     ap.add_argument("--frames", type=int, default=240)
-    ap.add_argument("--beta", type=float, default=1.0, help="ballistic prior: velocity factor")
+    ap.add_argument("--beta", type=float, default=1.0,
+                    help="ballistic, translate and grasp priors: velocity factor")
+    ap.add_argument("--pins", action="store_true", help="pinned vertices follow the reference")
     a = ap.parse_args()
     seqs = [s for s in weft_data.load_sequences(a.data) if s.split in a.split]
     if not seqs:
         sys.exit(f"no sequences of split {a.split} under {a.data}")
     for prior in a.priors.split(","):
-        rows = [(s.name, *rollout(s, prior, a.radius, a.frames, a.beta)) for s in seqs]
+        rows = [(s.name, *rollout(s, prior, a.radius, a.frames, a.beta, a.pins)) for s in seqs]
         total = sum(m * n for _, m, n in rows) / sum(n for _, _, n in rows)
         print(f"{prior:9s} all {total:7.2f} cm | " + "  ".join(f"{n} {m:.2f}" for n, m, _ in rows), flush=True)
 

@@ -80,13 +80,18 @@ def data_stats(seqs, cfg):
         if prior == "ballistic":
             p = x[1:-1] + cfg["prior_beta"] * (x[1:-1] - x[:-2])
             p[..., 1] -= cfg["gravity_step"]
-        if prior == "grasp":
+        if prior == "grasp":   # as model.py: carried velocity, then the attachment to the pins
             p = x[1:-1] + cfg["prior_beta"] * (x[1:-1] - x[:-2])
             if s.pinned is not None:
-                pm = np.asarray(s.pinned[2:]) != 0                       # pinned at t+1
-                n = pm.sum(axis=1)
-                step = ((x[2:] - x[1:-1]) * pm[..., None]).sum(axis=1) / np.maximum(n, 1)[:, None]
-                p = np.where((n > 0)[:, None, None], x[1:-1] + step[:, None, :], p)
+                rest = np.asarray(s.rest, dtype=np.float64)
+                for t, pm in enumerate(np.asarray(s.pinned[2:]) != 0):   # pinned at t+1
+                    if pm.any():
+                        c, rc = x[t + 2][pm].mean(axis=0), rest[pm].mean(axis=0)
+                        r = np.linalg.norm(rest - rc, axis=1)
+                        d = p[t] - c
+                        L = np.linalg.norm(d, axis=1)
+                        far = L > r
+                        p[t][far] = c + d[far] * (r[far] / L[far])[:, None]
         if prior == "skinned":
             if s.skin is None:   # refused after the config is settled (main)
                 continue
