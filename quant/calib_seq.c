@@ -126,12 +126,49 @@ static weft_result load_array(const char *dir, const char *name, uint32_t rank, 
 
 void quant_seq_free(quant_seq *s)
 {
+    free(s->pinned);
+    free(s->pin_index);
+    free(s->pin_target);
     free(s->rest);
     free(s->pos);
     free(s->cpos);
     free(s->faces);
     free(s->cfaces);
     memset(s, 0, sizeof *s);
+}
+
+/* dir/pinned.npy: [T, V] of any numeric dtype (non-zero = pinned), T and V as the cloth's. */
+static weft_result load_pins(const char *dir, quant_seq *s)
+{
+    char path[4096];
+    if (!join(path, sizeof path, dir, "pinned.npy")) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "quantize: path too long under '%s'", dir);
+    }
+    void *bytes = NULL;
+    size_t size = 0;
+    weft_result r = quant_read_all(NULL, path, &bytes, &size);
+    if (r != WEFT_OK) {
+        return r;
+    }
+    weft_npy_array a;
+    r = weft_npy_parse(bytes, size, "pinned", &a);
+    if (r == WEFT_OK && (a.ndim != 2 || a.shape[0] != s->T || a.shape[1] != s->V)) {
+        r = weft__fail(WEFT_ERROR_SIZE_MISMATCH, "quantize: %s: pinned.npy must be [%u, %u] (frames, vertices)", dir,
+                       s->T, s->V);
+    }
+    if (r == WEFT_OK) {
+        s->pinned = malloc((size_t)a.count * sizeof(float));
+        s->pin_index = malloc((size_t)s->V * sizeof(uint32_t));
+        s->pin_target = malloc((size_t)s->V * 3 * sizeof(float));
+        r = s->pinned && s->pin_index && s->pin_target
+                ? weft_npy_to_f32(&a, s->pinned, a.count)
+                : weft__fail(WEFT_ERROR_OUT_OF_MEMORY, "quantize: out of memory for '%s'", path);
+        if (r == WEFT_ERROR_NOT_FINITE) {
+            r = weft__fail(WEFT_ERROR_NOT_FINITE, "quantize: %s: 'pinned.npy' holds NaN or infinity", dir);
+        }
+    }
+    free(bytes);
+    return r;
 }
 
 weft_result quant_seq_load(const char *dir, quant_seq *s)
@@ -192,7 +229,28 @@ weft_result quant_seq_load(const char *dir, quant_seq *s)
         s->Vc = (uint32_t)sc[1];
         s->Fc = (uint32_t)scf[0];
     }
+    if (is_file_in(dir, "pinned.npy") && (r = load_pins(dir, s)) != WEFT_OK) {
+        quant_seq_free(s);
+        return r;
+    }
     return WEFT_OK;
+}
+
+weft_result quant_seq_set_pins(weft_garment *g, const quant_seq *s, uint32_t t)
+{
+    if (!s->pinned || t >= s->T) {
+        return WEFT_OK;
+    }
+    const float *mask = s->pinned + (size_t)t * s->V, *x = s->pos + (size_t)t * s->V * 3;
+    uint32_t n = 0;
+    for (uint32_t v = 0; v < s->V; ++v) {
+        if (mask[v] != 0.0f) {
+            s->pin_index[n] = v;
+            memcpy(s->pin_target + 3 * (size_t)n, x + 3 * (size_t)v, 3 * sizeof(float));
+            n++;
+        }
+    }
+    return weft_garment_set_pins(g, s->pin_index, s->pin_target, n);
 }
 
 void quant_list_free(char **list, uint32_t count)

@@ -346,6 +346,9 @@ static weft_result calib_sequence(weft_context *ctx, struct quant_calib *c, cons
         if (s.cpos) {
             r = weft_garment_set_collider(g, s.cpos + (size_t)(i + 2) * nc);
         }
+        if (r == WEFT_OK) {
+            r = quant_seq_set_pins(g, &s, i + 2);
+        }
         /* Observed steps re-run the constant layers and pack every layer's input: only the
          * recorded ones pay for it. */
         if (r == WEFT_OK) {
@@ -485,6 +488,9 @@ weft_result weft_quant_rollout_mve(weft_context *ctx, const weft_model *model, w
     for (uint32_t t = 1; t < last && r == WEFT_OK; ++t) {
         if (s.cpos) {
             r = weft_garment_set_collider(g, s.cpos + (size_t)(t + 1) * nc);
+        }
+        if (r == WEFT_OK) {
+            r = quant_seq_set_pins(g, &s, t + 1);
         }
         if (r == WEFT_OK) {
             r = weft_garment_step(g);

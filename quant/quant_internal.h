@@ -12,12 +12,20 @@ typedef struct quant_seq {
     float *rest, *pos, *cpos;           /* [V,3], [T,V,3], [T,Vc,3] (cpos NULL without collider) */
     uint32_t *faces, *cfaces;           /* [F,3], [Fc,3] */
     uint32_t V, F, T, Vc, Fc;
+    float *pinned;                      /* [T,V] non-zero where a vertex is pinned (pinned.npy), or NULL */
+    uint32_t *pin_index;                /* [V] scratch for quant_seq_set_pins */
+    float *pin_target;                  /* [V,3] scratch */
 } quant_seq;
 
 /* Loads and checks a sequence folder: meta.json must parse, arrays must have matching shapes,
  * finite values and in-range indices. Fails with IO, FORMAT, SIZE_MISMATCH or NOT_FINITE. */
 weft_result quant_seq_load(const char *dir, quant_seq *s);
 void quant_seq_free(quant_seq *s);
+
+/* Pins the vertices pinned in frame t to that frame's positions before the step to t, as `weft eval
+ * --pins all` does, so calibration and the error report roll out what the models are measured on
+ * (a grasped sheet follows its gripper); nothing for a sequence without pinned.npy. */
+weft_result quant_seq_set_pins(weft_garment *g, const quant_seq *s, uint32_t t);
 
 /* Expands calibration arguments (sequence folders, folders of them, split lists) into sequence
  * folders; split filters folders of sequences. Free with quant_list_free. */

@@ -179,8 +179,12 @@ static void *load_npy(const char *dir, const char *name, bool index, uint64_t sh
     return out;
 }
 
+/* Pins for rollout(): [T, V] bytes, non-zero = that vertex follows the sequence in that frame. */
+static const uint8_t *g_pins;
+
 /* The rollout MVE (cm) the way a game runs the file: the weft_garment API only, started from the
- * first two frames, CCD off. Optionally the positions after every frame (frames * V * 3). */
+ * first two frames, CCD off, with g_pins set each frame as `weft eval --pins all` sets them.
+ * Optionally the positions after every frame (frames * V * 3). */
 static double rollout(const void *bytes, size_t size, weft_precision prec, uint32_t frames, float *trace)
 {
     uint64_t sr[3] = {0}, sf[3] = {0}, sp[3] = {0}, sc[3] = {0}, scf[3] = {0};
@@ -211,8 +215,19 @@ static double rollout(const void *bytes, size_t size, weft_precision prec, uint3
             double err = 0;
             uint32_t done = 0;
             for (uint32_t t = 1; t + 1 < T && done < frames; ++t) {
-                if (weft_garment_set_collider(g, cpos + (size_t)(t + 1) * Vc * 3) != WEFT_OK ||
-                    weft_garment_step(g) != WEFT_OK) {
+                if (weft_garment_set_collider(g, cpos + (size_t)(t + 1) * Vc * 3) != WEFT_OK) {
+                    break;
+                }
+                uint32_t idx[8], n = 0;
+                float to[8 * 3];
+                for (uint32_t v = 0; g_pins && v < V && n < 8; ++v) {
+                    if (g_pins[(size_t)(t + 1) * V + v]) {
+                        idx[n] = v;
+                        memcpy(to + 3 * n, pos + ((size_t)(t + 1) * V + v) * 3, 3 * sizeof(float));
+                        n++;
+                    }
+                }
+                if (weft_garment_set_pins(g, idx, to, n) != WEFT_OK || weft_garment_step(g) != WEFT_OK) {
                     break;
                 }
                 const float *x = weft_garment_positions(g), *gt = pos + (size_t)(t + 1) * V * 3;
@@ -363,6 +378,66 @@ static void test_calibrated_int8(void)
     weft_model_destroy(src);
     weft_quant_report_free(&rep);
     weft_quant_buffer_free(g_ctx, out, out_size);
+}
+
+/* A sequence's pinned.npy reaches calibration and the error report: the report's fp32 rollout is
+ * the one with those vertices pinned every frame (`weft eval --pins all`), not the free one; pins
+ * of the wrong shape are refused, naming the file. */
+static void test_pins(void)
+{
+    if (!setup()) {
+        return;
+    }
+    char dir[] = "/tmp/weft-qpin-XXXXXX";
+    CHECK(mkdtemp(dir) != NULL);
+    char seq[300], path[400];
+    snprintf(seq, sizeof seq, "%s/seq", dir);
+    copy_sample(seq);
+    const uint32_t V = sample_vertices();
+    uint8_t *mask = calloc((size_t)SHORT_T * (V + 1), 1);
+    for (uint32_t t = 2; mask && t < SHORT_T; ++t) {
+        for (uint32_t v = 0; v < 5; ++v) {
+            mask[(size_t)t * V + v * 7] = 1; /* five vertices held from frame 2 on */
+        }
+    }
+    snprintf(path, sizeof path, "%s/pinned.npy", seq);
+    uint64_t shape[2] = {SHORT_T, V};
+    CHECK(mask && write_npy(path, "|u1", shape, 2, mask, (size_t)SHORT_T * V));
+    const char *calib[2] = {seq, NULL};
+    weft_quant_def def = weft_default_quant_def();
+    def.calib = calib;
+    def.calib_frames = 4;
+    def.val = seq;
+    def.val_frames = 8;
+    void *out = NULL;
+    size_t out_size = 0;
+    weft_quant_report rep;
+    CHECK_RESULT(weft_quantize_memory(g_ctx, &def, g_model, g_model_size, &out, &out_size, &rep), WEFT_OK);
+    if (out) {
+        g_pins = mask;
+        const double pinned = rollout(g_model, g_model_size, WEFT_PRECISION_FP32, 8, NULL),
+                     pinned_q = rollout(out, out_size, WEFT_PRECISION_INT8, 8, NULL);
+        g_pins = NULL;
+        const double free_fp = rollout(g_model, g_model_size, WEFT_PRECISION_FP32, 8, NULL);
+        CHECK(rep.e2e.measured);
+        CHECK_NEAR(rep.e2e.mve_fp32_cm, pinned, 1e-9);
+        CHECK_NEAR(rep.e2e.mve_quant_cm, pinned_q, 1e-9);
+        CHECK_MSG(fabs(pinned - free_fp) > 1e-4, "pins change nothing: %g cm pinned, %g free", pinned, free_fp);
+        weft_quant_report_free(&rep);
+        weft_quant_buffer_free(g_ctx, out, out_size);
+    }
+    /* one vertex too many per frame: refused, nothing written */
+    shape[1] = V + 1;
+    CHECK(mask && write_npy(path, "|u1", shape, 2, mask, (size_t)SHORT_T * (V + 1)));
+    out = NULL;
+    CHECK_RESULT(weft_quantize_memory(g_ctx, &def, g_model, g_model_size, &out, &out_size, &rep),
+                 WEFT_ERROR_SIZE_MISMATCH);
+    CHECK_MSG(strstr(weft_last_error(), "pinned.npy") != NULL, "message: %s", weft_last_error());
+    CHECK(out == NULL);
+    remove(path);
+    remove_sample(seq);
+    rmdir(dir);
+    free(mask);
 }
 
 /* A threshold below every measured error keeps every eligible layer in fp32, with its reason. */
@@ -744,5 +819,5 @@ static void test_bad_model(void)
     weft__st_header_free(g_ctx, &h);
 }
 
-TEST_MAIN(TEST_CASE(test_calibrated_int8), TEST_CASE(test_error_threshold), TEST_CASE(test_smoothquant),
+TEST_MAIN(TEST_CASE(test_calibrated_int8), TEST_CASE(test_pins), TEST_CASE(test_error_threshold), TEST_CASE(test_smoothquant),
           TEST_CASE(test_bad_calibration), TEST_CASE(test_bad_model))
