@@ -127,6 +127,12 @@ static const golden_layout golden_drop_seq = {WEFT_SOURCE_DIR "/tests/data/sampl
 static const golden_layout golden_garment_specialist = {GARMENT_SEQ, DATA "garment_golden/", "rest_pos", "faces",
                                                         "collider_faces", "cloth_pos", "collider_pos", "<i4", NULL};
 
+/* tests/model/data/gripper_seq (cut_seq.py --start: a grasped sheet being lifted, with its pin
+ * masks), with the shipped gripper specialist's predictions in gripper_seq/golden (see
+ * shipped_gripper_parity). */
+static const golden_layout golden_gripper_seq = {DATA "gripper_seq/", DATA "gripper_seq/golden/", "rest_pos", "faces",
+                                                 "collider_faces", "cloth_pos", "collider_pos", "<i4", "pinned"};
+
 static void golden_free(golden *g)
 {
     npy *all[] = {&g->rest,      &g->faces,   &g->cfaces,  &g->gt,    &g->cpos,
@@ -429,6 +435,19 @@ static void shipped_garment_parity(void)
     teacher_forced_parity_of(&golden_garment_specialist, WEFT_SOURCE_DIR "/tools/train/models/garment.safetensors",
                              "tf_pred");
     rollout_parity_of(&golden_garment_specialist, WEFT_SOURCE_DIR "/tools/train/models/garment.safetensors");
+}
+
+/* The shipped gripper specialist (the grasp prior, K = 16) on a grasped sheet being lifted,
+ * teacher-forced and rolled out with the sequence's pins set every frame as `weft eval --pins all`
+ * sets them (the prior moves the sheet with them); gripper_seq/ is `cut_seq.py --seq
+ * data/refsim/gripper_1k_0003 --start 60 --frames 16 --out tests/model/data/gripper_seq`, its
+ * golden/ `export.py --ckpt tools/train/models/gripper.ckpt.pt --golden
+ * tests/model/data/gripper_seq/golden --golden-seq tests/model/data/gripper_seq --tf-frames
+ * 1,2,5,10 --rollout 14 --golden-preds-only`. */
+static void shipped_gripper_parity(void)
+{
+    teacher_forced_parity_of(&golden_gripper_seq, WEFT_SOURCE_DIR "/tools/train/models/gripper.safetensors", "tf_pred");
+    rollout_parity_of(&golden_gripper_seq, WEFT_SOURCE_DIR "/tools/train/models/gripper.safetensors");
 }
 
 /* The skinned prior X_t + S_{t+1} - S_t + out_scale d against PyTorch, on a garment whose collider
@@ -1075,6 +1094,7 @@ static void shipped_models_step(void)
                                         WEFT_SOURCE_DIR "/tools/train/models/game_k16.safetensors",
                                         WEFT_SOURCE_DIR "/tools/train/models/drop.safetensors",
                                         WEFT_SOURCE_DIR "/tools/train/models/garment.safetensors",
+                                        WEFT_SOURCE_DIR "/tools/train/models/gripper.safetensors",
                                         WEFT_SOURCE_DIR "/tools/train/models/unified.safetensors"};
     weft_context *ctx = make_ctx();
     for (size_t f = 0; f < sizeof files / sizeof files[0]; ++f) {
@@ -1328,7 +1348,8 @@ static void parallel_for_hook(void)
 }
 
 TEST_MAIN(TEST_CASE(teacher_forced_parity), TEST_CASE(shipped_game_parity), TEST_CASE(shipped_models_step),
-          TEST_CASE(rollout_parity), TEST_CASE(shipped_drop_parity), TEST_CASE(shipped_garment_parity), TEST_CASE(skinned_teacher_forced_parity), TEST_CASE(skinned_rollout_parity),
+          TEST_CASE(rollout_parity), TEST_CASE(shipped_drop_parity), TEST_CASE(shipped_garment_parity), TEST_CASE(shipped_gripper_parity),
+          TEST_CASE(skinned_teacher_forced_parity), TEST_CASE(skinned_rollout_parity),
           TEST_CASE(bad_model_files), TEST_CASE(priors), TEST_CASE(skinned_lod_switch),
           TEST_CASE(bad_state_and_collider), TEST_CASE(reduced_precision),
           TEST_CASE(quantized_files), TEST_CASE(parallel_for_hook))
