@@ -67,6 +67,21 @@ static bool is_file_in(const char *dir, const char *name)
     return join(p, sizeof p, dir, name) && stat(p, &st) == 0 && S_ISREG(st.st_mode);
 }
 
+/* Reads and parses dir/name.npy into a (which points into *bytes: the caller frees it, also on
+ * failure); path receives the file's path for messages. */
+static weft_result read_npy(const char *dir, const char *name, char path[4096], void **bytes, weft_npy_array *a)
+{
+    char file[64];
+    snprintf(file, sizeof file, "%s.npy", name);
+    *bytes = NULL;
+    if (!join(path, 4096, dir, file)) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "quantize: path too long under '%s'", dir);
+    }
+    size_t size = 0;
+    weft_result r = quant_read_all(NULL, path, bytes, &size);
+    return r == WEFT_OK ? weft_npy_parse(*bytes, size, name, a) : r;
+}
+
 /* dir/name.npy as float32 [shape] or (as_index) uint32 indices below index_limit. rank must
  * match; shape[rank-1] must be 3. */
 static weft_result load_array(const char *dir, const char *name, uint32_t rank, bool as_index, uint64_t index_limit,
@@ -74,17 +89,9 @@ static weft_result load_array(const char *dir, const char *name, uint32_t rank, 
 {
     char path[4096], file[64];
     snprintf(file, sizeof file, "%s.npy", name);
-    if (!join(path, sizeof path, dir, file)) {
-        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "quantize: path too long under '%s'", dir);
-    }
     void *bytes = NULL;
-    size_t size = 0;
-    weft_result r = quant_read_all(NULL, path, &bytes, &size);
-    if (r != WEFT_OK) {
-        return r;
-    }
     weft_npy_array a;
-    r = weft_npy_parse(bytes, size, name, &a);
+    weft_result r = read_npy(dir, name, path, &bytes, &a);
     if (r == WEFT_OK && (a.ndim != rank || a.shape[rank - 1] != 3 || a.count == 0 || a.count > (1ull << 31))) {
         r = weft__fail(WEFT_ERROR_FORMAT, "quantize: %s: '%s' must be a non-empty [%s3] array", dir, file,
                        rank == 3 ? "T, n, " : "n, ");
@@ -141,17 +148,9 @@ void quant_seq_free(quant_seq *s)
 static weft_result load_pins(const char *dir, quant_seq *s)
 {
     char path[4096];
-    if (!join(path, sizeof path, dir, "pinned.npy")) {
-        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "quantize: path too long under '%s'", dir);
-    }
     void *bytes = NULL;
-    size_t size = 0;
-    weft_result r = quant_read_all(NULL, path, &bytes, &size);
-    if (r != WEFT_OK) {
-        return r;
-    }
     weft_npy_array a;
-    r = weft_npy_parse(bytes, size, "pinned", &a);
+    weft_result r = read_npy(dir, "pinned", path, &bytes, &a);
     if (r == WEFT_OK && (a.ndim != 2 || a.shape[0] != s->T || a.shape[1] != s->V)) {
         r = weft__fail(WEFT_ERROR_SIZE_MISMATCH, "quantize: %s: pinned.npy must be [%u, %u] (frames, vertices)", dir,
                        s->T, s->V);
