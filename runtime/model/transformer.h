@@ -36,8 +36,8 @@ typedef struct weft_ct_config {
     uint32_t K, D, L, H, history, ffn, nfreq, gnn_layers;
     float vel_scale, area_scale, out_scale, crop_margin, ln_eps;
     weft_ct_prior prior;
-    float prior_beta, gravity_step;     /* the ballistic (and grasp) prior's terms (optional keys: 1,
-                                           9.81/3600 m) */
+    float prior_beta, gravity_step;     /* the ballistic prior's terms, prior_beta also the grasp
+                                           prior's (optional keys: 1, 9.81/3600 m) */
     float prior_decay;                  /* the skinned prior's kept offset (optional key: 1) */
     bool attach_output;                 /* grasp prior: the attachment bounds prior + displacement
                                            (optional key: false, the prior alone) */
