@@ -337,6 +337,12 @@ WEFT_API weft_result weft_garment_set_state(weft_garment *garment, const float *
 /* Collider vertex positions at the frame being stepped to (t+1), collider_vertex_count * 3. */
 WEFT_API weft_result weft_garment_set_collider(weft_garment *garment, const float *collider_positions);
 
+/* Replaces the collider at the current frame t (what the last step moved it to, or
+ * collider_rest_positions at creation), collider_vertex_count * 3. With
+ * weft_garment_set_state it restarts a garment at any frame of a recorded scene: methods that
+ * sweep the collider from t to t+1 (XPBD, CCD) read it. */
+WEFT_API weft_result weft_garment_set_collider_current(weft_garment *garment, const float *collider_positions);
+
 /* Pins: vertices that follow given targets this frame (handles, grasps, attachments). XPBD
  * solves with them (the rest of the cloth feels the pull); the learned and LBS methods step
  * first and then set the pinned vertices to their targets. count 0 clears the pins. */

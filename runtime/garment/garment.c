@@ -339,6 +339,24 @@ weft_result weft_garment_set_collider(weft_garment *g, const float *collider_pos
     return WEFT_OK;
 }
 
+weft_result weft_garment_set_collider_current(weft_garment *g, const float *collider_positions)
+{
+    if (!g || !collider_positions) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
+                          "weft_garment_set_collider_current: garment and positions are required");
+    }
+    if (g->collider_vertex_count == 0) {
+        return weft__fail(WEFT_ERROR_NO_COLLIDER, "weft_garment_set_collider_current: the garment was created "
+                                                  "without a collider (def.collider_vertex_count = 0)");
+    }
+    size_t n = (size_t)g->collider_vertex_count * 3;
+    if (!weft__all_finite(collider_positions, n)) {
+        return weft__fail(WEFT_ERROR_NOT_FINITE, "weft_garment_set_collider_current: positions contain NaN or infinity");
+    }
+    memcpy(g->collider_prev, collider_positions, n * sizeof(float));
+    return WEFT_OK;
+}
+
 weft_result weft_garment_set_pins(weft_garment *g, const uint32_t *vertex_indices, const float *target_positions,
                                   uint32_t count)
 {

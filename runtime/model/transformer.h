@@ -29,6 +29,10 @@ typedef enum weft_ct_prior {
                                            kept within its rest distance of the pins' centroid
                                            (weft_garment_set_pins: vertex i_k to P_k at t+1), a
                                            long-range attachment: a held cloth hangs from its hand */
+    WEFT_CT_PRIOR_XPBD,                 /* "xpbd": one frame of the XPBD method at prior_substeps
+                                           substeps from (X_t, X_{t-1}), the collider at t and t+1
+                                           and the pins, without CCD: the network corrects a
+                                           coarse solve (contact and support come from it) */
     WEFT_CT_PRIOR_COUNT
 } weft_ct_prior;
 
@@ -41,6 +45,9 @@ typedef struct weft_ct_config {
     float prior_decay;                  /* the skinned prior's kept offset (optional key: 1) */
     bool attach_output;                 /* grasp prior: the attachment bounds prior + displacement
                                            (optional key: false, the prior alone) */
+    uint32_t prior_substeps;            /* xpbd prior: substeps per frame (optional key: 1, 1..64) */
+    bool velocity_from_prior;           /* the encoder's velocity feature is prior - X_t instead of
+                                           X_t - X_{t-1} (optional key: false; xpbd prior only) */
     bool dec_skip;
     bool requires_collider;             /* trained only with colliders */
     uint32_t vertex_count;              /* 0: any garment; else the one mesh it was trained for */

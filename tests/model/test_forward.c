@@ -851,7 +851,7 @@ static void priors(void)
     weft_model *bad = model_with_prior(ctx, "skinny", &r);
     CHECK(bad == NULL);
     CHECK_RESULT(r, WEFT_ERROR_BAD_METADATA);
-    CHECK_MSG(strstr(weft_last_error(), "'inertial', 'previous', 'skinned', 'ballistic' or 'grasp'") != NULL,
+    CHECK_MSG(strstr(weft_last_error(), "'inertial', 'previous', 'skinned', 'ballistic', 'grasp' or 'xpbd'") != NULL,
               "message: %s",
               weft_last_error());
     free(S);
@@ -870,6 +870,102 @@ static void priors(void)
                         WEFT_ERROR_BAD_METADATA);
     /* and so is the skinned prior's decay */
     expect_create_fails("\\\"prior\\\": \\\"", "\\\"prior_decay\\\": 1.5, \\\"prior\\\": \\\"", true,
+                        WEFT_ERROR_BAD_METADATA);
+}
+
+/* The xpbd prior against the XPBD method itself: on the golden model's weights, the garment with
+ * prior "xpbd" (2 substeps) and the one with prior "previous" are set to the same state every
+ * frame of a rollout, with two pins on every other frame, and
+ *   x(xpbd) - x(previous) = Y - X_t,
+ * Y from an XPBD garment (2 substeps, no CCD) restarted at the same state, collider at t
+ * (weft_garment_set_collider_current) and pins, at every precision. Not vacuous: Y moves the
+ * cloth away from X_t. With velocity_from_prior the encoder reads Y - X_t, so the output differs
+ * from the plain xpbd garment's. Bad keys are refused at load. */
+static void xpbd_prior(void)
+{
+    golden g;
+    if (!golden_load(&g)) {
+        CHECK(!"golden tensors missing");
+        return;
+    }
+    weft_context *ctx = make_ctx();
+    weft_result r;
+    weft_model *prev = model_with_prior(ctx, "previous", &r);
+    CHECK_RESULT(r, WEFT_OK);
+    weft_model *xp = model_patched(ctx, "\\\"prior_substeps\\\": 2, \\\"prior\\\": \\\"xpbd\\\"", &r);
+    CHECK_RESULT(r, WEFT_OK);
+    weft_model *xv = model_patched(ctx,
+                                   "\\\"velocity_from_prior\\\": true, \\\"prior_substeps\\\": 2, "
+                                   "\\\"prior\\\": \\\"xpbd\\\"",
+                                   &r);
+    CHECK_RESULT(r, WEFT_OK);
+    const uint32_t T = 10;
+    const size_t n = (size_t)g.V * 3;
+    const uint32_t pin_idx[2] = {0, g.V - 1};
+    double worst = 0, moved = 0, vel_diff = 0;
+    for (int prec = 0; prev && xp && xv && prec < 3; ++prec) {
+        weft_garment *gp = NULL, *gx = NULL, *gv = NULL, *ref = NULL;
+        weft_garment_def d = garment_def(&g, prev, 1);
+        d.precision = (weft_precision)prec;
+        CHECK_RESULT(weft_garment_create(ctx, &d, &gp), WEFT_OK);
+        d.model = xp;
+        CHECK_RESULT(weft_garment_create(ctx, &d, &gx), WEFT_OK);
+        d.model = xv;
+        CHECK_RESULT(weft_garment_create(ctx, &d, &gv), WEFT_OK);
+        d.method = WEFT_METHOD_XPBD;
+        d.model = NULL;
+        d.substeps = 2;
+        CHECK_RESULT(weft_garment_create(ctx, &d, &ref), WEFT_OK);
+        for (uint32_t t = 1; gp && gx && gv && ref && t <= T; ++t) {
+            /* the state: the golden rollout's frames, the collider at t and t+1 */
+            const float *X = frame(&g.gt, t), *Xp = frame(&g.gt, t - 1);
+            float targets[6];
+            for (int k = 0; k < 2; ++k) {
+                for (int j = 0; j < 3; ++j) {
+                    targets[3 * k + j] = frame(&g.gt, t + 1)[3 * (size_t)pin_idx[k] + j] + 0.01f;
+                }
+            }
+            weft_garment *all[4] = {gp, gx, gv, ref};
+            for (int k = 0; k < 4; ++k) {
+                CHECK_RESULT(weft_garment_set_state(all[k], X, Xp), WEFT_OK);
+                CHECK_RESULT(weft_garment_set_collider_current(all[k], frame(&g.cpos, t)), WEFT_OK);
+                CHECK_RESULT(weft_garment_set_collider(all[k], frame(&g.cpos, t + 1)), WEFT_OK);
+                CHECK_RESULT(weft_garment_set_pins(all[k], pin_idx, targets, t % 2 ? 2 : 0), WEFT_OK);
+                CHECK_RESULT(weft_garment_step(all[k]), WEFT_OK);
+            }
+            const float *a = weft_garment_positions(gx), *b = weft_garment_positions(gp);
+            const float *y = weft_garment_positions(ref), *v = weft_garment_positions(gv);
+            for (size_t i = 0; i < n; ++i) {
+                const bool pinned = t % 2 && (i / 3 == pin_idx[0] || i / 3 == pin_idx[1]);
+                if (pinned) { /* every garment puts it at its target */
+                    worst = fmax(worst, fabs((double)a[i] - y[i]));
+                    continue;
+                }
+                worst = fmax(worst, fabs(((double)a[i] - b[i]) - ((double)y[i] - X[i])));
+                moved = fmax(moved, fabs((double)y[i] - X[i]));
+                vel_diff = fmax(vel_diff, fabs((double)v[i] - a[i]));
+            }
+        }
+        weft_garment_destroy(gp);
+        weft_garment_destroy(gx);
+        weft_garment_destroy(gv);
+        weft_garment_destroy(ref);
+    }
+    CHECK_MSG(worst < 2e-6, "x(xpbd) - x(previous) is %.3g m off Y - X_t", worst);
+    CHECK_MSG(moved > 1e-3, "the xpbd prior moves the cloth only %.3g m", moved);
+    CHECK_MSG(vel_diff > 1e-6, "velocity_from_prior does not change the output (%.3g m)", vel_diff);
+    printf("xpbd prior over %u frames x 3 precisions: off by %.3g m (prior moves %.3g m; velocity from the prior "
+           "changes the output by %.3g m)\n",
+           T, worst, moved, vel_diff);
+    weft_model_destroy(prev);
+    weft_model_destroy(xp);
+    weft_model_destroy(xv);
+    weft_context_destroy(ctx);
+    golden_free(&g);
+    /* its keys are range-checked, and the velocity from the prior needs the xpbd prior */
+    expect_create_fails("\\\"prior\\\": \\\"", "\\\"prior_substeps\\\": 0, \\\"prior\\\": \\\"", true,
+                        WEFT_ERROR_BAD_METADATA);
+    expect_create_fails("\\\"prior\\\": \\\"", "\\\"velocity_from_prior\\\": true, \\\"prior\\\": \\\"", true,
                         WEFT_ERROR_BAD_METADATA);
 }
 
@@ -1350,6 +1446,6 @@ static void parallel_for_hook(void)
 TEST_MAIN(TEST_CASE(teacher_forced_parity), TEST_CASE(shipped_game_parity), TEST_CASE(shipped_models_step),
           TEST_CASE(rollout_parity), TEST_CASE(shipped_drop_parity), TEST_CASE(shipped_garment_parity), TEST_CASE(shipped_gripper_parity),
           TEST_CASE(skinned_teacher_forced_parity), TEST_CASE(skinned_rollout_parity),
-          TEST_CASE(bad_model_files), TEST_CASE(priors), TEST_CASE(skinned_lod_switch),
+          TEST_CASE(bad_model_files), TEST_CASE(priors), TEST_CASE(xpbd_prior), TEST_CASE(skinned_lod_switch),
           TEST_CASE(bad_state_and_collider), TEST_CASE(reduced_precision),
           TEST_CASE(quantized_files), TEST_CASE(parallel_for_hook))

@@ -47,13 +47,17 @@ DEFAULT_CONFIG = {
     "prior": "inertial",  # "inertial" (2 X_t - X_{t-1}), "previous" (X_t), "skinned" (X_t + S_{t+1} - S_t),
                           # "ballistic" (X_t + prior_beta (X_t - X_{t-1}) - gravity_step along Y),
                           # "grasp" (as ballistic without gravity, then every vertex kept within its rest
-                          # distance of the pinned vertices' centroid: a long-range attachment to the hand)
+                          # distance of the pinned vertices' centroid: a long-range attachment to the hand),
+                          # "xpbd" (one frame of weft's XPBD method at prior_substeps substeps from the
+                          # state, colliders and pins, no CCD; computed by the runtime, tools/train/weft_sim.py)
     "prior_beta": 1.0,    # ballistic and grasp priors: fraction of the last frame's displacement carried on
     "prior_decay": 1.0,   # skinned prior: S_{t+1} + prior_decay (X_t - S_t), the offset from the skinned
                           # garment kept per step (1: X_t + S_{t+1} - S_t; < 1: drift decays toward it)
     "gravity_step": 9.81 / 3600.0,  # ballistic prior: g dt^2 (m) at 60 Hz, applied along -Y
     "attach_output": False,  # grasp prior: the attachment to the hand bounds the output (prior plus
                              # displacement), not the prior alone
+    "prior_substeps": 1,  # xpbd prior: substeps of its frame
+    "velocity_from_prior": False,  # the velocity feature is prior - X_t instead of X_t - X_{t-1} (xpbd prior only)
     "crop_margin": 0.15,  # collider triangles farther than this (m) from the garment box are dropped
     "dec_skip": True,     # decoder adds the encoder's per-vertex tokens to its queries' output
     "requires_collider": False,  # set by training when every training sequence had a collider
@@ -61,7 +65,7 @@ DEFAULT_CONFIG = {
 }
 
 GELU_TANH = "tanh"
-PRIORS = ("inertial", "previous", "skinned", "ballistic", "grasp")
+PRIORS = ("inertial", "previous", "skinned", "ballistic", "grasp", "xpbd")
 
 
 def full_config(cfg):
@@ -73,6 +77,10 @@ def full_config(cfg):
         raise ValueError("prior must be one of " + ", ".join(PRIORS))
     if not 0.0 <= out["prior_decay"] <= 1.0:
         raise ValueError("prior_decay must be in [0, 1]")
+    if out["velocity_from_prior"] and out["prior"] != "xpbd":
+        raise ValueError("velocity_from_prior needs the xpbd prior")
+    if not 1 <= int(out["prior_substeps"]) <= 64:
+        raise ValueError("prior_substeps must be in [1, 64]")
     return out
 
 
@@ -252,11 +260,18 @@ class ClothTransformer(nn.Module):
 
     # -- pieces -------------------------------------------------------------------------------
 
-    def encode(self, x_t, x_prev, adj, c_next=None, c_cur=None, ctri=None):
-        """Returns (Z_t (B, K, D), vertex tokens (B, N, D))."""
+    def encode(self, x_t, x_prev, adj, c_next=None, c_cur=None, ctri=None, y_prior=None):
+        """Returns (Z_t (B, K, D), vertex tokens (B, N, D)). y_prior: the xpbd prior's Y, read as
+        the velocity (Y - X_t) when velocity_from_prior."""
         c = self.cfg
         centre = x_t.mean(dim=-2, keepdim=True)                    # (B, 1, 3)
-        f = torch.cat([posembed(x_t - centre, self.freqs), (x_t - x_prev) * c["vel_scale"]], dim=-1)
+        if c["velocity_from_prior"]:
+            if y_prior is None:
+                raise ValueError("velocity_from_prior needs the xpbd prior's Y")
+            vel = y_prior - x_t
+        else:
+            vel = x_t - x_prev
+        f = torch.cat([posembed(x_t - centre, self.freqs), vel * c["vel_scale"]], dim=-1)
         h = self.enc_cloth(f)
         for g in self.enc_gnn:
             h = g(h, adj)
@@ -315,8 +330,12 @@ class ClothTransformer(nn.Module):
         held = torch.where(L > r, c + d * (r / L.clamp(min=1e-12)), y)
         return torch.where(m.sum(dim=1, keepdim=True) > 0, held, y)
 
-    def prior(self, x_t, x_prev, s_next=None, s_cur=None, pin_mask=None, pin_next=None, rest=None):
+    def prior(self, x_t, x_prev, s_next=None, s_cur=None, pin_mask=None, pin_next=None, rest=None, y_prior=None):
         p = self.cfg["prior"]
+        if p == "xpbd":
+            if y_prior is None:
+                raise ValueError("the xpbd prior's Y is computed outside the network (weft_sim.PriorPool)")
+            return y_prior
         if p == "grasp":
             # the cloth carries its velocity on, and a held cloth hangs from its hand: no vertex
             # ends farther from the pins' centroid at t+1 than it is from their centroid at rest
@@ -341,18 +360,19 @@ class ClothTransformer(nn.Module):
     # -- one step ----------------------------------------------------------------------------
 
     def step(self, hist, x_t, x_prev, rest, adj, c_next=None, c_cur=None, ctri=None, s_next=None, s_cur=None,
-             pin_mask=None, pin_next=None):
+             pin_mask=None, pin_next=None, y_prior=None):
         """hist: list of past latents (B, K, D) (oldest first, may be empty: reset); s_next/s_cur:
         the S track at t+1 and t (the skinned prior only); pin_mask (B, V) bool and pin_next
-        (B, V, 3): the vertices pinned at t+1 and their targets (the grasp prior only). Returns
+        (B, V, 3): the vertices pinned at t+1 and their targets (the grasp prior only); y_prior
+        (B, V, 3): the xpbd prior's Y (a constant: no gradient flows into the solver). Returns
         (x_next, new hist list)."""
-        z, vtok = self.encode(x_t, x_prev, adj, c_next, c_cur, ctri)
+        z, vtok = self.encode(x_t, x_prev, adj, c_next, c_cur, ctri, y_prior)
         hist = (list(hist) + [z])[-self.cfg["history"]:]
         while len(hist) < self.cfg["history"]:
             hist = [hist[0]] + hist            # repeat the oldest after a reset
         z_next = self.temporal(torch.stack(hist, dim=1))
         d = self.decode(z_next, rest, adj, vtok)
-        x_next = self.prior(x_t, x_prev, s_next, s_cur, pin_mask, pin_next, rest) + self.cfg["out_scale"] * d
+        x_next = self.prior(x_t, x_prev, s_next, s_cur, pin_mask, pin_next, rest, y_prior) + self.cfg["out_scale"] * d
         if self.cfg["prior"] == "grasp" and self.cfg["attach_output"]:
             x_next = self.attach(x_next, pin_mask, pin_next, rest)
         return x_next, hist
