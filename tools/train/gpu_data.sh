@@ -4,7 +4,7 @@
 # tool is built here and carried (x86-64 only, like the machine).
 #
 #   tools/train/gpu_data.sh bundle [DIR]   here: build a minimal `weft` (no samples, tests or
-#                                          renderer) into DIR (default .dev) with the shared
+#                                          renderer) and libweft.so.0 into DIR (default .dev) with the shared
 #                                          libraries it needs besides libc (.dev is git-ignored;
 #                                          name it in the device call's carry)
 #   tools/train/gpu_data.sh gen            there: one detached `weft simgen` per core, 1k tier,
@@ -34,8 +34,10 @@ case "${1:-}" in
         B=${2:-$B}
         cmake -S . -B build-bundle -DCMAKE_BUILD_TYPE=Release -DWEFT_BUILD_SAMPLES=OFF -DWEFT_BUILD_TESTS=OFF \
             > /dev/null || exit 1
-        cmake --build build-bundle -j"$(nproc)" --target weft_cli > /dev/null || exit 1
+        cmake --build build-bundle -j"$(nproc)" --target weft_cli weft_shared > /dev/null || exit 1
         mkdir -p "$B" && cp build-bundle/bin/weft "$B/" || exit 1
+        # the library itself, for training's ctypes bindings (WEFT_LIB=$B/libweft.so.0: the xpbd prior)
+        cp -L build-bundle/lib/libweft.so.0 "$B/" || exit 1
         # every library the binary loads except the C library itself and the loader
         ldd build-bundle/bin/weft | awk '$3 ~ /^\// {print $3}' |
             grep -Ev '/(libc|libm|libpthread|libdl|librt|ld-linux[^/]*)\.so' | xargs -r cp -L -t "$B/"

@@ -38,6 +38,10 @@
 #            as `drop` began; snapshots every 100 steps, chosen afterwards on all 14 validation
 #            drops with `weft eval` (data: drops only, ONLY=drop DATA=data/drops gpu_data.sh gen,
 #            made on the machine's cores just before; NO_SKIN=1)
+#   xpbd     drop specialists over the xpbd prior (one frame of weft's XPBD method under the
+#            network, docs/MODEL.md "XPBD prior"): the shipped `drop` with a zeroed head over 1 and 2
+#            substeps, velocity from the prior, batch 32, rollouts 2 -> 16, the prior's solver on 7
+#            threads per run (WEFT_LIB names the carried libweft.so.0); data as for dropgpu
 set -u
 cd "$(dirname "$0")/../.." || exit 1
 R=data/gpu/runs
@@ -55,7 +59,9 @@ case "$SET" in
           EXTRA="--eval-every 400 --eval-frames 238 --keep-best --pins --max-train-vertices 5000 --rollout-max 30" ;;
     dropgpu) RUNS="drop_r20 drop_r30c ball_k16"; DATA=${DATA:-data/drops}; BUDGET=${BUDGET:-5}
           EXTRA="--eval-every 150 --eval-frames 238 --keep-best --snapshot-every 100 --scenarios drop" ;;
-    *) echo "unknown SET=$SET (shipped|skin|skin2|pins|long|ballistic|dropgpu)" >&2; exit 2 ;;
+    xpbd) RUNS="xp1 xp2"; DATA=${DATA:-data/drops}; BUDGET=${BUDGET:-5}
+          EXTRA="--eval-every 150 --eval-frames 120 --keep-best --snapshot-every 100 --scenarios drop --prior-workers 7" ;;
+    *) echo "unknown SET=$SET (shipped|skin|skin2|pins|long|ballistic|dropgpu|xpbd)" >&2; exit 2 ;;
 esac
 
 run_args() {  # the arguments of run $1 (besides the common ones)
@@ -95,6 +101,12 @@ run_args() {  # the arguments of run $1 (besides the common ones)
                         --rollout-max 30 --lambda-contact 0.5 ;;
         ball_k16) echo "--init-from tools/train/models/game_k16.ckpt.pt --config '{\"prior\":\"ballistic\"}'" \
                        --batch 64 --lr 3e-4 --rollout-max 20 ;;
+        xp1) echo "--init-from tools/train/models/drop.ckpt.pt --init-head-scale 0" \
+                  "--config '{\"prior\":\"xpbd\",\"prior_substeps\":1,\"velocity_from_prior\":true}'" \
+                  --batch 32 --lr 2e-4 --rollout-min 2 --rollout-max 16 ;;
+        xp2) echo "--init-from tools/train/models/drop.ckpt.pt --init-head-scale 0" \
+                  "--config '{\"prior\":\"xpbd\",\"prior_substeps\":2,\"velocity_from_prior\":true}'" \
+                  --batch 32 --lr 2e-4 --rollout-min 2 --rollout-max 16 ;;
         ball_drop0) echo "--preset game --config '{\"prior\":\"ballistic\",\"K\":16}' --scenarios drop --batch 32 --lr 1e-3" ;;
     esac
 }
@@ -134,5 +146,5 @@ case "${1:-}" in
         collect ;;
     launch) start "" ;;
     collect) collect ;;
-    *) echo "usage: SET=shipped|skin|skin2|pins|long|ballistic|dropgpu $0 train|launch|collect" >&2; exit 2 ;;
+    *) echo "usage: SET=shipped|skin|skin2|pins|long|ballistic|dropgpu|xpbd $0 train|launch|collect" >&2; exit 2 ;;
 esac
