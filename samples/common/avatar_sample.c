@@ -60,11 +60,11 @@ void weft_avatar_sample_usage(FILE *out, const char *program)
             "  --sim-resolution RES    simulate this mesh of the garment and draw --resolution from it\n"
             "                          (a mesh map; e.g. 1k for a 4k garment; default: the drawn mesh)\n"
             "  --method M              auto | model | xpbd | lbs | skin (default auto: the learned model, else xpbd, lbs)\n"
-            "  --model FILE            safetensors model for the model method (default: the shipped game model for\n"
-            "                          --precision, tools/train/models/game[.fp16|.int8].safetensors)\n"
+            "  --model FILE            safetensors model for the model method (default: the shipped garment model\n"
+            "                          for --precision, tools/train/models/garment[.fp16|.int8].safetensors)\n"
             "  --precision P           fp32 | fp16 | int8: the model's arithmetic (default int8)\n"
-            "  --tether-cm X           tether every garment vertex within X cm of its skinned position (0: off;\n"
-            "                          default 3 for the learned model, off for xpbd)\n"
+            "  --tether-cm X           tether every garment vertex within X cm of its skinned position (default 0:\n"
+            "                          off; e.g. 3 for the older game model, which drifts off its wearer)\n"
             "  --strain-limit PCT      shorten garment edges stretched over PCT %% after each step (0: off;\n"
             "                          default 10 for the learned model, off for xpbd)\n"
             "  --push-cm X             push garment cloth inside the body (up to 2 cm) or nearer than X cm to X cm\n"
@@ -479,12 +479,14 @@ static int cape_frame(sample_state *s, const weft_pose *pose, uint32_t k)
     return 0;
 }
 
-/* The shipped game model for a precision (run from the repository root). */
+/* The shipped garment model for a precision (run from the repository root): the garment
+ * specialist, whose decayed skinned prior keeps the cloth on its wearer without tethers
+ * (docs/MODEL.md, *The decayed skinned prior*). */
 static const char *shipped_model(weft_precision precision)
 {
-    static const char *const shipped[] = {"tools/train/models/game.safetensors",
-                                          "tools/train/models/game.fp16.safetensors",
-                                          "tools/train/models/game.int8.safetensors"};
+    static const char *const shipped[] = {"tools/train/models/garment.safetensors",
+                                          "tools/train/models/garment.fp16.safetensors",
+                                          "tools/train/models/garment.int8.safetensors"};
     return shipped[precision < WEFT_PRECISION_COUNT ? precision : WEFT_PRECISION_FP32];
 }
 
@@ -499,7 +501,7 @@ weft_result weft_avatar_sample_garment_create(const weft_avatar_sample_options *
     if (strcmp(o->method, "skin") == 0) {
         return WEFT_OK;
     }
-    /* The shipped game model unless --model names another; a missing default file (the sample
+    /* The shipped garment model unless --model names another; a missing default file (the sample
      * run away from the repository) falls back to XPBD with a note, a named file must load. */
     const char *model_path = o->model_path ? o->model_path : shipped_model(o->precision);
     bool want_auto = strcmp(o->method, "auto") == 0;
@@ -530,9 +532,9 @@ weft_result weft_avatar_sample_garment_create(const weft_avatar_sample_options *
         gdef.method = order[m].method;
         gdef.model = *out_model;
         gdef.precision = o->precision;
-        /* Tethers keep the learned garment on its wearer (docs/MODEL.md: without them the
-         * shipped models' T-shirt slides off within two seconds). */
-        float tether_cm = o->tether_cm >= 0.0f ? o->tether_cm : (order[m].method == WEFT_METHOD_MODEL ? 3.0f : 0.0f);
+        /* No tethers by default: they cost the garment model accuracy (docs/MODEL.md); a model
+         * that drifts off its wearer (the older game model) needs them (--tether-cm 3). */
+        float tether_cm = o->tether_cm > 0.0f ? o->tether_cm : 0.0f;
         gdef.tether_distance = tether_cm / 100.0f;
         /* The strain limit mends the edges the network and the tether clamps tear (docs/MODEL.md). */
         float strain_pct = o->strain_pct >= 0.0f ? o->strain_pct : (order[m].method == WEFT_METHOD_MODEL ? 10.0f : 0.0f);

@@ -224,7 +224,7 @@ static weft_result scene_avatar_cmu(weft_context *ctx, weft_renderer *r)
 #if WEFT_RENDER_HAVE_SAMPLE
 /* The render sample's default cloth, short: the avatar blends from its bind pose into the walk
  * (20 frames) and walks 20 frames wearing the 1k T-shirt stepped by the sample's default method
- * (the shipped int8 game model; 3 cm tethers; 10 % strain limit; CCD on). The model is required here: a missing
+ * (the shipped int8 garment model; 10 % strain limit; CCD on). The model is required here: a missing
  * file fails the scene instead of falling back to XPBD. The int8 forward is bit-exact on every
  * ISA, so the scene runs on this machine's best kernels (its own context) for speed and draws
  * the same pixels everywhere. */
@@ -240,7 +240,7 @@ static weft_result scene_avatar_model_int8(weft_context *scalar_ctx, weft_render
     weft_avatar_sample_options o;
     weft_avatar_sample_default_options(&o);
     o.method = "model";
-    o.model_path = WEFT_RENDER_GAME_MODEL_INT8;
+    o.model_path = WEFT_RENDER_MODEL_INT8;
     avatar_parts a = {0};
     weft_model *model = NULL;
     weft_garment *garment = NULL;
@@ -314,7 +314,7 @@ static const golden_scene k_scenes[] = {
     {"avatar_dress_posed", "the posed avatar with the 4k dress skinned to the pose", scene_avatar_dress_posed},
 #endif
 #if WEFT_RENDER_HAVE_SAMPLE
-    {"avatar_model_int8", "the render sample's default: a 1k T-shirt stepped by the int8 game model, tethered, strain-limited, CCD on",
+    {"avatar_model_int8", "the render sample's default: a 1k T-shirt stepped by the int8 garment model, strain-limited, CCD on",
      scene_avatar_model_int8},
 #endif
 };

@@ -19,10 +19,10 @@ typedef struct weft_avatar_sample_options {
                                    through a weft_mesh_map; NULL (default): simulate what is drawn */
     const char *method;         /* auto | model | xpbd | lbs | skin (default "auto") */
     const char *model_path;     /* safetensors model for the model method; NULL (default): the shipped
-                                   game model for `precision`, tools/train/models/game[.fp16|.int8].safetensors */
+                                   garment model for `precision`, tools/train/models/garment[.fp16|.int8].safetensors */
     weft_precision precision;   /* the model's arithmetic (default int8) */
-    float tether_cm;            /* tether radius in cm (weft_garment_def.tether_distance); < 0 (default):
-                                   3 cm for the learned model, none for XPBD; 0: none */
+    float tether_cm;            /* tether radius in cm (weft_garment_def.tether_distance); <= 0 (default):
+                                   none (the garment model's decayed prior keeps it on its wearer) */
     float strain_pct;           /* strain limit in % (weft_garment_def.strain_limit); < 0 (default): 10 %
                                    for the learned model, none for XPBD; 0: none */
     float push_cm;              /* collider push in cm (weft_garment_def.collider_push); 0 (default): off */
@@ -55,7 +55,7 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *options);
 
 #if WEFT_RENDER_HAVE_SAMPLE
 #include "weft/body.h"
-/* The sample's garment: loads the model (o->model_path, else the shipped game model for
+/* The sample's garment: loads the model (o->model_path, else the shipped garment model for
  * o->precision; a missing default file falls back to XPBD with a note) and creates the garment
  * with the first method that works (o->method "auto": model, xpbd, lbs), tethered as o->tether_cm
  * says. WEFT_OK with *out_garment NULL means only rigid skinning is left (o->method "skin", or
