@@ -951,6 +951,31 @@ static void xpbd_prior(void)
         weft_garment_destroy(gv);
         weft_garment_destroy(ref);
     }
+    /* weft_garments_step steps such garments one by one: bit-identical to stepping them alone */
+    weft_garment *crowd[3] = {NULL}, *alone[3] = {NULL};
+    bool made = xv != NULL;
+    for (uint32_t k = 0; made && k < 3; ++k) {
+        weft_garment_def d = garment_def(&g, xv, 1 + k);
+        CHECK_RESULT(weft_garment_create(ctx, &d, &crowd[k]), WEFT_OK);
+        CHECK_RESULT(weft_garment_create(ctx, &d, &alone[k]), WEFT_OK);
+        made = crowd[k] && alone[k];
+    }
+    for (uint32_t t = 0; made && t < 3; ++t) {
+        for (uint32_t k = 0; k < 3; ++k) {
+            CHECK_RESULT(weft_garment_set_collider(crowd[k], frame(&g.cpos, 2 + k + t)), WEFT_OK);
+            CHECK_RESULT(weft_garment_set_collider(alone[k], frame(&g.cpos, 2 + k + t)), WEFT_OK);
+            CHECK_RESULT(weft_garment_step(alone[k]), WEFT_OK);
+        }
+        CHECK_RESULT(weft_garments_step(crowd, 3), WEFT_OK);
+        for (uint32_t k = 0; k < 3; ++k) {
+            CHECK_MSG(memcmp(weft_garment_positions(crowd[k]), weft_garment_positions(alone[k]), n * sizeof(float)) == 0,
+                      "xpbd prior: crowd garment %u differs from stepping alone at step %u", k, t);
+        }
+    }
+    for (uint32_t k = 0; k < 3; ++k) {
+        weft_garment_destroy(crowd[k]);
+        weft_garment_destroy(alone[k]);
+    }
     CHECK_MSG(worst < 2e-6, "x(xpbd) - x(previous) is %.3g m off Y - X_t", worst);
     CHECK_MSG(moved > 1e-3, "the xpbd prior moves the cloth only %.3g m", moved);
     CHECK_MSG(vel_diff > 1e-6, "velocity_from_prior does not change the output (%.3g m)", vel_diff);
