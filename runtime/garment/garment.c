@@ -321,40 +321,37 @@ weft_result weft_garment_set_state(weft_garment *g, const float *positions, cons
     return WEFT_OK;
 }
 
-weft_result weft_garment_set_collider(weft_garment *g, const float *collider_positions)
+/* Collider positions into the collider at t (current) or at t+1, after the checks both setters
+ * share; `who` names the caller in messages. */
+static weft_result copy_collider(weft_garment *g, const float *collider_positions, bool current, const char *who)
 {
     if (!g || !collider_positions) {
-        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_garment_set_collider: garment and positions are required");
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "%s: garment and positions are required", who);
     }
     if (g->collider_vertex_count == 0) {
-        return weft__fail(WEFT_ERROR_NO_COLLIDER, "weft_garment_set_collider: the garment was created without a "
-                                                  "collider (def.collider_vertex_count = 0)");
+        return weft__fail(WEFT_ERROR_NO_COLLIDER,
+                          "%s: the garment was created without a collider (def.collider_vertex_count = 0)", who);
     }
     size_t n = (size_t)g->collider_vertex_count * 3;
     if (!weft__all_finite(collider_positions, n)) {
-        return weft__fail(WEFT_ERROR_NOT_FINITE, "weft_garment_set_collider: positions contain NaN or infinity");
+        return weft__fail(WEFT_ERROR_NOT_FINITE, "%s: positions contain NaN or infinity", who);
     }
-    memcpy(g->collider_next, collider_positions, n * sizeof(float));
-    g->collider_next_set = true;
+    memcpy(current ? g->collider_prev : g->collider_next, collider_positions, n * sizeof(float));
     return WEFT_OK;
+}
+
+weft_result weft_garment_set_collider(weft_garment *g, const float *collider_positions)
+{
+    weft_result r = copy_collider(g, collider_positions, false, "weft_garment_set_collider");
+    if (r == WEFT_OK) {
+        g->collider_next_set = true;
+    }
+    return r;
 }
 
 weft_result weft_garment_set_collider_current(weft_garment *g, const float *collider_positions)
 {
-    if (!g || !collider_positions) {
-        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
-                          "weft_garment_set_collider_current: garment and positions are required");
-    }
-    if (g->collider_vertex_count == 0) {
-        return weft__fail(WEFT_ERROR_NO_COLLIDER, "weft_garment_set_collider_current: the garment was created "
-                                                  "without a collider (def.collider_vertex_count = 0)");
-    }
-    size_t n = (size_t)g->collider_vertex_count * 3;
-    if (!weft__all_finite(collider_positions, n)) {
-        return weft__fail(WEFT_ERROR_NOT_FINITE, "weft_garment_set_collider_current: positions contain NaN or infinity");
-    }
-    memcpy(g->collider_prev, collider_positions, n * sizeof(float));
-    return WEFT_OK;
+    return copy_collider(g, collider_positions, true, "weft_garment_set_collider_current");
 }
 
 weft_result weft_garment_set_pins(weft_garment *g, const uint32_t *vertex_indices, const float *target_positions,

@@ -1028,7 +1028,9 @@ static weft_result prior_sim_step(weft_garment *g, ct_state *s)
     weft_garment *p = s->prior_sim;
     weft_result r = weft_garment_set_state(p, g->x, g->x_prev);
     if (r == WEFT_OK && g->collider_vertex_count > 0) {
-        memcpy(p->collider_prev, g->collider_prev, 3 * (size_t)g->collider_vertex_count * sizeof(float));
+        r = weft_garment_set_collider_current(p, g->collider_prev);
+    }
+    if (r == WEFT_OK && g->collider_vertex_count > 0) {
         r = weft_garment_set_collider(p, g->collider_next);
     }
     if (r == WEFT_OK) {

@@ -190,9 +190,9 @@ def xpbd_prior_fn(cfg, pool, key, mesh, x_all, c_all, p_all):
     if cfg["prior"] != "xpbd":
         return None
     dev = x_all.device
-    xa = x_all.detach().cpu().numpy()
     ca = None if c_all is None else c_all.detach().cpu().numpy()
     pa = None if p_all is None else p_all.detach().cpu().numpy()
+    xa = None if p_all is None else x_all.detach().cpu().numpy()   # the pins' targets
 
     def fn(x, xp, t):
         y = pool.batch(key, mesh, x.detach().cpu().numpy(), xp.detach().cpu().numpy(),
