@@ -108,11 +108,24 @@ typedef struct weft_sim_sequence_def {
     float garment_retry_arm_spread;
     float garment_retry_ease_in;
     float garment_retry_amplitude;
+    /* Every this many frames the run saves its state to out_dir/checkpoint.bin, and a later call
+     * with the same def and out_dir continues from the last one (0: no checkpoints, default). The
+     * solver starts its candidate lists afresh at those frames, so such a sequence is the same
+     * whether or not it was interrupted, though not bit-identical to one made without
+     * checkpoints. A checkpoint of another def, a truncated or corrupt file is ignored (the run
+     * starts over) and replaced. The file is removed when the sequence is finished. */
+    uint32_t checkpoint_frames;
+    /* With checkpoint_frames: return at the first checkpoint after this many seconds of this call,
+     * with out_result->finished false and nothing written but the checkpoint (0: no limit, default;
+     * for job arrays with a wall-time limit). */
+    double time_limit_s;
     uint32_t internal_cookie;     /* set by weft_sim_default_sequence_def(); do not touch */
 } weft_sim_sequence_def;
 
 typedef struct weft_sim_sequence_result {
+    bool finished;                /* false only when time_limit_s stopped the run at a checkpoint */
     bool accepted;                /* validated with zero hits: written as ground truth */
+    uint32_t resumed_frame;       /* the checkpoint frame this call continued from (0: from the start) */
     uint32_t substeps_used;
     uint32_t attempts;
     bool gentle;                  /* the last attempt was the gentle garment retry (its settings: the def's) */

@@ -195,6 +195,138 @@ static void buffers_free(run_buffers *b)
     *b = (run_buffers){0};
 }
 
+/* ---------------------------------------------------------------------------------------- */
+/* Checkpoints (def.checkpoint_frames): out_dir/checkpoint.bin holds where the run stands, so a
+ * long sequence survives the end of a job. Layout, native byte order (a checkpoint is for the
+ * machine type that wrote it): the header below, then for frame > 0 the cloth of frames
+ * 0..frame (f32), their stats rows (f32) and the solver's double positions and velocities at
+ * `frame` (3 n f64 each), then an FNV-1a 64 hash of everything before it. The collider and the
+ * pins of the finished frames are not stored: they are functions of the frame. */
+
+#define CKPT_MAGIC "WEFTSIMC"
+#define CKPT_VERSION 1u
+
+typedef struct ckpt_header {
+    char magic[8];
+    uint32_t version;
+    uint32_t round, substeps, attempts; /* the attempt it belongs to (round 1: the gentle garment retry) */
+    uint32_t frame;                     /* last finished frame; 0: the attempt is to start from frame 1 */
+    uint32_t nv, nc, frames_total;
+    uint64_t fingerprint;
+    uint32_t chord_retries, path_frames, ccd_hits, intersection_hits;
+    double simulate_s, validate_s;
+} ckpt_header;
+
+typedef struct ckpt_run {
+    const char *dir;           /* NULL: checkpoints off */
+    uint32_t every;            /* def.checkpoint_frames */
+    uint64_t fingerprint;
+    double deadline_ms;        /* weft__now_ms() after which the call stops at a checkpoint (0: none) */
+    uint32_t round, attempts;  /* of the attempt being simulated */
+    const ckpt_header *resume; /* continue from it: b->cloth and b->stats rows 0..frame, xd and vd hold it */
+    double *xd, *vd;           /* 3 n each: the solver state read or to be written */
+    bool stopped;              /* out: the time limit ended the call at a checkpoint */
+} ckpt_run;
+
+static uint64_t fnv1a(uint64_t h, const void *data, size_t size)
+{
+    const unsigned char *p = data;
+    for (size_t i = 0; i < size; ++i) {
+        h = (h ^ p[i]) * 1099511628211ull;
+    }
+    return h;
+}
+
+/* Everything of the def and the scene sizes that shapes the sequence; field by field, so
+ * padding never enters it. */
+static uint64_t def_fingerprint(const weft_sim_sequence_def *d, uint32_t nv, uint32_t nc, uint32_t T)
+{
+    uint64_t h = 1469598103934665603ull;
+    const uint32_t u[] = {(uint32_t)d->scenario, d->frames, d->substeps, d->max_substeps, d->fast_collider_factor,
+                          d->cloth_vertices, d->validate, d->garment_retry, d->checkpoint_frames, nv, nc, T};
+    const float f[] = {d->motion_speed, d->garment_arm_spread, d->garment_retry_arm_spread, d->garment_retry_ease_in,
+                       d->garment_retry_amplitude};
+    h = fnv1a(h, &d->seed, sizeof d->seed);
+    h = fnv1a(h, u, sizeof u);
+    return fnv1a(h, f, sizeof f);
+}
+
+static void ckpt_path(char *path, size_t size, const char *dir, const char *suffix)
+{
+    snprintf(path, size, "%s/checkpoint.bin%s", dir, suffix);
+}
+
+/* Writes the checkpoint atomically (temporary file, then rename): a failed write leaves the
+ * previous checkpoint in place. */
+static bool ckpt_write(const ckpt_header *h, const run_buffers *b, const double *xd, const double *vd, const char *dir)
+{
+    char tmp[1100], fin[1100];
+    ckpt_path(tmp, sizeof tmp, dir, ".tmp");
+    ckpt_path(fin, sizeof fin, dir, "");
+    FILE *f = fopen(tmp, "wb");
+    if (!f) {
+        return false;
+    }
+    const size_t nv3 = 3 * (size_t)h->nv, rows = h->frame > 0 ? (size_t)h->frame + 1 : 0;
+    struct {
+        const void *p;
+        size_t size;
+    } parts[] = {{h, sizeof *h},
+                 {b->cloth, sizeof(float) * nv3 * rows},
+                 {b->stats, sizeof(float) * ST_COUNT * rows},
+                 {xd, rows ? sizeof(double) * nv3 : 0},
+                 {vd, rows ? sizeof(double) * nv3 : 0}};
+    uint64_t hash = 1469598103934665603ull;
+    bool ok = true;
+    for (size_t k = 0; k < sizeof parts / sizeof parts[0]; ++k) {
+        ok = ok && (parts[k].size == 0 || fwrite(parts[k].p, 1, parts[k].size, f) == parts[k].size);
+        hash = fnv1a(hash, parts[k].p, parts[k].size);
+    }
+    ok = ok && fwrite(&hash, sizeof hash, 1, f) == 1;
+    ok = (fclose(f) == 0) && ok;
+    if (!ok || rename(tmp, fin) != 0) {
+        remove(tmp);
+        return false;
+    }
+    return true;
+}
+
+/* Reads a checkpoint that matches the fingerprint and sizes into h and the buffers (cloth and
+ * stats rows 0..frame, xd and vd). false when there is none, or it is of another def, truncated
+ * or corrupt: the run then starts over. */
+static bool ckpt_read(const char *dir, uint64_t fingerprint, uint32_t nv, uint32_t nc, uint32_t T, ckpt_header *h,
+                      run_buffers *b, double *xd, double *vd)
+{
+    char path[1100];
+    ckpt_path(path, sizeof path, dir, "");
+    FILE *f = fopen(path, "rb");
+    if (!f) {
+        return false;
+    }
+    bool ok = fread(h, sizeof *h, 1, f) == 1 && memcmp(h->magic, CKPT_MAGIC, 8) == 0 && h->version == CKPT_VERSION &&
+              h->fingerprint == fingerprint && h->nv == nv && h->nc == nc && h->frames_total == T && h->frame < T &&
+              h->round < 2 && h->substeps > 0;
+    uint64_t hash = fnv1a(1469598103934665603ull, h, sizeof *h);
+    if (ok) {
+        const size_t nv3 = 3 * (size_t)nv, rows = h->frame > 0 ? (size_t)h->frame + 1 : 0;
+        struct {
+            void *p;
+            size_t size;
+        } parts[] = {{b->cloth, sizeof(float) * nv3 * rows},
+                     {b->stats, sizeof(float) * ST_COUNT * rows},
+                     {xd, rows ? sizeof(double) * nv3 : 0},
+                     {vd, rows ? sizeof(double) * nv3 : 0}};
+        for (size_t k = 0; ok && k < sizeof parts / sizeof parts[0]; ++k) {
+            ok = parts[k].size == 0 || fread(parts[k].p, 1, parts[k].size, f) == parts[k].size;
+            hash = fnv1a(hash, parts[k].p, parts[k].size);
+        }
+        uint64_t stored = 0;
+        ok = ok && fread(&stored, sizeof stored, 1, f) == 1 && stored == hash && fgetc(f) == EOF;
+    }
+    fclose(f);
+    return ok;
+}
+
 /* Certifies frame f. The chord between the output frames comes first: it is cheap and is
  * what a frame-level consumer (the model's CCD post-process) sees. When the chord grazes the
  * collider or the cloth, the recorded substep path (what the solver actually integrated,
@@ -260,9 +392,25 @@ static void locate_hit(const xscene *sc, const run_buffers *b, uint32_t f, const
     snprintf(res->hit_joint, sizeof res->hit_joint, "%s", weft_joint_name(j));
 }
 
-/* Simulates all frames at `substeps`; stops at the first validator hit. */
+/* Header of a checkpoint of the running attempt after frame f (0: the attempt's start). */
+static ckpt_header ckpt_at(const ckpt_run *ck, const weft_sim_sequence_result *res, uint32_t substeps, uint32_t f,
+                           uint32_t nv, uint32_t nc, uint32_t T)
+{
+    ckpt_header h = {.version = CKPT_VERSION, .round = ck->round, .substeps = substeps, .attempts = ck->attempts,
+                     .frame = f, .nv = nv, .nc = nc, .frames_total = T, .fingerprint = ck->fingerprint,
+                     .chord_retries = res->chord_retries, .path_frames = res->path_frames, .ccd_hits = res->ccd_hits,
+                     .intersection_hits = res->intersection_hits, .simulate_s = res->simulate_s,
+                     .validate_s = res->validate_s};
+    memcpy(h.magic, CKPT_MAGIC, 8);
+    return h;
+}
+
+/* Simulates all frames at `substeps`; stops at the first validator hit. With checkpoints
+ * (ck->dir), the state is saved every ck->every frames, the run continues from ck->resume when
+ * given, and stops early (ck->stopped) at the first checkpoint after ck->deadline_ms. */
 static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_sequence_def *def, uint32_t substeps,
-                            run_buffers *b, weft_sim_sequence_result *res, weft_sim_progress_fn *progress, void *user)
+                            run_buffers *b, weft_sim_sequence_result *res, ckpt_run *ck, weft_sim_progress_fn *progress,
+                            void *user)
 {
     /* Garments first drape for sc->preroll frames; those are simulated and validated like
      * the rest but not written. */
@@ -303,14 +451,53 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
         }
     }
     memcpy(b->cloth, sc->cloth_init, sizeof(float) * 3 * nv);
-    memset(b->stats, 0, sizeof(float) * ST_COUNT * T);
+    const size_t kept = ck->resume ? (size_t)ck->resume->frame + 1 : 0; /* stats rows the checkpoint restored */
+    memset(b->stats + kept * ST_COUNT, 0, sizeof(float) * ST_COUNT * (T - kept));
     memset(b->pinned, 0, (size_t)T * nv);
     res->ccd_hits = res->intersection_hits = 0;
     res->first_hit_frame = -1;
     locate_hit(sc, b, 0, &(weft_ccd_hit){.type = WEFT_CCD_TYPE_COUNT}, res);
     res->chord_retries = res->path_frames = 0;
     res->simulate_s = res->validate_s = 0.0;
-    for (uint32_t f = 1; f < T && r == WEFT_OK; ++f) {
+    uint32_t f_first = 1;
+    if (ck->resume) {
+        /* Continue after the checkpoint's frame: its kinematics again (functions of the frame),
+         * its recorded frames and counters, and the solver's exact state. */
+        const ckpt_header *h = ck->resume;
+        for (uint32_t f = 1; f <= h->frame; ++f) {
+            float *c = b->collider + (size_t)f * nc * 3;
+            xscene_collider_at(sc, f, c);
+            uint32_t np = xscene_pins_at(sc, f, c, b->pin_idx, b->pin_tgt);
+            for (uint32_t k = 0; k < np; ++k) {
+                b->pinned[(size_t)f * nv + b->pin_idx[k]] = 1;
+            }
+        }
+        res->chord_retries = h->chord_retries;
+        res->path_frames = h->path_frames;
+        res->ccd_hits = h->ccd_hits;
+        res->intersection_hits = h->intersection_hits;
+        res->simulate_s = h->simulate_s;
+        res->validate_s = h->validate_s;
+        res->resumed_frame = h->frame;
+        r = weft_garment_set_state(g, b->cloth + (size_t)h->frame * nv * 3, b->cloth + (size_t)(h->frame - 1) * nv * 3);
+        if (r == WEFT_OK && nc > 0) {
+            r = weft_garment_set_collider_current(g, b->collider + (size_t)h->frame * nc * 3);
+        }
+        if (r == WEFT_OK) {
+            r = weft__xpbd_import_state(g, ck->xd, ck->vd);
+        }
+        f_first = h->frame + 1;
+        ck->resume = NULL;
+    } else if (ck->dir) {
+        /* A checkpoint at the attempt's start: a run stopped before its first frame checkpoint
+         * resumes this attempt, not an earlier one. */
+        const ckpt_header h = ckpt_at(ck, res, substeps, 0, nv, nc, T);
+        (void)ckpt_write(&h, b, NULL, NULL, ck->dir);
+    }
+    for (uint32_t f = f_first; f < T && r == WEFT_OK; ++f) {
+        if (ck->dir && f > 1 && (f - 1) % ck->every == 0) {
+            weft__xpbd_forget_caches(g); /* as a run continued from the checkpoint after f - 1 has them */
+        }
         float *cnext = b->collider + (size_t)f * nc * 3;
         xscene_collider_at(sc, f, cnext);
         uint32_t np = xscene_pins_at(sc, f, cnext, b->pin_idx, b->pin_tgt);
@@ -400,6 +587,17 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
         if (progress) {
             progress(f, T - 1, user);
         }
+        if (ck->dir && f % ck->every == 0 && f + 1 < T) {
+            r = weft__xpbd_export_state(g, ck->xd, ck->vd);
+            const ckpt_header h = ckpt_at(ck, res, substeps, f, nv, nc, T);
+            if (r == WEFT_OK && !ckpt_write(&h, b, ck->xd, ck->vd, ck->dir)) {
+                r = weft__fail(WEFT_ERROR_IO, "weft_sim_generate: writing the checkpoint into '%s' failed", ck->dir);
+            }
+            if (r == WEFT_OK && ck->deadline_ms > 0.0 && weft__now_ms() >= ck->deadline_ms) {
+                ck->stopped = true;
+                break;
+            }
+        }
     }
     weft_sim_validator_destroy(val);
     weft_garment_destroy(g);
@@ -437,6 +635,10 @@ static bool write_meta(const char *dir, const xscene *sc, const weft_sim_sequenc
     cJSON_AddNumberToObject(m, "chord_safe_retries", res->chord_retries);
     cJSON_AddNumberToObject(m, "path_validated_frames", res->path_frames);
     cJSON_AddNumberToObject(m, "motion_speed", def->motion_speed);
+    if (def->checkpoint_frames) {
+        /* the solver's candidate lists restart at these frames (weft_sim_sequence_def) */
+        cJSON_AddNumberToObject(m, "checkpoint_frames", def->checkpoint_frames);
+    }
     char seed_text[32];
     snprintf(seed_text, sizeof seed_text, "%llu", (unsigned long long)def->seed);
     cJSON_AddStringToObject(m, "seed_u64", seed_text);
@@ -606,14 +808,16 @@ weft_result weft_sim_generate(weft_context *ctx, const weft_sim_sequence_def *de
         !(def->garment_retry_arm_spread >= 0.0f && def->garment_retry_arm_spread <= 0.8f) ||
         !(def->garment_arm_spread >= 0.0f && def->garment_arm_spread + def->garment_retry_arm_spread <= 0.8f) ||
         !(def->garment_retry_ease_in >= 0.0f && def->garment_retry_ease_in <= 2.0f) ||
-        !(def->garment_retry_amplitude >= 0.1f && def->garment_retry_amplitude <= 1.0f)) {
+        !(def->garment_retry_amplitude >= 0.1f && def->garment_retry_amplitude <= 1.0f) ||
+        def->checkpoint_frames > 100000 || !(def->time_limit_s >= 0.0 && def->time_limit_s <= 1e9) ||
+        (def->time_limit_s > 0.0 && def->checkpoint_frames == 0)) {
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
                           "weft_sim_generate: scenario, frames (2..100000), substeps (1..max_substeps<=1000), "
                           "fast_collider_factor (1..16, times max_substeps <= 4000), "
                           "cloth_vertices (16..200000), motion_speed (0.1..10), garment_retry_arm_spread (0..0.8), "
                           "garment_arm_spread (0.., plus the retry's <= 0.8), "
-                          "garment_retry_ease_in (0..2), garment_retry_amplitude (0.1..1) or out_dir length out of "
-                          "range");
+                          "garment_retry_ease_in (0..2), garment_retry_amplitude (0.1..1), checkpoint_frames "
+                          "(0..100000), time_limit_s (0..1e9, only with checkpoints) or out_dir length out of range");
     }
     xscene sc;
     weft_result r = xscene_build(ctx, &sc, def, def->seed, NULL);
@@ -634,7 +838,11 @@ weft_result weft_sim_generate(weft_context *ctx, const weft_sim_sequence_def *de
     b.pin_idx = malloc(sizeof(uint32_t) * nv);
     b.pin_tgt = malloc(sizeof(float) * 3 * nv);
     b.path = malloc(sizeof(float) * 3 * nv * ((size_t)def->max_substeps * def->fast_collider_factor + 1));
-    if (!b.cloth || !b.collider || !b.pinned || !b.stats || !b.pin_idx || !b.pin_tgt || !b.path) {
+    ckpt_run ck = {.every = def->checkpoint_frames};
+    double *solver_state = def->checkpoint_frames ? malloc(sizeof(double) * 6 * nv) : NULL;
+    if (!b.cloth || !b.collider || !b.pinned || !b.stats || !b.pin_idx || !b.pin_tgt || !b.path ||
+        (def->checkpoint_frames && !solver_state)) {
+        free(solver_state);
         buffers_free(&b);
         xscene_free(&sc);
         return weft__fail(WEFT_ERROR_OUT_OF_MEMORY, "weft_sim_generate: out of memory for %zu frames", T);
@@ -648,7 +856,28 @@ weft_result weft_sim_generate(weft_context *ctx, const weft_sim_sequence_def *de
     const xscene_gentle gentle = {def->garment_retry_arm_spread, def->garment_retry_ease_in,
                                   def->garment_retry_amplitude};
     const bool gentle_round = def->scenario == WEFT_SIM_SCENARIO_GARMENT && def->garment_retry;
-    for (int round = 0; r == WEFT_OK && !res.accepted && round < (gentle_round ? 2 : 1); ++round) {
+    /* A checkpoint of this def picks the attempt (round, substeps) and the frame to go on from. */
+    ckpt_header resume = {0};
+    uint32_t round0 = 0, substeps0 = def->substeps;
+    if (def->checkpoint_frames) {
+        ck.dir = out_dir;
+        ck.fingerprint = def_fingerprint(def, (uint32_t)nv, (uint32_t)nc, (uint32_t)T);
+        ck.deadline_ms = def->time_limit_s > 0.0 ? weft__now_ms() + 1000.0 * def->time_limit_s : 0.0;
+        ck.xd = solver_state;
+        ck.vd = solver_state + 3 * nv;
+        if (!make_dir(out_dir)) {
+            r = weft__fail(WEFT_ERROR_IO, "weft_sim_generate: cannot create '%s'", out_dir);
+        } else if (ckpt_read(out_dir, ck.fingerprint, (uint32_t)nv, (uint32_t)nc, (uint32_t)T, &resume, &b, ck.xd,
+                             ck.vd) &&
+                   (resume.round == 0 || gentle_round)) {
+            round0 = resume.round;
+            substeps0 = resume.substeps;
+            res.attempts = resume.attempts > 0 ? resume.attempts - 1 : 0;
+            ck.resume = resume.frame > 0 ? &resume : NULL;
+        }
+    }
+    for (int round = (int)round0; r == WEFT_OK && !res.accepted && !ck.stopped && round < (gentle_round ? 2 : 1);
+         ++round) {
         if (round == 1) {
             xscene_free(&sc);
             r = xscene_build(ctx, &sc, def, def->seed, &gentle);
@@ -661,12 +890,14 @@ weft_result weft_sim_generate(weft_context *ctx, const weft_sim_sequence_def *de
             }
             snprintf(res.description, sizeof res.description, "%s", sc.description);
         }
-        for (uint32_t s = def->substeps; s <= def->max_substeps; s *= 2) {
+        for (uint32_t s = round == (int)round0 ? substeps0 : def->substeps; s <= def->max_substeps; s *= 2) {
             res.attempts++;
             res.substeps_used = s;
             res.gentle = round == 1;
-            r = simulate(ctx, &sc, def, s, &b, &res, progress, user);
-            if (r != WEFT_OK) {
+            ck.round = (uint32_t)round;
+            ck.attempts = res.attempts;
+            r = simulate(ctx, &sc, def, s, &b, &res, &ck, progress, user);
+            if (r != WEFT_OK || ck.stopped) {
                 break;
             }
             res.accepted = res.first_hit_frame < 0;
@@ -675,7 +906,8 @@ weft_result weft_sim_generate(weft_context *ctx, const weft_sim_sequence_def *de
             }
         }
     }
-    if (r == WEFT_OK) {
+    res.finished = !ck.stopped;
+    if (r == WEFT_OK && res.finished) {
         if (!make_dir(out_dir)) {
             r = weft__fail(WEFT_ERROR_IO, "weft_sim_generate: cannot create '%s'", out_dir);
         } else if (res.accepted && !write_arrays(out_dir, &sc, def, &b)) {
@@ -684,6 +916,12 @@ weft_result weft_sim_generate(weft_context *ctx, const weft_sim_sequence_def *de
             r = weft__fail(WEFT_ERROR_IO, "weft_sim_generate: writing '%s/meta.json' failed", out_dir);
         }
     }
+    if (r == WEFT_OK && res.finished && ck.dir) {
+        char path[1100];
+        ckpt_path(path, sizeof path, out_dir, "");
+        remove(path); /* meta.json marks the sequence finished; the checkpoint has served */
+    }
+    free(solver_state);
     buffers_free(&b);
     xscene_free(&sc);
     if (r == WEFT_OK) {

@@ -151,6 +151,16 @@ weft_result weft__xpbd_retry_chord_safe(weft_garment *g, const float *x_t, const
 weft_result weft__xpbd_record_substeps(weft_garment *g, float *buffer, uint32_t capacity_substeps);
 /* States recorded by the last step (S + 1, or 0 when it recorded nothing). */
 uint32_t weft__xpbd_recorded_states(const weft_garment *g);
+/* The solver's double state (positions and velocities at t, 3 n each), so a long run can be
+ * checkpointed and continued exactly. Export fails before the first step after a set_state;
+ * import wants values that round to the garment's float positions (set them first with
+ * weft_garment_set_state) and leaves the garment untouched otherwise. */
+weft_result weft__xpbd_export_state(const weft_garment *g, double *x, double *v);
+weft_result weft__xpbd_import_state(weft_garment *g, const double *x, const double *v);
+/* Drops what the solver carries between frames besides its state (the candidate pair lists and
+ * the collider's tree), so the next step runs as on a new garment with the same state: a run
+ * that calls this at its checkpoints matches one continued from them, bit for bit. */
+void weft__xpbd_forget_caches(weft_garment *g);
 /* Statistics of the last step of an XPBD garment (zeros for other methods). */
 xpbd_frame_stats weft__xpbd_last_stats(const weft_garment *g);
 

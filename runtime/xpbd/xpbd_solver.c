@@ -451,6 +451,47 @@ weft_result weft__xpbd_configure(weft_garment *g, const xpbd_params *params)
     return r;
 }
 
+weft_result weft__xpbd_export_state(const weft_garment *g, double *x, double *v)
+{
+    if (!g || g->ops != &weft__xpbd_ops || !x || !v) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "xpbd export: needs an XPBD garment and both arrays");
+    }
+    const xpbd_state *s = g->method_state;
+    if (!s->have_state) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "xpbd export: the garment has not stepped since its state was set");
+    }
+    memcpy(x, s->xd, 3 * (size_t)s->n * sizeof(double));
+    memcpy(v, s->vd, 3 * (size_t)s->n * sizeof(double));
+    return WEFT_OK;
+}
+
+weft_result weft__xpbd_import_state(weft_garment *g, const double *x, const double *v)
+{
+    if (!g || g->ops != &weft__xpbd_ops || !x || !v) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "xpbd import: needs an XPBD garment and both arrays");
+    }
+    xpbd_state *s = g->method_state;
+    for (size_t i = 0; i < 3 * (size_t)s->n; ++i) {
+        if (!isfinite(x[i]) || !isfinite(v[i]) || (float)x[i] != g->x[i]) {
+            return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
+                              "xpbd import: the double state is not finite or does not round to the garment's positions");
+        }
+    }
+    memcpy(s->xd, x, 3 * (size_t)s->n * sizeof(double));
+    memcpy(s->vd, v, 3 * (size_t)s->n * sizeof(double));
+    s->have_state = true;
+    return WEFT_OK;
+}
+
+void weft__xpbd_forget_caches(weft_garment *g)
+{
+    if (g && g->ops == &weft__xpbd_ops) {
+        xpbd_state *s = g->method_state;
+        s->pairs_valid = false;
+        s->collider_bvh_built = false;
+    }
+}
+
 weft_result weft__xpbd_retry_chord_safe(weft_garment *g, const float *x_t, const float *x_prev,
                                         const float *collider_t)
 {

@@ -104,6 +104,7 @@ typedef struct progress_state {
     uint32_t done, total;
     const char *name;
     double t0;
+    double frac0; /* progress when this run began (a resumed sequence starts part way); < 0: not yet known */
 } progress_state;
 
 static double now_s(void)
@@ -122,8 +123,8 @@ static void draw_bar(const progress_state *p, uint32_t frame, uint32_t frames)
         bar[i] = i < fill ? '#' : '-';
     }
     bar[width] = '\0';
-    double el = now_s() - p->t0;
-    double eta = frac > 1e-6 ? el * (1.0 - frac) / frac : 0.0;
+    double el = now_s() - p->t0, base = p->frac0 > 0.0 ? p->frac0 : 0.0;
+    double eta = frac - base > 1e-6 ? el * (1.0 - frac) / (frac - base) : 0.0;
     fprintf(stderr, "\r[%s] %u/%u %-22s frame %3u/%u  %5.0fs elapsed, ~%5.0fs left ", bar, p->done, p->total,
             p->name ? p->name : "", frame, frames, el, eta);
     fflush(stderr);
@@ -131,6 +132,10 @@ static void draw_bar(const progress_state *p, uint32_t frame, uint32_t frames)
 
 static void on_frame(uint32_t frame, uint32_t frames, void *user)
 {
+    progress_state *p = user;
+    if (p->frac0 < 0.0 && p->total && frames) {
+        p->frac0 = (p->done + (frame - 1.0) / frames) / p->total;
+    }
     if (frame % 10 == 0 || frame + 1 == frames) {
         draw_bar(user, frame, frames);
     }
@@ -334,6 +339,11 @@ static void usage(FILE *f)
             "                   change, e.g. the gentle garment retry), besides the unfinished ones\n"
             "  --shard I/N      only sequences whose plan index is I modulo N (job arrays)\n"
             "  --limit N        stop after generating N new sequences\n"
+            "  --checkpoint-frames N  save a sequence's state every N frames (DIR/<name>/checkpoint.bin)\n"
+            "                   and continue from it when rerun (default: 10 for sequences of 16k\n"
+            "                   vertices or more, 0 = none below); part of what defines the sequence\n"
+            "  --time-limit S   stop at the first checkpoint after S seconds (sequences without\n"
+            "                   checkpoints are not started once S has passed); rerun to continue\n"
             "Finished sequences (DIR/<name>/meta.json present) are skipped, so a run resumes.\n"
             "Writes DIR/manifest.json and DIR/splits/<scenario>_{train,val,test}.txt (8:1:1).\n",
             weft_sim_default_sequence_def().fast_collider_factor);
@@ -365,6 +375,8 @@ int weft_cmd_simgen(int argc, char **argv)
     float motion_speed = 1.0f;
     uint32_t count = 10, vertices = 1024, frames = 240, substeps = 40, max_substeps = 80, shard_i = 0, shard_n = 1;
     uint32_t limit = UINT32_MAX;
+    long checkpoint_frames = -1; /* -1: by size */
+    double time_limit = 0.0;
     unsigned long long seed0 = 1;
     for (int i = 1; i < argc; ++i) {
         const char *a = argv[i];
@@ -440,6 +452,22 @@ int weft_cmd_simgen(int argc, char **argv)
             substeps = (uint32_t)strtoul(v, NULL, 10), ++i;
         } else if (v && strcmp(a, "--max-substeps") == 0) {
             max_substeps = (uint32_t)strtoul(v, NULL, 10), ++i;
+        } else if (v && (strcmp(a, "--checkpoint-frames") == 0 || strcmp(a, "--time-limit") == 0)) {
+            char *end = NULL;
+            const double x = strtod(v, &end);
+            const bool frames_opt = a[2] == 'c';
+            ++i;
+            if (!end || end == v || *end || !(x >= 0.0 && x <= (frames_opt ? 100000.0 : 1e9)) ||
+                (frames_opt && x != (double)(long)x)) {
+                fprintf(stderr, "simgen: %s wants %s, got '%s'\n", a,
+                        frames_opt ? "a whole number of frames in 0..100000" : "seconds in 0..1e9", v);
+                return 2;
+            }
+            if (frames_opt) {
+                checkpoint_frames = (long)x;
+            } else {
+                time_limit = x;
+            }
         } else if (v && strcmp(a, "--limit") == 0) {
             limit = (uint32_t)strtoul(v, NULL, 10), ++i;
         } else if (v && strcmp(a, "--seed") == 0) {
@@ -559,9 +587,10 @@ int weft_cmd_simgen(int argc, char **argv)
         if (todo > limit) {
             todo = limit;
         }
-        progress_state ps = {.total = todo, .t0 = now_s()};
+        progress_state ps = {.total = todo, .t0 = now_s(), .frac0 = -1.0};
         uint32_t accepted = 0, rejected = 0;
-        for (uint32_t i = 0; i < n && ps.done < todo; ++i) {
+        bool stopped = false;
+        for (uint32_t i = 0; i < n && ps.done < todo && !stopped; ++i) {
             char dir[1100], path[1200];
             snprintf(dir, sizeof dir, "%s/%s", out, plan[i].name);
             snprintf(path, sizeof path, "%s/meta.json", dir);
@@ -590,9 +619,28 @@ int weft_cmd_simgen(int argc, char **argv)
             def.garment_retry_ease_in = ease_in_retry;
             def.garment_retry_amplitude = amplitude_retry;
             def.garment_retry = garment_retry;
+            def.checkpoint_frames = checkpoint_frames >= 0 ? (uint32_t)checkpoint_frames
+                                                           : plan[i].vertices >= 16384 ? 10u : 0u;
+            const double left = time_limit > 0.0 ? time_limit - (now_s() - ps.t0) : 0.0;
+            if (time_limit > 0.0 && left <= 0.0) {
+                stopped = true;
+                fprintf(stderr, "\nsimgen: --time-limit reached before %s; rerun to continue\n", plan[i].name);
+                break;
+            }
+            def.time_limit_s = def.checkpoint_frames ? left : 0.0;
             ps.name = plan[i].name;
             weft_sim_sequence_result res;
             weft_result r = weft_sim_generate(ctx, &def, dir, on_frame, &ps, &res);
+            if (r == WEFT_OK && !res.finished) {
+                stopped = true;
+                fprintf(stderr, "\nsimgen: --time-limit reached; %s stopped at a checkpoint (%s/checkpoint.bin); "
+                                "rerun to continue\n", plan[i].name, dir);
+                break;
+            }
+            if (r == WEFT_OK && res.resumed_frame > 0) {
+                fprintf(stderr, "\nsimgen: %s continued from its checkpoint at frame %u\n", plan[i].name,
+                        res.resumed_frame);
+            }
             ps.done++;
             if (r != WEFT_OK) {
                 fprintf(stderr, "\nsimgen: %s failed: %s (%s)\n", plan[i].name, weft_result_string(r), weft_last_error());
