@@ -590,7 +590,8 @@ static int write_tables(const st_run *run)
     fprintf(f, "Machine and build: `%s`\n\n", weft_config_string());
     fprintf(f, "Ground truth: `weft simgen` (validated XPBD reference, scenario `%s`), base %u cloth vertices, %u "
                "frames, %u sequence(s) per case. Every method runs with CCD post-processing %s, from the first two "
-               "ground-truth frames, and then sees only the collider.\n\n",
+               "ground-truth frames, and then sees only the collider and the scene's pins (a gripper's grasped "
+               "vertices, a skirt's waistband; `weft eval --pins all`), as a game would set them.\n\n",
             o.scenario, o.base_vertices, o.frames, o.count, o.no_ccd ? "off (`--ccd off`)" : "on");
     fprintf(f, "Status: **NaN** (non-finite state), **exploded** (more than %.0f%% of the edges strained by more than "
                "%.0f%% in some frame; a single edge over %.0f%% is common at pins and tight contacts, in the reference "
