@@ -12,6 +12,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 enum {
     ST_WALL_MS,
@@ -260,8 +261,9 @@ static void ckpt_path(char *path, size_t size, const char *dir, const char *suff
  * previous checkpoint in place. */
 static bool ckpt_write(const ckpt_header *h, const run_buffers *b, const double *xd, const double *vd, const char *dir)
 {
-    char tmp[1100], fin[1100];
-    ckpt_path(tmp, sizeof tmp, dir, ".tmp");
+    char tmp[1100], fin[1100], suffix[32];
+    snprintf(suffix, sizeof suffix, ".%ld.tmp", (long)getpid()); /* two runs on one folder never share it */
+    ckpt_path(tmp, sizeof tmp, dir, suffix);
     ckpt_path(fin, sizeof fin, dir, "");
     FILE *f = fopen(tmp, "wb");
     if (!f) {
