@@ -105,6 +105,9 @@ typedef struct weft_sim_sequence_def {
      * amplitude scaled by garment_retry_amplitude (0.1..1, default 0.75). garment_retry = false
      * turns the retry off (default true; docs/REFSIM.md, Dress rejections). */
     bool garment_retry;
+    /* Garment scenario: the garment to wear, WEFT_CLOTH_TSHIRT, _SKIRT or _DRESS, instead of the
+     * seed's draw; every other draw (avatar, motion) stays the seed's (default -1: the draw). */
+    int32_t garment_kind;
     float garment_retry_arm_spread;
     float garment_retry_ease_in;
     float garment_retry_amplitude;

@@ -844,7 +844,10 @@ static weft_result build_garment(weft_context *ctx, xscene *sc, const weft_sim_s
         return res;
     }
     static const weft_cloth_kind kinds[3] = {WEFT_CLOTH_TSHIRT, WEFT_CLOTH_SKIRT, WEFT_CLOTH_DRESS};
-    weft_cloth_kind kind = kinds[xrng_below(r, 3)];
+    weft_cloth_kind kind = kinds[xrng_below(r, 3)]; /* drawn either way, so the later draws stay the seed's */
+    if (def->garment_kind >= 0) {
+        kind = (weft_cloth_kind)def->garment_kind;
+    }
     weft_cloth_def cd = weft_default_cloth_def(kind);
     cd.target_vertices = def->cloth_vertices;
     weft_cloth_mesh *mesh = NULL;

@@ -50,6 +50,7 @@ weft_sim_sequence_def weft_sim_default_sequence_def(void)
     d.validate = true;
     d.motion_speed = 1.0f;
     d.garment_retry = true;
+    d.garment_kind = -1;
     d.garment_arm_spread = 0.3f;
     d.garment_retry_arm_spread = 0.3f;
     d.garment_retry_ease_in = 0.5f;
@@ -249,6 +250,9 @@ static uint64_t def_fingerprint(const weft_sim_sequence_def *d, uint32_t nv, uin
                        d->garment_retry_amplitude};
     h = fnv1a(h, &d->seed, sizeof d->seed);
     h = fnv1a(h, u, sizeof u);
+    if (d->garment_kind >= 0) {
+        h = fnv1a(h, &d->garment_kind, sizeof d->garment_kind); /* the default draw hashes as before it existed */
+    }
     return fnv1a(h, f, sizeof f);
 }
 
@@ -690,6 +694,10 @@ static bool write_meta(const char *dir, const xscene *sc, const weft_sim_sequenc
         cJSON_AddNumberToObject(gm, "arm_spread", sc->motion.arm_spread);
         cJSON_AddNumberToObject(gm, "ease_in_s", sc->ease_in_s);
         cJSON_AddBoolToObject(gm, "gentle_retry", res->gentle);
+        if (def->garment_kind >= 0) {
+            /* the def chose the garment (weft_sim_sequence_def.garment_kind), not the seed */
+            cJSON_AddStringToObject(gm, "garment_kind", weft_cloth_kind_name((weft_cloth_kind)def->garment_kind));
+        }
         cJSON_AddNumberToObject(gm, "drape_preroll_frames", sc->preroll);
         cJSON_AddStringToObject(gm, "drape",
                                 "the body blends from its bind pose to the motion's first pose over the first half of "
@@ -811,6 +819,8 @@ weft_result weft_sim_generate(weft_context *ctx, const weft_sim_sequence_def *de
         !(def->garment_arm_spread >= 0.0f && def->garment_arm_spread + def->garment_retry_arm_spread <= 0.8f) ||
         !(def->garment_retry_ease_in >= 0.0f && def->garment_retry_ease_in <= 2.0f) ||
         !(def->garment_retry_amplitude >= 0.1f && def->garment_retry_amplitude <= 1.0f) ||
+        !(def->garment_kind == -1 || def->garment_kind == WEFT_CLOTH_TSHIRT || def->garment_kind == WEFT_CLOTH_SKIRT ||
+          def->garment_kind == WEFT_CLOTH_DRESS) ||
         def->checkpoint_frames > 100000 || !(def->time_limit_s >= 0.0 && def->time_limit_s <= 1e9) ||
         (def->time_limit_s > 0.0 && def->checkpoint_frames == 0)) {
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
@@ -818,7 +828,8 @@ weft_result weft_sim_generate(weft_context *ctx, const weft_sim_sequence_def *de
                           "fast_collider_factor (1..16, times max_substeps <= 4000), "
                           "cloth_vertices (16..200000), motion_speed (0.1..10), garment_retry_arm_spread (0..0.8), "
                           "garment_arm_spread (0.., plus the retry's <= 0.8), "
-                          "garment_retry_ease_in (0..2), garment_retry_amplitude (0.1..1), checkpoint_frames "
+                          "garment_retry_ease_in (0..2), garment_retry_amplitude (0.1..1), garment_kind (-1, "
+                          "tshirt, skirt, dress), checkpoint_frames "
                           "(0..100000), time_limit_s (0..1e9, only with checkpoints) or out_dir length out of range");
     }
     xscene sc;

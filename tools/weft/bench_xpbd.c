@@ -1,8 +1,11 @@
 /* weft bench xpbd: solver cost per frame at S = 5, 10, 20, 40 (and 80) substeps, one core,
  * and each run's error against the S = 40 and S = 80 references (the classical half of the
- * speed-versus-accuracy chart). Scene: a sheet of about --vertices vertices dropped onto a
- * box on the ground, so contacts and self-contacts are part of the cost. `--only S` runs one
- * substep count with a trajectory hash, for checking that a speedup changes nothing. */
+ * speed-versus-accuracy chart). Scenes: `sheet`, a sheet of about --vertices vertices dropped
+ * onto a box on the ground, so contacts and self-contacts are part of the cost; `tshirt`, a
+ * T-shirt of about --vertices vertices on the default avatar, draped once at S = 40 as simgen
+ * drapes it and then stepped through the avatar's motion from that same state at every S.
+ * `--only S` runs one substep count with a trajectory hash, for checking that a speedup changes
+ * nothing. */
 #define _POSIX_C_SOURCE 200809L /* clock_gettime, CLOCK_THREAD_CPUTIME_ID */
 #include "weft.h"
 #include "xpbd/scene.h"
@@ -22,7 +25,7 @@ static double thread_cpu_ms(void)
 }
 
 int weft_bench_xpbd(int argc, char **argv); /* the CLI registry declares it in main.c */
-const char weft_bench_xpbd_help[] = "XPBD ms/frame and error vs S=40/S=80 for S = 5, 10, 20, 40 (sheet on a box)";
+const char weft_bench_xpbd_help[] = "XPBD ms/frame and error vs S=40/S=80 for S = 5, 10, 20, 40 (sheet on a box, or a T-shirt on the avatar)";
 
 typedef struct run_out {
     float *traj;      /* frames * nv * 3 */
@@ -32,9 +35,18 @@ typedef struct run_out {
     double passes, rebuilds; /* proximity passes and candidate-list rebuilds per frame */
 } run_out;
 
-static int run(weft_context *ctx, const xmesh *cloth, const float *init, const xmesh *col, uint32_t S, uint32_t frames,
-               run_out *out)
+/* What a run steps: the cloth, its state at the start (positions and the frame before), and the
+ * collider at the start and after each of the frames (frames + 1 poses; stride 0: it stands). */
+typedef struct bench_scene {
+    const xmesh *cloth, *col;
+    const float *x0, *x_prev;
+    const float *col_seq;
+    size_t col_stride; /* floats from one pose to the next */
+} bench_scene;
+
+static int run(weft_context *ctx, const bench_scene *sc, uint32_t S, uint32_t frames, run_out *out)
 {
+    const xmesh *cloth = sc->cloth, *col = sc->col;
     weft_garment_def gd = weft_default_garment_def();
     gd.method = WEFT_METHOD_XPBD;
     gd.substeps = S;
@@ -43,14 +55,16 @@ static int run(weft_context *ctx, const xmesh *cloth, const float *init, const x
     gd.vertex_count = cloth->nv;
     gd.triangles = cloth->tris;
     gd.triangle_count = cloth->nt;
-    gd.initial_positions = init;
+    gd.initial_positions = sc->x0;
     gd.collider_rest_positions = col->pos;
     gd.collider_vertex_count = col->nv;
     gd.collider_triangles = col->tris;
     gd.collider_triangle_count = col->nt;
     weft_garment *g = NULL;
-    if (weft_garment_create(ctx, &gd, &g) != WEFT_OK) {
+    if (weft_garment_create(ctx, &gd, &g) != WEFT_OK || weft_garment_set_state(g, sc->x0, sc->x_prev) != WEFT_OK ||
+        weft_garment_set_collider_current(g, sc->col_seq) != WEFT_OK) {
         fprintf(stderr, "bench xpbd: %s\n", weft_last_error());
+        weft_garment_destroy(g);
         return 1;
     }
     out->traj = malloc(sizeof(float) * 3 * cloth->nv * frames);
@@ -61,7 +75,7 @@ static int run(weft_context *ctx, const xmesh *cloth, const float *init, const x
     double total = 0.0, cpu = 0.0;
     out->max_strain = 0.0;
     for (uint32_t f = 0; f < frames; ++f) {
-        weft_garment_set_collider(g, col->pos);
+        weft_garment_set_collider(g, sc->col_seq + (size_t)(f + 1) * sc->col_stride);
         double c0 = thread_cpu_ms();
         weft_result r = weft_garment_step(g);
         cpu += thread_cpu_ms() - c0;
@@ -83,6 +97,71 @@ static int run(weft_context *ctx, const xmesh *cloth, const float *init, const x
     return 0;
 }
 
+/* The T-shirt scene: simgen's garment scenario with the garment set to a T-shirt (avatar and
+ * motion from the seed), draped over its pre-roll at S = 40 (the ground truth's setting, with
+ * simgen's extra substeps for a fast body). Fills x0/x_prev with the draped state and col_seq
+ * with the body at the end of the drape and after each of `frames` frames of motion. */
+static int drape_tshirt(weft_context *ctx, uint32_t vertices, uint64_t seed, uint32_t frames, xscene *xs, float **x0,
+                        float **x_prev, float **col_seq)
+{
+    weft_sim_sequence_def def = weft_sim_default_sequence_def();
+    def.scenario = WEFT_SIM_SCENARIO_GARMENT;
+    def.cloth_vertices = vertices;
+    def.seed = seed;
+    def.garment_kind = WEFT_CLOTH_TSHIRT;
+    if (xscene_build(ctx, xs, &def, seed, NULL) != WEFT_OK) {
+        fprintf(stderr, "bench xpbd: %s\n", weft_last_error());
+        return 1;
+    }
+    const uint32_t nv = xs->cloth.nv, nc = xs->collider.nv;
+    *x0 = malloc(sizeof(float) * 3 * nv);
+    *x_prev = malloc(sizeof(float) * 3 * nv);
+    *col_seq = malloc(sizeof(float) * 3 * nc * ((size_t)frames + 1));
+    uint32_t *pin_idx = malloc(sizeof(uint32_t) * nv);
+    float *pin_tgt = malloc(sizeof(float) * 3 * nv), *c = malloc(sizeof(float) * 3 * nc);
+    weft_garment_def gd = weft_default_garment_def();
+    gd.method = WEFT_METHOD_XPBD;
+    gd.substeps = 40;
+    gd.substeps_max = 40 * def.fast_collider_factor;
+    gd.ccd = false;
+    gd.rest_positions = xs->cloth.pos;
+    gd.vertex_count = nv;
+    gd.triangles = xs->cloth.tris;
+    gd.triangle_count = xs->cloth.nt;
+    gd.initial_positions = xs->cloth_init;
+    gd.collider_rest_positions = xs->collider.pos;
+    gd.collider_vertex_count = nc;
+    gd.collider_triangles = xs->collider.tris;
+    gd.collider_triangle_count = xs->collider.nt;
+    weft_garment *g = NULL;
+    int rc = (*x0 && *x_prev && *col_seq && pin_idx && pin_tgt && c && weft_garment_create(ctx, &gd, &g) == WEFT_OK)
+                 ? 0
+                 : 1;
+    for (uint32_t f = 1; rc == 0 && f <= xs->preroll; ++f) {
+        xscene_collider_at(xs, f, c);
+        const uint32_t np = xscene_pins_at(xs, f, c, pin_idx, pin_tgt);
+        if (weft_garment_set_collider(g, c) != WEFT_OK || weft_garment_set_pins(g, pin_idx, pin_tgt, np) != WEFT_OK ||
+            weft_garment_step(g) != WEFT_OK) {
+            rc = 1;
+        } else if (f + 1 == xs->preroll) {
+            memcpy(*x_prev, weft_garment_positions(g), sizeof(float) * 3 * nv);
+        }
+    }
+    if (rc == 0) {
+        memcpy(*x0, weft_garment_positions(g), sizeof(float) * 3 * nv);
+        for (uint32_t f = 0; f <= frames; ++f) {
+            xscene_collider_at(xs, xs->preroll + f, *col_seq + (size_t)f * nc * 3);
+        }
+    } else {
+        fprintf(stderr, "bench xpbd: draping the T-shirt failed: %s\n", weft_last_error());
+    }
+    weft_garment_destroy(g);
+    free(pin_idx);
+    free(pin_tgt);
+    free(c);
+    return rc;
+}
+
 /* RMS vertex distance, averaged over all frames. */
 static double rmse(const float *a, const float *b, size_t nv, uint32_t frames)
 {
@@ -97,7 +176,8 @@ static double rmse(const float *a, const float *b, size_t nv, uint32_t frames)
 int weft_bench_xpbd(int argc, char **argv)
 {
     uint32_t vertices = 4096, frames = 60, only = 0;
-    bool with80 = true;
+    unsigned long long seed = 1;
+    bool with80 = true, tshirt = false;
     for (int i = 1; i < argc; ++i) {
         if (strcmp(argv[i], "--vertices") == 0 && i + 1 < argc) {
             vertices = (uint32_t)strtoul(argv[++i], NULL, 10);
@@ -107,15 +187,25 @@ int weft_bench_xpbd(int argc, char **argv)
             with80 = false;
         } else if (strcmp(argv[i], "--only") == 0 && i + 1 < argc) {
             only = (uint32_t)strtoul(argv[++i], NULL, 10);
+        } else if (strcmp(argv[i], "--seed") == 0 && i + 1 < argc) {
+            seed = strtoull(argv[++i], NULL, 10);
+        } else if (strcmp(argv[i], "--scene") == 0 && i + 1 < argc &&
+                   (strcmp(argv[i + 1], "sheet") == 0 || strcmp(argv[i + 1], "tshirt") == 0)) {
+            tshirt = strcmp(argv[++i], "tshirt") == 0;
         } else {
-            fprintf(stderr, "usage: weft bench xpbd [--vertices N (4096)] [--frames T (60)] [--no-80] [--only S]\n"
-                            "  --only S  run S substeps alone: cost, proximity-pass counters and a hash of the\n"
-                            "            trajectory (equal hashes: bit-identical output, for checking speedups)\n");
+            fprintf(stderr,
+                    "usage: weft bench xpbd [--scene sheet|tshirt] [--vertices N (4096)] [--frames T (60)] [--no-80]\n"
+                    "                       [--only S] [--seed X]\n"
+                    "  --scene    sheet: a sheet dropped onto a box (default); tshirt: a T-shirt on the default\n"
+                    "             avatar (body and motion drawn from --seed, default 1), draped once at S = 40,\n"
+                    "             then T frames of the motion at every S from that draped state\n"
+                    "  --only S   run S substeps alone: cost, proximity-pass counters and a hash of the\n"
+                    "             trajectory (equal hashes: bit-identical output, for checking speedups)\n");
             return strcmp(argv[i], "--help") == 0 ? 0 : 2;
         }
     }
-    if (vertices < 64 || frames < 1 || (only != 0 && (only > 1000))) {
-        fprintf(stderr, "bench xpbd: --vertices >= 64, --frames >= 1, --only 1..1000\n");
+    if (vertices < 64 || vertices > 200000 || frames < 1 || frames > 100000 || (only != 0 && (only > 1000))) {
+        fprintf(stderr, "bench xpbd: --vertices 64..200000, --frames 1..100000, --only 1..1000\n");
         return 2;
     }
     weft_context_def cd = weft_default_context_def();
@@ -124,72 +214,89 @@ int weft_bench_xpbd(int argc, char **argv)
         fprintf(stderr, "bench xpbd: %s\n", weft_last_error());
         return 1;
     }
-    /* 1 m square sheet 15 cm above a 40 x 20 x 40 cm box standing on the ground. */
-    xmesh cloth = {0}, col = {0};
-    double c[3] = {0, 0.1, 0}, half[3] = {0.2, 0.1, 0.2};
-    if (!xsheet_make(&cloth, XSHEET_RECT, 1.0, 1.0, vertices) || !xshape_ground(&col, 3.0) ||
-        !xshape_box(&col, c, half, 0.3)) {
-        fprintf(stderr, "bench xpbd: out of memory\n");
-        return 1;
-    }
-    float *init = malloc(sizeof(float) * 3 * cloth.nv);
-    for (uint32_t i = 0; i < cloth.nv; ++i) {
-        init[3 * i] = cloth.pos[3 * i];
-        init[3 * i + 1] = cloth.pos[3 * i + 1] + 0.35f;
-        init[3 * i + 2] = cloth.pos[3 * i + 2];
+    xmesh sheet = {0}, box = {0};
+    xscene xs = {0};
+    float *x0 = NULL, *x_prev = NULL, *col_seq = NULL;
+    bench_scene sc = {0};
+    int rc = 0;
+    if (tshirt) {
+        rc = drape_tshirt(ctx, vertices, seed, frames, &xs, &x0, &x_prev, &col_seq);
+        sc = (bench_scene){&xs.cloth, &xs.collider, x0, x_prev, col_seq, 3 * (size_t)xs.collider.nv};
+        if (rc == 0) {
+            printf("# weft bench xpbd: %s; %u-vertex T-shirt draped for %u frames at S = 40, then %u frames of "
+                   "the motion at each S, one core\n",
+                   xs.description, xs.cloth.nv, xs.preroll, frames);
+        }
+    } else {
+        /* 1 m square sheet 35 cm above the ground, over a 40 x 20 x 40 cm box standing on it. */
+        double c[3] = {0, 0.1, 0}, half[3] = {0.2, 0.1, 0.2};
+        x0 = NULL;
+        if (!xsheet_make(&sheet, XSHEET_RECT, 1.0, 1.0, vertices) || !xshape_ground(&box, 3.0) ||
+            !xshape_box(&box, c, half, 0.3) || !(x0 = malloc(sizeof(float) * 3 * sheet.nv))) {
+            fprintf(stderr, "bench xpbd: out of memory\n");
+            rc = 1;
+        } else {
+            for (uint32_t i = 0; i < sheet.nv; ++i) {
+                x0[3 * i] = sheet.pos[3 * i];
+                x0[3 * i + 1] = sheet.pos[3 * i + 1] + 0.35f;
+                x0[3 * i + 2] = sheet.pos[3 * i + 2];
+            }
+            sc = (bench_scene){&sheet, &box, x0, x0, box.pos, 0};
+            printf("# weft bench xpbd: %u-vertex sheet dropped on a box, %u frames, one core\n", sheet.nv, frames);
+        }
     }
     static const uint32_t steps[] = {5, 10, 20, 40, 80};
-    uint32_t nruns = with80 ? 5 : 4;
+    const uint32_t nruns = only ? 1 : with80 ? 5 : 4;
     run_out out[5] = {{0}};
-    printf("# weft bench xpbd: %u-vertex sheet dropped on a box, %u frames, one core\n", cloth.nv, frames);
-    printf("# %s\n", weft_config_string());
-    if (only != 0) {
-        int rc = run(ctx, &cloth, init, &col, only, frames, &out[0]);
-        if (rc == 0) {
-            /* FNV-1a over the trajectory's bytes. */
-            uint64_t hash = 1469598103934665603ull;
-            const unsigned char *b = (const unsigned char *)out[0].traj;
-            for (size_t i = 0; i < sizeof(float) * 3 * (size_t)cloth.nv * frames; ++i) {
-                hash = (hash ^ b[i]) * 1099511628211ull;
+    if (rc == 0) {
+        printf("# %s\n", weft_config_string());
+    }
+    for (uint32_t k = 0; rc == 0 && k < nruns; ++k) {
+        rc = run(ctx, &sc, only ? only : steps[k], frames, &out[k]);
+        if (rc == 0 && !only) {
+            fprintf(stderr, "S = %u done\n", steps[k]);
+        }
+    }
+    const size_t nv = sc.cloth ? sc.cloth->nv : 0;
+    if (rc == 0 && only) {
+        /* FNV-1a over the trajectory's bytes. */
+        uint64_t hash = 1469598103934665603ull;
+        const unsigned char *b = (const unsigned char *)out[0].traj;
+        for (size_t i = 0; i < sizeof(float) * 3 * nv * frames; ++i) {
+            hash = (hash ^ b[i]) * 1099511628211ull;
+        }
+        printf("| substeps | CPU ms/frame | CPU ms/substep | wall ms/frame | max strain |\n|---|---|---|---|---|\n");
+        printf("| %u | %.1f | %.2f | %.1f | %.2f %% |\n", only, out[0].cpu_frame, out[0].cpu_frame / only,
+               out[0].ms_frame, 100.0 * out[0].max_strain);
+        printf("# per frame: %.2f proximity passes, %.2f pair-list rebuilds\n", out[0].passes, out[0].rebuilds);
+        printf("# trajectory hash %016llx\n", (unsigned long long)hash);
+    } else if (rc == 0) {
+        printf("| substeps | CPU ms/frame | CPU ms/substep | wall ms/frame | RMSE vs S=40 (mm) | RMSE vs S=80 (mm) | max "
+               "strain |\n");
+        printf("|---|---|---|---|---|---|---|\n");
+        for (uint32_t k = 0; k < nruns; ++k) {
+            double e40 = 1000.0 * rmse(out[k].traj, out[3].traj, nv, frames);
+            printf("| %u | %.1f | %.2f | %.1f | %.2f | ", steps[k], out[k].cpu_frame, out[k].cpu_frame / steps[k],
+                   out[k].ms_frame, e40);
+            if (with80) {
+                printf("%.2f |", 1000.0 * rmse(out[k].traj, out[4].traj, nv, frames));
+            } else {
+                printf("- |");
             }
-            printf("| substeps | CPU ms/frame | CPU ms/substep | wall ms/frame | max strain |\n|---|---|---|---|---|\n");
-            printf("| %u | %.1f | %.2f | %.1f | %.2f %% |\n", only, out[0].cpu_frame, out[0].cpu_frame / only,
-                   out[0].ms_frame, 100.0 * out[0].max_strain);
-            printf("# per frame: %.2f proximity passes, %.2f pair-list rebuilds\n", out[0].passes, out[0].rebuilds);
-            printf("# trajectory hash %016llx\n", (unsigned long long)hash);
+            printf(" %.2f %% |\n", 100.0 * out[k].max_strain);
         }
-        free(out[0].traj);
-        free(init);
-        xmesh_free(&cloth);
-        xmesh_free(&col);
-        weft_context_destroy(ctx);
-        return rc;
-    }
-    for (uint32_t k = 0; k < nruns; ++k) {
-        if (run(ctx, &cloth, init, &col, steps[k], frames, &out[k]) != 0) {
-            return 1;
-        }
-        fprintf(stderr, "S = %u done\n", steps[k]);
-    }
-    printf("| substeps | CPU ms/frame | CPU ms/substep | wall ms/frame | RMSE vs S=40 (mm) | RMSE vs S=80 (mm) | max strain |\n");
-    printf("|---|---|---|---|---|---|---|\n");
-    for (uint32_t k = 0; k < nruns; ++k) {
-        double e40 = 1000.0 * rmse(out[k].traj, out[3].traj, cloth.nv, frames);
-        printf("| %u | %.1f | %.2f | %.1f | %.2f | ", steps[k], out[k].cpu_frame, out[k].cpu_frame / steps[k],
-               out[k].ms_frame, e40);
-        if (with80) {
-            printf("%.2f |", 1000.0 * rmse(out[k].traj, out[4].traj, cloth.nv, frames));
-        } else {
-            printf("- |");
-        }
-        printf(" %.2f %% |\n", 100.0 * out[k].max_strain);
     }
     for (uint32_t k = 0; k < nruns; ++k) {
         free(out[k].traj);
     }
-    free(init);
-    xmesh_free(&cloth);
-    xmesh_free(&col);
+    free(x0);
+    free(x_prev);
+    free(col_seq);
+    xmesh_free(&sheet);
+    xmesh_free(&box);
+    if (tshirt) {
+        xscene_free(&xs);
+    }
     weft_context_destroy(ctx);
-    return 0;
+    return rc;
 }
