@@ -124,6 +124,7 @@ typedef struct xpbd_frame_stats {
     uint32_t pair_rebuilds;      /* candidate-pair lists rebuilt from the trees */
     uint32_t contacts;           /* active contact projections in the frame (summed over substeps) */
     uint32_t contacts_dropped;   /* candidate pairs beyond the contact capacity (bounds still hold) */
+    uint32_t tight_passes;       /* passes whose self contacts overflowed and were swept again by their final bounds */
     uint32_t clamped;            /* vertex truncations to their conservative bound (summed) */
     double min_self_distance;    /* smallest cloth-cloth proximity seen (query radius if none) */
     double min_collider_distance;

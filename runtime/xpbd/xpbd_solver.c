@@ -21,6 +21,7 @@
 #define FRAME_DT (1.0 / 60.0)
 #define XPI 3.14159265358979323846
 #define RQ_MAX 0.1 /* largest proximity query radius, m */
+#define SLACK_BINS 256 /* histogram of contact slack in [-self_radius, self_radius), for an overflowing pass */
 
 typedef struct xcontact {
     uint32_t v[4];
@@ -96,6 +97,11 @@ typedef struct xpbd_state {
     uint32_t collider_contact_count;          /* collider contacts: the last ones of the array */
     uint32_t self_cap;                        /* self contacts never take the collider share */
     double rq;           /* query radius of the current detection window */
+    bool tight_contacts; /* the second sweep of an overflowing pass: contacts by the final bounds */
+    double slack_cutoff; /* tight sweeps keep pairs whose slack (gap left at the bounds) is below this */
+    bool count_slack;    /* the second sweep histograms the slack of every pair it wants */
+    uint32_t slack_hist[SLACK_BINS];
+    uint64_t self_dropped; /* self contacts dropped for want of room, ever (detect() compares it) */
 
     xpbd_frame_stats stats;
 } xpbd_state;
@@ -603,6 +609,7 @@ static void add_contact(xpbd_state *s, const xcontact *c)
         s->contacts[s->contact_cap - 1 - s->collider_contact_count++] = *c;
     } else {
         s->stats.contacts_dropped++;
+        s->self_dropped += c->self;
     }
 }
 
@@ -635,6 +642,27 @@ static double kin_max3(const xpbd_state *s, const uint32_t *t)
     return maxd(s->kin[t[0]], maxd(s->kin[t[1]], s->kin[t[2]]));
 }
 
+/* Whether a self pair at distance de (its kinematic motion over the window already taken off)
+ * can come within the self radius before the next pass, so that it needs a contact. First
+ * sweep: each side may close by up to gamma de, the most its bound can be. The second sweep of a
+ * pass whose contacts overflowed (tight_contacts) uses the bounds the pass ended with: the free
+ * vertices stay within them, so the pair can close by at most the larger bound on each side. */
+static inline bool self_contact_wanted(xpbd_state *s, double de, double bound_a, double bound_b)
+{
+    if (!s->tight_contacts) {
+        return de * (1.0 - 2.0 * s->p.bound_gamma) < s->p.self_radius;
+    }
+    const double r = s->p.self_radius, slack = de - bound_a - bound_b;
+    if (!(slack < r)) {
+        return false;
+    }
+    if (s->count_slack) {
+        const double u = (slack + r) / (2.0 * r) * SLACK_BINS;
+        s->slack_hist[u <= 0.0 ? 0 : u >= SLACK_BINS - 1 ? SLACK_BINS - 1 : (uint32_t)u]++;
+    }
+    return slack < s->slack_cutoff;
+}
+
 /* Cloth vertex vs cloth triangle. */
 static bool visit_self_vt(uint32_t t, void *user)
 {
@@ -661,7 +689,9 @@ static bool visit_self_vt(uint32_t t, void *user)
     for (int k = 0; k < 3; ++k) {
         lower_collider(s, tri[k], de, km);
     }
-    if (d > 0.0 && de * (1.0 - 2.0 * s->p.bound_gamma) < s->p.self_radius) {
+    if (d > 0.0 && self_contact_wanted(s, de, s->tight_contacts ? s->bound[v] : 0.0,
+                                       s->tight_contacts ? maxd(s->bound[tri[0]], maxd(s->bound[tri[1]], s->bound[tri[2]]))
+                                                         : 0.0)) {
         xcontact c = {.v = {v, tri[0], tri[1], tri[2]}, .type = XC_VT, .self = 1};
         for (int k = 0; k < 3; ++k) {
             double q = b[0] * x[3 * (size_t)tri[0] + k] + b[1] * x[3 * (size_t)tri[1] + k] +
@@ -700,7 +730,8 @@ static bool visit_self_ee(uint32_t e2, void *user)
     double de = d - km;
     lower_collider(s, a[0], de, km), lower_collider(s, a[1], de, km);
     lower_collider(s, b[0], de, km), lower_collider(s, b[1], de, km);
-    if (d > 0.0 && de * (1.0 - 2.0 * s->p.bound_gamma) < s->p.self_radius) {
+    if (d > 0.0 && self_contact_wanted(s, de, s->tight_contacts ? maxd(s->bound[a[0]], s->bound[a[1]]) : 0.0,
+                                       s->tight_contacts ? maxd(s->bound[b[0]], s->bound[b[1]]) : 0.0)) {
         xcontact c = {.v = {a[0], a[1], b[0], b[1]}, .type = XC_EE, .self = 1};
         for (int k = 0; k < 3; ++k) {
             double pa = (1.0 - sa) * x[3 * (size_t)a[0] + k] + sa * x[3 * (size_t)a[1] + k];
@@ -1006,9 +1037,45 @@ static void query_box(const xpbd_state *s, int list, uint32_t q, detect_ctx *dc)
     }
 }
 
+/* Visits every pair within rq once: over the candidate lists when use_lists, else straight
+ * from the trees. */
+static void sweep(weft_garment *g, xpbd_state *s, detect_ctx *dc, bool use_lists)
+{
+    static xbvh_visit_fn *const visitors[PL_COUNT] = {visit_self_vt, visit_self_ee, visit_vt_collider,
+                                                      visit_tv_collider, visit_ee_collider};
+    if (use_lists) {
+        const xpair *pr = s->pairs;
+        for (int list = 0; list < PL_COUNT; ++list) {
+            uint32_t last = UINT32_MAX;
+            dc->list = list;
+            dc->prim_box = list_boxes(s, list);
+            for (uint32_t k = 0; k < s->pair_count[list]; ++k, ++pr) {
+                if (pr->query != last) {
+                    last = pr->query;
+                    dc->query = last;
+                    query_box(s, list, last, dc);
+                }
+                /* The trees only report primitives whose boxes meet the query box. */
+                if (box_hits(dc, pr->prim)) {
+                    visitors[list](pr->prim, dc);
+                }
+            }
+        }
+    } else {
+        const pass_fns direct = {visit_self_vt, visit_self_ee, visit_vt_collider, visit_tv_collider, visit_ee_collider};
+        traverse(g, s, s->rq, &direct, dc);
+    }
+}
+
 /* One proximity pass at the snapshot s->xs / s->csnap; window = substeps until the next pass.
  * Distances are visited over the candidate lists when they are fresh (rebuilt when not),
- * else straight from the trees. Both give every pair within rq. */
+ * else straight from the trees. Both give every pair within rq.
+ *
+ * A pass whose self contacts overflow the list sweeps a second time for the contacts alone,
+ * keeping only the pairs that its final bounds let close to the self radius. A dropped pair
+ * keeps its bound and cannot cross, but gets no repulsion either, so in a dense pile (a
+ * finely meshed sheet folded under a gripper) its gap shrinks pass after pass until the
+ * validator sees it touch. Passes that fit are swept once, as before. */
 static void detect(weft_garment *g, xpbd_state *s)
 {
     const double gamma = s->p.bound_gamma;
@@ -1026,34 +1093,46 @@ static void detect(weft_garment *g, xpbd_state *s)
         prim_boxes(s->csnap, s->ctopo.edges, s->ctopo.edge_count, 2, s->box_cedge);
     }
     detect_ctx dc = {.s = s, .tris = g->triangles, .ctris = g->collider_triangles};
-    static xbvh_visit_fn *const visitors[PL_COUNT] = {visit_self_vt, visit_self_ee, visit_vt_collider,
-                                                      visit_tv_collider, visit_ee_collider};
-    if (pairs_fresh(s) || build_pairs(g, s)) {
-        const xpair *pr = s->pairs;
-        for (int list = 0; list < PL_COUNT; ++list) {
-            uint32_t last = UINT32_MAX;
-            dc.list = list;
-            dc.prim_box = list_boxes(s, list);
-            for (uint32_t k = 0; k < s->pair_count[list]; ++k, ++pr) {
-                if (pr->query != last) {
-                    last = pr->query;
-                    dc.query = last;
-                    query_box(s, list, last, &dc);
-                }
-                /* The trees only report primitives whose boxes meet the query box. */
-                if (box_hits(&dc, pr->prim)) {
-                    visitors[list](pr->prim, &dc);
-                }
-            }
-        }
-    } else {
+    const bool use_lists = pairs_fresh(s) || build_pairs(g, s);
+    if (!use_lists) {
         refit_trees(s);
-        const pass_fns direct = {visit_self_vt, visit_self_ee, visit_vt_collider, visit_tv_collider, visit_ee_collider};
-        traverse(g, s, s->rq, &direct, &dc);
     }
+    const uint32_t dropped_before = s->stats.contacts_dropped;
+    const uint32_t self_dropped_before = s->self_dropped;
+    sweep(g, s, &dc, use_lists);
     for (uint32_t i = 0; i < s->n; ++i) {
         double d = s->dmin[i];
         s->bound[i] = d > 0.0 ? gamma * d : 0.0;
+    }
+    if (s->self_dropped > self_dropped_before && !s->split_moving) {
+        /* Revisiting lowers no distance further, so the bounds stay as they are. */
+        const double r = s->p.self_radius;
+        s->tight_contacts = true;
+        s->slack_cutoff = r;
+        s->count_slack = true;
+        memset(s->slack_hist, 0, sizeof s->slack_hist);
+        for (int round = 0; round < 2; ++round) {
+            s->contact_count = 0;
+            s->collider_contact_count = 0;
+            s->stats.contacts_dropped = dropped_before;
+            const uint64_t before = s->self_dropped;
+            sweep(g, s, &dc, use_lists);
+            s->count_slack = false;
+            if (s->self_dropped == before) {
+                break;
+            }
+            /* Still too many: a third sweep keeps the pairs with the least slack, as many as fit
+             * (the cutoff is a bin edge of the second sweep's histogram). The pairs left out have
+             * the most room; as gaps close, they are the ones kept. */
+            uint64_t kept = 0;
+            uint32_t bins = 0;
+            while (bins < SLACK_BINS && kept + s->slack_hist[bins] <= s->self_cap) {
+                kept += s->slack_hist[bins++];
+            }
+            s->slack_cutoff = -r + 2.0 * r * (double)(bins > 0 ? bins : 1) / SLACK_BINS;
+        }
+        s->tight_contacts = false;
+        s->stats.tight_passes++;
     }
 }
 
