@@ -22,6 +22,7 @@ typedef struct plan_item {
     uint32_t index;
     const char *tier; /* the --all tier's tag ("1k", ...); NULL for --scenario items */
     char name[64];
+    uint64_t seed;    /* --like: the sequence seed itself (0: hashed from the name) */
 } plan_item;
 
 /* The full dataset: small sheets first so training can start early, then larger ones. */
@@ -342,6 +343,9 @@ static void usage(FILE *f)
             "  --checkpoint-frames N  save a sequence's state every N frames (DIR/<name>/checkpoint.bin)\n"
             "                   and continue from it when rerun (default: 10 for sequences of 16k\n"
             "                   vertices or more, 0 = none below); part of what defines the sequence\n"
+            "  --like DIR       the scene of the sequence in DIR (its meta.json's scenario, seed_u64, frames and\n"
+            "                   motion speed) at --vertices, as DIR-NAME_v<vertices>: a twin at another\n"
+            "                   resolution for cross-resolution tests (e.g. the 1k twin of a 16k sequence)\n"
             "  --time-limit S   stop at the first checkpoint after S seconds (sequences without\n"
             "                   checkpoints are not started once S has passed); rerun to continue\n"
             "Finished sequences (DIR/<name>/meta.json present) are skipped, so a run resumes.\n"
@@ -363,7 +367,8 @@ static int garment_option(const char *arg)
 
 int weft_cmd_simgen(int argc, char **argv)
 {
-    const char *out = NULL, *scenario = NULL, *tier = NULL, *split = NULL, *only = NULL;
+    const char *out = NULL, *scenario = NULL, *tier = NULL, *split = NULL, *only = NULL, *like = NULL;
+    bool frames_given = false;
     float arm_spread_retry = weft_sim_default_sequence_def().garment_retry_arm_spread;
     float arm_spread = weft_sim_default_sequence_def().garment_arm_spread;
     float ease_in_retry = weft_sim_default_sequence_def().garment_retry_ease_in;
@@ -448,6 +453,9 @@ int weft_cmd_simgen(int argc, char **argv)
             vertices = (uint32_t)strtoul(v, NULL, 10), ++i;
         } else if (v && strcmp(a, "--frames") == 0) {
             frames = (uint32_t)strtoul(v, NULL, 10), ++i;
+            frames_given = true;
+        } else if (v && strcmp(a, "--like") == 0) {
+            like = v, ++i;
         } else if (v && strcmp(a, "--substeps") == 0) {
             substeps = (uint32_t)strtoul(v, NULL, 10), ++i;
         } else if (v && strcmp(a, "--max-substeps") == 0) {
@@ -496,7 +504,11 @@ int weft_cmd_simgen(int argc, char **argv)
         fprintf(stderr, "simgen: --only wants drop, gripper or garment, got '%s'\n", only);
         return 2;
     }
-    if (!out || (!all && !scenario && !manifest_only)) {
+    if (like && (all || scenario)) {
+        fprintf(stderr, "simgen: --like makes one sequence; leave out --all and --scenario\n");
+        return 2;
+    }
+    if (!out || (!all && !scenario && !manifest_only && !like)) {
         usage(stderr);
         return 2;
     }
@@ -522,6 +534,7 @@ int weft_cmd_simgen(int argc, char **argv)
     if (scenario) {
         cap += count;
     }
+    cap += like ? 1 : 0;
     plan_item *plan = calloc(cap ? cap : 1, sizeof *plan);
     if (!plan) {
         fprintf(stderr, "simgen: out of memory\n");
@@ -561,6 +574,45 @@ int weft_cmd_simgen(int argc, char **argv)
             p->index = k;
             snprintf(p->name, sizeof p->name, "%s_v%u_%04u", scenario, vertices, k);
         }
+    }
+    if (like) {
+        /* One twin: the other sequence's scenario and seed at this run's vertex count. */
+        char path[1200];
+        snprintf(path, sizeof path, "%s/meta.json", like);
+        cJSON *meta = read_meta(path);
+        const cJSON *sc = cJSON_GetObjectItemCaseSensitive(meta, "scenario");
+        const cJSON *sd = cJSON_GetObjectItemCaseSensitive(meta, "seed_u64");
+        const cJSON *fr = cJSON_GetObjectItemCaseSensitive(meta, "frames");
+        const cJSON *sp = cJSON_GetObjectItemCaseSensitive(meta, "motion_speed");
+        plan_item *p = &plan[n];
+        p->scenario = WEFT_SIM_SCENARIO_COUNT;
+        for (int k = 0; cJSON_IsString(sc) && k < WEFT_SIM_SCENARIO_COUNT; ++k) {
+            p->scenario = strcmp(sc->valuestring, weft_sim_scenario_name((weft_sim_scenario)k)) == 0
+                              ? (weft_sim_scenario)k
+                              : p->scenario;
+        }
+        char *end = NULL;
+        p->seed = cJSON_IsString(sd) ? strtoull(sd->valuestring, &end, 10) : 0;
+        if (p->scenario == WEFT_SIM_SCENARIO_COUNT || !end || *end || p->seed == 0 || !cJSON_IsNumber(fr)) {
+            fprintf(stderr, "simgen: --like %s: no meta.json with scenario, seed_u64 and frames there\n", like);
+            cJSON_Delete(meta);
+            free(plan);
+            return 1;
+        }
+        frames = frames_given ? frames : (uint32_t)fr->valuedouble;
+        motion_speed = cJSON_IsNumber(sp) ? (float)sp->valuedouble : motion_speed;
+        size_t len = strlen(like);
+        while (len > 1 && like[len - 1] == '/') {
+            --len;
+        }
+        size_t base = len;
+        while (base > 0 && like[base - 1] != '/') {
+            --base;
+        }
+        p->vertices = vertices;
+        snprintf(p->name, sizeof p->name, "%.*s_v%u", (int)(len - base < 40 ? len - base : 40), like + base, vertices);
+        ++n;
+        cJSON_Delete(meta);
     }
     bench_mkdirs(out); /* parents too: --out data/sets/a works on a fresh checkout */
     if (!file_exists(out)) {
@@ -602,7 +654,7 @@ int weft_cmd_simgen(int argc, char **argv)
             /* The plan's names carry the vertex count; a resolution series hashes the name without it. */
             char scene[96];
             snprintf(scene, sizeof scene, "%s_%04u", weft_sim_scenario_name(plan[i].scenario), plan[i].index);
-            def.seed = seq_seed(seed0, resolution_series ? scene : plan[i].name);
+            def.seed = plan[i].seed ? plan[i].seed : seq_seed(seed0, resolution_series ? scene : plan[i].name);
             def.frames = frames;
             def.substeps = substeps;
             def.max_substeps = max_substeps;
