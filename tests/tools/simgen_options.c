@@ -141,6 +141,46 @@ static void redo_rejected_runs_rejected_again(void)
     CHECK_MSG(strstr(text, "\"accepted\":\ttrue") != NULL, "--redo-rejected left the rejected sequence: %.200s", text);
 }
 
+/* --like: the scene of another sequence (scenario and seed from its meta.json) at another vertex
+ * count, named after it. */
+static void like_makes_the_same_scene(void)
+{
+    char a[1024], b[1024], meta_a[1200], meta_b[1200];
+    snprintf(a, sizeof a, "%s/like_a", g_out);
+    snprintf(b, sizeof b, "%s/like_b", g_out);
+    snprintf(meta_a, sizeof meta_a, "%s/drop_v300_0000/meta.json", a);
+    snprintf(meta_b, sizeof meta_b, "%s/drop_v300_0000_v150/meta.json", b);
+    unlink(meta_a);
+    unlink(meta_b);
+    const char *first[] = {g_exe, "simgen", "--out", a, "--scenario", "drop", "--count", "1", "--vertices", "300",
+                           "--frames", "3", "--no-validate", NULL};
+    CHECK_EQ_INT(tool_run(first, NULL), 0);
+    char like[1200];
+    snprintf(like, sizeof like, "%s/drop_v300_0000", a);
+    const char *twin[] = {g_exe, "simgen", "--out", b, "--like", like, "--vertices", "150", "--no-validate", NULL};
+    CHECK_EQ_INT(tool_run(twin, NULL), 0);
+    static char ta[1 << 16], tb[1 << 16];
+    slurp(meta_a, ta, sizeof ta);
+    slurp(meta_b, tb, sizeof tb);
+    const char *da = strstr(ta, "\"description\""), *db = strstr(tb, "\"description\"");
+    const char *sa = strstr(ta, "\"seed_u64\""), *sb = strstr(tb, "\"seed_u64\"");
+    CHECK_MSG(da && db && strncmp(da, db, (size_t)(strchr(da, '\n') - da)) == 0, "twin of another scene: %.120s",
+              db ? db : "(no meta.json)");
+    CHECK(sa && sb && strncmp(sa, sb, (size_t)(strchr(sa, '\n') - sa)) == 0);
+    const char *fa = strstr(ta, "\"frames\""), *fb = strstr(tb, "\"frames\""); /* its frames too */
+    CHECK(fa && fb && strtol(strchr(fa, ':') + 1, NULL, 10) == 3 && strtol(strchr(fb, ':') + 1, NULL, 10) == 3);
+    const char *va = strstr(ta, "\"cloth\""), *vb = strstr(tb, "\"cloth\"");
+    va = va ? strstr(va, "\"vertices\":") : NULL;
+    vb = vb ? strstr(vb, "\"vertices\":") : NULL;
+    CHECK(va && vb && strtol(va + 11, NULL, 10) > 250 && strtol(vb + 11, NULL, 10) < 200);
+    char missing[1200];
+    snprintf(missing, sizeof missing, "%s/none", g_out);
+    const char *bad[] = {g_exe, "simgen", "--out", b, "--like", missing, NULL};
+    CHECK_EQ_INT(tool_run(bad, NULL), 1);
+    const char *both[] = {g_exe, "simgen", "--out", b, "--like", like, "--all", NULL};
+    CHECK_EQ_INT(tool_run(both, NULL), 2);
+}
+
 static void bad_plan_options_fail(void)
 {
     char dir[1024];
@@ -169,6 +209,10 @@ static void bad_plan_options_fail(void)
     CHECK_EQ_INT(tool_run(fast, NULL), 2);
     const char *fast_big[] = {g_exe, "simgen", "--out", dir, "--all", "--fast-collider", "17", NULL};
     CHECK_EQ_INT(tool_run(fast_big, NULL), 2);
+    const char *ckpt[] = {g_exe, "simgen", "--out", dir, "--all", "--checkpoint-frames", "2.5", NULL};
+    CHECK_EQ_INT(tool_run(ckpt, NULL), 2);
+    const char *limit[] = {g_exe, "simgen", "--out", dir, "--all", "--time-limit", "-3", NULL};
+    CHECK_EQ_INT(tool_run(limit, NULL), 2);
     CHECK_MSG(!exists(dir), "a rejected command created %s", dir);
 }
 
@@ -183,6 +227,7 @@ int main(int argc, char **argv)
     static const test_case_ cases[] = {TEST_CASE(tier_generates_only_that_tier),
                                          TEST_CASE(split_generates_only_that_split), TEST_CASE(manifest_keeps_other_runs),
                                          TEST_CASE(only_generates_that_scenario),
-                                         TEST_CASE(redo_rejected_runs_rejected_again), TEST_CASE(bad_plan_options_fail)};
+                                         TEST_CASE(redo_rejected_runs_rejected_again), TEST_CASE(like_makes_the_same_scene),
+                                         TEST_CASE(bad_plan_options_fail)};
     return test_run_(cases, sizeof cases / sizeof cases[0], argc - 2, argv + 2);
 }
