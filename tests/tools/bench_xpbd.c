@@ -1,0 +1,93 @@
+/* `weft bench xpbd`: the sheet scene's --only run prints a trajectory hash that repeats; the
+ * T-shirt scene drapes a small T-shirt on the avatar and prints the substeps table, S = 40 at
+ * zero error against itself; a bad --scene fails with a usage exit. argv: weft binary, output
+ * folder. */
+#define _POSIX_C_SOURCE 200809L /* posix_spawn, mkdir */
+#include "test.h"
+
+#include "tool_run.h"
+
+#include <sys/stat.h>
+
+static const char *g_exe, *g_out;
+
+static void slurp(const char *path, char *buf, size_t cap)
+{
+    buf[0] = '\0';
+    FILE *f = fopen(path, "rb");
+    if (f) {
+        size_t n = fread(buf, 1, cap - 1, f);
+        buf[n] = '\0';
+        fclose(f);
+    }
+}
+
+static void sheet_hash_repeats(void)
+{
+    char out1[1024], out2[1024];
+    snprintf(out1, sizeof out1, "%s/sheet1.txt", g_out);
+    snprintf(out2, sizeof out2, "%s/sheet2.txt", g_out);
+    const char *argv[] = {g_exe, "bench", "xpbd", "--vertices", "100", "--frames", "4", "--only", "5", NULL};
+    CHECK_EQ_INT(tool_run(argv, out1), 0);
+    CHECK_EQ_INT(tool_run(argv, out2), 0);
+    static char a[8192], b[8192];
+    slurp(out1, a, sizeof a);
+    slurp(out2, b, sizeof b);
+    const char *ha = strstr(a, "trajectory hash "), *hb = strstr(b, "trajectory hash ");
+    CHECK_MSG(ha && hb && strncmp(ha, hb, 32) == 0, "hashes differ or are missing: %.200s", a);
+}
+
+static void tshirt_table(void)
+{
+    char out[1024];
+    snprintf(out, sizeof out, "%s/tshirt.txt", g_out);
+    const char *argv[] = {g_exe, "bench", "xpbd", "--scene", "tshirt", "--vertices", "256", "--frames", "3", "--no-80",
+                          NULL};
+    CHECK_EQ_INT(tool_run(argv, out), 0);
+    static char t[8192];
+    slurp(out, t, sizeof t);
+    CHECK_MSG(strstr(t, "garment: tshirt on avatar") != NULL, "not a T-shirt: %.200s", t);
+    /* rows for S = 5, 10, 20 and 40; S = 40 is the reference, at zero error */
+    CHECK(strstr(t, "\n| 5 |") && strstr(t, "\n| 10 |") && strstr(t, "\n| 20 |"));
+    const char *row40 = strstr(t, "\n| 40 |");
+    CHECK(row40 != NULL);
+    if (row40) {
+        /* | 40 | cpu | cpu/substep | wall | RMSE vs 40 | ...: the fifth cell */
+        const char *p = row40 + 1;
+        for (int bar = 0; bar < 4 && p; ++bar) {
+            p = strchr(p + 1, '|');
+        }
+        char *end = NULL;
+        const double rmse40 = p ? strtod(p + 1, &end) : -1.0;
+        CHECK_MSG(p && end != p + 1 && rmse40 == 0.0, "S = 40 row: %.80s", row40 + 1);
+        /* and S = 5 is somewhere else */
+        const char *row5 = strstr(t, "\n| 5 |");
+        p = row5 ? row5 + 1 : NULL;
+        for (int bar = 0; bar < 4 && p; ++bar) {
+            p = strchr(p + 1, '|');
+        }
+        CHECK(p && strtod(p + 1, NULL) > 0.0);
+    }
+}
+
+static void bad_scene_fails(void)
+{
+    const char *argv[] = {g_exe, "bench", "xpbd", "--scene", "hat", NULL};
+    CHECK_EQ_INT(tool_run(argv, "/dev/null"), 2);
+    const char *frames[] = {g_exe, "bench", "xpbd", "--frames", "0", NULL};
+    CHECK_EQ_INT(tool_run(frames, "/dev/null"), 2);
+}
+
+int main(int argc, char **argv)
+{
+    if (argc < 3) {
+        fprintf(stderr, "usage: %s WEFT OUT\n", argv[0]);
+        return 1;
+    }
+    g_exe = argv[1];
+    g_out = argv[2];
+    mkdir(g_out, 0777);
+    static const test_case_ cases[] = {TEST_CASE(sheet_hash_repeats), TEST_CASE(tshirt_table),
+                                         TEST_CASE(bad_scene_fails)};
+    return test_run_(cases, sizeof cases / sizeof cases[0], argc - 2, argv + 2);
+}
