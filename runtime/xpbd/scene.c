@@ -956,6 +956,25 @@ void xscene_collider_at(const xscene *sc, uint32_t f, float *out)
     }
 }
 
+weft_garment_def xscene_garment_def(const xscene *sc, uint32_t substeps, uint32_t fast_collider_factor)
+{
+    weft_garment_def gd = weft_default_garment_def();
+    gd.method = WEFT_METHOD_XPBD;
+    gd.substeps = substeps;
+    gd.substeps_max = fast_collider_factor > 1 ? substeps * fast_collider_factor : 0;
+    gd.ccd = false;
+    gd.rest_positions = sc->cloth.pos;
+    gd.vertex_count = sc->cloth.nv;
+    gd.triangles = sc->cloth.tris;
+    gd.triangle_count = sc->cloth.nt;
+    gd.initial_positions = sc->cloth_init;
+    gd.collider_rest_positions = sc->collider.pos;
+    gd.collider_vertex_count = sc->collider.nv;
+    gd.collider_triangles = sc->collider.tris;
+    gd.collider_triangle_count = sc->collider.nt;
+    return gd;
+}
+
 uint32_t xscene_pins_at(const xscene *sc, uint32_t f, const float *collider, uint32_t *idx, float *targets)
 {
     if (sc->scenario == WEFT_SIM_SCENARIO_GARMENT) {

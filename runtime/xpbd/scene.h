@@ -90,6 +90,11 @@ weft_result xscene_build(weft_context *ctx, xscene *sc, const weft_sim_sequence_
 void xscene_free(xscene *sc);
 /* Collider positions at frame f into out (collider.nv * 3). */
 void xscene_collider_at(const xscene *sc, uint32_t f, float *out);
+/* The XPBD garment of the scene's cloth: its initial positions against the collider at frame 0,
+ * `substeps` per frame and up to fast_collider_factor times that in frames whose collider moves
+ * fast near the cloth (1: fixed). No CCD: ground truth is certified by the validator, never
+ * post-processed. The def points into sc. */
+weft_garment_def xscene_garment_def(const xscene *sc, uint32_t substeps, uint32_t fast_collider_factor);
 /* Pins at frame f given the collider at f (from xscene_collider_at): writes indices/targets
  * (capacity cloth.nv), returns the count. */
 uint32_t xscene_pins_at(const xscene *sc, uint32_t f, const float *collider, uint32_t *idx, float *targets);

@@ -398,6 +398,20 @@ static void locate_hit(const xscene *sc, const run_buffers *b, uint32_t f, const
     snprintf(res->hit_joint, sizeof res->hit_joint, "%s", weft_joint_name(j));
 }
 
+/* The collider and the pins of frame f into the run's buffers (b->collider row f, b->pin_idx /
+ * b->pin_tgt, pinned.npy's row f); returns the pin count. */
+static uint32_t kinematics_at(const xscene *sc, run_buffers *b, uint32_t f)
+{
+    const uint32_t nv = sc->cloth.nv;
+    float *c = b->collider + (size_t)f * sc->collider.nv * 3;
+    xscene_collider_at(sc, f, c);
+    const uint32_t np = xscene_pins_at(sc, f, c, b->pin_idx, b->pin_tgt);
+    for (uint32_t k = 0; k < np; ++k) {
+        b->pinned[(size_t)f * nv + b->pin_idx[k]] = 1;
+    }
+    return np;
+}
+
 /* Header of a checkpoint of the running attempt after frame f (0: the attempt's start). */
 static ckpt_header ckpt_at(const ckpt_run *ck, const weft_sim_sequence_result *res, uint32_t substeps, uint32_t f,
                            uint32_t nv, uint32_t nc, uint32_t T)
@@ -421,20 +435,7 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
     /* Garments first drape for sc->preroll frames; those are simulated and validated like
      * the rest but not written. */
     const uint32_t nv = sc->cloth.nv, nc = sc->collider.nv, T = def->frames + sc->preroll;
-    weft_garment_def gd = weft_default_garment_def();
-    gd.method = WEFT_METHOD_XPBD;
-    gd.substeps = substeps;
-    gd.substeps_max = def->fast_collider_factor > 1 ? substeps * def->fast_collider_factor : 0;
-    gd.ccd = false; /* ground truth is certified by the validator, never post-processed */
-    gd.rest_positions = sc->cloth.pos;
-    gd.vertex_count = nv;
-    gd.triangles = sc->cloth.tris;
-    gd.triangle_count = sc->cloth.nt;
-    gd.collider_rest_positions = b->collider;
-    gd.collider_vertex_count = nc;
-    gd.collider_triangles = sc->collider.tris;
-    gd.collider_triangle_count = sc->collider.nt;
-    gd.initial_positions = sc->cloth_init;
+    const weft_garment_def gd = xscene_garment_def(sc, substeps, def->fast_collider_factor);
     weft_garment *g = NULL;
     xscene_collider_at(sc, 0, b->collider);
     weft_result r = weft_garment_create(ctx, &gd, &g);
@@ -471,12 +472,7 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
          * its recorded frames and counters, and the solver's exact state. */
         const ckpt_header *h = ck->resume;
         for (uint32_t f = 1; f <= h->frame; ++f) {
-            float *c = b->collider + (size_t)f * nc * 3;
-            xscene_collider_at(sc, f, c);
-            uint32_t np = xscene_pins_at(sc, f, c, b->pin_idx, b->pin_tgt);
-            for (uint32_t k = 0; k < np; ++k) {
-                b->pinned[(size_t)f * nv + b->pin_idx[k]] = 1;
-            }
+            (void)kinematics_at(sc, b, f);
         }
         res->chord_retries = h->chord_retries;
         res->path_frames = h->path_frames;
@@ -498,18 +494,16 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
         /* A checkpoint at the attempt's start: a run stopped before its first frame checkpoint
          * resumes this attempt, not an earlier one. */
         const ckpt_header h = ckpt_at(ck, res, substeps, 0, nv, nc, T);
-        (void)ckpt_write(&h, b, NULL, NULL, ck->dir);
+        if (!ckpt_write(&h, b, NULL, NULL, ck->dir)) {
+            r = weft__fail(WEFT_ERROR_IO, "weft_sim_generate: writing the checkpoint into '%s' failed", ck->dir);
+        }
     }
     for (uint32_t f = f_first; f < T && r == WEFT_OK; ++f) {
         if (ck->dir && f > 1 && (f - 1) % ck->every == 0) {
             weft__xpbd_forget_caches(g); /* as a run continued from the checkpoint after f - 1 has them */
         }
-        float *cnext = b->collider + (size_t)f * nc * 3;
-        xscene_collider_at(sc, f, cnext);
-        uint32_t np = xscene_pins_at(sc, f, cnext, b->pin_idx, b->pin_tgt);
-        for (uint32_t k = 0; k < np; ++k) {
-            b->pinned[(size_t)f * nv + b->pin_idx[k]] = 1;
-        }
+        const uint32_t np = kinematics_at(sc, b, f);
+        const float *cnext = b->collider + (size_t)f * nc * 3;
         double t0 = weft__now_ms();
         r = weft_garment_set_collider(g, cnext);
         if (r == WEFT_OK) {

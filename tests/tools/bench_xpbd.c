@@ -11,17 +11,6 @@
 
 static const char *g_exe, *g_out;
 
-static void slurp(const char *path, char *buf, size_t cap)
-{
-    buf[0] = '\0';
-    FILE *f = fopen(path, "rb");
-    if (f) {
-        size_t n = fread(buf, 1, cap - 1, f);
-        buf[n] = '\0';
-        fclose(f);
-    }
-}
-
 static void sheet_hash_repeats(void)
 {
     char out1[1024], out2[1024];
@@ -31,8 +20,8 @@ static void sheet_hash_repeats(void)
     CHECK_EQ_INT(tool_run(argv, out1), 0);
     CHECK_EQ_INT(tool_run(argv, out2), 0);
     static char a[8192], b[8192];
-    slurp(out1, a, sizeof a);
-    slurp(out2, b, sizeof b);
+    tool_slurp(out1, a, sizeof a);
+    tool_slurp(out2, b, sizeof b);
     const char *ha = strstr(a, "trajectory hash "), *hb = strstr(b, "trajectory hash ");
     CHECK_MSG(ha && hb && strncmp(ha, hb, 32) == 0, "hashes differ or are missing: %.200s", a);
 }
@@ -45,7 +34,7 @@ static void tshirt_table(void)
                           NULL};
     CHECK_EQ_INT(tool_run(argv, out), 0);
     static char t[8192];
-    slurp(out, t, sizeof t);
+    tool_slurp(out, t, sizeof t);
     CHECK_MSG(strstr(t, "garment: tshirt on avatar") != NULL, "not a T-shirt: %.200s", t);
     /* rows for S = 5, 10, 20 and 40; S = 40 is the reference, at zero error */
     CHECK(strstr(t, "\n| 5 |") && strstr(t, "\n| 10 |") && strstr(t, "\n| 20 |"));

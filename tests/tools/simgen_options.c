@@ -20,18 +20,6 @@ static bool exists(const char *path)
     return stat(path, &st) == 0;
 }
 
-/* The file's text (at most cap - 1 bytes); empty when it cannot be read. */
-static void slurp(const char *path, char *buf, size_t cap)
-{
-    buf[0] = '\0';
-    FILE *f = fopen(path, "rb");
-    if (f) {
-        size_t n = fread(buf, 1, cap - 1, f);
-        buf[n] = '\0';
-        fclose(f);
-    }
-}
-
 static void tier_generates_only_that_tier(void)
 {
     char dir[1024], meta[1200], other[1200], manifest[1200];
@@ -46,7 +34,7 @@ static void tier_generates_only_that_tier(void)
     CHECK_MSG(exists(meta), "no %s", meta);
     CHECK_MSG(!exists(other), "--tier 16k generated a 1k sequence");
     static char text[1 << 20];
-    slurp(manifest, text, sizeof text);
+    tool_slurp(manifest, text, sizeof text);
     /* The manifest lists finished sequences: the 16k one with its vertex count, no 1k one. */
     const char *entry = strstr(text, "\"drop_16k_0000\"");
     const char *v = entry ? strstr(entry, "\"vertices\":") : NULL;
@@ -91,7 +79,7 @@ static void manifest_keeps_other_runs(void)
     CHECK_EQ_INT(tool_run(drops, NULL), 0);
     CHECK_EQ_INT(tool_run(grips, NULL), 0);
     static char text[1 << 16];
-    slurp(manifest, text, sizeof text);
+    tool_slurp(manifest, text, sizeof text);
     CHECK_MSG(strstr(text, "\"drop_v64_0000\"") && strstr(text, "\"drop_v64_0001\"") && strstr(text, "\"gripper_v64_0000\""),
               "the manifest lost a run's sequences:\n%.400s", text);
     const char *entry = strstr(text, "\"drop_v64_0001\"");
@@ -132,12 +120,12 @@ static void redo_rejected_runs_rejected_again(void)
     }
     static char text[1 << 16];
     CHECK_EQ_INT(tool_run(make, NULL), 0); /* finished: left alone */
-    slurp(meta, text, sizeof text);
+    tool_slurp(meta, text, sizeof text);
     CHECK_MSG(strstr(text, "\"accepted\": false") != NULL, "a plain rerun regenerated a finished sequence");
     const char *redo[] = {g_exe, "simgen", "--out", dir, "--scenario", "drop", "--count", "1", "--vertices", "64",
                           "--frames", "2", "--no-validate", "--redo-rejected", NULL};
     CHECK_EQ_INT(tool_run(redo, NULL), 0);
-    slurp(meta, text, sizeof text);
+    tool_slurp(meta, text, sizeof text);
     CHECK_MSG(strstr(text, "\"accepted\":\ttrue") != NULL, "--redo-rejected left the rejected sequence: %.200s", text);
 }
 
@@ -160,8 +148,8 @@ static void like_makes_the_same_scene(void)
     const char *twin[] = {g_exe, "simgen", "--out", b, "--like", like, "--vertices", "150", "--no-validate", NULL};
     CHECK_EQ_INT(tool_run(twin, NULL), 0);
     static char ta[1 << 16], tb[1 << 16];
-    slurp(meta_a, ta, sizeof ta);
-    slurp(meta_b, tb, sizeof tb);
+    tool_slurp(meta_a, ta, sizeof ta);
+    tool_slurp(meta_b, tb, sizeof tb);
     const char *da = strstr(ta, "\"description\""), *db = strstr(tb, "\"description\"");
     const char *sa = strstr(ta, "\"seed_u64\""), *sb = strstr(tb, "\"seed_u64\"");
     CHECK_MSG(da && db && strncmp(da, db, (size_t)(strchr(da, '\n') - da)) == 0, "twin of another scene: %.120s",

@@ -3,6 +3,7 @@
 #define WEFT_TESTS_TOOL_RUN_H
 
 #include <fcntl.h>
+#include <stdio.h>
 #include <spawn.h>
 #include <sys/wait.h>
 
@@ -28,6 +29,18 @@ static inline int tool_run(const char *const argv[], const char *out_path)
         return -1;
     }
     return WIFEXITED(status) ? WEXITSTATUS(status) : -1;
+}
+
+/* The text of the file at path (at most cap - 1 bytes); empty when it cannot be read. */
+static inline void tool_slurp(const char *path, char *buf, size_t cap)
+{
+    buf[0] = '\0';
+    FILE *f = fopen(path, "rb");
+    if (f) {
+        size_t n = fread(buf, 1, cap - 1, f);
+        buf[n] = '\0';
+        fclose(f);
+    }
 }
 
 #endif

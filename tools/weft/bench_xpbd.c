@@ -119,20 +119,7 @@ static int drape_tshirt(weft_context *ctx, uint32_t vertices, uint64_t seed, uin
     *col_seq = malloc(sizeof(float) * 3 * nc * ((size_t)frames + 1));
     uint32_t *pin_idx = malloc(sizeof(uint32_t) * nv);
     float *pin_tgt = malloc(sizeof(float) * 3 * nv), *c = malloc(sizeof(float) * 3 * nc);
-    weft_garment_def gd = weft_default_garment_def();
-    gd.method = WEFT_METHOD_XPBD;
-    gd.substeps = 40;
-    gd.substeps_max = 40 * def.fast_collider_factor;
-    gd.ccd = false;
-    gd.rest_positions = xs->cloth.pos;
-    gd.vertex_count = nv;
-    gd.triangles = xs->cloth.tris;
-    gd.triangle_count = xs->cloth.nt;
-    gd.initial_positions = xs->cloth_init;
-    gd.collider_rest_positions = xs->collider.pos;
-    gd.collider_vertex_count = nc;
-    gd.collider_triangles = xs->collider.tris;
-    gd.collider_triangle_count = xs->collider.nt;
+    const weft_garment_def gd = xscene_garment_def(xs, 40, def.fast_collider_factor);
     weft_garment *g = NULL;
     int rc = (*x0 && *x_prev && *col_seq && pin_idx && pin_tgt && c && weft_garment_create(ctx, &gd, &g) == WEFT_OK)
                  ? 0
