@@ -188,6 +188,15 @@ typedef enum weft_method {
     WEFT_METHOD_MODEL = 0,      /* the learned latent transformer (needs a model) */
     WEFT_METHOD_XPBD,           /* classical XPBD solver with `substeps` substeps per frame */
     WEFT_METHOD_LBS,            /* cloth glued to the collider surface (skinning baseline) */
+    /* XPBD as a game engine runs it: WEFT_METHOD_XPBD's material, elastic projection and
+     * `substeps`, with a game's collision handling in place of the penetration-free bounds. Each
+     * substep moves cloth vertices closer than the collider radius to the collider (or inside it,
+     * up to 2 cm deep) out along the nearest surface's pseudonormal, with Coulomb friction, and
+     * pushes cloth vertices off cloth triangles closer than the self radius, to the side they
+     * were on at the substep's start. No proximity bounds, no edge-edge tests: much cheaper, and
+     * a collider or a fold that moves more than those radii in a substep can pass through.
+     * Fixed substeps only (substeps_max must be 0). docs/REFSIM.md, *The fast XPBD baseline*. */
+    WEFT_METHOD_XPBD_FAST,
     WEFT_METHOD_COUNT
 } weft_method;
 

@@ -101,7 +101,8 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
         return weft__fail(WEFT_ERROR_NO_MODEL, "weft_garment_create: method 'model' needs def.model (load one with "
                                                "weft_model_load_file)");
     }
-    if (def->method == WEFT_METHOD_XPBD && (def->substeps == 0 || def->substeps > 1000)) {
+    const bool xpbd = def->method == WEFT_METHOD_XPBD || def->method == WEFT_METHOD_XPBD_FAST;
+    if (xpbd && (def->substeps == 0 || def->substeps > 1000)) {
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_garment_create: substeps %u outside [1, 1000]",
                           def->substeps);
     }
@@ -110,6 +111,11 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
                           "weft_garment_create: substeps_max %u must be 0 or in [substeps = %u, 4000]", def->substeps_max,
                           def->substeps);
+    }
+    if (def->method == WEFT_METHOD_XPBD_FAST && def->substeps_max > def->substeps) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
+                          "weft_garment_create: substeps_max %u: the fast XPBD method runs fixed substeps (use 0)",
+                          def->substeps_max);
     }
     /* Checked for every method so that a level table or a host passing a bad crop hears of it
      * whatever the method of the moment. */

@@ -41,7 +41,8 @@ struct weft_garment {
     float push_thickness;               /* collider push (near.c): metres kept in front; 0: off */
     float push_depth;                   /* deepest penetration pushed out, metres */
 
-    /* Collider proximity (near.c), made when the contact-aware limit or the push needs it. */
+    /* Collider proximity (near.c), made when the contact-aware limit, the push or the fast XPBD
+     * method needs it. */
     double *near_cpos;                  /* collider_vertex_count * 3: the collider at t+1, for the tree */
     struct xbvh *near_tree;             /* collider triangles (runtime/xpbd/xpbd_bvh.c); NULL: off */
     uint32_t *near_across;              /* push: per triangle edge (k, k+1), the triangle across or UINT32_MAX */
@@ -111,6 +112,13 @@ uint32_t weft__near_mark_inside(weft_garment *g);
 /* Nearest collider point to p within radius; false when there is none. seed: a triangle likely
  * to be near (the last answer for this vertex), which narrows the search, or UINT32_MAX. */
 bool weft__near_nearest(const weft_garment *g, const double p[3], double radius, uint32_t seed, weft_near_hit *hit);
+/* Moves the tree to collider positions c (collider_vertex_count * 3 doubles): the fast XPBD
+ * method's collider at each substep. weft__near_refit moves it back to t+1. */
+void weft__near_move_to(weft_garment *g, const double *c);
+/* Which side of the collider p is on, given its nearest point: (p - point) . pseudonormal of the
+ * point's feature (face, edge or corner; exact on a closed collider), negative inside; n gets the
+ * pseudonormal (not normalised). */
+double weft__near_side(const weft_garment *g, const double p[3], const weft_near_hit *hit, double n[3]);
 /* Moves x_next vertices inside the collider (up to push_depth) or closer than push_thickness
  * to push_thickness in front of it; sets stats.pushed_vertices and push_from_far_side. */
 void weft__push(weft_garment *g);

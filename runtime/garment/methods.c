@@ -8,6 +8,8 @@ const weft_method_ops *weft__method_ops(weft_method method)
     switch (method) {
     case WEFT_METHOD_XPBD:
         return &weft__xpbd_ops;
+    case WEFT_METHOD_XPBD_FAST:
+        return &weft__xpbd_fast_ops;
     case WEFT_METHOD_LBS:
         return &weft__lbs_ops;
     case WEFT_METHOD_MODEL:

@@ -77,7 +77,8 @@ static weft_result make_adjacency(weft_garment *g)
 
 weft_result weft__near_create(weft_garment *g)
 {
-    const bool want = g->strain_contact > 0.0f || g->push_thickness > 0.0f;
+    const bool fast = g->method == WEFT_METHOD_XPBD_FAST; /* its collider projection (xpbd_solver.c) */
+    const bool want = g->strain_contact > 0.0f || g->push_thickness > 0.0f || fast;
     if (!want || g->collider_vertex_count == 0) {
         return WEFT_OK;
     }
@@ -101,6 +102,10 @@ weft_result weft__near_create(weft_garment *g)
         g->near_cpos[i] = g->collider_rest[i];
     }
     xbvh_build(g->near_tree, g->near_cpos);
+    if (fast && g->push_thickness <= 0.0f && (r = make_adjacency(g)) != WEFT_OK) { /* the pseudonormals */
+        weft__near_destroy(g);
+        return r;
+    }
     if (g->push_thickness > 0.0f) {
         g->near_skip = weft__alloc(g->ctx, g->vertex_count);
         g->near_last = weft__alloc(g->ctx, (size_t)g->vertex_count * sizeof(uint32_t));
@@ -275,6 +280,12 @@ static void feature_normal(const weft_garment *g, const weft_near_hit *hit, doub
     }
 }
 
+void weft__near_move_to(weft_garment *g, const double *c)
+{
+    memcpy(g->near_cpos, c, (size_t)g->collider_vertex_count * 3 * sizeof(double));
+    xbvh_refit(g->near_tree, g->near_cpos, NULL, 0.0);
+}
+
 /* Which side of the surface p is on: (p - nearest point) . pseudonormal, negative inside; n gets
  * the pseudonormal. */
 static double side_of(const weft_garment *g, const double p[3], const weft_near_hit *hit, double n[3])
@@ -285,6 +296,11 @@ static double side_of(const weft_garment *g, const double p[3], const weft_near_
         side += (p[k] - hit->point[k]) * n[k];
     }
     return side;
+}
+
+double weft__near_side(const weft_garment *g, const double p[3], const weft_near_hit *hit, double n[3])
+{
+    return side_of(g, p, hit, n);
 }
 
 /* True when p is inside the collider within radius of its surface (hit: the nearest point). */

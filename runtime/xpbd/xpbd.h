@@ -77,6 +77,11 @@ bool xbvh_query(const xbvh *bvh, const double lo[3], const double hi[3], xbvh_vi
  * subtrees holding no such primitive are skipped. The visit order is xbvh_query's. */
 bool xbvh_query_above(const xbvh *bvh, const double lo[3], const double hi[3], uint32_t above, xbvh_visit_fn *fn,
                       void *user);
+/* Calls fn(a, b, user) once for every unordered pair of distinct primitives whose leaves' boxes
+ * overlap (two primitives of one leaf always; callers test the primitives' own boxes). One
+ * traversal of the tree against itself: far fewer node visits than a query per primitive. */
+typedef void xbvh_pair_fn(uint32_t a, uint32_t b, void *user);
+void xbvh_self_pairs(const xbvh *bvh, xbvh_pair_fn *fn, void *user);
 
 /* ---------------------------------------------------------------------------------------- */
 /* Cloth topology shared by the solver and the validator (xpbd_topo.c).                      */
@@ -179,6 +184,8 @@ bool xpbd_dihedral_eval(const double *x0, const double *x1, const double *x2, co
                         double grad[12]);
 
 extern const weft_method_ops weft__xpbd_ops;
+/* WEFT_METHOD_XPBD_FAST: the same solver with a game engine's collision projection. */
+extern const weft_method_ops weft__xpbd_fast_ops;
 
 /* ---------------------------------------------------------------------------------------- */
 /* LBS baseline (lbs.c).                                                                      */

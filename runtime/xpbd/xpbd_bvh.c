@@ -203,3 +203,58 @@ bool xbvh_query_above(const xbvh *bvh, const double lo[3], const double hi[3], u
 {
     return query(bvh, lo, hi, false, above, fn, user);
 }
+
+static inline bool nodes_meet(const xbvh_node *a, const xbvh_node *b)
+{
+    return !(a->lo[0] > b->hi[0] || b->lo[0] > a->hi[0] || a->lo[1] > b->hi[1] || b->lo[1] > a->hi[1] ||
+             a->lo[2] > b->hi[2] || b->lo[2] > a->hi[2]);
+}
+
+static double node_extent(const xbvh_node *n)
+{
+    return (n->hi[0] - n->lo[0]) + (n->hi[1] - n->lo[1]) + (n->hi[2] - n->lo[2]);
+}
+
+/* Nodes a and b (a == b: the pairs inside one subtree). Recursion depth is at most twice the
+ * tree's, which the median split keeps at log2 of the leaf count. */
+static void self_pairs(const xbvh *bvh, uint32_t a, uint32_t b, xbvh_pair_fn *fn, void *user)
+{
+    const xbvh_node *na = &bvh->nodes[a], *nb = &bvh->nodes[b];
+    if (a == b) {
+        if (na->count > 0) {
+            for (uint32_t i = na->left; i < na->left + na->count; ++i) {
+                for (uint32_t j = i + 1; j < na->left + na->count; ++j) {
+                    fn(bvh->order[i], bvh->order[j], user);
+                }
+            }
+        } else {
+            self_pairs(bvh, na->left, na->left, fn, user);
+            self_pairs(bvh, na->left + 1, na->left + 1, fn, user);
+            self_pairs(bvh, na->left, na->left + 1, fn, user);
+        }
+        return;
+    }
+    if (!nodes_meet(na, nb)) {
+        return;
+    }
+    if (na->count > 0 && nb->count > 0) {
+        for (uint32_t i = na->left; i < na->left + na->count; ++i) {
+            for (uint32_t j = nb->left; j < nb->left + nb->count; ++j) {
+                fn(bvh->order[i], bvh->order[j], user);
+            }
+        }
+    } else if (nb->count > 0 || (na->count == 0 && node_extent(na) >= node_extent(nb))) {
+        self_pairs(bvh, na->left, b, fn, user);
+        self_pairs(bvh, na->left + 1, b, fn, user);
+    } else {
+        self_pairs(bvh, a, nb->left, fn, user);
+        self_pairs(bvh, a, nb->left + 1, fn, user);
+    }
+}
+
+void xbvh_self_pairs(const xbvh *bvh, xbvh_pair_fn *fn, void *user)
+{
+    if (bvh->node_count > 0) {
+        self_pairs(bvh, 0, 0, fn, user);
+    }
+}

@@ -1,12 +1,13 @@
 /* `weft bench xpbd`: the sheet scene's --only run prints a trajectory hash that repeats; the
  * T-shirt scene drapes a small T-shirt on the avatar and prints the substeps table, S = 40 at
- * zero error against itself; a bad --scene fails with a usage exit. argv: weft binary, output
- * folder. */
+ * zero error against itself and the fast method's rows scored against it; a bad --scene fails
+ * with a usage exit. argv: weft binary, output folder. */
 #define _POSIX_C_SOURCE 200809L /* posix_spawn, mkdir */
 #include "test.h"
 
 #include "tool_run.h"
 
+#include <stdbool.h>
 #include <sys/stat.h>
 
 static const char *g_exe, *g_out;
@@ -26,37 +27,40 @@ static void sheet_hash_repeats(void)
     CHECK_MSG(ha && hb && strncmp(ha, hb, 32) == 0, "hashes differ or are missing: %.200s", a);
 }
 
+/* The RMSE-vs-S=40 cell (the sixth) of the row that starts with `row`. */
+static double rmse_cell(const char *t, const char *row, bool *found)
+{
+    const char *r = strstr(t, row), *p = r ? r + 1 : NULL;
+    for (int bar = 0; bar < 5 && p; ++bar) {
+        p = strchr(p + 1, '|');
+    }
+    char *end = NULL;
+    const double v = p ? strtod(p + 1, &end) : -1.0;
+    *found = p && end != p + 1;
+    return v;
+}
+
 static void tshirt_table(void)
 {
     char out[1024];
     snprintf(out, sizeof out, "%s/tshirt.txt", g_out);
     const char *argv[] = {g_exe, "bench", "xpbd", "--scene", "tshirt", "--vertices", "256", "--frames", "3", "--no-80",
-                          NULL};
+                          "--fast", NULL};
     CHECK_EQ_INT(tool_run(argv, out), 0);
     static char t[8192];
     tool_slurp(out, t, sizeof t);
     CHECK_MSG(strstr(t, "garment: tshirt on avatar") != NULL, "not a T-shirt: %.200s", t);
-    /* rows for S = 5, 10, 20 and 40; S = 40 is the reference, at zero error */
-    CHECK(strstr(t, "\n| 5 |") && strstr(t, "\n| 10 |") && strstr(t, "\n| 20 |"));
-    const char *row40 = strstr(t, "\n| 40 |");
-    CHECK(row40 != NULL);
-    if (row40) {
-        /* | 40 | cpu | cpu/substep | wall | RMSE vs 40 | ...: the fifth cell */
-        const char *p = row40 + 1;
-        for (int bar = 0; bar < 4 && p; ++bar) {
-            p = strchr(p + 1, '|');
-        }
-        char *end = NULL;
-        const double rmse40 = p ? strtod(p + 1, &end) : -1.0;
-        CHECK_MSG(p && end != p + 1 && rmse40 == 0.0, "S = 40 row: %.80s", row40 + 1);
-        /* and S = 5 is somewhere else */
-        const char *row5 = strstr(t, "\n| 5 |");
-        p = row5 ? row5 + 1 : NULL;
-        for (int bar = 0; bar < 4 && p; ++bar) {
-            p = strchr(p + 1, '|');
-        }
-        CHECK(p && strtod(p + 1, NULL) > 0.0);
-    }
+    /* rows for S = 5, 10, 20 and 40 of both methods; the reference's S = 40 is at zero error */
+    CHECK(strstr(t, "\n| xpbd | 5 |") && strstr(t, "\n| xpbd | 10 |") && strstr(t, "\n| xpbd | 20 |"));
+    CHECK(strstr(t, "\n| xpbd-fast | 5 |") && strstr(t, "\n| xpbd-fast | 40 |"));
+    bool found = false;
+    const double rmse40 = rmse_cell(t, "\n| xpbd | 40 |", &found);
+    CHECK_MSG(found && rmse40 == 0.0, "S = 40 row: %.300s", t);
+    /* S = 5 is somewhere else, and so is the fast method at S = 40 */
+    CHECK(rmse_cell(t, "\n| xpbd | 5 |", &found) > 0.0 && found);
+    CHECK(rmse_cell(t, "\n| xpbd-fast | 40 |", &found) > 0.0 && found);
+    /* every row counts its frames with intersecting triangles, out of 3 */
+    CHECK(strstr(t, " of 3 |\n") != NULL);
 }
 
 static void bad_scene_fails(void)

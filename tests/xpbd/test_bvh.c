@@ -1,7 +1,8 @@
 /* The solver's AABB tree: a query reports every primitive whose box meets the query box, and
  * the index-limited query (used for each unordered self pair once) reports exactly those
  * with a higher index, in the same order, so switching between them cannot change the
- * solver's contact order. */
+ * solver's contact order. The self traversal reports every pair of primitives whose boxes
+ * meet exactly once. */
 #include "test.h"
 #include "xpbd/xpbd.h"
 
@@ -104,4 +105,70 @@ static void test_query_above_matches_filtered_query(void)
     weft_context_destroy(ctx);
 }
 
-TEST_MAIN(TEST_CASE(test_query_above_matches_filtered_query))
+/* Pair flags over NE x NE, counted by the self traversal. */
+static void count_pair(uint32_t a, uint32_t b, void *user)
+{
+    uint8_t *seen = user;
+    const uint32_t lo = a < b ? a : b, hi = a < b ? b : a;
+    if (seen[(size_t)lo * NE + hi] < 255) {
+        seen[(size_t)lo * NE + hi]++;
+    }
+    if (a == b) {
+        seen[(size_t)lo * NE + hi] = 255; /* a primitive paired with itself: always wrong */
+    }
+}
+
+static void test_self_pairs_cover_meeting_boxes(void)
+{
+    weft_context_def cd = weft_default_context_def();
+    weft_context *ctx = NULL;
+    CHECK_RESULT(weft_context_create(&cd, &ctx), WEFT_OK);
+    static double pos[3 * NV];
+    static uint32_t edges[2 * NE];
+    uint64_t st = 777;
+    for (int i = 0; i < 3 * NV; ++i) {
+        pos[i] = rnd(&st);
+    }
+    for (int e = 0; e < NE; ++e) { /* random edges, so that many boxes meet */
+        uint32_t a = (uint32_t)(rnd(&st) * NV), b = (uint32_t)(rnd(&st) * NV);
+        edges[2 * e] = a;
+        edges[2 * e + 1] = b == a ? (a + 1) % NV : b;
+    }
+    for (int i = 0; i < NV; ++i) {
+        for (int a = 0; a < 3; ++a) {
+            pos[3 * i + a] *= 0.5;
+        }
+    }
+    xbvh bvh;
+    CHECK_RESULT(xbvh_create(ctx, &bvh, edges, NE, 2), WEFT_OK);
+    xbvh_build(&bvh, pos);
+    const double pad = 0.01;
+    xbvh_refit(&bvh, pos, NULL, pad);
+    uint8_t *seen = calloc((size_t)NE * NE, 1);
+    CHECK(seen != NULL);
+    xbvh_self_pairs(&bvh, count_pair, seen);
+    uint32_t meeting = 0;
+    for (uint32_t a = 0; a < NE; ++a) {
+        for (uint32_t b = a + 1; b < NE; ++b) {
+            /* the boxes grown by the refit's pad on each side meet */
+            double lo[3], hi[3];
+            for (int k = 0; k < 3; ++k) {
+                const double p = pos[3 * edges[2 * a] + k], q = pos[3 * edges[2 * a + 1] + k];
+                lo[k] = (p < q ? p : q) - 2.0 * pad;
+                hi[k] = (p > q ? p : q) + 2.0 * pad;
+            }
+            const uint8_t n = seen[(size_t)a * NE + b];
+            CHECK_MSG(n <= 1, "pair (%u, %u) reported %u times", a, b, n);
+            if (box_meets(pos, edges + 2 * b, lo, hi)) {
+                meeting++;
+                CHECK_MSG(n == 1, "pair (%u, %u) meets but was not reported", a, b);
+            }
+        }
+    }
+    CHECK(meeting > NE); /* the traversal is exercised */
+    free(seen);
+    xbvh_destroy(ctx, &bvh);
+    weft_context_destroy(ctx);
+}
+
+TEST_MAIN(TEST_CASE(test_query_above_matches_filtered_query), TEST_CASE(test_self_pairs_cover_meeting_boxes))

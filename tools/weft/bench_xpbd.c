@@ -8,6 +8,7 @@
  * nothing. */
 #define _POSIX_C_SOURCE 200809L /* clock_gettime, CLOCK_THREAD_CPUTIME_ID */
 #include "weft.h"
+#include "weft/sim.h"
 #include "xpbd/scene.h"
 
 #include <stdio.h>
@@ -33,6 +34,7 @@ typedef struct run_out {
     double cpu_frame; /* mean thread CPU time per frame */
     double max_strain;
     double passes, rebuilds; /* proximity passes and candidate-list rebuilds per frame */
+    uint32_t cut_frames;     /* frames with intersecting triangles (cloth-cloth or cloth-collider) */
 } run_out;
 
 /* What a run steps: the cloth, its state at the start (positions and the frame before), and the
@@ -44,11 +46,12 @@ typedef struct bench_scene {
     size_t col_stride; /* floats from one pose to the next */
 } bench_scene;
 
-static int run(weft_context *ctx, const bench_scene *sc, uint32_t S, uint32_t frames, run_out *out)
+/* fast: WEFT_METHOD_XPBD_FAST instead of the reference solver. */
+static int run(weft_context *ctx, const bench_scene *sc, uint32_t S, uint32_t frames, bool fast, run_out *out)
 {
     const xmesh *cloth = sc->cloth, *col = sc->col;
     weft_garment_def gd = weft_default_garment_def();
-    gd.method = WEFT_METHOD_XPBD;
+    gd.method = fast ? WEFT_METHOD_XPBD_FAST : WEFT_METHOD_XPBD;
     gd.substeps = S;
     gd.ccd = false;
     gd.rest_positions = cloth->pos;
@@ -94,6 +97,25 @@ static int run(weft_context *ctx, const bench_scene *sc, uint32_t S, uint32_t fr
     out->ms_frame = total / frames;
     out->cpu_frame = cpu / frames;
     weft_garment_destroy(g);
+    /* After the timing: the validator's exact triangle-triangle test on every frame. */
+    weft_sim_validator *v = NULL;
+    if (weft_sim_validator_create(ctx, cloth->tris, cloth->nt, cloth->nv, col->tris, col->nt, col->nv, &v) != WEFT_OK) {
+        fprintf(stderr, "bench xpbd: %s\n", weft_last_error());
+        return 1;
+    }
+    out->cut_frames = 0;
+    for (uint32_t f = 0; f < frames; ++f) {
+        const float *x0 = f ? out->traj + (size_t)(f - 1) * cloth->nv * 3 : sc->x0, *x1 = out->traj + (size_t)f * cloth->nv * 3;
+        weft_sim_validation res;
+        if (weft_sim_validator_check(v, x0, x1, sc->col_seq + (size_t)f * sc->col_stride,
+                                     sc->col_seq + (size_t)(f + 1) * sc->col_stride, &res) != WEFT_OK) {
+            fprintf(stderr, "bench xpbd: %s\n", weft_last_error());
+            weft_sim_validator_destroy(v);
+            return 1;
+        }
+        out->cut_frames += res.intersection_hits > 0;
+    }
+    weft_sim_validator_destroy(v);
     return 0;
 }
 
@@ -165,6 +187,7 @@ int weft_bench_xpbd(int argc, char **argv)
     uint32_t vertices = 4096, frames = 60, only = 0;
     unsigned long long seed = 1;
     bool with80 = true, tshirt = false;
+    bool fast = false;
     for (int i = 1; i < argc; ++i) {
         if (strcmp(argv[i], "--vertices") == 0 && i + 1 < argc) {
             vertices = (uint32_t)strtoul(argv[++i], NULL, 10);
@@ -172,6 +195,8 @@ int weft_bench_xpbd(int argc, char **argv)
             frames = (uint32_t)strtoul(argv[++i], NULL, 10);
         } else if (strcmp(argv[i], "--no-80") == 0) {
             with80 = false;
+        } else if (strcmp(argv[i], "--fast") == 0) {
+            fast = true;
         } else if (strcmp(argv[i], "--only") == 0 && i + 1 < argc) {
             only = (uint32_t)strtoul(argv[++i], NULL, 10);
         } else if (strcmp(argv[i], "--seed") == 0 && i + 1 < argc) {
@@ -182,12 +207,15 @@ int weft_bench_xpbd(int argc, char **argv)
         } else {
             fprintf(stderr,
                     "usage: weft bench xpbd [--scene sheet|tshirt] [--vertices N (4096)] [--frames T (60)] [--no-80]\n"
-                    "                       [--only S] [--seed X]\n"
+                    "                       [--only S] [--seed X] [--fast]\n"
                     "  --scene    sheet: a sheet dropped onto a box (default); tshirt: a T-shirt on the default\n"
                     "             avatar (body and motion drawn from --seed, default 1), draped once at S = 40,\n"
                     "             then T frames of the motion at every S from that draped state\n"
                     "  --only S   run S substeps alone: cost, proximity-pass counters and a hash of the\n"
-                    "             trajectory (equal hashes: bit-identical output, for checking speedups)\n");
+                    "             trajectory (equal hashes: bit-identical output, for checking speedups)\n"
+                    "  --fast     also run the fast method (WEFT_METHOD_XPBD_FAST: game-style collision\n"
+                    "             projection) at each S, scored against the reference's S = 40 and 80; with\n"
+                    "             --only, the fast method alone\n");
             return strcmp(argv[i], "--help") == 0 ? 0 : 2;
         }
     }
@@ -233,15 +261,19 @@ int weft_bench_xpbd(int argc, char **argv)
         }
     }
     static const uint32_t steps[] = {5, 10, 20, 40, 80};
-    const uint32_t nruns = only ? 1 : with80 ? 5 : 4;
-    run_out out[5] = {{0}};
+    /* Reference runs first (the error's baselines are runs 3 and 4), then the fast ones. */
+    const uint32_t nref = only ? (fast ? 0 : 1) : with80 ? 5 : 4;
+    const uint32_t nfast = !fast ? 0 : only ? 1 : nref;
+    run_out out[10] = {{0}};
     if (rc == 0) {
         printf("# %s\n", weft_config_string());
     }
-    for (uint32_t k = 0; rc == 0 && k < nruns; ++k) {
-        rc = run(ctx, &sc, only ? only : steps[k], frames, &out[k]);
+    for (uint32_t k = 0; rc == 0 && k < nref + nfast; ++k) {
+        const bool is_fast = k >= nref;
+        const uint32_t S = only ? only : steps[is_fast ? k - nref : k];
+        rc = run(ctx, &sc, S, frames, is_fast, &out[k]);
         if (rc == 0 && !only) {
-            fprintf(stderr, "S = %u done\n", steps[k]);
+            fprintf(stderr, "%s S = %u done\n", is_fast ? "xpbd-fast" : "xpbd", S);
         }
     }
     const size_t nv = sc.cloth ? sc.cloth->nv : 0;
@@ -252,28 +284,34 @@ int weft_bench_xpbd(int argc, char **argv)
         for (size_t i = 0; i < sizeof(float) * 3 * nv * frames; ++i) {
             hash = (hash ^ b[i]) * 1099511628211ull;
         }
-        printf("| substeps | CPU ms/frame | CPU ms/substep | wall ms/frame | max strain |\n|---|---|---|---|---|\n");
-        printf("| %u | %.1f | %.2f | %.1f | %.2f %% |\n", only, out[0].cpu_frame, out[0].cpu_frame / only,
-               out[0].ms_frame, 100.0 * out[0].max_strain);
-        printf("# per frame: %.2f proximity passes, %.2f pair-list rebuilds\n", out[0].passes, out[0].rebuilds);
+        printf("| method | substeps | CPU ms/frame | CPU ms/substep | wall ms/frame | max strain | intersecting frames |\n"
+               "|---|---|---|---|---|---|---|\n");
+        printf("| %s | %u | %.1f | %.2f | %.1f | %.2f %% | %u of %u |\n", fast ? "xpbd-fast" : "xpbd", only,
+               out[0].cpu_frame, out[0].cpu_frame / only, out[0].ms_frame, 100.0 * out[0].max_strain, out[0].cut_frames,
+               frames);
+        if (!fast) {
+            printf("# per frame: %.2f proximity passes, %.2f pair-list rebuilds\n", out[0].passes, out[0].rebuilds);
+        }
         printf("# trajectory hash %016llx\n", (unsigned long long)hash);
     } else if (rc == 0) {
-        printf("| substeps | CPU ms/frame | CPU ms/substep | wall ms/frame | RMSE vs S=40 (mm) | RMSE vs S=80 (mm) | max "
-               "strain |\n");
-        printf("|---|---|---|---|---|---|---|\n");
-        for (uint32_t k = 0; k < nruns; ++k) {
+        printf("| method | substeps | CPU ms/frame | CPU ms/substep | wall ms/frame | RMSE vs S=40 (mm) | RMSE vs S=80 (mm) | "
+               "max strain | intersecting frames |\n");
+        printf("|---|---|---|---|---|---|---|---|---|\n");
+        for (uint32_t k = 0; k < nref + nfast; ++k) {
+            const bool is_fast = k >= nref;
+            const uint32_t S = steps[is_fast ? k - nref : k];
             double e40 = 1000.0 * rmse(out[k].traj, out[3].traj, nv, frames);
-            printf("| %u | %.1f | %.2f | %.1f | %.2f | ", steps[k], out[k].cpu_frame, out[k].cpu_frame / steps[k],
-                   out[k].ms_frame, e40);
+            printf("| %s | %u | %.1f | %.2f | %.1f | %.2f | ", is_fast ? "xpbd-fast" : "xpbd", S, out[k].cpu_frame,
+                   out[k].cpu_frame / S, out[k].ms_frame, e40);
             if (with80) {
                 printf("%.2f |", 1000.0 * rmse(out[k].traj, out[4].traj, nv, frames));
             } else {
                 printf("- |");
             }
-            printf(" %.2f %% |\n", 100.0 * out[k].max_strain);
+            printf(" %.2f %% | %u of %u |\n", 100.0 * out[k].max_strain, out[k].cut_frames, frames);
         }
     }
-    for (uint32_t k = 0; k < nruns; ++k) {
+    for (uint32_t k = 0; k < nref + nfast; ++k) {
         free(out[k].traj);
     }
     free(x0);

@@ -522,7 +522,7 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
      * LBS methods see only the gripper (the protocol of the documented tables); --pins all gives
      * every method the pins (the library sets them after a learned or LBS step). On a --sim-mesh
      * they are set on the simulated mesh, at the reference sampled there through `down`. */
-    const bool use_pins = s.pinned && (!up || sim_pinned) && (o->pins_all || o->method == WEFT_METHOD_XPBD);
+    const bool use_pins = s.pinned && (!up || sim_pinned) && (o->pins_all || o->method == WEFT_METHOD_XPBD || o->method == WEFT_METHOD_XPBD_FAST);
     uint32_t *pin_idx = use_pins ? malloc((size_t)SV * sizeof(uint32_t)) : NULL;
     float *pin_pos = use_pins ? malloc((size_t)SV * 3 * sizeof(float)) : NULL;
     bool pins = pin_idx && pin_pos;
@@ -681,12 +681,14 @@ static int cmp_str(const void *a, const void *b) { return strcmp(*(char *const *
 
 static void usage(FILE *f)
 {
-    fprintf(f, "usage: weft eval --seq DIR [--model M] [--method model|lbs|xpbd:S] [--precision fp32|fp16|int8]\n"
-               "                 [--ccd on|off] [--ccd-iterations N] [--split train|val|test] [--frames N] [--json]\n"
+    fprintf(f, "usage: weft eval --seq DIR [--model M] [--method model|lbs|xpbd:S|xpbd-fast:S]\n"
+               "                 [--precision fp32|fp16|int8] [--ccd on|off] [--ccd-iterations N] [--split train|val|test] [--frames N] [--json]\n"
                "                 [--crop-cm X] [--crop box|cells] [--max-collider-tokens N] [--tether-cm X]\n"
                "                 [--strain-limit PCT] [--strain-contact-cm X] [--sim-mesh DIR] [--time-limit S]\n"
                "                 [--push-cm X] [--push-depth-cm X] [--write-pos DIR] [--pins xpbd|all]\n"
                "  DIR is one sequence folder (meta.json + .npy) or a folder of them.\n"
+               "  --method        xpbd:S the reference solver at S substeps (default 10); xpbd-fast:S the same\n"
+               "                  material with a game's collision projection instead of its bounds\n"
                "  --ccd-iterations N  CCD back-off passes before its fallback (1..64, default 16)\n"
                "  --tether-cm X   tethers to the skinned garment, radius X cm (0 on vertices pinned at the start)\n"
                "  --strain-limit PCT  shorten edges stretched over PCT %% after each step (and in CCD)\n"
@@ -699,8 +701,8 @@ static void usage(FILE *f)
                "                  a simulated vertex is pinned where its nearest scored vertex is, and so is the\n"
                "                  nearest one to each pinned scored vertex, at the reference sampled there\n"
                "  --time-limit S  stop each rollout once its steps took S seconds (JSON: time_limited, frames)\n"
-               "  --pins xpbd|all the sequence's pins (gripper grasps) for XPBD only (default, the documented\n"
-               "                  protocol) or for every method (set after a learned or LBS step)\n"
+               "  --pins xpbd|all the sequence's pins (gripper grasps) for the XPBD methods only (default, the\n"
+               "                  documented protocol) or for every method (set after a learned or LBS step)\n"
                "  --write-pos DIR write each rollout to DIR/<sequence>.npy, [frames + 2, N, 3] float32: the two\n"
                "                  reference frames it starts from, then every step (on the scored mesh)\n");
 }
@@ -761,16 +763,19 @@ int weft_cmd_eval(int argc, char **argv)
             } else if (strcmp(v, "lbs") == 0) {
                 o.method = WEFT_METHOD_LBS;
             } else if (strncmp(v, "xpbd", 4) == 0) {
-                o.method = WEFT_METHOD_XPBD;
-                if (v[4] == ':') {
+                /* xpbd[:S], or xpbd-fast[:S] (game-style collision projection) */
+                const bool fast = strncmp(v, "xpbd-fast", 9) == 0;
+                const size_t at = fast ? 9 : 4;
+                o.method = fast ? WEFT_METHOD_XPBD_FAST : WEFT_METHOD_XPBD;
+                if (v[at] == ':') {
                     char *end;
-                    unsigned long s = strtoul(v + 5, &end, 10);
+                    unsigned long s = strtoul(v + at + 1, &end, 10);
                     if (*end || s == 0 || s > 1000) {
                         fprintf(stderr, "weft eval: bad substep count in '%s'\n", v);
                         return 2;
                     }
                     o.substeps = (uint32_t)s;
-                } else if (v[4] != '\0') {
+                } else if (v[at] != '\0') {
                     fprintf(stderr, "weft eval: unknown method '%s'\n", v);
                     return 2;
                 }
