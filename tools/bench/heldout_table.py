@@ -5,7 +5,7 @@
       --out docs/heldout_test_val.md
 
 Each --method is LABEL=METHOD[:ARG][,strain=PCT][,tether=CM][,scontact=CM][,push=CM] with METHOD one of model:PATH (fp32),
-int8:PATH, fp16:PATH, lbs, xpbd:S; strain= and tether= add the runtime's strain limit and
+int8:PATH, fp16:PATH, lbs, xpbd:S, xpbd-fast:S; strain= and tether= add the runtime's strain limit and
 tethers (`weft eval --strain-limit`, `--tether-cm`; scontact= the contact-aware limit's distance,
 `--strain-contact-cm`; push= the collider push, `--push-cm`), e.g. `game+SL10=model:game.safetensors,strain=10`;
 a method chosen per scene is SCENARIO@METHOD alternatives joined by '|', '*' for every other
@@ -47,8 +47,8 @@ def method_args(spec):
         return ["--method", "model", "--model", arg, "--precision", precision] + extra
     if kind == "lbs":
         return ["--method", "lbs"] + extra
-    if kind == "xpbd":
-        return ["--method", "xpbd:" + arg] + extra
+    if kind in ("xpbd", "xpbd-fast"):
+        return ["--method", kind + ":" + arg] + extra
     sys.exit(f"heldout_table: unknown method '{spec}'")
 
 

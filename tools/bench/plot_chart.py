@@ -17,6 +17,7 @@ import matplotlib.pyplot as plt  # noqa: E402
 FAMILY_STYLE = {
     "lbs": ("#7f7f7f", "s"),
     "xpbd": ("#1f77b4", "o"),
+    "xpbd-fast": ("#17becf", "v"),
     "model": ("#2ca02c", "D"),
     "fnopt": ("#9467bd", "^"),
 }
@@ -94,7 +95,8 @@ def main():
             xs = [p[0] for p in front]
             ys = [p[1] for p in front]
             ax.step(xs, ys, where="post", color="#ff7f0e", linewidth=2, alpha=0.8, label="Pareto front")
-        for fam, name in (("lbs", "LBS"), ("xpbd", "XPBD"), ("model", "learned model"), ("fnopt", "FNOpt grid")):
+        for fam, name in (("lbs", "LBS"), ("xpbd", "XPBD"), ("xpbd-fast", "XPBD fast (game collisions)"),
+                          ("model", "learned model"), ("fnopt", "FNOpt grid")):
             if any(r["family"] == fam for _, _, r in pts + bad):
                 color, marker = FAMILY_STYLE[fam]
                 ax.plot([], [], marker=marker, color=color, linestyle="none", label=name)

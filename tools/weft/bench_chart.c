@@ -41,7 +41,7 @@ static char chart_load_start[32];
 
 typedef struct chart_method {
     char label[96];
-    char family[16];    /* lbs, xpbd, model, fnopt */
+    char family[16];    /* lbs, xpbd, xpbd-fast, model, fnopt */
     char method[16];    /* --method value, or the FNOpt optimizer */
     char precision[8];  /* fp32 fp16 int8, "-" for methods without one */
     char model[1024];
@@ -67,6 +67,8 @@ typedef struct chart_opts {
     uint32_t frames, max_seqs;
     unsigned xpbd[8];
     size_t nxpbd;
+    unsigned xpbd_fast[8]; /* WEFT_METHOD_XPBD_FAST substep counts */
+    size_t nxpbd_fast;
     const char *fnopt_motions;
     bool quick, plot, fnopt, frames_given;
 } chart_opts;
@@ -75,9 +77,11 @@ static void usage(FILE *f)
 {
     fprintf(f,
             "usage: weft bench chart --data DIR [--split test|val|train|all] [--models DIR] [--frames N] [--out DIR]\n"
-            "                        [--max-seqs N] [--xpbd 5,10,20,40] [--quick] [--no-plot] [--no-fnopt]\n"
-            "                        [--fnopt-model PATH] [--fnopt-motions xy,xyz,rot_h0]\n"
-            "  Runs LBS, XPBD (5/10/20/40 substeps), every DIR/*.safetensors model (fp32/fp16/int8, CCD on/off)\n"
+            "                        [--max-seqs N] [--xpbd 5,10,20,40] [--xpbd-fast 5,10,20,40] [--quick] [--no-plot]\n"
+            "                        [--no-fnopt] [--fnopt-model PATH] [--fnopt-motions xy,xyz,rot_h0]\n"
+            "  Runs LBS, XPBD (5/10/20/40 substeps), the fast XPBD with a game's collision projection\n"
+            "  (5/10/20/40, CCD off, and CCD on at the first), every DIR/*.safetensors model (fp32/fp16/int8,\n"
+            "  CCD on/off)\n"
             "  on each sequence of the split, and the FNOpt grid scenes; writes OUT/chart.csv, OUT/CHART.md and\n"
             "  OUT/img/chart.png (default OUT: docs).\n"
             "  --quick   30 frames, at most 2 sequences per scenario, one FNOpt scene (xy; whole trajectory)\n");
@@ -334,9 +338,11 @@ int weft_bench_chart(int argc, char **argv)
             usage(stderr);
             return 2;
         } else {
-            if (strcmp(a, "--xpbd") == 0) {
-                if ((o.nxpbd = bench_parse_substeps(v, o.xpbd, 8)) == 0) {
-                    fprintf(stderr, "weft bench chart: --xpbd wants substep counts like 5,10,20,40\n");
+            if (strcmp(a, "--xpbd") == 0 || strcmp(a, "--xpbd-fast") == 0) {
+                const bool fast = strcmp(a, "--xpbd-fast") == 0;
+                size_t *n = fast ? &o.nxpbd_fast : &o.nxpbd;
+                if ((*n = bench_parse_substeps(v, fast ? o.xpbd_fast : o.xpbd, 8)) == 0) {
+                    fprintf(stderr, "weft bench chart: %s wants substep counts like 5,10,20,40\n", a);
                     return 2;
                 }
             } else if (strcmp(a, "--data") == 0) {
@@ -429,6 +435,22 @@ int weft_bench_chart(int argc, char **argv)
     snprintf(m->label, sizeof m->label, "XPBD-%u + strain 10%% + contact 1 cm", o.xpbd[0]);
     snprintf(m->strain_pct, sizeof m->strain_pct, "10");
     snprintf(m->strain_contact_cm, sizeof m->strain_contact_cm, "1");
+    /* The fast XPBD (a game's collision projection instead of the bounds): CCD off at every count,
+     * as a game runs it, and CCD on at the first. */
+    if (o.nxpbd_fast == 0) {
+        static const unsigned k_fast[] = {5, 10, 20, 40};
+        memcpy(o.xpbd_fast, k_fast, sizeof k_fast);
+        o.nxpbd_fast = 4;
+    }
+    for (size_t k = 0; k <= o.nxpbd_fast; ++k) {
+        const unsigned S = o.xpbd_fast[k < o.nxpbd_fast ? k : 0];
+        m = &methods[nm++];
+        m->ccd = k == o.nxpbd_fast;
+        snprintf(m->label, sizeof m->label, "XPBD-fast-%u%s", S, m->ccd ? "" : " no-CCD");
+        snprintf(m->family, sizeof m->family, "xpbd-fast");
+        snprintf(m->method, sizeof m->method, "xpbd-fast:%u", S);
+        snprintf(m->precision, sizeof m->precision, "-");
+    }
     static char model_names[32][256];
     size_t nmodels = bench_list_models(o.models, model_names, 32);
     if (nmodels == 0) {
