@@ -77,6 +77,8 @@ typedef struct st_opts {
     uint32_t time_limit; /* s of stepping per rollout before it counts as too slow */
     unsigned xpbd[8];
     size_t nxpbd;
+    unsigned xpbd_fast[8]; /* WEFT_METHOD_XPBD_FAST substep counts */
+    size_t nxpbd_fast;
     bool quick, plot, fnopt, garment, rescore;
     bool no_ccd; /* --ccd off: every method without the CCD post-process (the default runs it) */
 } st_opts;
@@ -86,10 +88,12 @@ static void usage(FILE *f)
     fprintf(f,
             "usage: weft bench stability [--data DIR] [--out DIR] [--models DIR] [--scenario gripper|drop|garment]\n"
             "                            [--base-vertices V] [--frames T] [--long-frames T] [--count N]\n"
-            "                            [--xpbd 5,10,20,40] [--quick] [--no-plot] [--no-fnopt] [--no-garment]\n"
+            "                            [--xpbd 5,10,20,40] [--xpbd-fast 5,10] [--quick] [--no-plot] [--no-fnopt]\n"
+            "                            [--no-garment]\n"
             "                            [--fnopt-model PATH] [--time-limit S] [--rescore] [--axes LIST] [--ccd on|off]\n"
             "  Generates the stress cases with weft simgen under DIR (default data/stability; resumable), scores\n"
-            "  LBS, XPBD 5/10/20/40 and every DIR/*.safetensors model (fp32/fp16/int8, CCD on) on each, and\n"
+            "  LBS, XPBD 5/10/20/40, the fast XPBD (game collisions) 5/10 and every DIR/*.safetensors model\n"
+            "  (fp32/fp16/int8, CCD on) on each, and\n"
             "  writes OUT/stability.csv, OUT/img/stability.png and the table in OUT/STABILITY.md (between\n"
             "  <!-- stability:table --> markers; the text around them is kept) (default OUT: docs).\n"
             "  defaults: V=256 vertices, T=240 frames, long 2400 frames, 2 sequences per case, S=900 s of stepping\n"
@@ -743,9 +747,11 @@ int weft_bench_stability(int argc, char **argv)
                 if (!bench_parse_u32("stability", a, v, 1, 1000000, num)) {
                     return 2;
                 }
-            } else if (strcmp(a, "--xpbd") == 0) {
-                if ((o.nxpbd = bench_parse_substeps(v, o.xpbd, 8)) == 0) {
-                    fprintf(stderr, "weft bench stability: --xpbd wants substep counts like 5,10,20,40\n");
+            } else if (strcmp(a, "--xpbd") == 0 || strcmp(a, "--xpbd-fast") == 0) {
+                const bool fast = strcmp(a, "--xpbd-fast") == 0;
+                size_t *n = fast ? &o.nxpbd_fast : &o.nxpbd;
+                if ((*n = bench_parse_substeps(v, fast ? o.xpbd_fast : o.xpbd, 8)) == 0) {
+                    fprintf(stderr, "weft bench stability: %s wants substep counts like 5,10,20,40\n", a);
                     return 2;
                 }
             } else if (strcmp(a, "--data") == 0) {
@@ -826,6 +832,17 @@ int weft_bench_stability(int argc, char **argv)
         snprintf(methods[nm].label, 96, "XPBD-%u", o.xpbd[k]);
         snprintf(methods[nm].family, 16, "xpbd");
         snprintf(methods[nm].method, 16, "xpbd:%u", o.xpbd[k]);
+        snprintf(methods[nm++].precision, 8, "-");
+    }
+    if (o.nxpbd_fast == 0) {
+        static const unsigned k_fast[] = {5, 10};
+        memcpy(o.xpbd_fast, k_fast, sizeof k_fast);
+        o.nxpbd_fast = 2;
+    }
+    for (size_t k = 0; k < o.nxpbd_fast; ++k) {
+        snprintf(methods[nm].label, 96, "XPBD-fast-%u", o.xpbd_fast[k]);
+        snprintf(methods[nm].family, 16, "xpbd-fast");
+        snprintf(methods[nm].method, 16, "xpbd-fast:%u", o.xpbd_fast[k]);
         snprintf(methods[nm++].precision, 8, "-");
     }
     static char model_names[16][256];
