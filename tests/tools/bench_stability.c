@@ -43,10 +43,9 @@ static int suite_with(const char *name, const char *models_dir, bool rescore)
     snprintf(out, sizeof out, "%s/%s", g_out, name);
     snprintf(models, sizeof models, "%s/%s", g_out, models_dir);
     mkdir(models, 0777);
-    const char *argv[] = {g_exe,       "bench",  "stability",  "--quick",  "--frames",   "12",      "--long-frames",
-                          "16",        "--xpbd", "5",          "--no-fnopt", "--no-garment", "--no-plot", "--models",
-                          models,      "--data", data,         "--out",    out,          rescore ? "--rescore" : NULL,
-                          NULL};
+    const char *argv[] = {g_exe,    "bench", "stability", "--quick", "--frames", "12", "--long-frames", "16",
+                          "--xpbd", "5",     "--xpbd-fast", "5",     "--no-fnopt", "--no-garment", "--no-plot",
+                          "--models", models, "--data", data, "--out", out, rescore ? "--rescore" : NULL, NULL};
     return tool_run(argv, NULL);
 }
 
@@ -129,7 +128,7 @@ static void runs_and_resumes(void)
     if (!first) {
         return;
     }
-    /* 9 cases (4 resolution, long, unseen seed, 3 speeds) x 2 methods, under one header. */
+    /* 9 cases (4 resolution, long, unseen seed, 3 speeds) x 3 methods, under one header. */
     size_t rows = 0;
     for (const char *line = strchr(first, '\n'); line && line[1]; line = strchr(line + 1, '\n')) {
         const char *l = line + 1;
@@ -149,11 +148,11 @@ static void runs_and_resumes(void)
         }
         CHECK_MSG(known, "row without a known status: %s", row);
     }
-    CHECK_EQ_INT(rows, 18);
+    CHECK_EQ_INT(rows, 27);
     char scores[1300];
     snprintf(scores, sizeof scores, "%s/data/res_x1/gripper_v64_0000/scores", g_out);
-    /* LBS and XPBD-5, each scored at the full length and cut at 1/4 and 3/4 */
-    CHECK_EQ_INT(count_files(scores, ".json"), 6);
+    /* LBS, XPBD-5 and the fast XPBD-5, each scored at the full length and cut at 1/4 and 3/4 */
+    CHECK_EQ_INT(count_files(scores, ".json"), 9);
 
     /* Again: every eval comes from the kept scores, so even the wall times are the same. */
     CHECK_EQ_INT(suite("second", false), 0);
@@ -209,9 +208,9 @@ static void model_scores_follow_the_file(void)
     remove_files(scores, ".json"); /* an earlier ctest run may have left other models' scores */
     CHECK(copy_file(WEFT_SOURCE_DIR "/tools/train/models/game.safetensors", model));
     CHECK_EQ_INT(suite_with("model_a", "one_model", false), 0);
-    /* LBS, XPBD-5 and the model at fp32, fp16 and int8, each at 3 lengths */
+    /* LBS, XPBD-5, the fast XPBD-5 and the model at fp32, fp16 and int8, each at 3 lengths */
     size_t with_a = count_files(scores, ".json");
-    CHECK_EQ_INT(with_a, 15);
+    CHECK_EQ_INT(with_a, 18);
     CHECK_EQ_INT(suite_with("model_a_again", "one_model", false), 0);
     CHECK_EQ_INT(count_files(scores, ".json"), with_a);
     CHECK(copy_file(WEFT_SOURCE_DIR "/tools/train/models/unified.safetensors", model));
@@ -229,7 +228,7 @@ static void axes_choose_the_cases(void)
     snprintf(models, sizeof models, "%s/no_models", g_out);
     mkdir(models, 0777);
     const char *argv[] = {g_exe,        "bench", "stability", "--quick", "--frames", "12",   "--long-frames",
-                          "16",         "--xpbd", "5",         "--no-fnopt", "--no-garment", "--no-plot", "--models",
+                          "16",         "--xpbd", "5",         "--xpbd-fast", "5", "--no-fnopt", "--no-garment", "--no-plot", "--models",
                           models,       "--data", data,      "--out",   out,        "--axes", "long",
                           "--ccd",      "off",    NULL};
     CHECK_EQ_INT(tool_run(argv, NULL), 0);
@@ -242,7 +241,7 @@ static void axes_choose_the_cases(void)
         rows++;
         CHECK_MSG(strncmp(line + 1, "long_16,", 8) == 0, "unexpected row: %.60s", line + 1);
     }
-    CHECK_EQ_INT(rows, 2); /* LBS and XPBD-5 */
+    CHECK_EQ_INT(rows, 3); /* LBS, XPBD-5 and the fast XPBD-5 */
     free(csv);
     snprintf(page, sizeof page, "%s/STABILITY.md", out);
     char *doc = slurp(page);
