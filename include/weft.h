@@ -235,7 +235,7 @@ typedef struct weft_garment_def {
     /* Initial state; NULL means the rest shape, at rest. */
     const float *initial_positions;
 
-    uint32_t substeps;                  /* WEFT_METHOD_XPBD: substeps per frame (default 10) */
+    uint32_t substeps;                  /* WEFT_METHOD_XPBD and _FAST: substeps per frame (default 10) */
     /* WEFT_METHOD_XPBD: when above `substeps`, a frame whose collider moves fast near the cloth
      * gets more substeps, up to this many, so that the collider geometry that can reach the cloth
      * moves at most 0.8 gamma / (1 + gamma) of the collider contact radius per substep (0.57 mm by
