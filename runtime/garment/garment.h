@@ -115,10 +115,12 @@ bool weft__near_nearest(const weft_garment *g, const double p[3], double radius,
 /* Moves the tree to collider positions c (collider_vertex_count * 3 doubles): the fast XPBD
  * method's collider at each substep. weft__near_refit moves it back to t+1. */
 void weft__near_move_to(weft_garment *g, const double *c);
-/* Which side of the collider p is on, given its nearest point: (p - point) . pseudonormal of the
- * point's feature (face, edge or corner; exact on a closed collider), negative inside; n gets the
- * pseudonormal (not normalised). */
-double weft__near_side(const weft_garment *g, const double p[3], const weft_near_hit *hit, double n[3]);
+/* Whether p is inside the collider, by the pseudonormal of its nearest point's feature (face,
+ * edge or corner; exact on a closed collider), and the outward unit direction: from the surface
+ * point to p, flipped when inside; on the surface itself, the pseudonormal. False when there is
+ * no direction (p on a collapsed feature). */
+bool weft__near_outward(const weft_garment *g, const double p[3], const weft_near_hit *hit, double out[3],
+                        bool *inside);
 /* Moves x_next vertices inside the collider (up to push_depth) or closer than push_thickness
  * to push_thickness in front of it; sets stats.pushed_vertices and push_from_far_side. */
 void weft__push(weft_garment *g);

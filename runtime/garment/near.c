@@ -298,9 +298,27 @@ static double side_of(const weft_garment *g, const double p[3], const weft_near_
     return side;
 }
 
-double weft__near_side(const weft_garment *g, const double p[3], const weft_near_hit *hit, double n[3])
+bool weft__near_outward(const weft_garment *g, const double p[3], const weft_near_hit *hit, double out[3],
+                        bool *inside)
 {
-    return side_of(g, p, hit, n);
+    double n[3];
+    *inside = side_of(g, p, hit, n) < 0.0;
+    const double dist = sqrt(hit->d2);
+    if (dist > 1e-12) {
+        const double s = (*inside ? -1.0 : 1.0) / dist;
+        for (int k = 0; k < 3; ++k) {
+            out[k] = (p[k] - hit->point[k]) * s;
+        }
+        return true;
+    }
+    const double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+    if (!(len > 1e-30)) {
+        return false;
+    }
+    for (int k = 0; k < 3; ++k) {
+        out[k] = n[k] / len;
+    }
+    return true;
 }
 
 /* True when p is inside the collider within radius of its surface (hit: the nearest point). */
@@ -351,28 +369,12 @@ void weft__push(weft_garment *g)
         if (!found) {
             continue;
         }
-        double n[3];
-        const bool inside = side_of(g, p, &hit, n) < 0.0;
-        const double dist = sqrt(hit.d2);
-        if (inside ? dist > depth : dist >= thick) {
-            continue;
-        }
-        /* Outward unit direction: from the surface point to p, flipped when p is inside; on the
-         * surface itself, the feature's pseudonormal. */
         double out[3];
-        if (dist > 1e-12) {
-            const double s = (inside ? -1.0 : 1.0) / dist;
-            for (int k = 0; k < 3; ++k) {
-                out[k] = (p[k] - hit.point[k]) * s;
-            }
-        } else {
-            const double len = sqrt(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-            if (!(len > 1e-30)) {
-                continue;
-            }
-            for (int k = 0; k < 3; ++k) {
-                out[k] = n[k] / len;
-            }
+        bool inside;
+        const bool has_out = weft__near_outward(g, p, &hit, out, &inside);
+        const double dist = sqrt(hit.d2);
+        if ((inside ? dist > depth : dist >= thick) || !has_out) {
+            continue;
         }
         /* A vertex that entered through the far side moved outward relative to this surface
          * point (its motion less the collider's there) by at least the collider's thickness less

@@ -1802,28 +1802,15 @@ static uint32_t fast_collide_body(weft_garment *g, xpbd_state *s)
         if (!found) {
             continue;
         }
-        double pn[3], out[3];
-        const bool inside = weft__near_side(g, x, &hit, pn) < 0.0;
+        double out[3];
+        bool inside;
+        const bool has_out = weft__near_outward(g, x, &hit, out, &inside);
         const double dist = sqrt(hit.d2);
         if (!inside && dist < s->stats.min_collider_distance) {
             s->stats.min_collider_distance = dist;
         }
-        if (!inside && dist >= r) {
+        if ((!inside && dist >= r) || !has_out) {
             continue;
-        }
-        if (dist > 1e-12) {
-            const double sc = (inside ? -1.0 : 1.0) / dist;
-            for (int k = 0; k < 3; ++k) {
-                out[k] = (x[k] - hit.point[k]) * sc;
-            }
-        } else {
-            const double len = xv_len(pn);
-            if (!(len > 1e-30)) {
-                continue;
-            }
-            for (int k = 0; k < 3; ++k) {
-                out[k] = pn[k] / len;
-            }
         }
         const double depth = inside ? r + dist : r - dist;
         xv_axpy(x, depth, out);
