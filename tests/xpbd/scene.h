@@ -1,4 +1,5 @@
-/* Small meshes for the XPBD tests: a regular sheet and a closed box. */
+/* Small meshes for the XPBD tests: a regular sheet, a closed box, two meshes joined into one, and
+ * the garment def of a cloth over a collider. */
 #ifndef WEFT_TEST_XPBD_SCENE_H
 #define WEFT_TEST_XPBD_SCENE_H
 
@@ -6,6 +7,7 @@
 
 #include <stdint.h>
 #include <stdlib.h>
+#include <string.h>
 
 typedef struct test_mesh {
     float *pos;
@@ -72,6 +74,49 @@ static inline test_mesh test_box(const float lo[3], const float hi[3])
         m.tris[i] = t[i];
     }
     return m;
+}
+
+/* a and b as one mesh (b's vertices after a's); the parts are not freed. pos/tris are NULL when
+ * out of memory. */
+static inline test_mesh test_mesh_join(const test_mesh *a, const test_mesh *b)
+{
+    test_mesh m = {0};
+    m.nv = a->nv + b->nv;
+    m.nt = a->nt + b->nt;
+    m.pos = malloc(sizeof(float) * 3 * m.nv);
+    m.tris = malloc(sizeof(uint32_t) * 3 * m.nt);
+    if (!m.pos || !m.tris) {
+        test_mesh_free(&m);
+        return m;
+    }
+    memcpy(m.pos, a->pos, sizeof(float) * 3 * a->nv);
+    memcpy(m.pos + 3 * a->nv, b->pos, sizeof(float) * 3 * b->nv);
+    memcpy(m.tris, a->tris, sizeof(uint32_t) * 3 * a->nt);
+    for (uint32_t i = 0; i < 3 * b->nt; ++i) {
+        m.tris[3 * a->nt + i] = b->tris[i] + a->nv;
+    }
+    return m;
+}
+
+/* A garment of `method` at `substeps` for cloth over collider (NULL: none), CCD off. */
+static inline weft_garment_def test_garment_def(weft_method method, const test_mesh *cloth, const test_mesh *collider,
+                                                uint32_t substeps)
+{
+    weft_garment_def gd = weft_default_garment_def();
+    gd.method = method;
+    gd.substeps = substeps;
+    gd.ccd = false;
+    gd.rest_positions = cloth->pos;
+    gd.vertex_count = cloth->nv;
+    gd.triangles = cloth->tris;
+    gd.triangle_count = cloth->nt;
+    if (collider) {
+        gd.collider_rest_positions = collider->pos;
+        gd.collider_vertex_count = collider->nv;
+        gd.collider_triangles = collider->tris;
+        gd.collider_triangle_count = collider->nt;
+    }
+    return gd;
 }
 
 #endif

@@ -35,18 +35,7 @@ static weft_garment *stacked_layers(weft_context *ctx, int layers, uint32_t side
     }
     const float lo[3] = {-0.1f, 0.0f, -0.1f}, hi[3] = {0.1f, 0.1f, 0.1f};
     *box = test_box(lo, hi);
-    weft_garment_def gd = weft_default_garment_def();
-    gd.method = WEFT_METHOD_XPBD;
-    gd.substeps = 20;
-    gd.ccd = false;
-    gd.rest_positions = cloth->pos;
-    gd.vertex_count = cloth->nv;
-    gd.triangles = cloth->tris;
-    gd.triangle_count = cloth->nt;
-    gd.collider_rest_positions = box->pos;
-    gd.collider_vertex_count = box->nv;
-    gd.collider_triangles = box->tris;
-    gd.collider_triangle_count = box->nt;
+    weft_garment_def gd = test_garment_def(WEFT_METHOD_XPBD, cloth, box, 20);
     weft_garment *g = NULL;
     CHECK_RESULT(weft_garment_create(ctx, &gd, &g), WEFT_OK);
     return g;

@@ -20,20 +20,7 @@ static weft_context *make_ctx(void)
 
 static weft_garment *make_fast(weft_context *ctx, const test_mesh *cloth, const test_mesh *collider, uint32_t substeps)
 {
-    weft_garment_def gd = weft_default_garment_def();
-    gd.method = WEFT_METHOD_XPBD_FAST;
-    gd.substeps = substeps;
-    gd.ccd = false;
-    gd.rest_positions = cloth->pos;
-    gd.vertex_count = cloth->nv;
-    gd.triangles = cloth->tris;
-    gd.triangle_count = cloth->nt;
-    if (collider) {
-        gd.collider_rest_positions = collider->pos;
-        gd.collider_vertex_count = collider->nv;
-        gd.collider_triangles = collider->tris;
-        gd.collider_triangle_count = collider->nt;
-    }
+    weft_garment_def gd = test_garment_def(WEFT_METHOD_XPBD_FAST, cloth, collider, substeps);
     weft_garment *g = NULL;
     CHECK_RESULT(weft_garment_create(ctx, &gd, &g), WEFT_OK);
     return g;
@@ -128,18 +115,8 @@ static void test_two_layers(void)
     weft_context *ctx = make_ctx();
     test_mesh a = test_sheet(15, 15, 0.4f, 0.4f, 0.0f, 0.25f, 0.0f);
     test_mesh b = test_sheet(15, 15, 0.4f, 0.4f, 0.03f, 0.27f, 0.02f);
-    test_mesh both = {0};
-    both.nv = a.nv + b.nv;
-    both.nt = a.nt + b.nt;
-    both.pos = malloc(sizeof(float) * 3 * both.nv);
-    both.tris = malloc(sizeof(uint32_t) * 3 * both.nt);
+    test_mesh both = test_mesh_join(&a, &b);
     CHECK(both.pos && both.tris);
-    memcpy(both.pos, a.pos, sizeof(float) * 3 * a.nv);
-    memcpy(both.pos + 3 * a.nv, b.pos, sizeof(float) * 3 * b.nv);
-    memcpy(both.tris, a.tris, sizeof(uint32_t) * 3 * a.nt);
-    for (uint32_t i = 0; i < 3 * b.nt; ++i) {
-        both.tris[3 * a.nt + i] = b.tris[i] + a.nv;
-    }
     const float lo[3] = {-0.1f, 0.0f, -0.1f}, hi[3] = {0.1f, 0.2f, 0.1f};
     test_mesh box = test_box(lo, hi);
     weft_garment *g = make_fast(ctx, &both, &box, 20);
@@ -254,14 +231,8 @@ static void test_bad_input(void)
 {
     weft_context *ctx = make_ctx();
     test_mesh sheet = test_sheet(5, 5, 0.2f, 0.2f, 0.0f, 0.5f, 0.0f);
-    weft_garment_def gd = weft_default_garment_def();
-    gd.method = WEFT_METHOD_XPBD_FAST;
-    gd.rest_positions = sheet.pos;
-    gd.vertex_count = sheet.nv;
-    gd.triangles = sheet.tris;
-    gd.triangle_count = sheet.nt;
+    weft_garment_def gd = test_garment_def(WEFT_METHOD_XPBD_FAST, &sheet, NULL, 10);
     weft_garment *g = NULL;
-    gd.substeps = 10;
     gd.substeps_max = 40; /* adaptive substeps belong to the reference */
     CHECK_RESULT(weft_garment_create(ctx, &gd, &g), WEFT_ERROR_INVALID_ARGUMENT);
     CHECK(g == NULL);

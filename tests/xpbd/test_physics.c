@@ -18,21 +18,8 @@ static weft_context *make_ctx(void)
 static weft_garment *make_garment(weft_context *ctx, const test_mesh *cloth, const test_mesh *collider,
                                   uint32_t substeps, uint32_t substeps_max)
 {
-    weft_garment_def gd = weft_default_garment_def();
-    gd.method = WEFT_METHOD_XPBD;
-    gd.substeps = substeps;
+    weft_garment_def gd = test_garment_def(WEFT_METHOD_XPBD, cloth, collider, substeps);
     gd.substeps_max = substeps_max;
-    gd.ccd = false;
-    gd.rest_positions = cloth->pos;
-    gd.vertex_count = cloth->nv;
-    gd.triangles = cloth->tris;
-    gd.triangle_count = cloth->nt;
-    if (collider) {
-        gd.collider_rest_positions = collider->pos;
-        gd.collider_vertex_count = collider->nv;
-        gd.collider_triangles = collider->tris;
-        gd.collider_triangle_count = collider->nt;
-    }
     weft_garment *g = NULL;
     CHECK_RESULT(weft_garment_create(ctx, &gd, &g), WEFT_OK);
     return g;
@@ -188,17 +175,8 @@ static void test_two_layers(void)
     weft_context *ctx = make_ctx();
     test_mesh a = test_sheet(15, 15, 0.4f, 0.4f, 0.0f, 0.25f, 0.0f);
     test_mesh b = test_sheet(15, 15, 0.4f, 0.4f, 0.03f, 0.27f, 0.02f);
-    test_mesh both = {0};
-    both.nv = a.nv + b.nv;
-    both.nt = a.nt + b.nt;
-    both.pos = malloc(sizeof(float) * 3 * both.nv);
-    both.tris = malloc(sizeof(uint32_t) * 3 * both.nt);
-    memcpy(both.pos, a.pos, sizeof(float) * 3 * a.nv);
-    memcpy(both.pos + 3 * a.nv, b.pos, sizeof(float) * 3 * b.nv);
-    memcpy(both.tris, a.tris, sizeof(uint32_t) * 3 * a.nt);
-    for (uint32_t i = 0; i < 3 * b.nt; ++i) {
-        both.tris[3 * a.nt + i] = b.tris[i] + a.nv;
-    }
+    test_mesh both = test_mesh_join(&a, &b);
+    CHECK(both.pos && both.tris);
     const float lo[3] = {-0.1f, 0.0f, -0.1f}, hi[3] = {0.1f, 0.2f, 0.1f};
     test_mesh box = test_box(lo, hi);
     weft_garment *g = make_garment(ctx, &both, &box, 20, 0);

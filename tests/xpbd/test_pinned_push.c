@@ -20,27 +20,10 @@ static void test_pinned_patch_lifts_sheet(void)
      * of a gripper set-down) for 20 frames. */
     test_mesh a = test_sheet(11, 11, 0.2f, 0.2f, 0.0f, 0.02f, 0.0f);
     test_mesh b = test_sheet(5, 5, 0.08f, 0.08f, 0.003f, 0.0f, -0.002f);
-    test_mesh both = {0};
-    both.nv = a.nv + b.nv;
-    both.nt = a.nt + b.nt;
-    both.pos = malloc(sizeof(float) * 3 * both.nv);
-    both.tris = malloc(sizeof(uint32_t) * 3 * both.nt);
+    test_mesh both = test_mesh_join(&a, &b);
     CHECK(both.pos && both.tris);
-    memcpy(both.pos, a.pos, sizeof(float) * 3 * a.nv);
-    memcpy(both.pos + 3 * a.nv, b.pos, sizeof(float) * 3 * b.nv);
-    memcpy(both.tris, a.tris, sizeof(uint32_t) * 3 * a.nt);
-    for (uint32_t i = 0; i < 3 * b.nt; ++i) {
-        both.tris[3 * a.nt + i] = b.tris[i] + a.nv;
-    }
     const uint32_t S = 40, frames = 20;
-    weft_garment_def gd = weft_default_garment_def();
-    gd.method = WEFT_METHOD_XPBD;
-    gd.substeps = S;
-    gd.ccd = false;
-    gd.rest_positions = both.pos;
-    gd.vertex_count = both.nv;
-    gd.triangles = both.tris;
-    gd.triangle_count = both.nt;
+    weft_garment_def gd = test_garment_def(WEFT_METHOD_XPBD, &both, NULL, S);
     weft_garment *g = NULL;
     CHECK_RESULT(weft_garment_create(ctx, &gd, &g), WEFT_OK);
     weft_sim_validator *val = NULL;
