@@ -32,6 +32,23 @@ static double rnd(uint64_t *st)
     return (double)(*st >> 11) / 9007199254740992.0;
 }
 
+/* NV points in the cube [0, scale)^3 and NE edges between random pairs of them, numbered in no
+ * spatial order. */
+static void random_edges(uint64_t *st, double scale, double *pos, uint32_t *edges)
+{
+    for (int i = 0; i < 3 * NV; ++i) {
+        pos[i] = rnd(st);
+    }
+    for (int e = 0; e < NE; ++e) {
+        uint32_t a = (uint32_t)(rnd(st) * NV), b = (uint32_t)(rnd(st) * NV);
+        edges[2 * e] = a;
+        edges[2 * e + 1] = b == a ? (a + 1) % NV : b;
+    }
+    for (int i = 0; i < 3 * NV; ++i) {
+        pos[i] *= scale;
+    }
+}
+
 static bool box_meets(const double *pos, const uint32_t *e, const double lo[3], const double hi[3])
 {
     for (int a = 0; a < 3; ++a) {
@@ -52,16 +69,7 @@ static void test_query_above_matches_filtered_query(void)
     static double pos[3 * NV];
     static uint32_t edges[2 * NE];
     uint64_t st = 12345;
-    for (int i = 0; i < 3 * NV; ++i) {
-        pos[i] = rnd(&st);
-    }
-    /* Short random edges, numbered in no spatial order. */
-    for (int e = 0; e < NE; ++e) {
-        uint32_t a = (uint32_t)(rnd(&st) * NV);
-        uint32_t b = (uint32_t)(rnd(&st) * NV);
-        edges[2 * e] = a;
-        edges[2 * e + 1] = b == a ? (a + 1) % NV : b;
-    }
+    random_edges(&st, 1.0, pos, edges);
     xbvh bvh;
     CHECK_RESULT(xbvh_create(ctx, &bvh, edges, NE, 2), WEFT_OK);
     xbvh_build(&bvh, pos);
@@ -126,19 +134,7 @@ static void test_self_pairs_cover_meeting_boxes(void)
     static double pos[3 * NV];
     static uint32_t edges[2 * NE];
     uint64_t st = 777;
-    for (int i = 0; i < 3 * NV; ++i) {
-        pos[i] = rnd(&st);
-    }
-    for (int e = 0; e < NE; ++e) { /* random edges, so that many boxes meet */
-        uint32_t a = (uint32_t)(rnd(&st) * NV), b = (uint32_t)(rnd(&st) * NV);
-        edges[2 * e] = a;
-        edges[2 * e + 1] = b == a ? (a + 1) % NV : b;
-    }
-    for (int i = 0; i < NV; ++i) {
-        for (int a = 0; a < 3; ++a) {
-            pos[3 * i + a] *= 0.5;
-        }
-    }
+    random_edges(&st, 0.5, pos, edges); /* in a smaller cube, so that many boxes meet */
     xbvh bvh;
     CHECK_RESULT(xbvh_create(ctx, &bvh, edges, NE, 2), WEFT_OK);
     xbvh_build(&bvh, pos);
