@@ -823,27 +823,21 @@ int weft_bench_stability(int argc, char **argv)
     snprintf(methods[nm].family, 16, "lbs");
     snprintf(methods[nm].method, 16, "lbs");
     snprintf(methods[nm++].precision, 8, "-");
-    if (o.nxpbd == 0) {
-        static const unsigned k_substeps[] = {5, 10, 20, 40};
-        memcpy(o.xpbd, k_substeps, sizeof k_substeps);
-        o.nxpbd = 4;
-    }
-    for (size_t k = 0; k < o.nxpbd; ++k) {
-        snprintf(methods[nm].label, 96, "XPBD-%u", o.xpbd[k]);
-        snprintf(methods[nm].family, 16, "xpbd");
-        snprintf(methods[nm].method, 16, "xpbd:%u", o.xpbd[k]);
-        snprintf(methods[nm++].precision, 8, "-");
-    }
-    if (o.nxpbd_fast == 0) {
-        static const unsigned k_fast[] = {5, 10};
-        memcpy(o.xpbd_fast, k_fast, sizeof k_fast);
-        o.nxpbd_fast = 2;
-    }
-    for (size_t k = 0; k < o.nxpbd_fast; ++k) {
-        snprintf(methods[nm].label, 96, "XPBD-fast-%u", o.xpbd_fast[k]);
-        snprintf(methods[nm].family, 16, "xpbd-fast");
-        snprintf(methods[nm].method, 16, "xpbd-fast:%u", o.xpbd_fast[k]);
-        snprintf(methods[nm++].precision, 8, "-");
+    /* The reference XPBD and the fast one at their substep counts (defaults 5/10/20/40 and 5/10). */
+    static const unsigned k_substeps[] = {5, 10, 20, 40};
+    const struct {
+        const char *family, *label;
+        const unsigned *substeps;
+        size_t n;
+    } xpbd_methods[] = {{"xpbd", "XPBD", o.nxpbd ? o.xpbd : k_substeps, o.nxpbd ? o.nxpbd : 4},
+                        {"xpbd-fast", "XPBD-fast", o.nxpbd_fast ? o.xpbd_fast : k_substeps, o.nxpbd_fast ? o.nxpbd_fast : 2}};
+    for (size_t f = 0; f < 2; ++f) {
+        for (size_t k = 0; k < xpbd_methods[f].n; ++k) {
+            snprintf(methods[nm].label, 96, "%s-%u", xpbd_methods[f].label, xpbd_methods[f].substeps[k]);
+            snprintf(methods[nm].family, 16, "%s", xpbd_methods[f].family);
+            snprintf(methods[nm].method, 16, "%s:%u", xpbd_methods[f].family, xpbd_methods[f].substeps[k]);
+            snprintf(methods[nm++].precision, 8, "-");
+        }
     }
     static char model_names[16][256];
     size_t nmodels = bench_list_models(o.models, model_names, 16);
