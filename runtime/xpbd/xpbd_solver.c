@@ -1868,9 +1868,7 @@ static bool visit_fast_self(uint32_t t, void *user)
     if (d2 >= r * r) {
         return true;
     }
-    if (sqrt(d2) < s->stats.min_self_distance) {
-        s->stats.min_self_distance = sqrt(d2);
-    }
+    s->stats.min_self_distance = mind(s->stats.min_self_distance, sqrt(d2));
     double e1[3], e2[3], n[3], n0[3], q[3], q0[3], d[3], d0[3];
     const double *o[3] = {s->xo + 3 * (size_t)tri[0], s->xo + 3 * (size_t)tri[1], s->xo + 3 * (size_t)tri[2]};
     xv_sub(e1, o[1], o[0]);
@@ -1938,9 +1936,7 @@ static bool visit_fast_ee(uint32_t e2, void *user)
     if (d2 >= r * r) {
         return true;
     }
-    if (sqrt(d2) < s->stats.min_self_distance) {
-        s->stats.min_self_distance = sqrt(d2);
-    }
+    s->stats.min_self_distance = mind(s->stats.min_self_distance, sqrt(d2));
     const double c[4] = {1.0 - sa, sa, -(1.0 - tb), -tb};
     double d[3] = {0, 0, 0}, d0[3] = {0, 0, 0}, n[3];
     for (int j = 0; j < 4; ++j) {
