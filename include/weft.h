@@ -309,6 +309,22 @@ typedef struct weft_garment_def {
      * collider_push_depth: metres, default 0.02, in [0, 0.5]. docs/CCD.md, *Collider push*. */
     float collider_push;
     float collider_push_depth;
+
+    /* Body parts (every method's body collision). A skinned body overlaps itself (a forearm sunk
+     * into the chest in a crouch, a hand inside a thigh); cloth caught between the two surfaces
+     * is claimed by both and, held by CCD or pushed out of the nearest, is dragged off or through
+     * the body. With a partition of the collider's triangles into parts (e.g. each triangle's
+     * dominant bone, weft_body_triangle_parts in weft/body.h), each garment vertex collides only
+     * with the parts it lies against in the initial state: those of the triangles within
+     * collider_part_margin of its nearest collider point, and every part meeting one of those at
+     * a collider vertex. The collider push, the contact-aware strain limit, both XPBD methods and
+     * the CCD post-process all skip the other parts; cloth then passes through a limb that is not
+     * its own, as game cloth does against per-bone shapes. docs/CCD.md, *Body parts*.
+     * collider_triangle_parts: collider_triangle_count ids in [0, 31], copied into masks at
+     * creation; NULL (default) = one part, every vertex meets the whole collider. Needs a collider.
+     * collider_part_margin: metres, default 0.03, in [0, 1]. */
+    const uint8_t *collider_triangle_parts;
+    float collider_part_margin;
     uint32_t internal_cookie;           /* set by weft_default_garment_def(); do not touch */
 } weft_garment_def;
 

@@ -133,6 +133,10 @@ WEFT_API const uint32_t *weft_body_triangles(const weft_body *body);
 WEFT_API const float *weft_body_rest_vertices(const weft_body *body);
 /* Skinning weights, vertex_count * 24. */
 WEFT_API const float *weft_body_weights(const weft_body *body);
+/* Body parts for the garment's body collision (weft_garment_def.collider_triangle_parts): for
+ * each triangle, the joint (0..23) with the largest summed skinning weight over its three
+ * corners, ties to the lower joint; triangle_count entries. */
+WEFT_API weft_result weft_body_triangle_parts(const weft_body *body, uint8_t *out_parts, uint32_t count);
 /* Rest joint positions (zero pose) for the current shape, 24 * 3. */
 WEFT_API const float *weft_body_rest_joints(const weft_body *body);
 /* The pose the template is in (zero for SMPL files, an A-pose for the avatar). */

@@ -14,6 +14,8 @@
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
+#include <sys/stat.h>
+#include <zlib.h>
 
 #define BVH_MAX_FILE_BYTES (256ull << 20)
 #define BVH_MAX_FRAMES 2000000u
@@ -735,39 +737,81 @@ weft_result weft_bvh_load_memory(weft_context *context, const void *data, size_t
     return WEFT_OK;
 }
 
+/* Reads a whole BVH file, plain or gzip-compressed (the mocap library ships .bvh.gz), into a
+ * malloc'd buffer of at most BVH_MAX_FILE_BYTES. */
+static weft_result read_bvh_file(const char *path, char **out_buf, size_t *out_len)
+{
+    struct stat st;
+    if (stat(path, &st) != 0) {
+        return weft__fail(WEFT_ERROR_IO, "BVH: cannot open '%s': %s", path, strerror(errno));
+    }
+    if (!S_ISREG(st.st_mode)) {
+        return weft__fail(WEFT_ERROR_IO, "BVH: '%s' is not a regular file", path);
+    }
+    gzFile f = gzopen(path, "rb");
+    if (!f) {
+        return weft__fail(WEFT_ERROR_IO, "BVH: cannot open '%s': %s", path, strerror(errno));
+    }
+    size_t cap = 1u << 20, len = 0;
+    char *buf = malloc(cap);
+    weft_result res = buf ? WEFT_OK : WEFT_ERROR_OUT_OF_MEMORY;
+    while (res == WEFT_OK) {
+        if (len == cap) {
+            if (cap >= BVH_MAX_FILE_BYTES) {
+                res = weft__fail(WEFT_ERROR_IO, "BVH: '%s' holds more than %llu bytes", path,
+                                 (unsigned long long)BVH_MAX_FILE_BYTES);
+                break;
+            }
+            size_t ncap = cap * 2 < BVH_MAX_FILE_BYTES ? cap * 2 : (size_t)BVH_MAX_FILE_BYTES;
+            char *nb = realloc(buf, ncap);
+            if (!nb) {
+                res = weft__fail(WEFT_ERROR_OUT_OF_MEMORY, "BVH: out of memory for %zu bytes", ncap);
+                break;
+            }
+            buf = nb;
+            cap = ncap;
+        }
+        size_t want_bytes = cap - len < (1u << 30) ? cap - len : (1u << 30);
+        int got = gzread(f, buf + len, (unsigned)want_bytes);
+        if (got < 0) {
+            int zerr = 0;
+            const char *msg = gzerror(f, &zerr);
+            res = weft__fail(WEFT_ERROR_IO, "BVH: cannot read '%s': %s", path, msg ? msg : "read error");
+            break;
+        }
+        if (got == 0) {
+            break;
+        }
+        len += (size_t)got;
+    }
+    gzclose(f);
+    if (res == WEFT_OK && len == 0) {
+        res = weft__fail(WEFT_ERROR_FORMAT, "BVH: '%s' is empty", path);
+    }
+    if (res != WEFT_OK) {
+        free(buf);
+        return res == WEFT_ERROR_OUT_OF_MEMORY && !buf
+                   ? weft__fail(WEFT_ERROR_OUT_OF_MEMORY, "BVH: out of memory reading '%s'", path)
+                   : res;
+    }
+    *out_buf = buf;
+    *out_len = len;
+    return WEFT_OK;
+}
+
 weft_result weft_bvh_load_file(weft_context *context, const char *path, const weft_bvh_def *def, weft_clip **out_clip)
 {
     if (!path) {
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_bvh_load_file: path is NULL");
     }
-    FILE *f = fopen(path, "rb");
-    if (!f) {
-        return weft__fail(WEFT_ERROR_IO, "BVH: cannot open '%s': %s", path, strerror(errno));
-    }
-    if (fseek(f, 0, SEEK_END) != 0) {
-        fclose(f);
-        return weft__fail(WEFT_ERROR_IO, "BVH: cannot seek in '%s'", path);
-    }
-    long len = ftell(f);
-    if (len <= 0 || (unsigned long long)len > BVH_MAX_FILE_BYTES) {
-        fclose(f);
-        return weft__fail(len == 0 ? WEFT_ERROR_FORMAT : WEFT_ERROR_IO, "BVH: '%s' has %ld bytes (need 1..%llu)", path, len,
-                          (unsigned long long)BVH_MAX_FILE_BYTES);
-    }
-    rewind(f);
-    char *buf = malloc((size_t)len);
-    if (!buf) {
-        fclose(f);
-        return weft__fail(WEFT_ERROR_OUT_OF_MEMORY, "BVH: out of memory for %ld bytes", len);
-    }
-    size_t got = fread(buf, 1, (size_t)len, f);
-    fclose(f);
-    if (got != (size_t)len) {
-        free(buf);
-        return weft__fail(WEFT_ERROR_IO, "BVH: short read on '%s'", path);
+    char *buf = NULL;
+    size_t len = 0;
+    weft_result rr = read_bvh_file(path, &buf, &len);
+    if (rr != WEFT_OK) {
+        return rr;
     }
     weft_clip *clip = NULL;
-    weft_result res = weft_bvh_load_memory(context, buf, (size_t)len, def, &clip);
+    weft_result res = weft_bvh_load_memory(context, buf, len, def, &clip);
     free(buf);
     if (res != WEFT_OK) {
         return res;

@@ -54,7 +54,7 @@ typedef struct weft_bvh_def {
 
 weft_bvh_def weft_default_bvh_def(void);
 
-/* Reads and retargets a BVH file (at most 256 MiB). */
+/* Reads and retargets a BVH file, plain or gzip-compressed (at most 256 MiB either way). */
 weft_result weft_bvh_load_file(weft_context *context, const char *path, const weft_bvh_def *def, weft_clip **out_clip);
 /* Same from memory. */
 weft_result weft_bvh_load_memory(weft_context *context, const void *data, size_t size, const weft_bvh_def *def,

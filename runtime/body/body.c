@@ -372,6 +372,34 @@ const uint32_t *weft_body_triangles(const weft_body *body) { return body ? body-
 const float *weft_body_rest_vertices(const weft_body *body) { return body ? body->shaped_vertices : NULL; }
 const float *weft_body_weights(const weft_body *body) { return body ? body->weights : NULL; }
 const float *weft_body_rest_joints(const weft_body *body) { return body ? body->joints : NULL; }
+
+weft_result weft_body_triangle_parts(const weft_body *body, uint8_t *out_parts, uint32_t count)
+{
+    if (!body || !out_parts) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_body_triangle_parts: body and out_parts are required");
+    }
+    const uint32_t nt = weft_body_triangle_count(body);
+    if (count != nt) {
+        return weft__fail(WEFT_ERROR_SIZE_MISMATCH, "weft_body_triangle_parts: count %u, the body has %u triangles",
+                          count, nt);
+    }
+    const uint32_t *tris = weft_body_triangles(body);
+    for (uint32_t t = 0; t < nt; ++t) {
+        float sum[WEFT_BODY_JOINTS] = {0};
+        for (int k = 0; k < 3; ++k) {
+            const float *w = body->weights + (size_t)tris[3 * (size_t)t + k] * WEFT_BODY_JOINTS;
+            for (uint32_t j = 0; j < WEFT_BODY_JOINTS; ++j) {
+                sum[j] += w[j];
+            }
+        }
+        uint32_t best = 0;
+        for (uint32_t j = 1; j < WEFT_BODY_JOINTS; ++j) {
+            best = sum[j] > sum[best] ? j : best;
+        }
+        out_parts[t] = (uint8_t)best;
+    }
+    return WEFT_OK;
+}
 uint32_t weft_body_shape_count(const weft_body *body) { return body ? body->shape_count : 0; }
 
 void weft_body_bind_pose(const weft_body *body, weft_pose *out_pose)

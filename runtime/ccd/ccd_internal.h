@@ -35,6 +35,11 @@ bool ccd_tri_tri(const double *a0, const double *a1, const double *a2, const dou
 int ccd_segment_crosses_triangle_strict(const double p[3], const double q[3], const double a[3], const double b[3],
                                         const double c[3]);
 
+/* Body parts for the cloth-collider pairs (garment/parts.c): cloth_masks (one per cloth
+ * vertex) and collider_tri_bits (1 << part, one per collider triangle) are kept, not copied;
+ * NULL clears. The validator's exact tests (weft_ccd_intersect_frame, metrics) ignore them. */
+void weft__ccd_world_set_parts(weft_ccd_world *w, const uint32_t *cloth_masks, const uint32_t *collider_tri_bits);
+
 /* ---- garment hook (world.c) ------------------------------------------------------------- */
 
 struct weft_garment;

@@ -60,6 +60,9 @@ struct weft_ccd_world {
     uint8_t *carry_flag;
     uint8_t *leaving;            /* per cloth vertex: inside the collider at x0, its collider hits ignored */
     bool any_leaving;
+    /* Body parts (weft__ccd_world_set_parts), NULL without: a collider pair counts only for the
+     * cloth vertices whose mask holds the collider triangle's part. Not owned. */
+    const uint32_t *part_mask, *ctri_bits;
     float shift[3];              /* broad-phase frame: mean cloth displacement of the last full pass */
 };
 
@@ -730,6 +733,24 @@ static void pair_cloth_collider(void *ctx, uint32_t ta, uint32_t tb)
             mb &= 0x38u; /* collider corners (FV) against this triangle: skipped; its edges stay */
         }
     }
+    if (w->part_mask) {
+        /* Cloth collides with the body parts it belongs to only: corners and edges of cloth
+         * vertices whose mask lacks this triangle's part are skipped, and the collider's
+         * corners against a cloth triangle none of whose vertices has it. */
+        const uint32_t bits = w->ctri_bits[tb];
+        const bool hit0 = w->part_mask[A[0]] & bits, hit1 = w->part_mask[A[1]] & bits, hit2 = w->part_mask[A[2]] & bits;
+        if (!(hit0 | hit1 | hit2)) {
+            return;
+        }
+        const bool hit[3] = {hit0, hit1, hit2};
+        for (int k = 0; k < 3; ++k) {
+            if (!hit[k]) {
+                ma &= (uint8_t)~(1u << k);
+                ma &= (uint8_t)~(1u << (3 + k));
+                ma &= (uint8_t)~(1u << (3 + (k + 2) % 3));
+            }
+        }
+    }
     if (d->types & WEFT_CCD_MASK(WEFT_CCD_VF)) {
         box bb = tri_box(B, w->cbox);
         for (int k = 0; k < 3; ++k) {
@@ -940,6 +961,12 @@ weft_result weft_ccd_world_let_out(weft_ccd_world *w, const uint8_t *inside)
         w->any_leaving = w->any_leaving || w->leaving[v];
     }
     return WEFT_OK;
+}
+
+void weft__ccd_world_set_parts(weft_ccd_world *w, const uint32_t *cloth_masks, const uint32_t *collider_tri_bits)
+{
+    w->part_mask = cloth_masks && collider_tri_bits ? cloth_masks : NULL;
+    w->ctri_bits = w->part_mask ? collider_tri_bits : NULL;
 }
 
 const weft_ccd_hit *weft_ccd_hits(const weft_ccd_world *w, uint32_t *count)
@@ -1431,6 +1458,7 @@ weft_result weft__ccd_garment_create(weft_garment *g)
     if (r != WEFT_OK) {
         return r;
     }
+    weft__ccd_world_set_parts(w, g->part_mask, g->ctri_bits);
     g->ccd_state = w;
     return WEFT_OK;
 }

@@ -16,6 +16,7 @@ weft_garment_def weft_default_garment_def(void)
     def.ccd_iterations = 16;
     def.strain_limit_iterations = 8;
     def.collider_push_depth = 0.02f;
+    def.collider_part_margin = 0.03f;
     def.internal_cookie = WEFT_DEF_COOKIE;
     return def;
 }
@@ -73,6 +74,7 @@ static void free_buffers(weft_garment *g)
     weft__free(ctx, g->tether_target, nv3);
     weft__strain_destroy(g);
     weft__near_destroy(g);
+    weft__parts_destroy(g);
     weft__free(ctx, g, sizeof *g);
 }
 
@@ -176,6 +178,25 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
         return weft__fail(WEFT_ERROR_NO_COLLIDER,
                           "weft_garment_create: collider_push pushes cloth out of the collider, and the garment has none");
     }
+    if (def->collider_triangle_parts) {
+        if (def->collider_vertex_count == 0) {
+            return weft__fail(WEFT_ERROR_NO_COLLIDER,
+                              "weft_garment_create: collider_triangle_parts partitions the collider, and the garment "
+                              "has none");
+        }
+        if (!(def->collider_part_margin >= 0.0f && def->collider_part_margin <= 1.0f)) {
+            return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
+                              "weft_garment_create: collider_part_margin %g is not in [0, 1] metres",
+                              (double)def->collider_part_margin);
+        }
+        for (uint32_t t = 0; t < def->collider_triangle_count; ++t) {
+            if (def->collider_triangle_parts[t] > 31) {
+                return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
+                                  "weft_garment_create: collider_triangle_parts[%u] = %u is not a part id in [0, 31]", t,
+                                  (unsigned)def->collider_triangle_parts[t]);
+            }
+        }
+    }
     if (tethers && def->collider_vertex_count == 0) {
         return weft__fail(WEFT_ERROR_NO_COLLIDER,
                           "weft_garment_create: tethers follow the collider, and the garment has none");
@@ -275,6 +296,10 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
             free_buffers(g);
             return r;
         }
+    }
+    if ((r = weft__parts_create(g, def->collider_triangle_parts, def->collider_part_margin)) != WEFT_OK) {
+        free_buffers(g);
+        return r;
     }
     if (g->strain_limit > 0.0f && (r = weft__strain_create(g)) != WEFT_OK) {
         free_buffers(g);

@@ -51,6 +51,11 @@ struct weft_garment {
     uint8_t *near_inside;               /* push with CCD: vertex_count, inside the collider at t */
     uint32_t *near_last;                /* push: per vertex, its last nearest collider triangle (a seed) */
 
+    /* Body parts (parts.c); all NULL when the def gave no collider_triangle_parts. */
+    uint32_t *part_mask;                /* vertex_count: the parts each cloth vertex collides with */
+    uint32_t *ctri_bits;                /* collider_triangle_count: 1 << the triangle's part */
+    uint32_t *cvert_bits;               /* collider_vertex_count: the parts of the triangles around it */
+
     uint32_t vertex_count, triangle_count;
     float *rest;                        /* vertex_count * 3 */
     uint32_t *triangles;                /* triangle_count * 3 */
@@ -109,9 +114,12 @@ void weft__near_refit(weft_garment *g);
  * near_inside, with the tree refitted to the collider at t; returns their count. Call before
  * weft__near_refit. */
 uint32_t weft__near_mark_inside(weft_garment *g);
-/* Nearest collider point to p within radius; false when there is none. seed: a triangle likely
+/* Nearest collider point to p within radius, over every part; false when there is none. seed: a triangle likely
  * to be near (the last answer for this vertex), which narrows the search, or UINT32_MAX. */
 bool weft__near_nearest(const weft_garment *g, const double p[3], double radius, uint32_t seed, weft_near_hit *hit);
+/* The same among the collider triangles of the parts in mask only (weft__part_mask). */
+bool weft__near_nearest_in(const weft_garment *g, const double p[3], double radius, uint32_t seed, uint32_t mask,
+                           weft_near_hit *hit);
 /* Moves the tree to collider positions c (collider_vertex_count * 3 doubles): the fast XPBD
  * method's collider at each substep. weft__near_refit moves it back to t+1. */
 void weft__near_move_to(weft_garment *g, const double *c);
@@ -124,6 +132,21 @@ bool weft__near_outward(const weft_garment *g, const double p[3], const weft_nea
 /* Moves x_next vertices inside the collider (up to push_depth) or closer than push_thickness
  * to push_thickness in front of it; sets stats.pushed_vertices and push_from_far_side. */
 void weft__push(weft_garment *g);
+
+/* Body parts (parts.c): the masks made from the initial state x and the collider at rest;
+ * nothing is made when parts is NULL. */
+weft_result weft__parts_create(weft_garment *g, const uint8_t *parts, float margin);
+void weft__parts_destroy(weft_garment *g);
+/* The parts cloth vertex v collides with (every part when the garment has no partition). */
+static inline uint32_t weft__part_mask(const weft_garment *g, uint32_t v)
+{
+    return g->part_mask ? g->part_mask[v] : UINT32_MAX;
+}
+/* Whether cloth vertex v collides with collider triangle t. */
+static inline bool weft__part_hits(const weft_garment *g, uint32_t v, uint32_t t)
+{
+    return !g->part_mask || (g->part_mask[v] & g->ctri_bits[t]) != 0;
+}
 
 /* Indices in range, finite positions, no zero-area triangles; `what` names the mesh in errors. */
 weft_result weft__check_mesh(const char *what, const float *positions, uint32_t vertex_count,

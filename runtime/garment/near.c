@@ -173,11 +173,15 @@ typedef struct near_query {
     const weft_garment *g;
     const double *p;
     weft_near_hit *hit;
+    uint32_t mask; /* parts looked at (UINT32_MAX: all) */
 } near_query;
 
 static bool visit_near(uint32_t t, void *user)
 {
     near_query *q = user;
+    if (q->g->ctri_bits && !(q->g->ctri_bits[t] & q->mask)) {
+        return true; /* a body part this vertex does not collide with */
+    }
     const uint32_t *tri = q->g->collider_triangles + 3 * (size_t)t;
     const double *c = q->g->near_cpos;
     double bary[3];
@@ -192,9 +196,15 @@ static bool visit_near(uint32_t t, void *user)
 
 bool weft__near_nearest(const weft_garment *g, const double p[3], double radius, uint32_t seed, weft_near_hit *hit)
 {
+    return weft__near_nearest_in(g, p, radius, seed, UINT32_MAX, hit);
+}
+
+bool weft__near_nearest_in(const weft_garment *g, const double p[3], double radius, uint32_t seed, uint32_t mask,
+                           weft_near_hit *hit)
+{
     hit->d2 = radius * radius;
     hit->tri = UINT32_MAX;
-    near_query q = {.g = g, .p = p, .hit = hit};
+    near_query q = {.g = g, .p = p, .hit = hit, .mask = mask};
     if (seed != UINT32_MAX) {
         /* A triangle near p already bounds the search: only nearer ones can replace it. */
         visit_near(seed, &q);
@@ -322,10 +332,11 @@ bool weft__near_outward(const weft_garment *g, const double p[3], const weft_nea
 }
 
 /* True when p is inside the collider within radius of its surface (hit: the nearest point). */
-static bool inside_near(const weft_garment *g, const double p[3], double radius, uint32_t seed, weft_near_hit *hit)
+static bool inside_near(const weft_garment *g, const double p[3], double radius, uint32_t seed, uint32_t mask,
+                        weft_near_hit *hit)
 {
     double n[3];
-    return weft__near_nearest(g, p, radius, seed, hit) && side_of(g, p, hit, n) < 0.0;
+    return weft__near_nearest_in(g, p, radius, seed, mask, hit) && side_of(g, p, hit, n) < 0.0;
 }
 
 uint32_t weft__near_mark_inside(weft_garment *g)
@@ -339,7 +350,7 @@ uint32_t weft__near_mark_inside(weft_garment *g)
     for (uint32_t v = 0; v < g->vertex_count; ++v) {
         const float *x = g->x + 3 * (size_t)v;
         const double p[3] = {x[0], x[1], x[2]};
-        g->near_inside[v] = inside_near(g, p, g->push_depth, g->near_last[v], &hit);
+        g->near_inside[v] = inside_near(g, p, g->push_depth, g->near_last[v], weft__part_mask(g, v), &hit);
         g->near_last[v] = hit.tri;
         count += g->near_inside[v];
     }
@@ -364,7 +375,7 @@ void weft__push(weft_garment *g)
         float *x = g->x_next + 3 * (size_t)v;
         const double p[3] = {x[0], x[1], x[2]};
         weft_near_hit hit;
-        const bool found = weft__near_nearest(g, p, radius, g->near_last[v], &hit);
+        const bool found = weft__near_nearest_in(g, p, radius, g->near_last[v], weft__part_mask(g, v), &hit);
         g->near_last[v] = hit.tri; /* UINT32_MAX when nothing is that near */
         if (!found) {
             continue;

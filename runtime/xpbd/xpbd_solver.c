@@ -113,6 +113,9 @@ typedef struct xpbd_state {
      * contact lists, which are then not allocated. */
     bool fast;
     uint32_t *near_seed; /* per cloth vertex: its last nearest collider triangle (a search seed) */
+    /* Body parts (garment/parts.c), NULL without a partition: a contact pairs a cloth vertex
+     * with collider geometry of a part in its mask only. Owned by the garment. */
+    const uint32_t *part_mask, *ctri_bits, *cvert_bits;
     /* Self-collision by one traversal of the triangle tree against itself: each vertex and each
      * edge is tested from one triangle only, its owner. */
     uint32_t *vert_owner; /* per cloth vertex: the first triangle holding it */
@@ -379,6 +382,9 @@ static weft_result create_state(weft_garment *g, bool fast)
     s->fast = fast;
     s->n = g->vertex_count;
     s->nc = g->collider_vertex_count;
+    s->part_mask = g->part_mask;
+    s->ctri_bits = g->ctri_bits;
+    s->cvert_bits = g->cvert_bits;
     s->ntri = g->triangle_count;
     s->nctri = g->collider_triangle_count;
     weft_result r = xtopo_create(ctx, &s->topo, g->triangles, s->ntri, s->n, fast ? "xpbd-fast garment" : "xpbd garment");
@@ -805,6 +811,9 @@ static bool visit_vt_collider(uint32_t t, void *user)
     detect_ctx *dc = user;
     xpbd_state *s = dc->s;
     uint32_t v = dc->query;
+    if (s->part_mask && !(s->part_mask[v] & s->ctri_bits[t])) {
+        return true; /* a body part this vertex does not collide with */
+    }
     const uint32_t *tri = dc->ctris + 3 * (size_t)t;
     const double *x = s->xs, *c = s->csnap;
     double b[3];
@@ -839,6 +848,10 @@ static bool visit_tv_collider(uint32_t t, void *user)
     xpbd_state *s = dc->s;
     uint32_t u = dc->query;
     const uint32_t *tri = dc->tris + 3 * (size_t)t;
+    if (s->part_mask &&
+        !(s->cvert_bits[u] & (s->part_mask[tri[0]] | s->part_mask[tri[1]] | s->part_mask[tri[2]]))) {
+        return true;
+    }
     const double *x = s->xs, *c = s->csnap;
     double b[3];
     double d = sqrt(xg_point_triangle_sq(c + 3 * (size_t)u, x + 3 * (size_t)tri[0], x + 3 * (size_t)tri[1],
@@ -871,6 +884,9 @@ static bool visit_ee_collider(uint32_t ce, void *user)
     detect_ctx *dc = user;
     xpbd_state *s = dc->s;
     const uint32_t *a = s->topo.edges + 2 * (size_t)dc->query, *b = s->ctopo.edges + 2 * (size_t)ce;
+    if (s->part_mask && !((s->cvert_bits[b[0]] & s->cvert_bits[b[1]]) & (s->part_mask[a[0]] | s->part_mask[a[1]]))) {
+        return true;
+    }
     const double *x = s->xs, *c = s->csnap;
     double sa, tb;
     double d = sqrt(xg_segment_segment_sq(x + 3 * (size_t)a[0], x + 3 * (size_t)a[1], c + 3 * (size_t)b[0],
@@ -1797,7 +1813,7 @@ static uint32_t fast_collide_body(weft_garment *g, xpbd_state *s)
         }
         double *x = s->x + 3 * (size_t)i;
         weft_near_hit hit;
-        const bool found = weft__near_nearest(g, x, r + FAST_DEPTH, s->near_seed[i], &hit);
+        const bool found = weft__near_nearest_in(g, x, r + FAST_DEPTH, s->near_seed[i], weft__part_mask(g, i), &hit);
         s->near_seed[i] = hit.tri;
         if (!found) {
             continue;

@@ -7,6 +7,7 @@
 
 #include "weft_sample.h"
 #include "weft_scenes.h"
+#include "wear.h"
 #include "core/core.h"
 
 #include <errno.h>
@@ -15,6 +16,7 @@
 #include <stdlib.h>
 #include <string.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #if WEFT_RENDER_HAVE_SAMPLE
 #include "weft/body.h"
@@ -35,6 +37,8 @@ void weft_avatar_sample_default_options(weft_avatar_sample_options *o)
     o->precision = WEFT_PRECISION_INT8;
     o->tether_cm = -1.0f;
     o->strain_pct = -1.0f;
+    o->body_parts = true;
+    o->ccd = true;
     o->out_dir = "avatar_frames";
     o->frames = 120;
     o->settle_frames = 30;
@@ -52,9 +56,10 @@ void weft_avatar_sample_usage(FILE *out, const char *program)
 {
     fprintf(out,
             "usage: %s [options]\n"
-            "  --motion NAME|bvh:PATH|gltf:PATH\n"
-            "                          idle walk run jump dance arm_raise flip, a BVH file, or a skinned glTF/FBX\n"
-            "                          with SMPL joint names (default walk)\n"
+            "  --motion NAME|mocap:CLIP|bvh:PATH|gltf:PATH\n"
+            "                          idle walk run jump dance arm_raise flip, a clip of the CMU library by\n"
+            "                          name (samples/mocap/clips.csv, e.g. mocap:walk_cmu07_01), a BVH file\n"
+            "                          (plain or .gz), or a skinned glTF/FBX with SMPL joint names (default walk)\n"
             "  --garment KIND          tshirt | skirt | dress | none (default tshirt)\n"
             "  --resolution RES        garment mesh 1k | 4k | 16k | 40k (default 4k)\n"
             "  --sim-resolution RES    simulate this mesh of the garment and draw --resolution from it\n"
@@ -69,6 +74,9 @@ void weft_avatar_sample_usage(FILE *out, const char *program)
             "                          default 10 for the learned model, off for xpbd)\n"
             "  --push-cm X             push garment cloth inside the body (up to 2 cm) or nearer than X cm to X cm\n"
             "                          in front of it before CCD (0: off, the default; docs/CCD.md, Collider push)\n"
+            "  --body-parts on|off     garment vertices collide only with the body parts they lie against at rest\n"
+            "                          (each triangle's dominant bone; default on; docs/CCD.md, Body parts)\n"
+            "  --ccd on|off            the CCD post-process after each step (default on)\n"
             "  --frames N              frames to render at 60 Hz (default 120)\n"
             "  --settle N              simulated frames blending from the bind pose into the motion (default 30)\n"
             "  --out DIR               output folder for frame_NNNN.png and contact_sheet.png (default avatar_frames)\n"
@@ -148,6 +156,7 @@ int weft_avatar_sample_parse(int argc, char **argv, int first, weft_avatar_sampl
             static const char *const valued[] = {"--motion", "--garment", "--resolution", "--method", "--model",
                                                  "--sim-resolution",
                                                  "--precision", "--tether-cm", "--strain-limit", "--push-cm",
+                                                 "--body-parts", "--ccd",
                                                  "--frames", "--settle",  "--out",        "--size",   "--sheet",
                                                  "--yaw",    "--pitch",   "--start",      "--speed",
                                                  "--cape-model", "--cape-precision"};
@@ -178,6 +187,10 @@ int weft_avatar_sample_parse(int argc, char **argv, int first, weft_avatar_sampl
             ok = parse_float(v, 0.0f, 1000.0f, &o->strain_pct);
         } else if (strcmp(a, "--push-cm") == 0) {
             ok = parse_float(v, 0.0f, 10.0f, &o->push_cm);
+        } else if (strcmp(a, "--body-parts") == 0 || strcmp(a, "--ccd") == 0) {
+            bool *flag = strcmp(a, "--ccd") == 0 ? &o->ccd : &o->body_parts;
+            ok = !strcmp(v, "on") || !strcmp(v, "off");
+            *flag = !strcmp(v, "on");
         } else if (strcmp(a, "--frames") == 0) {
             ok = parse_u32(v, 1, 100000, &o->frames);
         } else if (strcmp(a, "--settle") == 0) {
@@ -341,6 +354,9 @@ typedef struct sample_state {
     weft_renderer *renderer;
     sample_motion motion;
     float *body_verts, *cloth_verts;
+    float *skinned_verts;               /* the drawn garment skinned to the body (wear measures) */
+    double *cloth_ms;                   /* per rendered frame */
+    weft_wear *wear;
     uint8_t *tiles;
     weft_sample_cape *cape;
     uint32_t cape_mesh;
@@ -362,6 +378,9 @@ static void sample_free(sample_state *s)
     weft_renderer_destroy(s->renderer);
     free(s->body_verts);
     free(s->cloth_verts);
+    free(s->skinned_verts);
+    free(s->cloth_ms);
+    weft_wear_destroy(s->wear);
     free(s->tiles);
     if (s->ctx) {
         weft_context_destroy(s->ctx);
@@ -375,14 +394,49 @@ static int fail_msg(sample_state *s, const char *what)
     return 1;
 }
 
+weft_result weft_sample_motion_path(const char *spec, char *out_path, size_t size)
+{
+    int n = -1;
+    if (spec && strncmp(spec, "bvh:", 4) == 0 && spec[4]) {
+        n = snprintf(out_path, size, "%s", spec + 4);
+    } else if (spec && strncmp(spec, "mocap:", 6) == 0 && spec[6]) {
+        const char *name = spec + 6;
+        if (strchr(name, '/') || strstr(name, "..")) {
+            return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "motion '%s': a library clip name has no '/' or '..'", spec);
+        }
+        const char *dir = getenv("WEFT_MOCAP_DIR");
+#ifdef WEFT_MOCAP_DIR
+        if (!dir || !dir[0]) {
+            dir = WEFT_MOCAP_DIR;
+        }
+#endif
+        if (!dir || !dir[0]) {
+            return weft__fail(WEFT_ERROR_UNSUPPORTED, "motion '%s': set WEFT_MOCAP_DIR to the mocap library", spec);
+        }
+        n = snprintf(out_path, size, "%s/clips/%s.bvh.gz", dir, name);
+        if (n > 0 && (size_t)n < size && access(out_path, R_OK) != 0) {
+            return weft__fail(WEFT_ERROR_IO, "motion '%s': no library clip %s (clips are listed in %s/clips.csv)", spec,
+                              out_path, dir);
+        }
+    } else {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "motion '%s' is neither bvh:PATH nor mocap:NAME", spec ? spec : "");
+    }
+    if (n <= 0 || (size_t)n >= size) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "motion '%s': path too long", spec);
+    }
+    return WEFT_OK;
+}
+
 static weft_result load_motion(const weft_avatar_sample_options *o, sample_state *s)
 {
-    if (strncmp(o->motion, "bvh:", 4) == 0) {
+    if (strncmp(o->motion, "bvh:", 4) == 0 || strncmp(o->motion, "mocap:", 6) == 0) {
 #if WEFT_RENDER_HAVE_ASSETS
         weft_bvh_def def = weft_default_bvh_def();
         def.rest_joints = weft_body_rest_joints(s->body);
         s->motion.procedural = false;
-        return weft_bvh_load_file(s->ctx, o->motion + 4, &def, &s->motion.clip);
+        char path[1024];
+        weft_result r = weft_sample_motion_path(o->motion, path, sizeof path);
+        return r != WEFT_OK ? r : weft_bvh_load_file(s->ctx, path, &def, &s->motion.clip);
 #else
         return weft__fail(WEFT_ERROR_UNSUPPORTED, "this build has no weft_assets (BVH import)");
 #endif
@@ -548,7 +602,20 @@ weft_result weft_avatar_sample_garment_create(const weft_avatar_sample_options *
         gdef.collider_vertex_count = nv;
         gdef.collider_triangles = weft_body_triangles(body);
         gdef.collider_triangle_count = weft_body_triangle_count(body);
+        gdef.ccd = o->ccd;
+        uint8_t *parts = NULL;
+        if (o->body_parts) {
+            parts = malloc(gdef.collider_triangle_count);
+            weft_result pr = parts ? weft_body_triangle_parts(body, parts, gdef.collider_triangle_count)
+                                   : WEFT_ERROR_OUT_OF_MEMORY;
+            if (pr != WEFT_OK) {
+                free(parts);
+                return pr;
+            }
+            gdef.collider_triangle_parts = parts;
+        }
         weft_result r = weft_garment_create(ctx, &gdef, out_garment);
+        free(parts);
         if (r != WEFT_OK) {
             fprintf(stderr, "avatar_render: method %s unavailable: %s\n", order[m].name, weft_last_error());
             continue;
@@ -707,6 +774,20 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
         sample_free(&s);
         return 1;
     }
+    s.cloth_ms = calloc(o->frames, sizeof(double));
+    if (!s.cloth_ms) {
+        return fail_msg(&s, "out of memory for the frame times");
+    }
+    if (dressed && simulated) {
+        s.skinned_verts = malloc((size_t)s.cloth->vertex_count * 3 * sizeof(float));
+        if (!s.skinned_verts || weft_wear_create(weft_body_triangles(s.body), weft_body_triangle_count(s.body), nv,
+                                                 s.cloth->vertex_count, &s.wear) != WEFT_OK) {
+            return fail_msg(&s, "setting up the wear measures");
+        }
+    }
+    /* skirts and dresses swing farther from the skinned garment than a T-shirt's cloth does */
+    const float off_distance = o->garment && (!strcmp(o->garment, "skirt") || !strcmp(o->garment, "dress")) ? 0.25f : 0.10f;
+    weft_wear_summary wear = {0};
     uint32_t tiles = o->sheet_tiles < o->frames ? o->sheet_tiles : o->frames;
     size_t image_bytes = (size_t)o->width * o->height * 4;
     s.tiles = malloc(image_bytes * tiles);
@@ -805,8 +886,23 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
         sums[1] += t2 - t1;
         sums[2] += t3 - t2;
         sums[3] += t4 - t3;
-        printf("frame %4u  pose %6.2f ms  cloth(%s) %7.2f ms  render %7.2f ms  png %6.2f ms\n", frame, t1 - t0,
+        s.cloth_ms[frame] = t2 - t1;
+        weft_wear_frame wf = {0};
+        if (s.wear) {
+            if (weft_body_skin_points(s.body, &pose, s.cloth->positions, s.cloth->weights, s.cloth->vertex_count,
+                                      s.skinned_verts) != WEFT_OK ||
+                weft_wear_measure(s.wear, s.body_verts, cloth, s.skinned_verts, off_distance, &wf) != WEFT_OK) {
+                return fail_msg(&s, "measuring the wear");
+            }
+            weft_wear_summary_add(&wear, &wf);
+        }
+        printf("frame %4u  pose %6.2f ms  cloth(%s) %7.2f ms  render %7.2f ms  png %6.2f ms", frame, t1 - t0,
                method_used, t2 - t1, t3 - t2, t4 - t3);
+        if (s.wear) {
+            printf("  off_body %5.1f %%  inside_body %5.1f %%  body_self_overlap %4.1f %%", 100.0 * wf.off_body,
+                   100.0 * wf.inside_body, 100.0 * wf.body_self_overlap);
+        }
+        printf("\n");
     }
     const uint8_t *tile_ptrs[64];
     const char *label_ptrs[64];
@@ -829,6 +925,18 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
     double n = o->frames;
     printf("mean per frame: pose %.2f ms, cloth(%s) %.2f ms, render %.2f ms, png %.2f ms\n", sums[0] / n, method_used,
            sums[1] / n, sums[2] / n, sums[3] / n);
+    if (s.wear) {
+        printf("wear: garment %s (%u of %u frames over 1 %% of vertices farther than %.0f cm from the skinned "
+               "garment; worst %.1f %%); inside_body mean %.1f %%, max %.1f %%; body_self_overlap mean %.1f %%, max %.1f %%\n",
+               wear.frames_off ? "LOST" : "kept", wear.frames_off, wear.frames, 100.0 * off_distance,
+               100.0 * wear.off_body_max, 100.0 * wear.inside_mean, 100.0 * wear.inside_max, 100.0 * wear.overlap_mean,
+               100.0 * wear.overlap_max);
+        const double p50 = weft_wear_percentile(s.cloth_ms, o->frames, 50.0);
+        const double p99 = weft_wear_percentile(s.cloth_ms, o->frames, 99.0);
+        const double pmax = weft_wear_percentile(s.cloth_ms, o->frames, 100.0);
+        printf("cloth ms per frame: p50 %.2f, p99 %.2f, max %.2f (max / p50 %.1f)\n", p50, p99, pmax,
+               p50 > 0.0 ? pmax / p50 : 0.0);
+    }
     if (s.cape) {
         printf("cape (FNOpt): %.2f ms per step over %u steps (included in the cloth column), %u non-finite steps\n",
                s.cape_ms / (settle + o->frames), settle + o->frames, weft_sample_cape_failed_steps(s.cape));

@@ -26,6 +26,9 @@ typedef struct weft_avatar_sample_options {
     float strain_pct;           /* strain limit in % (weft_garment_def.strain_limit); < 0 (default): 10 %
                                    for the learned model, none for XPBD; 0: none */
     float push_cm;              /* collider push in cm (weft_garment_def.collider_push); 0 (default): off */
+    bool body_parts;            /* the body collision by parts (weft_garment_def.collider_triangle_parts from
+                                   weft_body_triangle_parts) (default true) */
+    bool ccd;                   /* the CCD post-process (weft_garment_def.ccd) (default true) */
     const char *out_dir;        /* frames and the contact sheet go here (default "avatar_frames") */
     uint32_t frames;            /* rendered frames at 60 Hz (default 120) */
     uint32_t settle_frames;     /* simulated frames blending from the bind pose into frame 0 (default 30) */
@@ -46,6 +49,11 @@ typedef struct weft_avatar_sample_options {
 } weft_avatar_sample_options;
 
 void weft_avatar_sample_default_options(weft_avatar_sample_options *options);
+/* The file behind a motion spec: "bvh:PATH" gives PATH; "mocap:NAME" gives the library clip
+ * NAME (samples/mocap/clips/NAME.bvh.gz, or under $WEFT_MOCAP_DIR/clips when that is set).
+ * Fails with WEFT_ERROR_INVALID_ARGUMENT naming the spec when it is neither or too long, and
+ * with WEFT_ERROR_IO when a library clip does not exist. */
+weft_result weft_sample_motion_path(const char *spec, char *out_path, size_t size);
 /* Parses the options above from argv[first..argc). Returns 0, or 2 after printing the usage
  * (unknown option, bad value) to stderr, or 1 for --help (usage printed to stdout). */
 int weft_avatar_sample_parse(int argc, char **argv, int first, weft_avatar_sample_options *options);

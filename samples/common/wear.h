@@ -1,0 +1,54 @@
+/* How a worn garment sits on its body, frame by frame: the measures the render sample, `weft
+ * render` and the stability suite report for real motion (docs/STABILITY.md, *Wear measures*).
+ *
+ *   off_body           share of garment vertices farther than a distance (10 cm; 25 cm for skirts
+ *                      and dresses) from the same garment skinned to the body; a clip loses the
+ *                      garment when any frame is over 1 %.
+ *   inside_body        share of garment vertices inside the body volume. The body of a real
+ *                      character overlaps itself, so "inside" is the winding number of the body
+ *                      surface around the point (>= 1), which counts a point inside two
+ *                      overlapping parts once and is exact for any closed, outward-wound body.
+ *   body_self_overlap  share of body vertices inside the body once moved 2 mm out along their
+ *                      normal: how much of the character is buried in another of its parts.
+ *
+ * The winding number is counted along a vertical ray from each point: every body triangle whose
+ * XZ projection holds the point and which lies above it adds +1 when it faces up (the ray
+ * leaves the body there) and -1 when it faces down. Triangles are binned once per frame on a
+ * grid over their XZ bounds; nothing is allocated after creation. */
+#ifndef WEFT_SAMPLE_WEAR_H
+#define WEFT_SAMPLE_WEAR_H
+
+#include "weft.h"
+
+typedef struct weft_wear weft_wear;
+
+typedef struct weft_wear_frame {
+    double off_body;            /* share, 0..1 */
+    double inside_body;         /* share, 0..1 */
+    double body_self_overlap;   /* share, 0..1 */
+} weft_wear_frame;
+
+/* body_triangles: the body's closed, outward-wound mesh; garment_vertex_count: the garment
+ * drawn. Fails with WEFT_ERROR_INVALID_ARGUMENT on zero counts or NULL triangles. */
+weft_result weft_wear_create(const uint32_t *body_triangles, uint32_t body_triangle_count, uint32_t body_vertex_count,
+                             uint32_t garment_vertex_count, weft_wear **out);
+void weft_wear_destroy(weft_wear *w);
+/* One frame: body positions, garment positions, the garment skinned to the body, and the
+ * off-body distance in metres. */
+weft_result weft_wear_measure(weft_wear *w, const float *body, const float *garment, const float *skinned,
+                              float off_distance, weft_wear_frame *out);
+
+/* The summary of a clip: per-frame figures fed one at a time. */
+typedef struct weft_wear_summary {
+    uint32_t frames;
+    uint32_t frames_off;        /* frames with off_body over 1 % */
+    double off_body_max;
+    double inside_mean, inside_max;
+    double overlap_mean, overlap_max;
+} weft_wear_summary;
+void weft_wear_summary_add(weft_wear_summary *s, const weft_wear_frame *f);
+
+/* p-th percentile (0..100) of n values, sorted in place (nearest rank). */
+double weft_wear_percentile(double *values, uint32_t n, double p);
+
+#endif
