@@ -38,7 +38,8 @@ void weft_avatar_sample_default_options(weft_avatar_sample_options *o)
     o->tether_cm = -1.0f;
     o->strain_pct = -1.0f;
     o->body_parts = true;
-    o->ccd = true;
+    o->ccd = false;
+    o->push_cm = 0.5f;
     o->out_dir = "avatar_frames";
     o->frames = 120;
     o->settle_frames = 30;
@@ -68,15 +69,16 @@ void weft_avatar_sample_usage(FILE *out, const char *program)
             "  --model FILE            safetensors model for the model method (default: the shipped garment model\n"
             "                          for --precision, tools/train/models/garment[.fp16|.int8].safetensors)\n"
             "  --precision P           fp32 | fp16 | int8: the model's arithmetic (default int8)\n"
-            "  --tether-cm X           tether every garment vertex within X cm of its skinned position (default 0:\n"
-            "                          off; e.g. 3 for the older game model, which drifts off its wearer)\n"
+            "  --tether-cm X           tether every garment vertex within X cm of its skinned position (default 8;\n"
+            "                          0: off)\n"
             "  --strain-limit PCT      shorten garment edges stretched over PCT %% after each step (0: off;\n"
             "                          default 10 for the learned model, off for xpbd)\n"
             "  --push-cm X             push garment cloth inside the body (up to 2 cm) or nearer than X cm to X cm\n"
-            "                          in front of it before CCD (0: off, the default; docs/CCD.md, Collider push)\n"
+            "                          in front of it (default 0.5; 0: off; docs/CCD.md, Collider push)\n"
             "  --body-parts on|off     garment vertices collide only with the body parts they lie against at rest\n"
             "                          (each triangle's dominant bone; default on; docs/CCD.md, Body parts)\n"
-            "  --ccd on|off            the CCD post-process after each step (default on)\n"
+            "  --ccd on|off            the CCD post-process after each step (default off: its cost is unbounded\n"
+            "                          where the body overlaps itself; docs/CCD.md, Body parts)\n"
             "  --frames N              frames to render at 60 Hz (default 120)\n"
             "  --settle N              simulated frames blending from the bind pose into the motion (default 30)\n"
             "  --out DIR               output folder for frame_NNNN.png and contact_sheet.png (default avatar_frames)\n"
@@ -586,9 +588,10 @@ weft_result weft_avatar_sample_garment_create(const weft_avatar_sample_options *
         gdef.method = order[m].method;
         gdef.model = *out_model;
         gdef.precision = o->precision;
-        /* No tethers by default: they cost the garment model accuracy (docs/MODEL.md); a model
-         * that drifts off its wearer (the older game model) needs them (--tether-cm 3). */
-        float tether_cm = o->tether_cm > 0.0f ? o->tether_cm : 0.0f;
+        /* The worn-garment recipe (docs/CCD.md, *Body parts*): an 8 cm max distance to the skinned
+         * garment, so no method loses the garment whatever the body does; it rarely binds on
+         * motion the cloth can follow. --tether-cm 0 turns it off. */
+        float tether_cm = o->tether_cm >= 0.0f ? o->tether_cm : 8.0f;
         gdef.tether_distance = tether_cm / 100.0f;
         /* The strain limit mends the edges the network and the tether clamps tear (docs/MODEL.md). */
         float strain_pct = o->strain_pct >= 0.0f ? o->strain_pct : (order[m].method == WEFT_METHOD_MODEL ? 10.0f : 0.0f);

@@ -1,0 +1,486 @@
+/* weft bench mocap: garments on real motion capture, per method, clip and garment.
+ *
+ * Every clip of the mocap library's split (samples/mocap/clips.csv; test by default) drives the
+ * default avatar through the BVH retargeting; a garment (T-shirt, dress, skirt) is put on in the
+ * bind pose, settled into the clip's first pose over 30 frames as the render sample does, and
+ * stepped for --frames frames by each method. There is no ground truth here: the table says
+ * whether the garment stays on (off_body, wear.h), how much of it is inside the body, how much
+ * the body overlaps itself, and what a frame costs (p50, p99, max, max / p50), measured in one
+ * run on one thread. A method whose step fails is reported as failed in its row; a clip that
+ * cannot be loaded, a garment that cannot be made, or a write that fails stops the bench with a
+ * non-zero exit and no table. */
+#define _POSIX_C_SOURCE 200809L
+#include "weft.h"
+#include "weft/body.h"
+#include "support_bench.h"
+#include "core/core.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+const char weft_bench_mocap_help[] = "garments on the mocap library's clips: garments lost, inside the body, ms p50/p99/max";
+
+#if WEFT_RENDER_HAVE_SAMPLE && WEFT_RENDER_HAVE_ASSETS
+#include "bvh.h"
+#include "wear.h"
+#include "weft_sample.h"
+
+#define MC_MAX_CLIPS 128
+#define MC_MAX_METHODS 8
+#define MC_SETTLE 30
+
+typedef struct mc_options {
+    const char *split, *clips, *garments, *methods, *model, *md, *resolution;
+    uint32_t frames;
+    bool ccd, parts;
+    float tether_cm, push_cm, strain_pct;
+} mc_options;
+
+typedef struct mc_method {
+    char label[32];
+    weft_method method;
+    uint32_t substeps;
+} mc_method;
+
+static void usage(FILE *f)
+{
+    fprintf(f,
+            "usage: weft bench mocap [--split test|train|all] [--clips A,B,...] [--garments tshirt,dress,skirt]\n"
+            "                        [--methods lbs,model,xpbd-fast:5,xpbd-fast:10,xpbd:S] [--frames N]\n"
+            "                        [--resolution 1k|4k] [--model FILE] [--ccd on|off] [--body-parts on|off]\n"
+            "                        [--tether-cm X] [--push-cm X] [--strain-limit PCT] [--md FILE]\n"
+            "  Defaults: the test split, all three garments, lbs,model,xpbd-fast:5,xpbd-fast:10, 300 frames\n"
+            "  (0: every frame of each clip), 1k, the shipped int8 garment model, and the worn-garment recipe\n"
+            "  of the render sample: body parts on, CCD off, an 8 cm max distance, a 0.5 cm push, a 10 %%\n"
+            "  strain limit for the learned model. --md writes the table into FILE between\n"
+            "  <!-- mocap-table --> markers (docs/STABILITY.md).\n");
+}
+
+static bool parse_method(const char *s, size_t n, mc_method *m)
+{
+    char buf[32];
+    if (n == 0 || n >= sizeof buf) {
+        return false;
+    }
+    memcpy(buf, s, n);
+    buf[n] = '\0';
+    snprintf(m->label, sizeof m->label, "%s", buf);
+    m->substeps = 0;
+    if (!strcmp(buf, "lbs")) {
+        m->method = WEFT_METHOD_LBS;
+        return true;
+    }
+    if (!strcmp(buf, "model")) {
+        m->method = WEFT_METHOD_MODEL;
+        snprintf(m->label, sizeof m->label, "model int8");
+        return true;
+    }
+    const char *colon = strchr(buf, ':');
+    if (!colon) {
+        return false;
+    }
+    char *end = NULL;
+    unsigned long sub = strtoul(colon + 1, &end, 10);
+    if (!end || *end || sub < 1 || sub > 200 || colon[1] == '\0') {
+        return false;
+    }
+    m->substeps = (uint32_t)sub;
+    if (!strncmp(buf, "xpbd-fast:", 10)) {
+        m->method = WEFT_METHOD_XPBD_FAST;
+        return true;
+    }
+    if (!strncmp(buf, "xpbd:", 5)) {
+        m->method = WEFT_METHOD_XPBD;
+        return true;
+    }
+    return false;
+}
+
+static bool in_list(const char *list, const char *name)
+{
+    if (!list) {
+        return true;
+    }
+    const size_t n = strlen(name);
+    for (const char *p = list; *p;) {
+        const size_t k = strcspn(p, ",");
+        if (k == n && !strncmp(p, name, n)) {
+            return true;
+        }
+        p += k + (p[k] == ',');
+    }
+    return false;
+}
+
+/* Clip names of the split, from clips.csv (file,split,...). */
+static int read_clips(const mc_options *o, char names[][64], uint32_t *count)
+{
+    char path[1024];
+    const char *dir = getenv("WEFT_MOCAP_DIR");
+    snprintf(path, sizeof path, "%s/clips.csv", dir && dir[0] ? dir : WEFT_MOCAP_DIR);
+    FILE *f = fopen(path, "r");
+    if (!f) {
+        fprintf(stderr, "weft bench mocap: cannot read %s\n", path);
+        return 1;
+    }
+    char line[2048];
+    uint32_t n = 0;
+    bool header = true;
+    while (fgets(line, sizeof line, f)) {
+        if (header) {
+            header = false;
+            continue;
+        }
+        char *comma = strchr(line, ',');
+        if (!comma) {
+            continue;
+        }
+        *comma = '\0';
+        const char *split = comma + 1;
+        const char *base = strrchr(line, '/');
+        base = base ? base + 1 : line;
+        char name[64];
+        size_t k = strcspn(base, ".");
+        if (k == 0 || k >= sizeof name) {
+            continue;
+        }
+        memcpy(name, base, k);
+        name[k] = '\0';
+        const bool split_ok = !strcmp(o->split, "all") || !strncmp(split, o->split, strlen(o->split));
+        if ((o->clips ? in_list(o->clips, name) : split_ok) && n < MC_MAX_CLIPS) {
+            memcpy(names[n++], name, k + 1);
+        }
+    }
+    fclose(f);
+    if (n == 0) {
+        fprintf(stderr, "weft bench mocap: no clip of %s matches\n", path);
+        return 1;
+    }
+    *count = n;
+    return 0;
+}
+
+typedef struct mc_cell {
+    bool failed;
+    char why[160];
+    weft_wear_summary wear;
+    double p50, p99, max;
+} mc_cell;
+
+/* One (clip, garment, method) run. Returns non-zero only for setup failures. */
+static int run_cell(const mc_options *o, weft_context *ctx, const weft_body *body, weft_model *model,
+                    const weft_clip *clip, weft_cloth_kind kind, const mc_method *m, mc_cell *cell)
+{
+    memset(cell, 0, sizeof *cell);
+    weft_cloth_def cdef = weft_default_cloth_def(kind);
+    weft_cloth_resolution res;
+    if (weft_cloth_resolution_from_name(o->resolution, &res) != WEFT_OK) {
+        fprintf(stderr, "weft bench mocap: --resolution %s is not 1k, 4k, 16k or 40k\n", o->resolution);
+        return 1;
+    }
+    cdef.resolution = res;
+    weft_cloth_mesh *cloth = NULL;
+    if (weft_cloth_create(ctx, &cdef, body, &cloth) != WEFT_OK) {
+        fprintf(stderr, "weft bench mocap: garment: %s\n", weft_last_error());
+        return 1;
+    }
+    const uint32_t nbv = weft_body_vertex_count(body), nbt = weft_body_triangle_count(body);
+    uint8_t *parts = malloc(nbt);
+    float *bverts = malloc((size_t)nbv * 3 * sizeof(float));
+    float *skinned = malloc((size_t)cloth->vertex_count * 3 * sizeof(float));
+    /* at most the clip's own length at 60 Hz (past its end a clip holds its last pose) */
+    const uint32_t clip_frames = (uint32_t)floor((double)clip->frame_count / (double)clip->fps * 60.0);
+    const uint32_t frames = o->frames && o->frames < clip_frames ? o->frames : clip_frames;
+    double *ms = calloc(frames ? frames : 1, sizeof(double));
+    weft_wear *wear = NULL;
+    int rc = 0;
+    if (!parts || !bverts || !skinned || !ms || weft_body_triangle_parts(body, parts, nbt) != WEFT_OK ||
+        weft_wear_create(weft_body_triangles(body), nbt, nbv, cloth->vertex_count, &wear) != WEFT_OK) {
+        fprintf(stderr, "weft bench mocap: setup: %s\n", weft_last_error());
+        rc = 1;
+    }
+    weft_garment *g = NULL;
+    if (rc == 0) {
+        weft_garment_def d = weft_default_garment_def();
+        d.method = m->method;
+        d.model = m->method == WEFT_METHOD_MODEL ? model : NULL;
+        d.precision = WEFT_PRECISION_INT8;
+        d.substeps = m->substeps ? m->substeps : d.substeps;
+        d.ccd = o->ccd;
+        d.rest_positions = cloth->positions;
+        d.vertex_count = cloth->vertex_count;
+        d.triangles = cloth->triangles;
+        d.triangle_count = cloth->triangle_count;
+        d.collider_rest_positions = weft_body_rest_vertices(body);
+        d.collider_vertex_count = nbv;
+        d.collider_triangles = weft_body_triangles(body);
+        d.collider_triangle_count = nbt;
+        d.collider_triangle_parts = o->parts ? parts : NULL;
+        d.tether_distance = o->tether_cm / 100.0f;
+        d.collider_push = o->push_cm / 100.0f;
+        d.strain_limit = m->method == WEFT_METHOD_MODEL ? o->strain_pct / 100.0f : 0.0f;
+        if (weft_garment_create(ctx, &d, &g) != WEFT_OK) {
+            fprintf(stderr, "weft bench mocap: %s: %s\n", m->label, weft_last_error());
+            rc = 1;
+        }
+    }
+    const float off_distance = kind == WEFT_CLOTH_TSHIRT ? 0.10f : 0.25f;
+    weft_pose bind, first, pose;
+    weft_body_bind_pose(body, &bind);
+    if (rc == 0 && weft_clip_sample(clip, 0.0, &first) != WEFT_OK) {
+        rc = 1;
+    }
+    for (uint32_t k = 0; rc == 0 && !cell->failed && k < MC_SETTLE + frames; ++k) {
+        if (k < MC_SETTLE) {
+            weft_avatar_sample_settle_pose(&bind, &first, k, MC_SETTLE, &pose);
+        } else if (weft_clip_sample(clip, (double)(k - MC_SETTLE) / 60.0, &pose) != WEFT_OK) {
+            rc = 1;
+            break;
+        }
+        if (weft_body_pose(body, &pose, bverts, NULL) != WEFT_OK) {
+            rc = 1;
+            break;
+        }
+        const double t0 = weft__now_ms();
+        weft_result r = weft_garment_set_collider(g, bverts);
+        if (r == WEFT_OK) {
+            r = weft_garment_step(g);
+        }
+        const double t1 = weft__now_ms();
+        if (r != WEFT_OK) {
+            cell->failed = true;
+            snprintf(cell->why, sizeof cell->why, "frame %u: %s", k, weft_last_error());
+            break;
+        }
+        if (k < MC_SETTLE) {
+            continue;
+        }
+        ms[k - MC_SETTLE] = t1 - t0;
+        weft_wear_frame wf;
+        if (weft_body_skin_points(body, &pose, cloth->positions, cloth->weights, cloth->vertex_count, skinned) != WEFT_OK ||
+            weft_wear_measure(wear, bverts, weft_garment_positions(g), skinned, off_distance, &wf) != WEFT_OK) {
+            rc = 1;
+            break;
+        }
+        weft_wear_summary_add(&cell->wear, &wf);
+    }
+    if (rc != 0) {
+        fprintf(stderr, "weft bench mocap: %s\n", weft_last_error());
+    } else if (!cell->failed) {
+        cell->p50 = weft_wear_percentile(ms, frames, 50.0);
+        cell->p99 = weft_wear_percentile(ms, frames, 99.0);
+        cell->max = weft_wear_percentile(ms, frames, 100.0);
+    }
+    weft_garment_destroy(g);
+    weft_wear_destroy(wear);
+    free(parts);
+    free(bverts);
+    free(skinned);
+    free(ms);
+    weft_cloth_destroy(cloth);
+    return rc;
+}
+
+typedef struct mc_total {
+    uint32_t cells, lost, failed;
+    double inside_mean_sum, inside_max, ratio_max, p50_sum;
+} mc_total;
+
+int weft_bench_mocap(int argc, char **argv)
+{
+    mc_options o = {.split = "test", .garments = "tshirt,dress,skirt", .methods = "lbs,model,xpbd-fast:5,xpbd-fast:10",
+                    .model = "tools/train/models/garment.int8.safetensors", .resolution = "1k", .frames = 300,
+                    .ccd = false, .parts = true, .tether_cm = 8.0f, .push_cm = 0.5f, .strain_pct = 10.0f};
+    for (int i = 1; i < argc; ++i) {
+        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
+        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
+            usage(stdout);
+            return 0;
+        }
+        if (!v) {
+            fprintf(stderr, "weft bench mocap: %s needs a value\n", a);
+            usage(stderr);
+            return 2;
+        }
+        bool ok = true;
+        char *end = NULL;
+        if (!strcmp(a, "--split")) {
+            o.split = v;
+            ok = !strcmp(v, "test") || !strcmp(v, "train") || !strcmp(v, "all");
+        } else if (!strcmp(a, "--clips")) {
+            o.clips = v;
+        } else if (!strcmp(a, "--garments")) {
+            o.garments = v;
+        } else if (!strcmp(a, "--methods")) {
+            o.methods = v;
+        } else if (!strcmp(a, "--model")) {
+            o.model = v;
+        } else if (!strcmp(a, "--md")) {
+            o.md = v;
+        } else if (!strcmp(a, "--resolution")) {
+            o.resolution = v;
+        } else if (!strcmp(a, "--frames")) {
+            unsigned long f = strtoul(v, &end, 10);
+            ok = end && !*end && v[0] >= '0' && v[0] <= '9' && f <= 100000;
+            o.frames = (uint32_t)f;
+        } else if (!strcmp(a, "--ccd") || !strcmp(a, "--body-parts")) {
+            ok = !strcmp(v, "on") || !strcmp(v, "off");
+            *(!strcmp(a, "--ccd") ? &o.ccd : &o.parts) = !strcmp(v, "on");
+        } else if (!strcmp(a, "--tether-cm") || !strcmp(a, "--push-cm") || !strcmp(a, "--strain-limit")) {
+            float x = strtof(v, &end);
+            float *dst = !strcmp(a, "--tether-cm") ? &o.tether_cm : (!strcmp(a, "--push-cm") ? &o.push_cm : &o.strain_pct);
+            ok = end && end != v && !*end && isfinite(x) && x >= 0.0f && x <= (dst == &o.push_cm ? 10.0f : 1000.0f);
+            *dst = x;
+        } else {
+            fprintf(stderr, "weft bench mocap: unknown option '%s'\n", a);
+            usage(stderr);
+            return 2;
+        }
+        if (!ok) {
+            fprintf(stderr, "weft bench mocap: bad value '%s' for %s\n", v, a);
+            return 2;
+        }
+        ++i;
+    }
+    mc_method methods[MC_MAX_METHODS];
+    uint32_t nm = 0;
+    for (const char *p = o.methods; *p;) {
+        const size_t k = strcspn(p, ",");
+        if (nm == MC_MAX_METHODS || !parse_method(p, k, &methods[nm])) {
+            fprintf(stderr, "weft bench mocap: bad method '%.*s' (lbs, model, xpbd-fast:S, xpbd:S; at most %d)\n", (int)k,
+                    p, MC_MAX_METHODS);
+            return 2;
+        }
+        ++nm;
+        p += k + (p[k] == ',');
+    }
+    static const weft_cloth_kind kinds[] = {WEFT_CLOTH_TSHIRT, WEFT_CLOTH_DRESS, WEFT_CLOTH_SKIRT};
+    static const char *const kind_names[] = {"tshirt", "dress", "skirt"};
+    static char clip_names[MC_MAX_CLIPS][64];
+    uint32_t nclips = 0;
+    if (read_clips(&o, clip_names, &nclips) != 0) {
+        return 1;
+    }
+    weft_context_def cdef = weft_default_context_def();
+    weft_context *ctx = NULL;
+    weft_body *body = NULL;
+    weft_model *model = NULL;
+    weft_avatar_def adef = weft_default_avatar_def();
+    if (weft_context_create(&cdef, &ctx) != WEFT_OK || weft_avatar_create(ctx, &adef, &body) != WEFT_OK) {
+        fprintf(stderr, "weft bench mocap: %s\n", weft_last_error());
+        weft_context_destroy(ctx);
+        return 1;
+    }
+    bool need_model = false;
+    for (uint32_t k = 0; k < nm; ++k) {
+        need_model |= methods[k].method == WEFT_METHOD_MODEL;
+    }
+    if (need_model && weft_model_load_file(ctx, o.model, &model) != WEFT_OK) {
+        fprintf(stderr, "weft bench mocap: model %s: %s\n", o.model, weft_last_error());
+        weft_body_destroy(body);
+        weft_context_destroy(ctx);
+        return 1;
+    }
+    char *table = NULL;
+    size_t len = 0, cap = 0;
+    char line[1024];
+    snprintf(line, sizeof line,
+             "`weft bench mocap --split %s --frames %u --resolution %s --methods %s --garments %s --ccd %s --body-parts "
+             "%s --tether-cm %g --push-cm %g --strain-limit %g` (%s)\n\n"
+             "| clip | garment | method | lost | worst off_body %% | inside_body mean / max %% | body_self_overlap "
+             "mean / max %% | ms p50 / p99 / max | max / p50 |\n|---|---|---|---|---:|---:|---:|---:|---:|\n",
+             o.split, o.frames, o.resolution, o.methods, o.garments, o.ccd ? "on" : "off", o.parts ? "on" : "off",
+             (double)o.tether_cm, (double)o.push_cm, (double)o.strain_pct, weft_config_string());
+    table = bench_append(table, &len, &cap, line);
+    mc_total totals[MC_MAX_METHODS];
+    memset(totals, 0, sizeof totals);
+    int rc = table ? 0 : 1;
+    for (uint32_t c = 0; rc == 0 && c < nclips; ++c) {
+        char spec[128], path[1024];
+        snprintf(spec, sizeof spec, "mocap:%.63s", clip_names[c]);
+        weft_bvh_def bdef = weft_default_bvh_def();
+        bdef.rest_joints = weft_body_rest_joints(body);
+        weft_clip *clip = NULL;
+        if (weft_sample_motion_path(spec, path, sizeof path) != WEFT_OK ||
+            weft_bvh_load_file(ctx, path, &bdef, &clip) != WEFT_OK) {
+            fprintf(stderr, "weft bench mocap: clip %s: %s\n", clip_names[c], weft_last_error());
+            rc = 1;
+            break;
+        }
+        for (uint32_t gk = 0; rc == 0 && gk < 3; ++gk) {
+            if (!in_list(o.garments, kind_names[gk])) {
+                continue;
+            }
+            for (uint32_t k = 0; rc == 0 && k < nm; ++k) {
+                mc_cell cell;
+                rc = run_cell(&o, ctx, body, model, clip, kinds[gk], &methods[k], &cell);
+                if (rc != 0) {
+                    break;
+                }
+                mc_total *t = &totals[k];
+                t->cells++;
+                if (cell.failed) {
+                    t->failed++;
+                    snprintf(line, sizeof line, "| %.63s | %s | %s | failed: %.159s | | | | | |\n", clip_names[c],
+                             kind_names[gk], methods[k].label, cell.why);
+                } else {
+                    const weft_wear_summary *w = &cell.wear;
+                    t->lost += w->frames_off > 0;
+                    t->inside_mean_sum += w->inside_mean;
+                    t->inside_max = w->inside_max > t->inside_max ? w->inside_max : t->inside_max;
+                    const double ratio = cell.p50 > 0.0 ? cell.max / cell.p50 : 0.0;
+                    t->ratio_max = ratio > t->ratio_max ? ratio : t->ratio_max;
+                    t->p50_sum += cell.p50;
+                    snprintf(line, sizeof line,
+                             "| %.63s | %s | %.31s | %s | %.1f | %.1f / %.1f | %.1f / %.1f | %.2f / %.2f / %.2f | %.1f |\n",
+                             clip_names[c], kind_names[gk], methods[k].label, w->frames_off ? "**lost**" : "no",
+                             100.0 * w->off_body_max, 100.0 * w->inside_mean, 100.0 * w->inside_max,
+                             100.0 * w->overlap_mean, 100.0 * w->overlap_max, cell.p50, cell.p99, cell.max, ratio);
+                }
+                fputs(line, stdout);
+                fflush(stdout);
+                table = bench_append(table, &len, &cap, line);
+                rc = table ? 0 : 1;
+            }
+        }
+        weft_clip_destroy(clip);
+    }
+    if (rc == 0) {
+        table = bench_append(table, &len, &cap,
+                             "\n| method | cells | garments lost | failed | inside_body mean of means / worst frame % | "
+                             "worst max / p50 | mean p50 ms |\n|---|---:|---:|---:|---:|---:|---:|\n");
+        for (uint32_t k = 0; table && k < nm; ++k) {
+            const mc_total *t = &totals[k];
+            const uint32_t ok_cells = t->cells - t->failed;
+            snprintf(line, sizeof line, "| %s | %u | %u | %u | %.1f / %.1f | %.1f | %.2f |\n", methods[k].label, t->cells,
+                     t->lost, t->failed, ok_cells ? 100.0 * t->inside_mean_sum / ok_cells : 0.0, 100.0 * t->inside_max,
+                     t->ratio_max, ok_cells ? t->p50_sum / ok_cells : 0.0);
+            fputs(line, stdout);
+            table = bench_append(table, &len, &cap, line);
+        }
+        rc = table ? 0 : 1;
+    }
+    if (rc == 0 && o.md) {
+        size_t dsize = 0;
+        char *doc = bench_slurp(o.md, &dsize);
+        doc = bench_replace_block(doc, "mocap-table", table, "# Stability");
+        rc = bench_write_doc("mocap", o.md, doc) ? 0 : 1;
+    }
+    free(table);
+    weft_model_destroy(model);
+    weft_body_destroy(body);
+    weft_context_destroy(ctx);
+    return rc;
+}
+
+#else
+int weft_bench_mocap(int argc, char **argv)
+{
+    (void)argc;
+    (void)argv;
+    fprintf(stderr, "weft bench mocap: this build has no avatar, wardrobe and BVH import (weft_render, weft_assets)\n");
+    return 1;
+}
+#endif
