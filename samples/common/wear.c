@@ -72,6 +72,11 @@ static void cell_range(const weft_wear *w, float lo0, float hi0, float lo1, floa
 static weft_result bin(weft_wear *w, const float *body)
 {
     float lo[2] = {INFINITY, INFINITY}, hi[2] = {-INFINITY, -INFINITY};
+    for (size_t i = 0; i < (size_t)w->nbv * 3; ++i) {
+        if (!isfinite(body[i])) {
+            return weft__fail(WEFT_ERROR_NOT_FINITE, "weft_wear_measure: body position %zu is not finite", i / 3);
+        }
+    }
     for (uint32_t v = 0; v < w->nbv; ++v) {
         for (int a = 0; a < 2; ++a) {
             const float c = body[3 * (size_t)v + 2 * a]; /* x, then z */

@@ -7,6 +7,7 @@
 
 #include <stdarg.h>
 #include <stdint.h>
+#include <zlib.h>
 
 #define CMU_DIR "/usr/share/assimp/models/BVH/"
 #define PI_D 3.14159265358979323846
@@ -634,6 +635,95 @@ static void test_fuzz_cmu(void)
     }
 }
 
+/* ---------------------------------------------------------------------------------------- */
+/* The mocap library (samples/mocap): gzip-compressed clips read as they are.                 */
+
+#define MOCAP_DIR WEFT_SOURCE_DIR "/samples/mocap/clips/"
+
+/* A .bvh.gz loads to exactly the clip its inflated text gives through the memory loader. */
+static void test_mocap_gz_equals_plain(void)
+{
+    const char *path = MOCAP_DIR "walk_cmu07_01.bvh.gz";
+    gzFile f = gzopen(path, "rb");
+    CHECK(f != NULL);
+    if (!f) {
+        return;
+    }
+    size_t cap = 4u << 20, len = 0;
+    char *text = malloc(cap);
+    int got;
+    while (text && (got = gzread(f, text + len, (unsigned)(cap - len))) > 0) {
+        len += (size_t)got;
+    }
+    gzclose(f);
+    CHECK(len > 1000 && len < cap);
+    weft_bvh_def def = weft_default_bvh_def();
+    weft_clip *a = NULL, *b = NULL;
+    CHECK_RESULT(weft_bvh_load_file(g_ctx, path, &def, &a), WEFT_OK);
+    CHECK_RESULT(weft_bvh_load_memory(g_ctx, text, len, &def, &b), WEFT_OK);
+    if (a && b) {
+        CHECK_EQ_INT(a->frame_count, b->frame_count);
+        CHECK(a->frame_count == b->frame_count &&
+              memcmp(a->rotations, b->rotations, (size_t)a->frame_count * 72 * sizeof(float)) == 0 &&
+              memcmp(a->translations, b->translations, (size_t)a->frame_count * 3 * sizeof(float)) == 0);
+        CHECK(strcmp(a->name, "walk_cmu07_01") == 0);
+    }
+    weft_clip_destroy(a);
+    weft_clip_destroy(b);
+    free(text);
+}
+
+/* Every clip of the library's test split loads, at 60 fps, with finite poses and a root that
+ * stays within 50 m of the start. */
+static void test_mocap_test_split_loads(void)
+{
+    FILE *f = fopen(WEFT_SOURCE_DIR "/samples/mocap/clips.csv", "r");
+    CHECK(f != NULL);
+    if (!f) {
+        return;
+    }
+    char line[2048];
+    int clips = 0;
+    while (fgets(line, sizeof line, f)) {
+        char *comma = strchr(line, ',');
+        if (!comma || strncmp(comma + 1, "test,", 5) != 0) {
+            continue;
+        }
+        *comma = '\0';
+        char path[3072];
+        snprintf(path, sizeof path, "%s/samples/mocap/%.1023s", WEFT_SOURCE_DIR, line);
+        weft_bvh_def def = weft_default_bvh_def();
+        weft_clip *c = NULL;
+        CHECK_MSG(weft_bvh_load_file(g_ctx, path, &def, &c) == WEFT_OK, "%s: %s", path, weft_last_error());
+        if (c) {
+            CHECK_MSG(fabsf(c->fps - 60.0f) < 1e-3f && c->frame_count > 60, "%s: %u frames at %g fps", path, c->frame_count, (double)c->fps);
+            CHECK(all_finite(c->rotations, (size_t)c->frame_count * 72));
+            CHECK(all_finite(c->translations, (size_t)c->frame_count * 3));
+            for (uint32_t k = 0; k < c->frame_count; ++k) {
+                const float *t = c->translations + 3 * (size_t)k;
+                CHECK_MSG(fabsf(t[0]) < 50.0f && fabsf(t[1]) < 50.0f && fabsf(t[2]) < 50.0f, "%s frame %u", path, k);
+                if (!(fabsf(t[0]) < 50.0f && fabsf(t[1]) < 50.0f && fabsf(t[2]) < 50.0f)) {
+                    break;
+                }
+            }
+            ++clips;
+        }
+        weft_clip_destroy(c);
+    }
+    fclose(f);
+    CHECK_EQ_INT(clips, 17);
+}
+
+/* A directory is refused by name, not reported as a huge file. */
+static void test_bvh_path_is_a_directory(void)
+{
+    weft_bvh_def def = weft_default_bvh_def();
+    weft_clip *c = NULL;
+    CHECK_RESULT(weft_bvh_load_file(g_ctx, MOCAP_DIR, &def, &c), WEFT_ERROR_IO);
+    CHECK(strstr(weft_last_error(), "not a regular file") != NULL);
+    CHECK(c == NULL);
+}
+
 static void setup(void)
 {
     weft_context_def cdef = weft_default_context_def();
@@ -645,4 +735,5 @@ static void teardown(void) { weft_context_destroy(g_ctx); }
 
 TEST_MAIN(TEST_CASE(setup), TEST_CASE(test_synthetic_exact), TEST_CASE(test_rest_correction), TEST_CASE(test_translation_scale), TEST_CASE(test_cmu_01_01),
           TEST_CASE(test_cmu_01_03), TEST_CASE(test_boxing_toes), TEST_CASE(test_cmu_on_avatar), TEST_CASE(test_bad_input), TEST_CASE(test_fuzz_synthetic),
-          TEST_CASE(test_fuzz_cmu), TEST_CASE(teardown))
+          TEST_CASE(test_fuzz_cmu), TEST_CASE(test_mocap_gz_equals_plain), TEST_CASE(test_mocap_test_split_loads),
+          TEST_CASE(test_bvh_path_is_a_directory), TEST_CASE(teardown))

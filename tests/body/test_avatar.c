@@ -270,6 +270,43 @@ static void cleanup(void)
     CHECK(1);
 }
 
+/* weft_body_triangle_parts: every triangle gets the joint of largest summed weight; on the
+ * avatar that makes left-side parts lie on +X and right-side ones on -X, and most joints own
+ * triangles. A wrong count fails by name. */
+static void test_triangle_parts(void)
+{
+    ensure_default();
+    const uint32_t nt = weft_body_triangle_count(g_body);
+    uint8_t *parts = malloc(nt);
+    CHECK_RESULT(weft_body_triangle_parts(g_body, parts, nt), WEFT_OK);
+    const float *v = weft_body_rest_vertices(g_body);
+    const uint32_t *tris = weft_body_triangles(g_body);
+    uint32_t owned = 0, count[WEFT_BODY_JOINTS] = {0};
+    double cx[WEFT_BODY_JOINTS] = {0};
+    for (uint32_t t = 0; t < nt; ++t) {
+        CHECK(parts[t] < WEFT_BODY_JOINTS);
+        count[parts[t]]++;
+        for (int k = 0; k < 3; ++k) {
+            cx[parts[t]] += v[3 * (size_t)tris[3 * (size_t)t + k]] / 3.0;
+        }
+    }
+    for (uint32_t j = 0; j < WEFT_BODY_JOINTS; ++j) {
+        owned += count[j] > 0;
+    }
+    CHECK_MSG(owned >= 20, "%u joints own triangles", owned);
+    static const uint32_t left[] = {WEFT_JOINT_LEFT_HIP, WEFT_JOINT_LEFT_KNEE, WEFT_JOINT_LEFT_SHOULDER,
+                                    WEFT_JOINT_LEFT_ELBOW, WEFT_JOINT_LEFT_WRIST};
+    for (size_t k = 0; k < sizeof left / sizeof left[0]; ++k) {
+        const uint32_t l = left[k], r = l + 1; /* SMPL puts each right joint right after its left twin */
+        CHECK_MSG(count[l] > 0 && cx[l] / count[l] > 0.05, "%s: centroid x %g", weft_joint_name(l), count[l] ? cx[l] / count[l] : 0.0);
+        CHECK_MSG(count[r] > 0 && cx[r] / count[r] < -0.05, "%s: centroid x %g", weft_joint_name(r), count[r] ? cx[r] / count[r] : 0.0);
+    }
+    CHECK_RESULT(weft_body_triangle_parts(g_body, parts, nt - 1), WEFT_ERROR_SIZE_MISMATCH);
+    CHECK_RESULT(weft_body_triangle_parts(NULL, parts, nt), WEFT_ERROR_INVALID_ARGUMENT);
+    free(parts);
+}
+
 TEST_MAIN(TEST_CASE(test_closed_manifold), TEST_CASE(test_proportions), TEST_CASE(test_weights),
           TEST_CASE(test_no_self_intersection), TEST_CASE(test_bind_pose_reproduces_rest),
-          TEST_CASE(test_deterministic_and_shapes), TEST_CASE(test_bad_defs), TEST_CASE(cleanup))
+          TEST_CASE(test_deterministic_and_shapes), TEST_CASE(test_bad_defs), TEST_CASE(test_triangle_parts),
+          TEST_CASE(cleanup))

@@ -1,0 +1,91 @@
+/* Wear measures (samples/common/wear.c): on two overlapping closed boxes, a point inside both
+ * counts once, points outside count zero, the winding number is right at random points against a
+ * box oracle, the buried corners of one box count as body overlap and nothing else does, and
+ * off_body counts vertices beyond the distance from their skinned twins. */
+#include "../xpbd/scene.h"
+#include "test.h"
+#include "wear.h"
+
+static const float k_a_lo[3] = {0.0f, 0.0f, 0.0f}, k_a_hi[3] = {1.0f, 1.0f, 1.0f};
+static const float k_b_lo[3] = {0.6f, 0.3f, 0.3f}, k_b_hi[3] = {1.6f, 0.7f, 0.7f};
+
+static bool in_box(const float *p, const float *lo, const float *hi)
+{
+    return p[0] > lo[0] && p[0] < hi[0] && p[1] > lo[1] && p[1] < hi[1] && p[2] > lo[2] && p[2] < hi[2];
+}
+
+static void test_inside_counts_the_union_once(void)
+{
+    test_mesh a = test_box(k_a_lo, k_a_hi), b = test_box(k_b_lo, k_b_hi), body = test_mesh_join(&a, &b);
+    enum { N = 400 };
+    float pts[N][3], skinned[N][3];
+    test_rng rng = {12345};
+    uint32_t expect_inside = 0;
+    for (int i = 0; i < N; ++i) {
+        for (int k = 0; k < 3; ++k) {
+            pts[i][k] = test_rng_float(&rng, -0.3f, 1.9f);
+            skinned[i][k] = pts[i][k];
+        }
+        expect_inside += in_box(pts[i], k_a_lo, k_a_hi) || in_box(pts[i], k_b_lo, k_b_hi);
+    }
+    /* one point in both boxes, one in neither */
+    const float both[3] = {0.8f, 0.5f, 0.5f}, neither[3] = {1.3f, 0.9f, 0.9f};
+    memcpy(pts[0], both, sizeof both);
+    memcpy(pts[1], neither, sizeof neither);
+    memcpy(skinned[0], both, sizeof both);
+    memcpy(skinned[1], neither, sizeof neither);
+    expect_inside = 0;
+    for (int i = 0; i < N; ++i) {
+        expect_inside += in_box(pts[i], k_a_lo, k_a_hi) || in_box(pts[i], k_b_lo, k_b_hi);
+    }
+    skinned[2][0] += 0.2f; /* 20 cm off its skinned twin */
+    skinned[3][1] -= 0.05f; /* 5 cm */
+    weft_wear *w = NULL;
+    CHECK_RESULT(weft_wear_create(body.tris, body.nt, body.nv, N, &w), WEFT_OK);
+    weft_wear_frame f;
+    CHECK_RESULT(weft_wear_measure(w, body.pos, &pts[0][0], &skinned[0][0], 0.1f, &f), WEFT_OK);
+    CHECK_NEAR(f.inside_body, (double)expect_inside / N, 1e-12);
+    CHECK_NEAR(f.off_body, 1.0 / N, 1e-12);
+    /* box b's four corners at x = 0.6 lie inside box a; its other four and all of a's do not */
+    CHECK_NEAR(f.body_self_overlap, 4.0 / 16.0, 1e-12);
+    weft_wear_summary s = {0};
+    weft_wear_summary_add(&s, &f);
+    weft_wear_frame far = f;
+    far.off_body = 0.02;
+    weft_wear_summary_add(&s, &far);
+    CHECK_EQ_INT(s.frames, 2);
+    CHECK_EQ_INT(s.frames_off, 1);
+    CHECK_NEAR(s.off_body_max, 0.02, 1e-12);
+    weft_wear_destroy(w);
+    test_mesh_free(&a);
+    test_mesh_free(&b);
+    test_mesh_free(&body);
+}
+
+static void test_bad_input(void)
+{
+    test_mesh a = test_box(k_a_lo, k_a_hi);
+    weft_wear *w = NULL;
+    CHECK_RESULT(weft_wear_create(NULL, 12, 8, 4, &w), WEFT_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(weft_wear_create(a.tris, 0, 8, 4, &w), WEFT_ERROR_INVALID_ARGUMENT);
+    CHECK(w == NULL);
+    CHECK_RESULT(weft_wear_create(a.tris, a.nt, a.nv, 1, &w), WEFT_OK);
+    float p[3] = {0.5f, 0.5f, 0.5f};
+    weft_wear_frame f;
+    a.pos[4] = NAN;
+    CHECK_RESULT(weft_wear_measure(w, a.pos, p, p, 0.1f, &f), WEFT_ERROR_NOT_FINITE);
+    CHECK_RESULT(weft_wear_measure(w, a.pos, NULL, p, 0.1f, &f), WEFT_ERROR_INVALID_ARGUMENT);
+    weft_wear_destroy(w);
+    test_mesh_free(&a);
+}
+
+static void test_percentile(void)
+{
+    double v[5] = {5, 1, 4, 2, 3};
+    CHECK_NEAR(weft_wear_percentile(v, 5, 50.0), 3.0, 0.0);
+    CHECK_NEAR(weft_wear_percentile(v, 5, 100.0), 5.0, 0.0);
+    CHECK_NEAR(weft_wear_percentile(v, 5, 0.0), 1.0, 0.0);
+    CHECK(isnan(weft_wear_percentile(v, 0, 50.0)));
+}
+
+TEST_MAIN(TEST_CASE(test_inside_counts_the_union_once), TEST_CASE(test_bad_input), TEST_CASE(test_percentile))
