@@ -222,15 +222,15 @@ static weft_result scene_avatar_cmu(weft_context *ctx, weft_renderer *r)
 
 
 #if WEFT_RENDER_HAVE_SAMPLE
-/* The render sample's default cloth, short: the avatar blends from its bind pose into the walk
- * (20 frames) and walks 20 frames wearing the 1k T-shirt stepped by the sample's default method
- * (the shipped int8 garment model; 10 % strain limit; CCD on). The model is required here: a missing
- * file fails the scene instead of falling back to XPBD. The int8 forward is bit-exact on every
- * ISA, so the scene runs on this machine's best kernels (its own context) for speed and draws
- * the same pixels everywhere. */
-static weft_result scene_avatar_model_int8(weft_context *scalar_ctx, weft_renderer *r)
+/* The render sample's default cloth, short: the avatar blends from its bind pose into the motion
+ * at `start` seconds (20 frames) and moves `frames` frames wearing the 1k T-shirt stepped by the
+ * sample's default method and recipe (the shipped int8 garment model, 10 % strain limit, body
+ * parts, 8 cm max distance, 0.5 cm push, no CCD). The model is required here: a missing file
+ * fails the scene instead of falling back to XPBD. The int8 forward is bit-exact on every ISA,
+ * so the scene runs on this machine's best kernels (its own context) for speed and draws the
+ * same pixels everywhere. clip NULL: the procedural walk. */
+static weft_result model_int8_scene(weft_renderer *r, const char *clip_path, double start, uint32_t frames, float yaw)
 {
-    (void)scalar_ctx;
     weft_context_def cd = weft_default_context_def();
     weft_context *ctx = NULL;
     weft_result cr = weft_context_create(&cd, &ctx);
@@ -244,6 +244,7 @@ static weft_result scene_avatar_model_int8(weft_context *scalar_ctx, weft_render
     avatar_parts a = {0};
     weft_model *model = NULL;
     weft_garment *garment = NULL;
+    weft_clip *clip = NULL;
     weft_avatar_def adef = weft_default_avatar_def();
     weft_result res = weft_avatar_create(ctx, &adef, &a.body);
     const uint32_t nv = res == WEFT_OK ? weft_body_vertex_count(a.body) : 0;
@@ -257,18 +258,30 @@ static weft_result scene_avatar_model_int8(weft_context *scalar_ctx, weft_render
         res = a.verts ? weft_avatar_sample_garment_create(&o, ctx, a.body, a.cloth, &model, &garment, (char[32]){0}, 32)
                       : weft__fail(WEFT_ERROR_OUT_OF_MEMORY, "golden scene: out of memory");
     }
+#if WEFT_RENDER_HAVE_ASSETS
+    if (res == WEFT_OK && clip_path) {
+        weft_bvh_def bdef = weft_default_bvh_def();
+        bdef.rest_joints = weft_body_rest_joints(a.body);
+        res = weft_bvh_load_file(ctx, clip_path, &bdef, &clip);
+    }
+#else
+    if (res == WEFT_OK && clip_path) {
+        res = weft__fail(WEFT_ERROR_UNSUPPORTED, "golden scene: this build has no BVH import");
+    }
+#endif
     weft_motion_def md = weft_default_motion_def(WEFT_MOTION_WALK);
     weft_pose bind, first, pose;
     if (res == WEFT_OK) {
         weft_body_bind_pose(a.body, &bind);
-        res = weft_motion_sample(&md, 0.0, &first);
+        res = clip ? weft_clip_sample(clip, start, &first) : weft_motion_sample(&md, start, &first);
     }
-    const uint32_t settle = 20, walk = 20;
-    for (uint32_t k = 0; res == WEFT_OK && k < settle + walk; ++k) {
+    const uint32_t settle = 20;
+    for (uint32_t k = 0; res == WEFT_OK && k < settle + frames; ++k) {
         if (k < settle) {
             weft_avatar_sample_settle_pose(&bind, &first, k, settle, &pose);
         } else {
-            res = weft_motion_sample(&md, (double)(k - settle + 1) / 60.0, &pose);
+            const double t = start + (double)(k - settle + 1) / 60.0;
+            res = clip ? weft_clip_sample(clip, t, &pose) : weft_motion_sample(&md, t, &pose);
         }
         if (res == WEFT_OK) {
             res = weft_body_pose(a.body, &pose, a.verts, NULL);
@@ -288,6 +301,9 @@ static weft_result scene_avatar_model_int8(weft_context *scalar_ctx, weft_render
         res = weft_renderer_add_mesh(r, weft_garment_positions(garment), a.cloth->vertex_count, a.cloth->triangles,
                                      a.cloth->triangle_count, WEFT_RENDER_CLOTH, NULL);
     }
+    if (clip) {
+        weft_clip_destroy(clip);
+    }
     weft_garment_destroy(garment);
     weft_model_destroy(model);
     avatar_parts_free(&a);
@@ -296,8 +312,24 @@ static weft_result scene_avatar_model_int8(weft_context *scalar_ctx, weft_render
         return res;
     }
     weft_renderer_set_ground(r, true, 0.0f);
-    return weft_renderer_frame_scene(r, 25.0f, 8.0f);
+    return weft_renderer_frame_scene(r, yaw, 8.0f);
 }
+
+static weft_result scene_avatar_model_int8(weft_context *scalar_ctx, weft_renderer *r)
+{
+    (void)scalar_ctx;
+    return model_int8_scene(r, NULL, 0.0, 20, 25.0f);
+}
+
+#if WEFT_RENDER_HAVE_ASSETS
+/* Real motion capture where the body overlaps itself: Debian's CMU 01_01 from 1 s through the
+ * crouch (the forearms sink into the chest) to 2.5 s, where the T-shirt used to be torn off. */
+static weft_result scene_avatar_cmu_worn(weft_context *scalar_ctx, weft_renderer *r)
+{
+    (void)scalar_ctx;
+    return model_int8_scene(r, WEFT_RENDER_CMU_CLIP, 1.0, 90, 25.0f);
+}
+#endif
 #endif
 
 static const golden_scene k_scenes[] = {
@@ -314,8 +346,12 @@ static const golden_scene k_scenes[] = {
     {"avatar_dress_posed", "the posed avatar with the 4k dress skinned to the pose", scene_avatar_dress_posed},
 #endif
 #if WEFT_RENDER_HAVE_SAMPLE
-    {"avatar_model_int8", "the render sample's default: a 1k T-shirt stepped by the int8 garment model, strain-limited, CCD on",
+    {"avatar_model_int8", "the render sample's default: a 1k T-shirt stepped by the int8 garment model, worn-garment recipe",
      scene_avatar_model_int8},
+#if WEFT_RENDER_HAVE_ASSETS
+    {"avatar_cmu_worn", "the same T-shirt through CMU 01_01's crouch (1 s to 2.5 s): the body overlaps itself, the shirt stays on",
+     scene_avatar_cmu_worn},
+#endif
 #endif
 };
 

@@ -76,6 +76,7 @@ static void test_scene_avatar_cmu(void) { check_scene_named("avatar_cmu"); }
 static void test_scene_avatar_tshirt(void) { check_scene_named("avatar_tshirt"); }
 static void test_scene_avatar_dress_posed(void) { check_scene_named("avatar_dress_posed"); }
 static void test_scene_avatar_model_int8(void) { check_scene_named("avatar_model_int8"); }
+static void test_scene_avatar_cmu_worn(void) { check_scene_named("avatar_cmu_worn"); }
 
 /* The same scene rendered twice in one process must be bit-identical: rendering holds no
  * state between frames that could leak into the image. */
@@ -127,4 +128,4 @@ static void test_check_detects_change(void)
 TEST_MAIN(TEST_CASE(test_check_detects_change), TEST_CASE(test_check_repeatable),
           TEST_CASE(test_scene_sheet_sphere), TEST_CASE(test_scene_avatar_rest), TEST_CASE(test_scene_avatar_posed),
           TEST_CASE(test_scene_avatar_cmu), TEST_CASE(test_scene_avatar_tshirt), TEST_CASE(test_scene_avatar_dress_posed),
-          TEST_CASE(test_scene_avatar_model_int8))
+          TEST_CASE(test_scene_avatar_model_int8), TEST_CASE(test_scene_avatar_cmu_worn))
