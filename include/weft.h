@@ -264,9 +264,10 @@ typedef struct weft_garment_def {
     weft_collider_crop collider_crop;
     uint32_t max_collider_tokens;
 
-    /* Tethers (every method; game cloth's "max distance" constraint). After the method's step and
-     * before CCD, each vertex farther than its radius from its skinned position is moved back onto
-     * that sphere. The skinned position is the initial state bound to the collider at creation
+    /* Tethers (every method; game cloth's "max distance" constraint). After the method's step, and
+     * once more after the strain limit and the collider push (which may carry a vertex past its
+     * radius), each vertex farther than its radius from its skinned position is moved back onto
+     * that sphere: without CCD no output vertex is farther than its radius. The skinned position is the initial state bound to the collider at creation
      * (the binding WEFT_METHOD_LBS uses) and carried by the collider of t+1. A learned model that
      * drifts (a T-shirt sliding off the shoulders) stays on its wearer; radius 0 glues a vertex
      * (a waistband for a method without pins). Pinned vertices keep their pin targets.
@@ -335,7 +336,8 @@ typedef struct weft_step_stats {
     uint32_t ccd_vertices_moved;        /* vertices the CCD post-process moved back */
     bool ccd_fallback;                  /* CCD did not converge; unresolved vertices were held */
     uint32_t collider_tokens;           /* collider triangles the last model step turned into tokens */
-    uint32_t tether_vertices_clamped;   /* vertices the tethers moved back in the last step */
+    uint32_t tether_vertices_clamped;   /* tether clamps in the last step (a vertex clamped in both
+                                         * passes counts twice) */
     uint32_t strain_limited_edges;      /* edges over the strain limit before limiting, last step */
     uint32_t pushed_vertices;           /* vertices the collider push moved in the last step */
     uint32_t ccd_let_out;               /* with the push and CCD: vertices that began the step inside

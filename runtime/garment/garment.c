@@ -412,15 +412,10 @@ weft_result weft_garment_set_pins(weft_garment *g, const uint32_t *vertex_indice
     return WEFT_OK;
 }
 
-/* Moves each vertex of x_next farther than its radius from its skinned position back onto the
- * sphere; pinned vertices keep their targets. */
-static weft_result apply_tethers(weft_garment *g)
+/* Moves each vertex of x_next farther than its radius from its skinned position (tether_target)
+ * back onto the sphere; pinned vertices keep their targets. Returns how many moved. */
+static uint32_t clamp_tethers(weft_garment *g)
 {
-    weft_result r = xskin_eval(g->tether_skin, g->collider_triangles, g->collider_next, "weft_garment_step: tethers",
-                               g->tether_target);
-    if (r != WEFT_OK) {
-        return r;
-    }
     uint32_t clamped = 0;
     for (uint32_t i = 0; i < g->vertex_count; ++i) {
         float *x = g->x_next + 3 * (size_t)i;
@@ -439,7 +434,18 @@ static weft_result apply_tethers(weft_garment *g)
     for (uint32_t k = 0; k < g->pin_count; ++k) {
         memcpy(g->x_next + 3 * (size_t)g->pin_indices[k], g->pin_targets + 3 * (size_t)k, 3 * sizeof(float));
     }
-    g->stats.tether_vertices_clamped = clamped;
+    return clamped;
+}
+
+/* The tethers' skinned positions at t+1, then the clamp. */
+static weft_result apply_tethers(weft_garment *g)
+{
+    weft_result r = xskin_eval(g->tether_skin, g->collider_triangles, g->collider_next, "weft_garment_step: tethers",
+                               g->tether_target);
+    if (r != WEFT_OK) {
+        return r;
+    }
+    g->stats.tether_vertices_clamped = clamp_tethers(g);
     return WEFT_OK;
 }
 
@@ -475,6 +481,11 @@ weft_result weft__garment_finish_step(weft_garment *g)
     }
     if (g->push_thickness > 0.0f) {
         weft__push(g); /* out of the collider, so that CCD starts from a frame the body does not cut */
+    }
+    if (g->tether_skin && (g->strain_limit > 0.0f || g->push_thickness > 0.0f)) {
+        /* The strain limit and the push may carry a vertex past its radius again: the max distance
+         * is what keeps a garment on its wearer, so it has the last word before CCD. */
+        g->stats.tether_vertices_clamped += clamp_tethers(g);
     }
     weft__ccd_postprocess_garment(g); /* sweeps x -> x_next against the collider and itself */
     /* Rotate: t-1 <- t, t <- t+1 (pointer swaps, no copies). */
