@@ -148,6 +148,12 @@ static void tethers_and_bad_values(void)
     CHECK_EQ_INT(tool_run(garbage, o), 2);
     const char *missing[] = {g_exe, "eval", "--seq", g_seq, "--method", "lbs", "--sim-mesh", g_out, "--json", NULL};
     CHECK_EQ_INT(tool_run(missing, o), 1); /* no rest_pos.npy there */
+    /* --frames is a whole number in range, or the command refuses it before scoring anything */
+    static const char *const bad_frames[] = {"-1", "0", "abc", "2x", "3.7", "99999999999999999999", " 5", "+5", ""};
+    for (size_t k = 0; k < sizeof bad_frames / sizeof bad_frames[0]; ++k) {
+        const char *frames[] = {g_exe, "eval", "--seq", g_seq, "--method", "lbs", "--frames", bad_frames[k], "--json", NULL};
+        CHECK_MSG(tool_run(frames, o) == 2, "--frames '%s' was accepted", bad_frames[k]);
+    }
 }
 
 static void strain_and_time_limits(void)

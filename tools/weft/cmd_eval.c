@@ -25,6 +25,7 @@
 #include "support_bench.h"
 
 #include <dirent.h>
+#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -624,12 +625,20 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
             }
         }
     }
-    int rc = (r == WEFT_OK || a.nan) ? 0 : 1;
+    /* A rollout that went non-finite or scored no frame failed: it has no MVE, and eval exits 1. */
+    int rc = r == WEFT_OK && !a.nan && a.frames > 0 ? 0 : 1;
+    if (a.nan) {
+        fprintf(stderr, "weft eval: %s: the rollout went non-finite at frame %u; it is not scored\n", dir, a.frames + 1);
+    } else if (r == WEFT_OK && a.frames == 0) {
+        fprintf(stderr, "weft eval: %s: no frame was scored\n", dir);
+    }
     if (o->write_pos && !write_rollout(o->write_pos, dir, rollout, a.frames + 2, s.V)) {
         rc = 1;
     }
     free(rollout);
-    if (print) {
+    if (print && rc != 0) {
+        printf("%-40s frames %4u  FAILED%s\n", dir, a.frames, a.nan ? " (NaN)" : "");
+    } else if (print) {
         printf("%-40s frames %4u  MVE %8.3f cm  coll %6.2f%%  self %6.2f%%  %8.3f ms/frame  strain %.3f  tokens %.0f%s\n",
                dir, a.frames, a.vert_frames > 0 ? a.err_sum / a.vert_frames * 100.0 : 0.0,
                a.metric_frames ? a.coll_sum / a.metric_frames : 0.0,
@@ -723,8 +732,9 @@ static bool parse_hundredths(const char *v, float *out)
 static bool parse_u32(const char *v, unsigned long lo, unsigned long hi, uint32_t *out)
 {
     char *end;
+    errno = 0;
     unsigned long n = strtoul(v, &end, 10);
-    if (*end || end == v || n < lo || n > hi) {
+    if (v[0] < '0' || v[0] > '9' || *end || end == v || errno == ERANGE || n < lo || n > hi) {
         return false;
     }
     *out = (uint32_t)n;
@@ -755,7 +765,11 @@ int weft_cmd_eval(int argc, char **argv)
         } else if (strcmp(a, "--split") == 0) {
             o.split = v, ++i;
         } else if (strcmp(a, "--frames") == 0) {
-            o.max_frames = (uint32_t)strtoul(v, NULL, 10), ++i;
+            if (!parse_u32(v, 1, 100000000, &o.max_frames)) {
+                fprintf(stderr, "weft eval: bad --frames '%s' (a whole number of frames, 1..100000000)\n", v);
+                return 2;
+            }
+            ++i;
         } else if (strcmp(a, "--method") == 0) {
             ++i;
             if (strcmp(v, "model") == 0) {
@@ -953,7 +967,18 @@ int weft_cmd_eval(int argc, char **argv)
     double pushed = total.frames ? total.pushed_sum / total.frames : 0.0;
     double push_far = total.frames ? total.push_far_sum / total.frames : 0.0;
     double let_out = total.frames ? total.let_out_sum / total.frames : 0.0;
-    if (o.json) {
+    /* Never a score for a failed run: any sequence that failed, went non-finite or scored nothing
+     * leaves the error metrics null and the exit status 1. */
+    const bool failed = rc != 0 || total.nan || total.frames == 0;
+    rc = failed ? 1 : 0;
+    if (o.json && failed) {
+        printf("{\"mve_cm\": null, \"collision_rate\": null, \"self_collision_rate\": null, \"ms_per_frame\": %.6g, "
+               "\"frames\": %u, \"nan\": %s, \"max_edge_strain\": null, \"failed\": true, \"time_limited\": %s}\n",
+               ms, total.frames, total.nan ? "true" : "false", total.time_limited ? "true" : "false");
+    } else if (failed) {
+        printf("total: %u sequences, %u frames: FAILED%s (no MVE for a failed run)\n", total.sequences, total.frames,
+               total.nan ? ", a rollout went non-finite" : "");
+    } else if (o.json) {
         printf("{\"mve_cm\": %.6g, \"collision_rate\": %.6g, \"self_collision_rate\": %.6g, \"ms_per_frame\": %.6g, "
                "\"frames\": %u, \"nan\": %s, \"max_edge_strain\": %.6g, \"collider_tokens\": %.6g, "
                "\"ccd_passes\": %.6g, \"overstretched_pct\": %.6g, \"gt_max_edge_strain\": %.6g, "

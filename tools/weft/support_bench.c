@@ -234,17 +234,28 @@ bool bench_eval(const char *exe, const char *seq_dir, const char *const extra[],
     cJSON *j = js ? cJSON_Parse(js) : NULL;
     bool ok = j != NULL;
     if (j) {
-        r->mve_cm = json_num(j, "mve_cm", &ok);
-        r->collision_rate = json_num(j, "collision_rate", &ok);
-        r->self_collision_rate = json_num(j, "self_collision_rate", &ok);
+        /* A failed run (eval exits 1) has null error metrics: they become NaN here, never a score. */
+        r->nan = cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(j, "nan"));
+        bool scored = true;
+        r->mve_cm = json_num(j, "mve_cm", &scored);
+        r->collision_rate = json_num(j, "collision_rate", &scored);
+        r->self_collision_rate = json_num(j, "self_collision_rate", &scored);
         r->ms_per_frame = json_num(j, "ms_per_frame", &ok);
-        r->max_edge_strain = json_num(j, "max_edge_strain", &ok);
-        r->overstretched_pct = json_num(j, "overstretched_pct", &ok);
-        r->gt_max_edge_strain = json_num(j, "gt_max_edge_strain", &ok);
+        r->max_edge_strain = json_num(j, "max_edge_strain", &scored);
+        if (!scored) {
+            r->mve_cm = r->collision_rate = r->self_collision_rate = r->max_edge_strain = NAN;
+            ok = ok && r->nan; /* only a non-finite rollout is a measured failure */
+        }
+        bool strain_ok = true;
+        r->overstretched_pct = json_num(j, "overstretched_pct", &strain_ok);
+        r->gt_max_edge_strain = json_num(j, "gt_max_edge_strain", &strain_ok);
+        if (!strain_ok) {
+            r->overstretched_pct = r->gt_max_edge_strain = NAN;
+            ok = ok && r->nan;
+        }
         r->time_limited = cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(j, "time_limited"));
         double f = json_num(j, "frames", &ok);
         r->frames = ok && f >= 0 && f < 4e9 ? (uint32_t)f : 0;
-        r->nan = cJSON_IsTrue(cJSON_GetObjectItemCaseSensitive(j, "nan"));
         cJSON_Delete(j);
     }
     free(out);
