@@ -193,6 +193,18 @@ static void bad_plan_options_fail(void)
     CHECK_EQ_INT(tool_run(ease, NULL), 2);
     const char *amplitude[] = {g_exe, "simgen", "--out", dir, "--all", "--amplitude-retry", "0", NULL};
     CHECK_EQ_INT(tool_run(amplitude, NULL), 2);
+    /* every numeric option is a whole value in range: the --count that once wrapped the plan's size
+     * (4294967196 + the tiers' 100) and asked for 412 GB (-1) is refused before anything is made */
+    static const char *const numeric[][2] = {
+        {"--count", "4294967196"}, {"--count", "-1"},      {"--count", "abc"},  {"--count", "2x"},
+        {"--count", "3.7"},        {"--count", "0"},       {"--vertices", "1e3"}, {"--frames", "-5"},
+        {"--substeps", "99999999999999999999"}, {"--max-substeps", "x"}, {"--limit", "-1"}, {"--seed", "12a"},
+        {"--speed", "fast"},       {"--speed", "0"},       {"--garment-substeps", "-3"}};
+    for (size_t k = 0; k < sizeof numeric / sizeof numeric[0]; ++k) {
+        const char *argv[] = {g_exe, "simgen", "--out", dir, "--manifest-only", "--scenario", "drop",
+                              numeric[k][0], numeric[k][1], NULL};
+        CHECK_MSG(tool_run(argv, NULL) == 2, "%s %s was accepted", numeric[k][0], numeric[k][1]);
+    }
     const char *fast[] = {g_exe, "simgen", "--out", dir, "--all", "--fast-collider", "0", NULL};
     CHECK_EQ_INT(tool_run(fast, NULL), 2);
     const char *fast_big[] = {g_exe, "simgen", "--out", dir, "--all", "--fast-collider", "17", NULL};

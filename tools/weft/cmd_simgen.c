@@ -1,6 +1,7 @@
 /* weft simgen: generate the reference-simulation dataset (see docs/DATASET.md). */
 #define _POSIX_C_SOURCE 200809L
 #include "weft.h"
+#include "support_cli.h"
 #include "support_bench.h"
 #include "weft/sim.h"
 
@@ -394,11 +395,20 @@ int weft_cmd_simgen(int argc, char **argv)
         } else if (strcmp(a, "--no-garments") == 0) {
             garments = false;
         } else if (v && strcmp(a, "--speed") == 0) {
-            motion_speed = strtof(v, NULL), ++i;
+            if (!cli_float("simgen", a, v, 0.01f, 100.0f, &motion_speed)) {
+                return 2;
+            }
+            ++i;
         } else if (v && strcmp(a, "--fast-collider") == 0) {
-            fast_collider = (uint32_t)strtoul(v, NULL, 10), ++i;
+            if (!cli_u32("simgen", a, v, 1, 16, &fast_collider)) {
+                return 2;
+            }
+            ++i;
         } else if (v && strcmp(a, "--garment-substeps") == 0) {
-            garment_substeps = (uint32_t)strtoul(v, NULL, 10), ++i;
+            if (!cli_u32("simgen", a, v, 0, 4000, &garment_substeps)) {
+                return 2;
+            }
+            ++i;
         } else if (v && strcmp(a, "--only") == 0) {
             only = v, ++i;
         } else if (strcmp(a, "--no-garment-retry") == 0) {
@@ -448,18 +458,33 @@ int weft_cmd_simgen(int argc, char **argv)
         } else if (v && strcmp(a, "--scenario") == 0) {
             scenario = v, ++i;
         } else if (v && strcmp(a, "--count") == 0) {
-            count = (uint32_t)strtoul(v, NULL, 10), ++i;
+            if (!cli_u32("simgen", a, v, 1, 100000, &count)) {
+                return 2;
+            }
+            ++i;
         } else if (v && strcmp(a, "--vertices") == 0) {
-            vertices = (uint32_t)strtoul(v, NULL, 10), ++i;
+            if (!cli_u32("simgen", a, v, 3, 10000000, &vertices)) {
+                return 2;
+            }
+            ++i;
         } else if (v && strcmp(a, "--frames") == 0) {
-            frames = (uint32_t)strtoul(v, NULL, 10), ++i;
+            if (!cli_u32("simgen", a, v, 1, 1000000, &frames)) {
+                return 2;
+            }
+            ++i;
             frames_given = true;
         } else if (v && strcmp(a, "--like") == 0) {
             like = v, ++i;
         } else if (v && strcmp(a, "--substeps") == 0) {
-            substeps = (uint32_t)strtoul(v, NULL, 10), ++i;
+            if (!cli_u32("simgen", a, v, 1, 4000, &substeps)) {
+                return 2;
+            }
+            ++i;
         } else if (v && strcmp(a, "--max-substeps") == 0) {
-            max_substeps = (uint32_t)strtoul(v, NULL, 10), ++i;
+            if (!cli_u32("simgen", a, v, 0, 4000, &max_substeps)) {
+                return 2;
+            }
+            ++i;
         } else if (v && (strcmp(a, "--checkpoint-frames") == 0 || strcmp(a, "--time-limit") == 0)) {
             char *end = NULL;
             const double x = strtod(v, &end);
@@ -477,9 +502,17 @@ int weft_cmd_simgen(int argc, char **argv)
                 time_limit = x;
             }
         } else if (v && strcmp(a, "--limit") == 0) {
-            limit = (uint32_t)strtoul(v, NULL, 10), ++i;
+            if (!cli_u32("simgen", a, v, 0, 100000000, &limit)) {
+                return 2;
+            }
+            ++i;
         } else if (v && strcmp(a, "--seed") == 0) {
-            seed0 = strtoull(v, NULL, 10), ++i;
+            uint64_t sd = 0;
+            if (!cli_u64("simgen", a, v, 0, UINT64_MAX, &sd)) {
+                return 2;
+            }
+            seed0 = sd;
+            ++i;
         } else if (v && strcmp(a, "--shard") == 0) {
             if (sscanf(v, "%u/%u", &shard_i, &shard_n) != 2 || shard_n == 0 || shard_i >= shard_n) {
                 fprintf(stderr, "simgen: --shard wants I/N with 0 <= I < N, got '%s'\n", v);
