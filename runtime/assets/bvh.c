@@ -42,7 +42,10 @@ static const int32_t k_bone_child[WEFT_BODY_JOINTS] = {-1, 4, 5, 6, 7, 8, 9, 10,
                                                        15, 16, 17, -1, 18, 19, 20, 21, 22, 23, -1, -1};
 
 /* Joint-name tables, one row per skeleton family, in SMPL joint order; NULL = no counterpart. */
-#define BVH_FAMILIES 4
+#define BVH_FAMILIES 6
+#define BVH_MIN_MAPPED 21 /* a skeleton with fewer SMPL joints found is refused, naming the missing */
+static const char *const k_family_names[BVH_FAMILIES] = {"CMU/MotionBuilder", "Hips/Ab/Chest/LeftCollar", "SMPL",
+                                                         "SMPL (short)", "CMU/3ds Max", "Mixamo"};
 static const char *const k_names[BVH_FAMILIES][WEFT_BODY_JOINTS] = {
     /* CMU / MotionBuilder */
     {"Hips", "LeftUpLeg", "RightUpLeg", "LowerBack", "LeftLeg", "RightLeg", "Spine", "LeftFoot", "RightFoot", "Spine1",
@@ -60,6 +63,14 @@ static const char *const k_names[BVH_FAMILIES][WEFT_BODY_JOINTS] = {
     {"Pelvis", "L_Hip", "R_Hip", "Spine1", "L_Knee", "R_Knee", "Spine2", "L_Ankle", "R_Ankle", "Spine3", "L_Foot",
      "R_Foot", "Neck", "L_Collar", "R_Collar", "Head", "L_Shoulder", "R_Shoulder", "L_Elbow", "R_Elbow", "L_Wrist",
      "R_Wrist", "L_Hand", "R_Hand"},
+    /* CMU, 3ds Max-friendly naming (lowerneck > Neck > Head; lhand/LFingers/LThumb at the wrist) */
+    {"Hips", "LeftHip", "RightHip", "lowerback", "LeftKnee", "RightKnee", "Chest", "LeftAnkle", "RightAnkle", "Chest2",
+     "LeftToe", "RightToe", "lowerneck", "LeftCollar", "RightCollar", "Head", "LeftShoulder", "RightShoulder",
+     "LeftElbow", "RightElbow", "LeftWrist", "RightWrist", "lhand", "rhand"},
+    /* Mixamo (any "mixamorig:"-style namespace prefix is ignored when matching) */
+    {"Hips", "LeftUpLeg", "RightUpLeg", "Spine", "LeftLeg", "RightLeg", "Spine1", "LeftFoot", "RightFoot", "Spine2",
+     "LeftToeBase", "RightToeBase", "Neck", "LeftShoulder", "RightShoulder", "Head", "LeftArm", "RightArm", "LeftForeArm",
+     "RightForeArm", "LeftHand", "RightHand", "LeftHandMiddle1", "RightHandMiddle1"},
 };
 
 weft_bvh_def weft_default_bvh_def(void)
@@ -428,18 +439,26 @@ static weft_result collect_nodes(bvh_skel *s, const struct aiNode *n, uint32_t p
     return WEFT_OK;
 }
 
+/* A node's name without a namespace prefix ("mixamorig:Hips" -> "Hips"). */
+static const char *bare_name(const char *name)
+{
+    const char *colon = strrchr(name, ':');
+    return colon ? colon + 1 : name;
+}
+
 static uint32_t find_node(const bvh_skel *s, const char *name)
 {
     for (uint32_t i = 0; i < s->count; ++i) {
-        if (strcmp(s->nodes[i].ai->mName.data, name) == 0) {
+        if (strcmp(bare_name(s->nodes[i].ai->mName.data), name) == 0) {
             return i;
         }
     }
     return BVH_NONE;
 }
 
-/* Chooses the naming family with the most matches and fills s->map. */
-static weft_result map_joints(bvh_skel *s)
+/* Chooses the naming family with the most matches (ties to the earlier family) and fills s->map;
+ * fills the report when given. */
+static weft_result map_joints(bvh_skel *s, weft_bvh_report *report)
 {
     uint32_t best = 0, best_hits = 0;
     for (uint32_t f = 0; f < BVH_FAMILIES; ++f) {
@@ -452,8 +471,36 @@ static weft_result map_joints(bvh_skel *s)
             best = f;
         }
     }
+    uint32_t mapped = 0;
     for (uint32_t j = 0; j < WEFT_BODY_JOINTS; ++j) {
         s->map[j] = k_names[best][j] ? find_node(s, k_names[best][j]) : BVH_NONE;
+        mapped += s->map[j] != BVH_NONE;
+    }
+    if (mapped < BVH_MIN_MAPPED) {
+        char missing[512] = "";
+        size_t len = 0;
+        for (uint32_t j = 0; j < WEFT_BODY_JOINTS && len < sizeof missing; ++j) {
+            if (s->map[j] == BVH_NONE) {
+                int n = snprintf(missing + len, sizeof missing - len, "%s%s (%s)", len ? ", " : "", weft_joint_name(j),
+                                 k_names[best][j] ? k_names[best][j] : "-");
+                len += n > 0 ? (size_t)n : 0;
+            }
+        }
+        return weft__fail(WEFT_ERROR_FORMAT,
+                          "BVH: skeleton not recognised well enough: the closest naming, %s, finds %u of 24 joints "
+                          "(at least %u needed); missing SMPL joints (the names looked for): %s. Known namings: "
+                          "CMU/MotionBuilder, CMU/3ds Max, Hips/Ab/Chest/LeftCollar, Mixamo, SMPL",
+                          k_family_names[best], mapped, BVH_MIN_MAPPED, missing);
+    }
+    if (report) {
+        memset(report, 0, sizeof *report);
+        report->naming = k_family_names[best];
+        report->mapped = mapped;
+        for (uint32_t j = 0; j < WEFT_BODY_JOINTS; ++j) {
+            if (s->map[j] != BVH_NONE) {
+                snprintf(report->source[j], sizeof report->source[j], "%.63s", s->nodes[s->map[j]].ai->mName.data);
+            }
+        }
     }
     static const weft_joint required[] = {WEFT_JOINT_PELVIS,     WEFT_JOINT_LEFT_HIP,      WEFT_JOINT_RIGHT_HIP,
                                           WEFT_JOINT_LEFT_KNEE,  WEFT_JOINT_RIGHT_KNEE,    WEFT_JOINT_LEFT_ANKLE,
@@ -518,7 +565,7 @@ static weft_result retarget(weft_context *ctx, const struct aiScene *scene, cons
     if (res != WEFT_OK) {
         return res;
     }
-    res = map_joints(s);
+    res = map_joints(s, def->report);
     if (res != WEFT_OK) {
         return res;
     }

@@ -9,10 +9,15 @@
  *   weft_clip_destroy(clip);
  *
  * Skeletons recognised by joint names: CMU/MotionBuilder (Hips, LeftUpLeg, LowerBack, Spine,
- * Spine1, LeftShoulder = collar, LeftArm, LeftForeArm, LeftHand, ...), the "collar" naming of
+ * Spine1, LeftShoulder = collar, LeftArm, LeftForeArm, LeftHand, ...), CMU's 3ds Max naming
+ * (LeftHip, LeftKnee, LeftAnkle, LeftToe, lowerback, Chest, Chest2, lowerneck, Neck, Head,
+ * LeftCollar, LeftShoulder = upper arm, LeftElbow, LeftWrist, lhand), the "collar" naming of
  * many mocap exports (Hips, Ab, Chest, LeftCollar, LeftShoulder = upper arm, LeftElbow,
- * LeftWrist, LeftHip, LeftKnee, LeftAnkle, LeftToes), and SMPL's own names (pelvis, left_hip,
- * ... or Pelvis, L_Hip, ...). Source joints with no SMPL counterpart (CMU's LHipJoint, Neck1,
+ * LeftWrist, LeftHip, LeftKnee, LeftAnkle, LeftToes), Mixamo (mixamorig:Hips, LeftUpLeg, Spine,
+ * Spine1, Spine2, ...; a namespace prefix before ':' is ignored), and SMPL's own names (pelvis,
+ * left_hip, ... or Pelvis, L_Hip, ...). The naming with the most joints found is used; a
+ * skeleton where it finds fewer than 21 of the 24 SMPL joints is refused with the missing joints
+ * named (a partial match never passes silently), and def.report says what drove what. Source joints with no SMPL counterpart (CMU's LHipJoint, Neck1,
  * fingers) fold into their parents; SMPL joints with no source joint keep a zero local rotation.
  *
  * Retargeting (world-space delta): for every mapped joint the source's world rotation relative
@@ -39,6 +44,13 @@
 extern "C" {
 #endif
 
+/* How a file's skeleton was mapped onto SMPL-24 (weft_bvh_def.report). */
+typedef struct weft_bvh_report {
+    const char *naming;                         /* the naming recognised, e.g. "CMU/MotionBuilder" */
+    uint32_t mapped;                            /* SMPL joints driven by a source joint */
+    char source[WEFT_BODY_JOINTS][64];          /* the source joint of each SMPL joint; "" when none */
+} weft_bvh_report;
+
 typedef struct weft_bvh_def {
     float fps;                  /* output rate (default 60) */
     /* Rest joints (zero pose, 24 * 3, feet on y = 0) of the body the clip will drive, e.g.
@@ -49,6 +61,7 @@ typedef struct weft_bvh_def {
     uint32_t first_frame;       /* first source frame to import (default 0) */
     uint32_t max_frames;        /* at most this many source frames; 0 = all */
     bool keep_horizontal_origin;/* keep the source's X/Z position instead of starting at 0 */
+    weft_bvh_report *report;    /* optional output: the joint mapping of a successful load */
     uint32_t internal_cookie;
 } weft_bvh_def;
 

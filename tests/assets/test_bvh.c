@@ -714,6 +714,141 @@ static void test_mocap_test_split_loads(void)
     CHECK_EQ_INT(clips, 17);
 }
 
+/* The library clip's text with its joints renamed: `pairs` maps MotionBuilder names to another
+ * naming, applied to the ROOT/JOINT lines only (one pass, so chains of renames do not mix). */
+static char *renamed_clip(const char *gz_path, const char *const (*pairs)[2], size_t npairs, const char *prefix,
+                          size_t *out_len)
+{
+    gzFile f = gzopen(gz_path, "rb");
+    if (!f) {
+        return NULL;
+    }
+    size_t cap = 8u << 20, len = 0;
+    char *text = malloc(cap);
+    int got;
+    while (text && (got = gzread(f, text + len, (unsigned)(cap - len - 1))) > 0) {
+        len += (size_t)got;
+    }
+    gzclose(f);
+    if (!text) {
+        return NULL;
+    }
+    text[len] = '\0';
+    char *out = malloc(len * 2 + 4096);
+    size_t o = 0;
+    for (const char *p = text; *p;) {
+        const char *eol = strchr(p, '\n');
+        size_t n = eol ? (size_t)(eol - p) + 1 : strlen(p);
+        const char *kw = p;
+        while (*kw == ' ' || *kw == '\t') {
+            ++kw;
+        }
+        const bool joint = !strncmp(kw, "JOINT ", 6) || !strncmp(kw, "ROOT ", 5);
+        if (joint) {
+            const char *name = strchr(kw, ' ') + 1;
+            size_t nl = strcspn(name, " \t\r\n");
+            const char *repl = NULL;
+            for (size_t k = 0; k < npairs && !repl; ++k) {
+                if (strlen(pairs[k][0]) == nl && !strncmp(name, pairs[k][0], nl)) {
+                    repl = pairs[k][1];
+                }
+            }
+            memcpy(out + o, p, (size_t)(name - p));
+            o += (size_t)(name - p);
+            o += (size_t)sprintf(out + o, "%s%s", prefix, repl ? repl : "");
+            if (!repl) {
+                memcpy(out + o, name, nl);
+                o += nl;
+            }
+            memcpy(out + o, name + nl, n - (size_t)(name + nl - p));
+            o += n - (size_t)(name + nl - p);
+        } else {
+            memcpy(out + o, p, n);
+            o += n;
+        }
+        p += n;
+    }
+    free(text);
+    *out_len = o;
+    return out;
+}
+
+/* A library clip renamed to CMU's 3ds Max naming and to Mixamo's (with its namespace prefix)
+ * retargets to exactly the avatar pose its MotionBuilder original gives, and the report names
+ * the naming and every source joint. */
+static void test_namings_retarget_identically(void)
+{
+    static const char *const max_names[][2] = {
+        {"LeftUpLeg", "LeftHip"},       {"RightUpLeg", "RightHip"},       {"LeftLeg", "LeftKnee"},
+        {"RightLeg", "RightKnee"},      {"LeftFoot", "LeftAnkle"},        {"RightFoot", "RightAnkle"},
+        {"LeftToeBase", "LeftToe"},     {"RightToeBase", "RightToe"},     {"LowerBack", "lowerback"},
+        {"Spine", "Chest"},             {"Spine1", "Chest2"},             {"Neck", "lowerneck"},
+        {"Neck1", "Neck"},              {"LeftShoulder", "LeftCollar"},   {"RightShoulder", "RightCollar"},
+        {"LeftArm", "LeftShoulder"},    {"RightArm", "RightShoulder"},    {"LeftForeArm", "LeftElbow"},
+        {"RightForeArm", "RightElbow"}, {"LeftHand", "LeftWrist"},        {"RightHand", "RightWrist"},
+        {"LeftFingerBase", "lhand"},    {"RightFingerBase", "rhand"},     {"LeftHandIndex1", "LFingers"},
+        {"RightHandIndex1", "RFingers"}};
+    static const char *const mixamo_names[][2] = {
+        {"LowerBack", "Spine"}, {"Spine", "Spine1"}, {"Spine1", "Spine2"}, {"LeftFingerBase", "LeftHandMiddle1"},
+        {"RightFingerBase", "RightHandMiddle1"}, {"Neck1", "NeckTwist"}, {"LHipJoint", "LHip"}, {"RHipJoint", "RHip"}};
+    const char *path = MOCAP_DIR "gesture_cmu02_10_b.bvh.gz";
+    weft_bvh_def def = weft_default_bvh_def();
+    weft_bvh_report rep;
+    def.report = &rep;
+    weft_clip *ref = NULL;
+    CHECK_RESULT(weft_bvh_load_file(g_ctx, path, &def, &ref), WEFT_OK);
+    CHECK(ref && strcmp(rep.naming, "CMU/MotionBuilder") == 0 && rep.mapped == 24);
+    struct {
+        const char *const (*pairs)[2];
+        size_t n;
+        const char *prefix, *naming;
+    } cases[] = {{max_names, sizeof max_names / sizeof max_names[0], "", "CMU/3ds Max"},
+                 {mixamo_names, sizeof mixamo_names / sizeof mixamo_names[0], "mixamorig:", "Mixamo"}};
+    for (size_t c = 0; c < 2 && ref; ++c) {
+        size_t len = 0;
+        char *text = renamed_clip(path, cases[c].pairs, cases[c].n, cases[c].prefix, &len);
+        CHECK(text != NULL);
+        weft_clip *clip = NULL;
+        CHECK_RESULT(weft_bvh_load_memory(g_ctx, text, len, &def, &clip), WEFT_OK);
+        if (clip) {
+            CHECK_MSG(strcmp(rep.naming, cases[c].naming) == 0, "naming '%s', expected '%s'", rep.naming, cases[c].naming);
+            CHECK_EQ_INT(rep.mapped, 24);
+            CHECK_EQ_INT(clip->frame_count, ref->frame_count);
+            double worst = 0.0;
+            for (size_t k = 0; clip->frame_count == ref->frame_count && k < (size_t)ref->frame_count * 72; ++k) {
+                worst = fmax(worst, fabs((double)clip->rotations[k] - ref->rotations[k]));
+            }
+            CHECK_MSG(worst < 1e-6, "%s: rotations differ by %g rad", cases[c].naming, worst);
+            CHECK(memcmp(clip->translations, ref->translations, (size_t)ref->frame_count * 3 * sizeof(float)) == 0);
+        }
+        if (c == 0 && clip) { /* the 3ds Max report names the 3ds Max joints */
+            CHECK(strcmp(rep.source[WEFT_JOINT_SPINE1], "lowerback") == 0);
+            CHECK(strcmp(rep.source[WEFT_JOINT_LEFT_HAND], "lhand") == 0);
+            CHECK(strcmp(rep.source[WEFT_JOINT_LEFT_FOOT], "LeftToe") == 0);
+        }
+        weft_clip_destroy(clip);
+        free(text);
+    }
+    weft_clip_destroy(ref);
+}
+
+/* A skeleton half of whose joints have names no naming knows is refused, naming what is missing;
+ * the caller's clip is left alone. */
+static void test_unknown_skeleton_names_the_missing(void)
+{
+    static const char *const odd[][2] = {{"LeftUpLeg", "thigh_l"}, {"RightUpLeg", "thigh_r"}, {"LeftLeg", "calf_l"},
+                                         {"RightLeg", "calf_r"},   {"LeftFoot", "foot_l"},    {"RightFoot", "foot_r"}};
+    size_t len = 0;
+    char *text = renamed_clip(MOCAP_DIR "walk_cmu07_01.bvh.gz", odd, sizeof odd / sizeof odd[0], "", &len);
+    weft_bvh_def def = weft_default_bvh_def();
+    weft_clip *clip = (weft_clip *)(uintptr_t)1;
+    CHECK_RESULT(weft_bvh_load_memory(g_ctx, text, len, &def, &clip), WEFT_ERROR_FORMAT);
+    CHECK(clip == (weft_clip *)(uintptr_t)1);
+    CHECK_MSG(strstr(weft_last_error(), "left_knee (LeftLeg)") != NULL && strstr(weft_last_error(), "18 of 24") != NULL,
+              "%s", weft_last_error());
+    free(text);
+}
+
 /* A directory is refused by name, not reported as a huge file. */
 static void test_bvh_path_is_a_directory(void)
 {
@@ -736,4 +871,5 @@ static void teardown(void) { weft_context_destroy(g_ctx); }
 TEST_MAIN(TEST_CASE(setup), TEST_CASE(test_synthetic_exact), TEST_CASE(test_rest_correction), TEST_CASE(test_translation_scale), TEST_CASE(test_cmu_01_01),
           TEST_CASE(test_cmu_01_03), TEST_CASE(test_boxing_toes), TEST_CASE(test_cmu_on_avatar), TEST_CASE(test_bad_input), TEST_CASE(test_fuzz_synthetic),
           TEST_CASE(test_fuzz_cmu), TEST_CASE(test_mocap_gz_equals_plain), TEST_CASE(test_mocap_test_split_loads),
-          TEST_CASE(test_bvh_path_is_a_directory), TEST_CASE(teardown))
+          TEST_CASE(test_bvh_path_is_a_directory), TEST_CASE(test_namings_retarget_identically),
+          TEST_CASE(test_unknown_skeleton_names_the_missing), TEST_CASE(teardown))
