@@ -437,8 +437,15 @@ static weft_result load_motion(const weft_avatar_sample_options *o, sample_state
         def.rest_joints = weft_body_rest_joints(s->body);
         s->motion.procedural = false;
         char path[1024];
+        weft_bvh_report rep;
+        def.report = &rep;
         weft_result r = weft_sample_motion_path(o->motion, path, sizeof path);
-        return r != WEFT_OK ? r : weft_bvh_load_file(s->ctx, path, &def, &s->motion.clip);
+        r = r != WEFT_OK ? r : weft_bvh_load_file(s->ctx, path, &def, &s->motion.clip);
+        if (r == WEFT_OK) {
+            printf("motion %s: %s joint names, %u of 24 SMPL joints driven by the clip\n", o->motion, rep.naming,
+                   rep.mapped);
+        }
+        return r;
 #else
         return weft__fail(WEFT_ERROR_UNSUPPORTED, "this build has no weft_assets (BVH import)");
 #endif
