@@ -8,6 +8,7 @@
 #include "weft_sample.h"
 #include "weft_scenes.h"
 #include "wear.h"
+#include "pc2.h"
 #include "core/core.h"
 
 #include <errno.h>
@@ -79,6 +80,8 @@ void weft_avatar_sample_usage(FILE *out, const char *program)
             "                          (each triangle's dominant bone; default on; docs/CCD.md, Body parts)\n"
             "  --ccd on|off            the CCD post-process after each step (default off: its cost is unbounded\n"
             "                          where the body overlaps itself; docs/CCD.md, Body parts)\n"
+            "  --export DIR            write garment.obj + garment.pc2 and body.obj + body.pc2 (point caches of the\n"
+            "                          rendered frames, for Blender, Maya, 3ds Max; docs/RENDER.md, Export)\n"
             "  --frames N              frames to render at 60 Hz (default 120)\n"
             "  --settle N              simulated frames blending from the bind pose into the motion (default 30)\n"
             "  --out DIR               output folder for frame_NNNN.png and contact_sheet.png (default avatar_frames)\n"
@@ -158,7 +161,7 @@ int weft_avatar_sample_parse(int argc, char **argv, int first, weft_avatar_sampl
             static const char *const valued[] = {"--motion", "--garment", "--resolution", "--method", "--model",
                                                  "--sim-resolution",
                                                  "--precision", "--tether-cm", "--strain-limit", "--push-cm",
-                                                 "--body-parts", "--ccd",
+                                                 "--body-parts", "--ccd", "--export",
                                                  "--frames", "--settle",  "--out",        "--size",   "--sheet",
                                                  "--yaw",    "--pitch",   "--start",      "--speed",
                                                  "--cape-model", "--cape-precision"};
@@ -189,6 +192,8 @@ int weft_avatar_sample_parse(int argc, char **argv, int first, weft_avatar_sampl
             ok = parse_float(v, 0.0f, 1000.0f, &o->strain_pct);
         } else if (strcmp(a, "--push-cm") == 0) {
             ok = parse_float(v, 0.0f, 10.0f, &o->push_cm);
+        } else if (strcmp(a, "--export") == 0) {
+            o->export_dir = v;
         } else if (strcmp(a, "--body-parts") == 0 || strcmp(a, "--ccd") == 0) {
             bool *flag = strcmp(a, "--ccd") == 0 ? &o->ccd : &o->body_parts;
             ok = !strcmp(v, "on") || !strcmp(v, "off");
@@ -359,6 +364,7 @@ typedef struct sample_state {
     float *skinned_verts;               /* the drawn garment skinned to the body (wear measures) */
     double *cloth_ms;                   /* per rendered frame */
     weft_wear *wear;
+    weft_pc2_writer pc2_cloth, pc2_body;
     uint8_t *tiles;
     weft_sample_cape *cape;
     uint32_t cape_mesh;
@@ -383,6 +389,8 @@ static void sample_free(sample_state *s)
     free(s->skinned_verts);
     free(s->cloth_ms);
     weft_wear_destroy(s->wear);
+    weft_pc2_close(&s->pc2_cloth);
+    weft_pc2_close(&s->pc2_body);
     free(s->tiles);
     if (s->ctx) {
         weft_context_destroy(s->ctx);
@@ -795,6 +803,28 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
             return fail_msg(&s, "setting up the wear measures");
         }
     }
+    if (o->export_dir) {
+        char p[1200];
+        if (!make_dirs(o->export_dir)) {
+            fprintf(stderr, "avatar_render: cannot create the export folder '%s'\n", o->export_dir);
+            sample_free(&s);
+            return 1;
+        }
+        snprintf(p, sizeof p, "%s/body.obj", o->export_dir);
+        weft_result er = weft_obj_write(p, weft_body_rest_vertices(s.body), nv, weft_body_triangles(s.body),
+                                        weft_body_triangle_count(s.body));
+        snprintf(p, sizeof p, "%s/body.pc2", o->export_dir);
+        er = er != WEFT_OK ? er : weft_pc2_open(&s.pc2_body, p, nv, 0.0f);
+        if (er == WEFT_OK && dressed) {
+            snprintf(p, sizeof p, "%s/garment.obj", o->export_dir);
+            er = weft_obj_write(p, s.cloth->positions, s.cloth->vertex_count, s.cloth->triangles, s.cloth->triangle_count);
+            snprintf(p, sizeof p, "%s/garment.pc2", o->export_dir);
+            er = er != WEFT_OK ? er : weft_pc2_open(&s.pc2_cloth, p, s.cloth->vertex_count, 0.0f);
+        }
+        if (er != WEFT_OK) {
+            return fail_msg(&s, "export");
+        }
+    }
     /* skirts and dresses swing farther from the skinned garment than a T-shirt's cloth does */
     const float off_distance = o->garment && (!strcmp(o->garment, "skirt") || !strcmp(o->garment, "dress")) ? 0.25f : 0.10f;
     weft_wear_summary wear = {0};
@@ -896,6 +926,10 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
         sums[1] += t2 - t1;
         sums[2] += t3 - t2;
         sums[3] += t4 - t3;
+        if ((s.pc2_body.f && weft_pc2_write(&s.pc2_body, s.body_verts) != WEFT_OK) ||
+            (s.pc2_cloth.f && cloth && weft_pc2_write(&s.pc2_cloth, cloth) != WEFT_OK)) {
+            return fail_msg(&s, "export");
+        }
         s.cloth_ms[frame] = t2 - t1;
         weft_wear_frame wf = {0};
         if (s.wear) {
@@ -950,6 +984,14 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
     if (s.cape) {
         printf("cape (FNOpt): %.2f ms per step over %u steps (included in the cloth column), %u non-finite steps\n",
                s.cape_ms / (settle + o->frames), settle + o->frames, weft_sample_cape_failed_steps(s.cape));
+    }
+    if (o->export_dir) {
+        const uint32_t samples = s.pc2_body.samples;
+        if (weft_pc2_close(&s.pc2_body) != WEFT_OK || weft_pc2_close(&s.pc2_cloth) != WEFT_OK) {
+            return fail_msg(&s, "export");
+        }
+        printf("exported %u frames to %s (body.obj + body.pc2%s)\n", samples, o->export_dir,
+               dressed ? ", garment.obj + garment.pc2" : "");
     }
     printf("wrote %s%s\n", o->write_frames ? "frames and " : "", path);
     sample_free(&s);

@@ -29,6 +29,8 @@ typedef struct weft_avatar_sample_options {
     bool body_parts;            /* the body collision by parts (weft_garment_def.collider_triangle_parts from
                                    weft_body_triangle_parts) (default true) */
     bool ccd;                   /* the CCD post-process (weft_garment_def.ccd) (default false) */
+    const char *export_dir;     /* --export DIR: garment.obj + garment.pc2, body.obj + body.pc2 over the
+                                   rendered frames (samples/common/pc2.h); NULL (default): none */
     const char *out_dir;        /* frames and the contact sheet go here (default "avatar_frames") */
     uint32_t frames;            /* rendered frames at 60 Hz (default 120) */
     uint32_t settle_frames;     /* simulated frames blending from the bind pose into frame 0 (default 30) */
