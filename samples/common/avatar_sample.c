@@ -40,7 +40,7 @@ void weft_avatar_sample_default_options(weft_avatar_sample_options *o)
     o->strain_pct = -1.0f;
     o->body_parts = true;
     o->ccd = false;
-    o->push_cm = 0.5f;
+    o->push_cm = WEFT_WORN_PUSH_CM;
     o->out_dir = "avatar_frames";
     o->frames = 120;
     o->settle_frames = 30;
@@ -561,6 +561,34 @@ static const char *shipped_model(weft_precision precision)
     return shipped[precision < WEFT_PRECISION_COUNT ? precision : WEFT_PRECISION_FP32];
 }
 
+weft_result weft_sample_worn_def(const weft_body *body, const weft_cloth_mesh *cloth, weft_method method, uint8_t *parts,
+                                 weft_garment_def *out)
+{
+    weft_garment_def d = weft_default_garment_def();
+    d.method = method;
+    d.rest_positions = cloth->positions;
+    d.vertex_count = cloth->vertex_count;
+    d.triangles = cloth->triangles;
+    d.triangle_count = cloth->triangle_count;
+    d.collider_rest_positions = weft_body_rest_vertices(body);
+    d.collider_vertex_count = weft_body_vertex_count(body);
+    d.collider_triangles = weft_body_triangles(body);
+    d.collider_triangle_count = weft_body_triangle_count(body);
+    if (parts) {
+        weft_result r = weft_body_triangle_parts(body, parts, d.collider_triangle_count);
+        if (r != WEFT_OK) {
+            return r;
+        }
+        d.collider_triangle_parts = parts;
+    }
+    d.ccd = false;
+    d.tether_distance = WEFT_WORN_TETHER_CM / 100.0f;
+    d.collider_push = WEFT_WORN_PUSH_CM / 100.0f;
+    d.strain_limit = method == WEFT_METHOD_MODEL ? WEFT_WORN_STRAIN_PCT / 100.0f : 0.0f;
+    *out = d;
+    return WEFT_OK;
+}
+
 weft_result weft_avatar_sample_garment_create(const weft_avatar_sample_options *o, weft_context *ctx,
                                               const weft_body *body, const weft_cloth_mesh *cloth,
                                               weft_model **out_model, weft_garment **out_garment, char *label,
@@ -594,44 +622,28 @@ weft_result weft_avatar_sample_garment_create(const weft_avatar_sample_options *
         const char *name;
         weft_method method;
     } order[] = {{"model", WEFT_METHOD_MODEL}, {"xpbd", WEFT_METHOD_XPBD}, {"lbs", WEFT_METHOD_LBS}};
-    const uint32_t nv = weft_body_vertex_count(body);
     for (size_t m = 0; m < sizeof order / sizeof order[0] && !*out_garment; ++m) {
         if (want_auto ? (order[m].method == WEFT_METHOD_MODEL && !*out_model) : strcmp(o->method, order[m].name) != 0) {
             continue;
         }
-        weft_garment_def gdef = weft_default_garment_def();
-        gdef.method = order[m].method;
+        uint8_t *parts = o->body_parts ? malloc(weft_body_triangle_count(body)) : NULL;
+        weft_garment_def gdef;
+        weft_result pr = o->body_parts && !parts ? WEFT_ERROR_OUT_OF_MEMORY
+                                                 : weft_sample_worn_def(body, cloth, order[m].method, parts, &gdef);
+        if (pr != WEFT_OK) {
+            free(parts);
+            return pr;
+        }
         gdef.model = *out_model;
         gdef.precision = o->precision;
-        /* The worn-garment recipe (docs/CCD.md, *Body parts*): an 8 cm max distance to the skinned
-         * garment, so no method loses the garment whatever the body does; it rarely binds on
-         * motion the cloth can follow. --tether-cm 0 turns it off. */
-        float tether_cm = o->tether_cm >= 0.0f ? o->tether_cm : 8.0f;
+        /* The options override the worn-garment recipe: --tether-cm (8, 0 turns it off),
+         * --strain-limit (10 % for the learned model), --push-cm, --ccd. */
+        float tether_cm = o->tether_cm >= 0.0f ? o->tether_cm : WEFT_WORN_TETHER_CM;
         gdef.tether_distance = tether_cm / 100.0f;
-        /* The strain limit mends the edges the network and the tether clamps tear (docs/MODEL.md). */
-        float strain_pct = o->strain_pct >= 0.0f ? o->strain_pct : (order[m].method == WEFT_METHOD_MODEL ? 10.0f : 0.0f);
+        float strain_pct = o->strain_pct >= 0.0f ? o->strain_pct : gdef.strain_limit * 100.0f;
         gdef.strain_limit = strain_pct / 100.0f;
         gdef.collider_push = o->push_cm / 100.0f;
-        gdef.rest_positions = cloth->positions;
-        gdef.vertex_count = cloth->vertex_count;
-        gdef.triangles = cloth->triangles;
-        gdef.triangle_count = cloth->triangle_count;
-        gdef.collider_rest_positions = weft_body_rest_vertices(body);
-        gdef.collider_vertex_count = nv;
-        gdef.collider_triangles = weft_body_triangles(body);
-        gdef.collider_triangle_count = weft_body_triangle_count(body);
         gdef.ccd = o->ccd;
-        uint8_t *parts = NULL;
-        if (o->body_parts) {
-            parts = malloc(gdef.collider_triangle_count);
-            weft_result pr = parts ? weft_body_triangle_parts(body, parts, gdef.collider_triangle_count)
-                                   : WEFT_ERROR_OUT_OF_MEMORY;
-            if (pr != WEFT_OK) {
-                free(parts);
-                return pr;
-            }
-            gdef.collider_triangle_parts = parts;
-        }
         weft_result r = weft_garment_create(ctx, &gdef, out_garment);
         free(parts);
         if (r != WEFT_OK) {

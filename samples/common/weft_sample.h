@@ -75,6 +75,16 @@ weft_result weft_avatar_sample_garment_create(const weft_avatar_sample_options *
                                               const weft_body *body, const weft_cloth_mesh *cloth,
                                               weft_model **out_model, weft_garment **out_garment, char *label,
                                               size_t label_cap);
+/* The worn-garment recipe (docs/WEAR.md) for `method`: the cloth mesh on the body as collider,
+ * body parts from weft_body_triangle_parts written into `parts` (weft_body_triangle_count(body)
+ * bytes, kept by the caller until the garment is created; NULL: no parts), no CCD, an 8 cm max
+ * distance, a 0.5 cm push, and a 10 % strain limit for the learned model. Callers override fields
+ * after it (the sample's options). Fails only when the parts cannot be made. */
+#define WEFT_WORN_TETHER_CM 8.0f
+#define WEFT_WORN_PUSH_CM 0.5f
+#define WEFT_WORN_STRAIN_PCT 10.0f
+weft_result weft_sample_worn_def(const weft_body *body, const weft_cloth_mesh *cloth, weft_method method, uint8_t *parts,
+                                 weft_garment_def *out);
 /* The sample's settle pose for simulated frame k of `settle` (k < settle): the bind pose blended
  * into the motion's first pose by a smoothstep of (k + 1) / settle, per-joint slerp. */
 void weft_avatar_sample_settle_pose(const weft_pose *bind, const weft_pose *first, uint32_t k, uint32_t settle,

@@ -85,62 +85,67 @@ static void step_swung(weft_garment *g, const scene *s, float out[3])
     free(body);
 }
 
-static void test_push_meets_only_the_vertex_parts(void)
+/* The quad made in front of the torso, stepped once to the swung body with and without parts;
+ * vertex 0's positions and the two garments' stats afterwards. */
+typedef struct pair_run {
+    float with_x[3], without_x[3];
+    weft_step_stats with, without;
+    bool ok;
+} pair_run;
+
+static pair_run run_pair(bool ccd, float push)
 {
+    pair_run out = {0};
     weft_context_def cd = weft_default_context_def();
     weft_context *ctx = NULL;
     CHECK_RESULT(weft_context_create(&cd, &ctx), WEFT_OK);
     scene s = make_scene();
-    float pts[4][3], with_x[3], without_x[3];
+    float pts[4][3];
     creation_points(pts);
-    weft_garment *with = make(ctx, &s, &pts[0][0], true, false, 0.01f);
-    weft_garment *without = make(ctx, &s, &pts[0][0], false, false, 0.01f);
-    if (with && without) {
-        step_swung(with, &s, with_x);
-        step_swung(without, &s, without_x);
-        /* torso cloth ignores the limb: it stays on the shirt's front */
-        CHECK_NEAR(with_x[0], 0.0f, 1e-6);
-        CHECK_NEAR(with_x[1], 0.32f, 1e-6);
-        CHECK_NEAR(with_x[2], 0.112f, 1e-6);
-        CHECK_EQ_INT(weft_garment_stats(with).pushed_vertices, 0);
-        /* one collider for all: the limb claims it and pushes it 1 cm in front of its +z face */
-        CHECK_NEAR(without_x[2], 0.117f + 0.01f, 1e-4);
-        CHECK_EQ_INT(weft_garment_stats(without).pushed_vertices, 4); /* the whole quad is inside it */
+    weft_garment *with = make(ctx, &s, &pts[0][0], true, ccd, push);
+    weft_garment *without = make(ctx, &s, &pts[0][0], false, ccd, push);
+    out.ok = with && without;
+    if (out.ok) {
+        step_swung(with, &s, out.with_x);
+        step_swung(without, &s, out.without_x);
+        out.with = weft_garment_stats(with);
+        out.without = weft_garment_stats(without);
     }
     weft_garment_destroy(with);
     weft_garment_destroy(without);
     free_scene(&s);
     weft_context_destroy(ctx);
+    return out;
+}
+
+static void test_push_meets_only_the_vertex_parts(void)
+{
+    const pair_run r = run_pair(false, 0.01f);
+    CHECK(r.ok);
+    /* torso cloth ignores the limb: it stays on the shirt's front */
+    CHECK_NEAR(r.with_x[0], 0.0f, 1e-6);
+    CHECK_NEAR(r.with_x[1], 0.32f, 1e-6);
+    CHECK_NEAR(r.with_x[2], 0.112f, 1e-6);
+    CHECK_EQ_INT(r.with.pushed_vertices, 0);
+    /* one collider for all: the limb claims it and pushes it 1 cm in front of its +z face */
+    CHECK_NEAR(r.without_x[2], 0.117f + 0.01f, 1e-4);
+    CHECK_EQ_INT(r.without.pushed_vertices, 4); /* the whole quad is inside it */
 }
 
 static void test_ccd_meets_only_the_vertex_parts(void)
 {
-    weft_context_def cd = weft_default_context_def();
-    weft_context *ctx = NULL;
-    CHECK_RESULT(weft_context_create(&cd, &ctx), WEFT_OK);
-    scene s = make_scene();
-    float pts[4][3], with_x[3], without_x[3];
-    creation_points(pts);
-    weft_garment *with = make(ctx, &s, &pts[0][0], true, true, 0.0f);
-    weft_garment *without = make(ctx, &s, &pts[0][0], false, true, 0.0f);
-    if (with && without) {
-        step_swung(with, &s, with_x);
-        step_swung(without, &s, without_x);
-        /* the limb's face sweeps through vertex 0: no contact for torso cloth, which stays */
-        CHECK_NEAR(with_x[0], 0.0f, 1e-6);
-        CHECK_NEAR(with_x[1], 0.32f, 1e-6);
-        CHECK_NEAR(with_x[2], 0.112f, 1e-6);
-        /* without parts CCD sees the crossing and moves the vertex (carried along by the limb) */
-        CHECK_EQ_INT(weft_garment_stats(with).ccd_vertices_moved, 0);
-        CHECK(!weft_garment_stats(with).ccd_fallback);
-        const float d[3] = {without_x[0], without_x[1] - 0.32f, without_x[2] - 0.112f};
-        CHECK_MSG(sqrtf(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) > 1e-3f, "vertex 0 at (%g, %g, %g)",
-                  (double)without_x[0], (double)without_x[1], (double)without_x[2]);
-    }
-    weft_garment_destroy(with);
-    weft_garment_destroy(without);
-    free_scene(&s);
-    weft_context_destroy(ctx);
+    const pair_run r = run_pair(true, 0.0f);
+    CHECK(r.ok);
+    /* the limb's face sweeps through vertex 0: no contact for torso cloth, which stays */
+    CHECK_NEAR(r.with_x[0], 0.0f, 1e-6);
+    CHECK_NEAR(r.with_x[1], 0.32f, 1e-6);
+    CHECK_NEAR(r.with_x[2], 0.112f, 1e-6);
+    CHECK_EQ_INT(r.with.ccd_vertices_moved, 0);
+    CHECK(!r.with.ccd_fallback);
+    /* without parts CCD sees the crossing and moves the vertex (its fallback carries it along) */
+    const float d[3] = {r.without_x[0], r.without_x[1] - 0.32f, r.without_x[2] - 0.112f};
+    CHECK_MSG(sqrtf(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]) > 1e-3f, "vertex 0 at (%g, %g, %g)",
+              (double)r.without_x[0], (double)r.without_x[1], (double)r.without_x[2]);
 }
 
 /* Cloth made against a part still collides with it. */

@@ -196,32 +196,25 @@ static int run_cell(const mc_options *o, weft_context *ctx, const weft_body *bod
     double *ms = calloc(frames ? frames : 1, sizeof(double));
     weft_wear *wear = NULL;
     int rc = 0;
-    if (!parts || !bverts || !skinned || !ms || weft_body_triangle_parts(body, parts, nbt) != WEFT_OK ||
+    if (!parts || !bverts || !skinned || !ms ||
         weft_wear_create(weft_body_triangles(body), nbt, nbv, cloth->vertex_count, &wear) != WEFT_OK) {
         fprintf(stderr, "weft bench mocap: setup: %s\n", weft_last_error());
         rc = 1;
     }
     weft_garment *g = NULL;
     if (rc == 0) {
-        weft_garment_def d = weft_default_garment_def();
-        d.method = m->method;
+        weft_garment_def d;
+        if (weft_sample_worn_def(body, cloth, m->method, o->parts ? parts : NULL, &d) != WEFT_OK) {
+            rc = 1;
+        }
         d.model = m->method == WEFT_METHOD_MODEL ? model : NULL;
         d.precision = WEFT_PRECISION_INT8;
         d.substeps = m->substeps ? m->substeps : d.substeps;
         d.ccd = o->ccd;
-        d.rest_positions = cloth->positions;
-        d.vertex_count = cloth->vertex_count;
-        d.triangles = cloth->triangles;
-        d.triangle_count = cloth->triangle_count;
-        d.collider_rest_positions = weft_body_rest_vertices(body);
-        d.collider_vertex_count = nbv;
-        d.collider_triangles = weft_body_triangles(body);
-        d.collider_triangle_count = nbt;
-        d.collider_triangle_parts = o->parts ? parts : NULL;
         d.tether_distance = o->tether_cm / 100.0f;
         d.collider_push = o->push_cm / 100.0f;
         d.strain_limit = m->method == WEFT_METHOD_MODEL ? o->strain_pct / 100.0f : 0.0f;
-        if (weft_garment_create(ctx, &d, &g) != WEFT_OK) {
+        if (rc == 0 && weft_garment_create(ctx, &d, &g) != WEFT_OK) {
             fprintf(stderr, "weft bench mocap: %s: %s\n", m->label, weft_last_error());
             rc = 1;
         }
@@ -292,7 +285,8 @@ int weft_bench_mocap(int argc, char **argv)
 {
     mc_options o = {.split = "test", .garments = "tshirt,dress,skirt", .methods = "lbs,model,xpbd-fast:5,xpbd-fast:10",
                     .model = "tools/train/models/garment.int8.safetensors", .resolution = "1k", .frames = 300,
-                    .ccd = false, .parts = true, .tether_cm = 8.0f, .push_cm = 0.5f, .strain_pct = 10.0f};
+                    .ccd = false, .parts = true, .tether_cm = WEFT_WORN_TETHER_CM, .push_cm = WEFT_WORN_PUSH_CM,
+                    .strain_pct = WEFT_WORN_STRAIN_PCT};
     for (int i = 1; i < argc; ++i) {
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
