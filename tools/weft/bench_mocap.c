@@ -13,6 +13,7 @@
 #include "weft.h"
 #include "weft/body.h"
 #include "support_bench.h"
+#include "support_cli.h"
 #include "core/core.h"
 
 #include <math.h>
@@ -287,7 +288,7 @@ int weft_bench_mocap(int argc, char **argv)
                     .model = "tools/train/models/garment.int8.safetensors", .resolution = "1k", .frames = 300,
                     .ccd = false, .parts = true, .tether_cm = WEFT_WORN_TETHER_CM, .push_cm = WEFT_WORN_PUSH_CM,
                     .strain_pct = WEFT_WORN_STRAIN_PCT};
-    for (int i = 1; i < argc; ++i) {
+    for (int i = 1; i < argc; i += 2) { /* every option takes a value (--help ends the loop) */
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
             usage(stdout);
@@ -299,7 +300,6 @@ int weft_bench_mocap(int argc, char **argv)
             return 2;
         }
         bool ok = true;
-        char *end = NULL;
         if (!strcmp(a, "--split")) {
             o.split = v;
             ok = !strcmp(v, "test") || !strcmp(v, "train") || !strcmp(v, "all");
@@ -316,17 +316,17 @@ int weft_bench_mocap(int argc, char **argv)
         } else if (!strcmp(a, "--resolution")) {
             o.resolution = v;
         } else if (!strcmp(a, "--frames")) {
-            unsigned long f = strtoul(v, &end, 10);
-            ok = end && !*end && v[0] >= '0' && v[0] <= '9' && f <= 100000;
-            o.frames = (uint32_t)f;
+            if (!cli_u32("weft bench mocap", a, v, 0, 100000, &o.frames)) {
+                return 2;
+            }
         } else if (!strcmp(a, "--ccd") || !strcmp(a, "--body-parts")) {
             ok = !strcmp(v, "on") || !strcmp(v, "off");
             *(!strcmp(a, "--ccd") ? &o.ccd : &o.parts) = !strcmp(v, "on");
         } else if (!strcmp(a, "--tether-cm") || !strcmp(a, "--push-cm") || !strcmp(a, "--strain-limit")) {
-            float x = strtof(v, &end);
             float *dst = !strcmp(a, "--tether-cm") ? &o.tether_cm : (!strcmp(a, "--push-cm") ? &o.push_cm : &o.strain_pct);
-            ok = end && end != v && !*end && isfinite(x) && x >= 0.0f && x <= (dst == &o.push_cm ? 10.0f : 1000.0f);
-            *dst = x;
+            if (!cli_float("weft bench mocap", a, v, 0.0f, dst == &o.push_cm ? 10.0f : 1000.0f, dst)) {
+                return 2;
+            }
         } else {
             fprintf(stderr, "weft bench mocap: unknown option '%s'\n", a);
             usage(stderr);
@@ -336,7 +336,6 @@ int weft_bench_mocap(int argc, char **argv)
             fprintf(stderr, "weft bench mocap: bad value '%s' for %s\n", v, a);
             return 2;
         }
-        ++i;
     }
     mc_method methods[MC_MAX_METHODS];
     uint32_t nm = 0;
