@@ -50,6 +50,8 @@ class _GarmentDef(ctypes.Structure):
         ("strain_limit_contact", ctypes.c_float),
         ("collider_push", ctypes.c_float),
         ("collider_push_depth", ctypes.c_float),
+        ("collider_triangle_parts", ctypes.c_void_p),
+        ("collider_part_margin", ctypes.c_float),
         ("internal_cookie", ctypes.c_uint32),
     ]
 
