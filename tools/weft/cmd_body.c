@@ -1,6 +1,7 @@
 /* weft body: builds the default avatar (and a garment or sheet), optionally poses it with a
  * procedural motion, prints counts and timings, and writes Wavefront OBJ for inspection. */
 #include "weft.h"
+#include "support_cli.h"
 #include "weft/body.h"
 
 #include <stdio.h>
@@ -96,19 +97,35 @@ int weft_cmd_body(int argc, char **argv)
         } else if (strcmp(a, "--motion") == 0) {
             motion = v;
         } else if (strcmp(a, "--time") == 0) {
-            t = atof(v);
+            float tf = 0.0f;
+            if (!cli_float("weft body", a, v, 0.0f, 1e6f, &tf)) {
+                return 2;
+            }
+            t = tf;
         } else if (strcmp(a, "--height") == 0) {
-            ad.height = (float)atof(v);
+            if (!cli_float("weft body", a, v, 0.0f, 100.0f, &ad.height)) {
+                return 2;
+            }
         } else if (strcmp(a, "--girth") == 0) {
-            ad.girth = (float)atof(v);
+            if (!cli_float("weft body", a, v, 0.0f, 100.0f, &ad.girth)) {
+                return 2;
+            }
         } else if (strcmp(a, "--legs") == 0) {
-            ad.leg_fraction = (float)atof(v);
+            if (!cli_float("weft body", a, v, 0.0f, 100.0f, &ad.leg_fraction)) {
+                return 2;
+            }
         } else if (strcmp(a, "--shoulders") == 0) {
-            ad.shoulder_width = (float)atof(v);
+            if (!cli_float("weft body", a, v, 0.0f, 100.0f, &ad.shoulder_width)) {
+                return 2;
+            }
         } else if (strcmp(a, "--hips") == 0) {
-            ad.hip_width = (float)atof(v);
+            if (!cli_float("weft body", a, v, 0.0f, 100.0f, &ad.hip_width)) {
+                return 2;
+            }
         } else if (strcmp(a, "--vertices") == 0) {
-            ad.target_vertices = (uint32_t)strtoul(v, NULL, 10);
+            if (!cli_u32("weft body", a, v, 1, 10000000, &ad.target_vertices)) {
+                return 2;
+            }
         } else {
             fprintf(stderr, "weft body: unknown option '%s'\n", a);
             usage(stderr);
