@@ -21,6 +21,7 @@
 #define BVH_MAX_FRAMES 2000000u
 #define BVH_MAX_CHANNELS 6000u
 #define BVH_MAX_NODES 1024u
+#define BVH_MAX_ROOT_M 10000.0f /* metres a retargeted root may be from the start (or the origin) */
 #define BVH_NONE UINT32_MAX
 
 /* SMPL-neutral rest joints (assets.md §1, from the SMPL humanoid MJCF offsets) with the soles
@@ -717,6 +718,21 @@ static weft_result retarget(weft_context *ctx, const struct aiScene *scene, cons
         !weft__all_finite(clip->translations, (size_t)frames * 3)) {
         weft_clip_destroy(clip);
         return weft__fail(WEFT_ERROR_NOT_FINITE, "BVH: retargeted motion is not finite");
+    }
+    /* A root farther than BVH_MAX_ROOT_M from the start is no motion a body can follow (and
+     * would make every later step's geometry absurd): refused, naming the frame. */
+    for (uint32_t f = 0; f < frames; ++f) {
+        const float *tr = clip->translations + (size_t)f * 3;
+        for (int k = 0; k < 3; ++k) {
+            if (fabsf(tr[k]) > BVH_MAX_ROOT_M) {
+                const double v = tr[k];
+                weft_clip_destroy(clip);
+                return weft__fail(WEFT_ERROR_FORMAT,
+                                  "BVH: root translation %g m at frame %u is beyond the %g m a clip may range from its "
+                                  "start",
+                                  v, f, (double)BVH_MAX_ROOT_M);
+            }
+        }
     }
     *out_src = clip;
     return WEFT_OK;

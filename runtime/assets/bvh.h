@@ -31,7 +31,7 @@
  * def.fps with quaternion slerp.
  *
  * Bad input (not BVH, truncated, NaN values, a value count that disagrees with Frames x
- * CHANNELS, an unknown skeleton) returns WEFT_ERROR_FORMAT, _NOT_FINITE or _SIZE_MISMATCH with
+ * CHANNELS, an unknown skeleton, a retargeted root more than 10 km from the start) returns WEFT_ERROR_FORMAT, _NOT_FINITE or _SIZE_MISMATCH with
  * a message in weft_last_error(); *out_clip is untouched.
  */
 #ifndef WEFT_ASSETS_BVH_H

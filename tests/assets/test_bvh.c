@@ -484,6 +484,14 @@ static void test_bad_input(void)
     strcat(s, value_end);
     expect_fail(s, WEFT_ERROR_NOT_FINITE, "NaN motion value");
     free(s);
+    /* a root 1e30 units away: finite, but no motion a body can follow; refused by name */
+    s = malloc(strlen(good) + 8);
+    memcpy(s, good, pre);
+    strcpy(s + pre, "1e30");
+    strcat(s, value_end);
+    expect_fail(s, WEFT_ERROR_FORMAT, "absurd root translation");
+    CHECK(strstr(weft_last_error(), "root translation") != NULL);
+    free(s);
     s = replace_once(good, "OFFSET ", "OFFSET inf ");
     expect_fail(s, WEFT_ERROR_NOT_FINITE, "infinite offset");
     free(s);
