@@ -817,7 +817,7 @@ static weft_result read_bvh_file(const char *path, char **out_buf, size_t *out_l
     }
     size_t cap = 1u << 20, len = 0;
     char *buf = malloc(cap);
-    weft_result res = buf ? WEFT_OK : WEFT_ERROR_OUT_OF_MEMORY;
+    weft_result res = buf ? WEFT_OK : weft__fail(WEFT_ERROR_OUT_OF_MEMORY, "BVH: out of memory reading '%s'", path);
     while (res == WEFT_OK) {
         if (len == cap) {
             if (cap >= BVH_MAX_FILE_BYTES) {
@@ -853,9 +853,7 @@ static weft_result read_bvh_file(const char *path, char **out_buf, size_t *out_l
     }
     if (res != WEFT_OK) {
         free(buf);
-        return res == WEFT_ERROR_OUT_OF_MEMORY && !buf
-                   ? weft__fail(WEFT_ERROR_OUT_OF_MEMORY, "BVH: out of memory reading '%s'", path)
-                   : res;
+        return res;
     }
     *out_buf = buf;
     *out_len = len;

@@ -404,6 +404,17 @@ static int fail_msg(sample_state *s, const char *what)
     return 1;
 }
 
+const char *weft_sample_mocap_dir(void)
+{
+    const char *dir = getenv("WEFT_MOCAP_DIR");
+#ifdef WEFT_MOCAP_DIR
+    if (!dir || !dir[0]) {
+        dir = WEFT_MOCAP_DIR;
+    }
+#endif
+    return dir && dir[0] ? dir : NULL;
+}
+
 weft_result weft_sample_motion_path(const char *spec, char *out_path, size_t size)
 {
     int n = -1;
@@ -414,13 +425,8 @@ weft_result weft_sample_motion_path(const char *spec, char *out_path, size_t siz
         if (strchr(name, '/') || strstr(name, "..")) {
             return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "motion '%s': a library clip name has no '/' or '..'", spec);
         }
-        const char *dir = getenv("WEFT_MOCAP_DIR");
-#ifdef WEFT_MOCAP_DIR
-        if (!dir || !dir[0]) {
-            dir = WEFT_MOCAP_DIR;
-        }
-#endif
-        if (!dir || !dir[0]) {
+        const char *dir = weft_sample_mocap_dir();
+        if (!dir) {
             return weft__fail(WEFT_ERROR_UNSUPPORTED, "motion '%s': set WEFT_MOCAP_DIR to the mocap library", spec);
         }
         n = snprintf(out_path, size, "%s/clips/%s.bvh.gz", dir, name);

@@ -51,6 +51,9 @@ typedef struct weft_avatar_sample_options {
 } weft_avatar_sample_options;
 
 void weft_avatar_sample_default_options(weft_avatar_sample_options *options);
+/* The mocap library's folder: $WEFT_MOCAP_DIR when set, else samples/mocap of the source tree
+ * the build was configured from; NULL when neither is known. */
+const char *weft_sample_mocap_dir(void);
 /* The file behind a motion spec: "bvh:PATH" gives PATH; "mocap:NAME" gives the library clip
  * NAME (samples/mocap/clips/NAME.bvh.gz, or under $WEFT_MOCAP_DIR/clips when that is set).
  * Fails with WEFT_ERROR_INVALID_ARGUMENT naming the spec when it is neither or too long, and
