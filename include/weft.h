@@ -44,6 +44,11 @@ extern "C" {
 #define WEFT_API
 #endif
 
+/* Every position weft takes or makes (rest shapes, colliders, states, pins, step results) is in
+ * metres within +-WEFT_MAX_COORDINATE of the origin: float keeps about 1 mm there. Keep the
+ * character near the origin (a floating origin) in larger worlds. */
+#define WEFT_MAX_COORDINATE 1.0e4f
+
 /* ---------------------------------------------------------------------------------------- */
 /* Results                                                                                   */
 
@@ -52,7 +57,7 @@ typedef enum weft_result {
     WEFT_ERROR_INVALID_ARGUMENT,   /* a NULL pointer, a zero count, an out-of-range enum */
     WEFT_ERROR_OUT_OF_MEMORY,      /* the allocator returned NULL */
     WEFT_ERROR_IO,                 /* a file could not be opened, read or written */
-    WEFT_ERROR_NOT_FINITE,         /* NaN or infinity in an input array */
+    WEFT_ERROR_NOT_FINITE,         /* NaN, infinity or a coordinate beyond WEFT_MAX_COORDINATE */
     WEFT_ERROR_SIZE_MISMATCH,      /* an array's length disagrees with what was declared */
     WEFT_ERROR_DEGENERATE_MESH,    /* zero-area triangle, out-of-range index, non-manifold edge */
     WEFT_ERROR_TOPOLOGY_MISMATCH,  /* mesh differs from the one the object was created with */
@@ -326,6 +331,17 @@ typedef struct weft_garment_def {
      * collider_part_margin: metres, default 0.03, in [0, 1]. */
     const uint8_t *collider_triangle_parts;
     float collider_part_margin;
+
+    /* Cuts (every method with a collider). A collider vertex that moved farther than this since
+     * the last frame (a teleport, a cut in the animation, a respawn) makes the step a cut: the
+     * garment is reset to its skinned positions on the collider of t+1 (the initial state bound
+     * to the collider at creation, as for tethers and LBS), at rest, pins at their targets, the
+     * method's history cleared; no method step, no collision stage, so the frame costs less than
+     * a normal one (stats.collider_cut). Without it a 5 m teleport is swept through by XPBD and
+     * CCD at many times a normal step's cost and drags the cloth along. Metres, default 1 (60 m/s
+     * at 60 Hz, beyond any limb); 0 = off; in [0, WEFT_MAX_COORDINATE]. The binding costs about
+     * 128 bytes per garment vertex. docs/WEAR.md, *Cuts and bounded work*. */
+    float collider_cut_distance;
     uint32_t internal_cookie;           /* set by weft_default_garment_def(); do not touch */
 } weft_garment_def;
 
@@ -346,6 +362,9 @@ typedef struct weft_step_stats {
     uint32_t push_from_far_side;        /* vertices inside that it left to CCD: they came in through
                                          * the collider's far side, so the nearest surface would
                                          * push them through it */
+    bool ccd_over_budget;               /* CCD reached its work bound (64 triangle pairs per cloth
+                                         * triangle, all passes together) and held every vertex at t */
+    bool collider_cut;                  /* the last step was a cut (collider_cut_distance) */
 } weft_step_stats;
 
 WEFT_API weft_garment_def weft_default_garment_def(void);

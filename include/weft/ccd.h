@@ -92,6 +92,12 @@ typedef struct weft_ccd_world_def {
     double time_margin;         /* epsilon in t_safe = max(0, t_c - epsilon) (default 0.05) */
     uint32_t max_iterations;    /* post-process passes before the fallback (default 16) */
     uint32_t max_hits;          /* hits kept for weft_ccd_hits (default 65536); counts are exact */
+    /* Work bound of weft_ccd_postprocess: triangle pairs (cloth-collider and cloth-cloth whose
+     * swept boxes overlap) all its passes may visit together. A pass that reaches it stops, every
+     * cloth vertex is held at x0, and one more pass with a fresh allowance certifies that
+     * (stats->over_budget). So a step's cost is at most about twice this many pair tests, however
+     * far the cloth moved. 0 = no bound (default). */
+    uint64_t max_pairs;
     uint32_t internal_cookie;   /* set by weft_default_ccd_world_def(); do not touch */
 } weft_ccd_world_def;
 
@@ -117,6 +123,10 @@ typedef struct weft_ccd_postprocess_stats {
     uint32_t vertices_held;     /* fallback moves of cloth vertices back to their start position */
     uint32_t unresolved_hits;   /* hits left after the fallback (0 unless the collider sweeps into held cloth) */
     bool fallback;              /* the iteration did not converge within max_iterations */
+    bool held_all;              /* the fallback ran out of rounds, or the budget ran out: every
+                                   cloth vertex was held at x0 */
+    bool over_budget;           /* the passes reached def.max_pairs */
+    uint64_t pairs_visited;     /* triangle pairs the passes visited */
 } weft_ccd_postprocess_stats;
 
 typedef struct weft_ccd_intersections {

@@ -50,6 +50,7 @@ struct weft_ccd_world {
     float *centroids;        /* build scratch: 3 * max primitive count */
     double eta, margin;
     uint32_t max_iterations, max_hits;
+    uint64_t pair_budget;    /* triangle pairs one post-process may visit (0: no bound) */
     bool self;
     weft_ccd_hit *hits;
     uint32_t hits_stored;
@@ -279,7 +280,7 @@ static inline float box_extent(const box *b) { return (b->hi[0] - b->lo[0]) + (b
 /* All primitive pairs (a from A, b from B) whose boxes overlap. With A == B each unordered pair of
  * distinct primitives is visited once. With filter, pairs where neither primitive has a dirty
  * vertex are skipped at every level (their narrow tests would all be skipped anyway). */
-static void traverse(const tree *A, const tree *B, pair_fn *fn, void *ctx, bool filter)
+static void traverse(const tree *A, const tree *B, pair_fn *fn, void *ctx, bool filter, const bool *stop)
 {
     if (A->prims == 0 || B->prims == 0) {
         return;
@@ -292,7 +293,7 @@ static void traverse(const tree *A, const tree *B, pair_fn *fn, void *ctx, bool 
     uint32_t sp = 0;
     stack[sp++] = 0;
     stack[sp++] = 0;
-    while (sp) {
+    while (sp && !(stop && *stop)) {
         uint32_t j = stack[--sp], i = stack[--sp];
         const node *na = &A->nodes[i], *nb = &B->nodes[j];
         if (filter && !da[i] && !db[j]) {
@@ -544,6 +545,7 @@ weft_result weft_ccd_world_create(weft_context *context, const weft_ccd_world_de
     w->margin = def->time_margin;
     w->max_iterations = def->max_iterations;
     w->max_hits = def->max_hits;
+    w->pair_budget = def->max_pairs;
     w->self = def->self_collision;
     alloc_list l;
     world_allocs(w, &l);
@@ -602,6 +604,8 @@ struct detect_ctx {
     hit_fn *on_hit;
     bool filter; /* incremental pass: only pairs with a dirty cloth vertex */
     uint32_t types;
+    uint64_t pairs, pair_limit; /* triangle pairs visited so far; the bound (0: none) */
+    bool over;                  /* pairs reached pair_limit: the pass stopped early */
     ccd_narrow_stats ns;
 };
 
@@ -700,6 +704,13 @@ static void narrow(detect_ctx *d, uint32_t type, const uint32_t v[4], int first,
     }
 }
 
+/* One more triangle pair; at the budget the traversal stops (d->over). */
+static inline void count_pair(detect_ctx *d)
+{
+    ++d->pairs;
+    d->over = d->pair_limit && d->pairs >= d->pair_limit;
+}
+
 static inline box tri_box(const uint32_t *t, const box *vb)
 {
     box b = vb[t[0]];
@@ -715,6 +726,7 @@ static inline bool has_vertex(const uint32_t *t, uint32_t v) { return t[0] == v 
 static void pair_cloth_collider(void *ctx, uint32_t ta, uint32_t tb)
 {
     detect_ctx *d = ctx;
+    count_pair(d);
     const weft_ccd_world *w = d->w;
     const uint32_t *A = w->tris + 3 * (size_t)ta, *B = w->ctris + 3 * (size_t)tb;
     uint8_t ma = w->own[ta], mb = w->cown[tb];
@@ -798,6 +810,7 @@ static void pair_cloth_collider(void *ctx, uint32_t ta, uint32_t tb)
 static void pair_cloth_cloth(void *ctx, uint32_t ta, uint32_t tb)
 {
     detect_ctx *d = ctx;
+    count_pair(d);
     const weft_ccd_world *w = d->w;
     const uint32_t *T[2] = {w->tris + 3 * (size_t)ta, w->tris + 3 * (size_t)tb};
     uint8_t m[2] = {w->own[ta], w->own[tb]};
@@ -892,10 +905,10 @@ static void run_detect(weft_ccd_world *w, detect_ctx *d, uint32_t types)
     bool f = d->filter;
     bool col = w->cv > 0 && d->c0 && d->c1;
     if (col && (types & WEFT_CCD_MASK_COLLIDER)) {
-        traverse(&w->cloth_t, &w->col_t, pair_cloth_collider, d, f);
+        traverse(&w->cloth_t, &w->col_t, pair_cloth_collider, d, f, &d->over);
     }
     if (types & WEFT_CCD_MASK_SELF) {
-        traverse(&w->cloth_t, &w->cloth_t, pair_cloth_cloth, d, f);
+        traverse(&w->cloth_t, &w->cloth_t, pair_cloth_cloth, d, f, &d->over);
     }
 }
 
@@ -1064,6 +1077,37 @@ static void promote_dirty(weft_ccd_world *w)
     memset(w->next_dirty, 0, w->nv);
 }
 
+/* Over the pair budget, or out of fallback rounds: every cloth vertex back at x0 (the cloth does not
+ * move this step), then one detection with a fresh allowance of the budget. A cloth at rest at
+ * an intersection-free x0 has no self hits; only the collider's own motion can still hit it.
+ * Returns the hits left (1 when even that pass ran out of budget). */
+static uint32_t hold_all(weft_ccd_world *w, detect_ctx *d, const float *x0, float *x1, uint32_t types,
+                         weft_ccd_postprocess_stats *st)
+{
+    for (uint32_t v = 0; v < w->nv; ++v) {
+        float *b = x1 + 3 * (size_t)v;
+        const float *a = x0 + 3 * (size_t)v;
+        if (b[0] != a[0] || b[1] != a[1] || b[2] != a[2]) {
+            memcpy(b, a, 3 * sizeof(float));
+            w->flag_b[v] = 1;
+            st->vertices_held++;
+        }
+    }
+    st->fallback = true;
+    st->held_all = true;
+    d->on_hit = mark_a;
+    d->filter = false;
+    st->pairs_visited += d->pairs;
+    d->pairs = 0;
+    d->over = false;
+    memset(w->flag_a, 0, w->nv);
+    run_detect(w, d, types);
+    st->iterations++;
+    st->pairs_visited += d->pairs;
+    d->pairs = 0;
+    return d->over ? (d->rep.hit_total ? d->rep.hit_total : 1u) : d->rep.hit_total;
+}
+
 weft_result weft_ccd_postprocess(weft_ccd_world *w, const float *x0, float *x1, const float *c0, const float *c1,
                                  weft_ccd_postprocess_stats *stats)
 {
@@ -1076,12 +1120,15 @@ weft_result weft_ccd_postprocess(weft_ccd_world *w, const float *x0, float *x1, 
     }
     uint32_t types = WEFT_CCD_MASK_COLLIDER | (w->self ? WEFT_CCD_MASK_SELF : 0u);
     weft_ccd_postprocess_stats st = {0};
-    detect_ctx d = {.w = w, .x0 = x0, .x1 = x1, .c0 = c0, .c1 = c1, .on_hit = min_tsafe};
+    detect_ctx d = {.w = w, .x0 = x0, .x1 = x1, .c0 = c0, .c1 = c1, .on_hit = min_tsafe,
+                    .pair_limit = w->pair_budget};
     memset(w->flag_b, 0, w->nv); /* moved */
     memset(w->next_dirty, 0, w->nv);
+    /* Every pass draws on one allowance of pair_budget triangle pairs; a pass that exhausts it
+     * stops, and hold_all ends the step: the work of a step is bounded whatever the motion. */
+    bool clean = false, over = false;
     /* Pass 1 tests every pair. Later passes re-test only pairs with a vertex from the previous
      * pass's hits: every other pair has the same trajectories as when it was last found clean. */
-    bool clean = false;
     for (uint32_t it = 0; it < w->max_iterations; ++it) {
         for (uint32_t v = 0; v < w->nv; ++v) {
             w->tmin[v] = 1.0f;
@@ -1089,6 +1136,10 @@ weft_result weft_ccd_postprocess(weft_ccd_world *w, const float *x0, float *x1, 
         d.filter = it > 0;
         run_detect(w, &d, types);
         st.iterations++;
+        if (d.over) {
+            over = true;
+            break;
+        }
         if (d.rep.hit_total == 0) {
             clean = true;
             break;
@@ -1114,7 +1165,7 @@ weft_result weft_ccd_postprocess(weft_ccd_world *w, const float *x0, float *x1, 
             break;
         }
     }
-    if (!clean && w->cv > 0 && c0 && c1) {
+    if (!clean && !over && w->cv > 0 && c0 && c1) {
         /* Fallback, stage 1: vertices hit by the collider move with it (x0 + its displacement),
          * vertices in self hits only stay at x0. A collider pushing cloth it reached is resolved
          * here; the final clean pass still certifies the result. */
@@ -1126,6 +1177,10 @@ weft_result weft_ccd_postprocess(weft_ccd_world *w, const float *x0, float *x1, 
             memset(w->carry_flag, 0, w->nv);
             run_detect(w, &d, types);
             st.iterations++;
+            if (d.over) {
+                over = true;
+                break;
+            }
             if (d.rep.hit_total == 0) {
                 clean = true;
                 break;
@@ -1156,18 +1211,25 @@ weft_result weft_ccd_postprocess(weft_ccd_world *w, const float *x0, float *x1, 
             }
         }
     }
-    if (!clean) {
-        /* Fallback, stage 2: hold the vertices of the remaining hits at their start positions. Each
-         * round holds at least one more vertex or stops; the hits that survive are those the
-         * collider's own motion causes, which cloth motion alone cannot undo. */
+    if (!clean && !over) {
+        /* Fallback, stage 2: hold the vertices of the remaining hits at their start positions,
+         * for at most max_iterations rounds (each holds at least one more vertex or stops); the
+         * hits that survive are those the collider's own motion causes, which cloth motion alone
+         * cannot undo. Out of rounds, hold_all below. */
         st.fallback = true;
         d.on_hit = mark_a;
         d.filter = true;
-        for (;;) {
+        bool settled = false;
+        for (uint32_t round = 0; round < w->max_iterations; ++round) {
             memset(w->flag_a, 0, w->nv);
             run_detect(w, &d, types);
             st.iterations++;
+            if (d.over) {
+                over = true;
+                break;
+            }
             if (d.rep.hit_total == 0) {
+                settled = true;
                 break;
             }
             uint32_t newly = 0;
@@ -1189,10 +1251,19 @@ weft_result weft_ccd_postprocess(weft_ccd_world *w, const float *x0, float *x1, 
             promote_dirty(w);
             if (newly == 0) {
                 st.unresolved_hits = d.rep.hit_total;
+                settled = true;
                 break;
             }
         }
+        if (!settled && !over) {
+            st.unresolved_hits = hold_all(w, &d, x0, x1, types, &st);
+        }
     }
+    if (over) {
+        st.over_budget = true;
+        st.unresolved_hits = hold_all(w, &d, x0, x1, types, &st);
+    }
+    st.pairs_visited += d.pairs; /* hold_all counted its own and the passes' before it */
     for (uint32_t v = 0; v < w->nv; ++v) {
         st.vertices_moved += w->flag_b[v];
     }
@@ -1281,7 +1352,7 @@ weft_result weft_ccd_intersect_frame(weft_ccd_world *w, const float *x, const fl
     vertex_boxes(w->vbox, x, x, w->nv, 0.0f, NULL);
     tree_refit(&w->cloth_t, w->vbox);
     isect_ctx ic = {.w = w, .x = x, .c = c};
-    traverse(&w->cloth_t, &w->cloth_t, pair_isect_self, &ic, false);
+    traverse(&w->cloth_t, &w->cloth_t, pair_isect_self, &ic, false, NULL);
     out->cloth_cloth = ic.count;
     out->cloth_collider = 0;
     if (w->cv > 0) {
@@ -1291,7 +1362,7 @@ weft_result weft_ccd_intersect_frame(weft_ccd_world *w, const float *x, const fl
         vertex_boxes(w->cbox, c, c, w->cv, 0.0f, NULL);
         tree_refit(&w->col_t, w->cbox);
         ic.count = 0;
-        traverse(&w->cloth_t, &w->col_t, pair_isect_col, &ic, false);
+        traverse(&w->cloth_t, &w->col_t, pair_isect_col, &ic, false, NULL);
         out->cloth_collider = ic.count;
     }
     return WEFT_OK;
@@ -1453,6 +1524,7 @@ weft_result weft__ccd_garment_create(weft_garment *g)
     }
     def.max_hits = 1;
     def.max_iterations = g->ccd_iterations;
+    def.max_pairs = (uint64_t)WEFT_CCD_PAIRS_PER_TRIANGLE * g->triangle_count + WEFT_CCD_PAIRS_FLOOR;
     weft_ccd_world *w = NULL;
     weft_result r = weft_ccd_world_create(g->ctx, &def, &w);
     if (r != WEFT_OK) {
@@ -1475,6 +1547,7 @@ void weft__ccd_postprocess_garment(weft_garment *g)
     g->stats.ccd_iterations = 0;
     g->stats.ccd_vertices_moved = 0;
     g->stats.ccd_fallback = false;
+    g->stats.ccd_over_budget = false;
     if (!w || !weft__all_finite(g->x_next, (size_t)g->vertex_count * 3)) {
         return;
     }
@@ -1485,5 +1558,6 @@ void weft__ccd_postprocess_garment(weft_garment *g)
         g->stats.ccd_iterations = st.iterations;
         g->stats.ccd_vertices_moved = st.vertices_moved;
         g->stats.ccd_fallback = st.fallback;
+        g->stats.ccd_over_budget = st.over_budget;
     }
 }

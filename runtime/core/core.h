@@ -40,6 +40,10 @@ static inline bool weft__add_u64(uint64_t a, uint64_t b, uint64_t *out) { return
 /* True when all n floats are finite. */
 bool weft__all_finite(const float *x, size_t n);
 
+/* Index of the first of n floats that is not finite or beyond +-WEFT_MAX_COORDINATE, or
+ * SIZE_MAX when all are within range. */
+size_t weft__first_outside(const float *x, size_t n);
+
 /* Monotonic clock in milliseconds. */
 double weft__now_ms(void);
 

@@ -60,6 +60,16 @@ bool weft__all_finite(const float *x, size_t n)
     return true;
 }
 
+size_t weft__first_outside(const float *x, size_t n)
+{
+    for (size_t i = 0; i < n; ++i) {
+        if (!(fabsf(x[i]) <= WEFT_MAX_COORDINATE)) {
+            return i;
+        }
+    }
+    return SIZE_MAX;
+}
+
 double weft__now_ms(void)
 {
     struct timespec ts;

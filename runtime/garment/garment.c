@@ -17,15 +17,62 @@ weft_garment_def weft_default_garment_def(void)
     def.strain_limit_iterations = 8;
     def.collider_push_depth = 0.02f;
     def.collider_part_margin = 0.03f;
+    def.collider_cut_distance = 1.0f;
     def.internal_cookie = WEFT_DEF_COOKIE;
     return def;
+}
+
+weft_result weft__check_positions(const char *what, const float *positions, size_t vertex_count)
+{
+    size_t i = weft__first_outside(positions, vertex_count * 3);
+    if (i == SIZE_MAX) {
+        return WEFT_OK;
+    }
+    if (!isfinite(positions[i])) {
+        return weft__fail(WEFT_ERROR_NOT_FINITE, "%s: vertex %zu has a NaN or infinite coordinate", what, i / 3);
+    }
+    return weft__fail(WEFT_ERROR_NOT_FINITE, "%s: vertex %zu has coordinate %g, beyond +-%g m (WEFT_MAX_COORDINATE)",
+                      what, i / 3, (double)positions[i], (double)WEFT_MAX_COORDINATE);
+}
+
+weft_result weft__check_cloth_topology(const weft_context *ctx, const char *what, const uint32_t *triangles,
+                                       uint32_t triangle_count, uint32_t vertex_count)
+{
+    /* Every vertex in a triangle: a vertex of no triangle has no mass, no edge and no area, and
+     * the solver, the strain limit and the renderer's normals have nothing to hold it by. */
+    uint8_t *used = weft__alloc(ctx, vertex_count);
+    if (!used) {
+        return WEFT_ERROR_OUT_OF_MEMORY;
+    }
+    memset(used, 0, vertex_count);
+    for (size_t i = 0; i < (size_t)triangle_count * 3; ++i) {
+        used[triangles[i]] = 1;
+    }
+    uint32_t unused = UINT32_MAX;
+    for (uint32_t v = 0; v < vertex_count && unused == UINT32_MAX; ++v) {
+        if (!used[v]) {
+            unused = v;
+        }
+    }
+    weft__free(ctx, used, vertex_count);
+    if (unused != UINT32_MAX) {
+        return weft__fail(WEFT_ERROR_DEGENERATE_MESH, "%s: vertex %u belongs to no triangle", what, unused);
+    }
+    /* Non-manifold edges and duplicate triangles, as the XPBD solver's topology sees them. */
+    xtopo topo;
+    weft_result r = xtopo_create(ctx, &topo, triangles, triangle_count, vertex_count, what);
+    if (r == WEFT_OK) {
+        xtopo_destroy(ctx, &topo);
+    }
+    return r;
 }
 
 weft_result weft__check_mesh(const char *what, const float *positions, uint32_t vertex_count,
                               const uint32_t *triangles, uint32_t triangle_count)
 {
-    if (!weft__all_finite(positions, (size_t)vertex_count * 3)) {
-        return weft__fail(WEFT_ERROR_NOT_FINITE, "%s: positions contain NaN or infinity", what);
+    weft_result pr = weft__check_positions(what, positions, vertex_count);
+    if (pr != WEFT_OK) {
+        return pr;
     }
     for (uint32_t t = 0; t < triangle_count; ++t) {
         const uint32_t *tri = triangles + 3 * (size_t)t;
@@ -69,7 +116,7 @@ static void free_buffers(weft_garment *g)
     weft__free(ctx, g->x_next, nv3);
     weft__free(ctx, g->pin_indices, (size_t)g->vertex_count * sizeof(uint32_t));
     weft__free(ctx, g->pin_targets, nv3);
-    xskin_destroy(ctx, g->tether_skin);
+    xskin_destroy(ctx, g->skin);
     weft__free(ctx, g->tether_radius, (size_t)g->vertex_count * sizeof(float));
     weft__free(ctx, g->tether_target, nv3);
     weft__strain_destroy(g);
@@ -203,6 +250,12 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
     }
     weft_result r = weft__check_mesh("garment rest mesh", def->rest_positions, def->vertex_count, def->triangles,
                                def->triangle_count);
+    if (r == WEFT_OK) {
+        /* One validation for every method, so that a host falling back from one method to
+         * another never meets a mesh the second refuses. */
+        r = weft__check_cloth_topology(context, "garment rest mesh", def->triangles, def->triangle_count,
+                                       def->vertex_count);
+    }
     if (r != WEFT_OK) {
         return r;
     }
@@ -213,8 +266,15 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
             return r;
         }
     }
-    if (def->initial_positions && !weft__all_finite(def->initial_positions, (size_t)def->vertex_count * 3)) {
-        return weft__fail(WEFT_ERROR_NOT_FINITE, "weft_garment_create: initial_positions contain NaN or infinity");
+    if (def->initial_positions &&
+        (r = weft__check_positions("weft_garment_create: initial_positions", def->initial_positions,
+                                   def->vertex_count)) != WEFT_OK) {
+        return r;
+    }
+    if (!(def->collider_cut_distance >= 0.0f && def->collider_cut_distance <= WEFT_MAX_COORDINATE)) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
+                          "weft_garment_create: collider_cut_distance %g is not in [0, %g] metres (0: off)",
+                          (double)def->collider_cut_distance, (double)WEFT_MAX_COORDINATE);
     }
     const weft_method_ops *ops = weft__method_ops(def->method);
     if (!ops) {
@@ -291,7 +351,10 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
         for (uint32_t i = 0; i < def->vertex_count; ++i) {
             g->tether_radius[i] = def->tether_distances ? def->tether_distances[i] : def->tether_distance;
         }
-        r = xskin_create(g, "weft_garment_create: tethers", &g->tether_skin);
+    }
+    g->cut_distance = def->collider_vertex_count > 0 ? def->collider_cut_distance : 0.0f;
+    if (tethers || g->cut_distance > 0.0f) {
+        r = xskin_create(g, tethers ? "weft_garment_create: tethers" : "weft_garment_create: cut binding", &g->skin);
         if (r != WEFT_OK) {
             free_buffers(g);
             return r;
@@ -340,8 +403,12 @@ weft_result weft_garment_set_state(weft_garment *g, const float *positions, cons
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_garment_set_state: garment and positions are required");
     }
     size_t n = (size_t)g->vertex_count * 3;
-    if (!weft__all_finite(positions, n) || (prev_positions && !weft__all_finite(prev_positions, n))) {
-        return weft__fail(WEFT_ERROR_NOT_FINITE, "weft_garment_set_state: positions contain NaN or infinity");
+    weft_result r = weft__check_positions("weft_garment_set_state: positions", positions, g->vertex_count);
+    if (r == WEFT_OK && prev_positions) {
+        r = weft__check_positions("weft_garment_set_state: prev_positions", prev_positions, g->vertex_count);
+    }
+    if (r != WEFT_OK) {
+        return r;
     }
     memcpy(g->x, positions, n * sizeof(float));
     memcpy(g->x_prev, prev_positions ? prev_positions : positions, n * sizeof(float));
@@ -364,8 +431,9 @@ static weft_result copy_collider(weft_garment *g, const float *collider_position
                           "%s: the garment was created without a collider (def.collider_vertex_count = 0)", who);
     }
     size_t n = (size_t)g->collider_vertex_count * 3;
-    if (!weft__all_finite(collider_positions, n)) {
-        return weft__fail(WEFT_ERROR_NOT_FINITE, "%s: positions contain NaN or infinity", who);
+    weft_result r = weft__check_positions(who, collider_positions, g->collider_vertex_count);
+    if (r != WEFT_OK) {
+        return r;
     }
     memcpy(current ? g->collider_prev : g->collider_next, collider_positions, n * sizeof(float));
     return WEFT_OK;
@@ -401,8 +469,9 @@ weft_result weft_garment_set_pins(weft_garment *g, const uint32_t *vertex_indice
                               i, vertex_indices[i], g->vertex_count);
         }
     }
-    if (!weft__all_finite(target_positions, (size_t)count * 3)) {
-        return weft__fail(WEFT_ERROR_NOT_FINITE, "weft_garment_set_pins: targets contain NaN or infinity");
+    weft_result r = weft__check_positions("weft_garment_set_pins: targets", target_positions, count);
+    if (r != WEFT_OK) {
+        return r;
     }
     if (count > 0) { /* count 0 clears; the pointers may then be NULL */
         memcpy(g->pin_indices, vertex_indices, (size_t)count * sizeof(uint32_t));
@@ -440,7 +509,7 @@ static uint32_t clamp_tethers(weft_garment *g)
 /* The tethers' skinned positions at t+1, then the clamp. */
 static weft_result apply_tethers(weft_garment *g)
 {
-    weft_result r = xskin_eval(g->tether_skin, g->collider_triangles, g->collider_next, "weft_garment_step: tethers",
+    weft_result r = xskin_eval(g->skin, g->collider_triangles, g->collider_next, "weft_garment_step: tethers",
                                g->tether_target);
     if (r != WEFT_OK) {
         return r;
@@ -451,9 +520,13 @@ static weft_result apply_tethers(weft_garment *g)
 
 weft_result weft__garment_finish_step(weft_garment *g)
 {
-    if (!weft__all_finite(g->x_next, (size_t)g->vertex_count * 3)) {
-        return weft__fail(WEFT_ERROR_NOT_FINITE, "weft_garment_step: method '%s' produced NaN or infinity; state kept",
-                          g->ops->name);
+    g->stats.collider_cut = false;
+    size_t bad = weft__first_outside(g->x_next, (size_t)g->vertex_count * 3);
+    if (bad != SIZE_MAX) {
+        return weft__fail(WEFT_ERROR_NOT_FINITE,
+                          "weft_garment_step: method '%s' put vertex %zu at %g (NaN, infinite or beyond +-%g m); "
+                          "state kept",
+                          g->ops->name, bad / 3, (double)g->x_next[bad], (double)WEFT_MAX_COORDINATE);
     }
     /* Methods that do not solve with pins (the learned step, LBS) honour them here: the pinned
      * vertices are set to their targets before tethers and the strain limit (both keep pinned
@@ -463,7 +536,7 @@ weft_result weft__garment_finish_step(weft_garment *g)
             memcpy(g->x_next + 3 * (size_t)g->pin_indices[k], g->pin_targets + 3 * (size_t)k, 3 * sizeof(float));
         }
     }
-    if (g->tether_skin) {
+    if (g->tether_radius) {
         weft_result r = apply_tethers(g);
         if (r != WEFT_OK) {
             return r;
@@ -482,7 +555,7 @@ weft_result weft__garment_finish_step(weft_garment *g)
     if (g->push_thickness > 0.0f) {
         weft__push(g); /* out of the collider, so that CCD starts from a frame the body does not cut */
     }
-    if (g->tether_skin && (g->strain_limit > 0.0f || g->push_thickness > 0.0f)) {
+    if (g->tether_radius && (g->strain_limit > 0.0f || g->push_thickness > 0.0f)) {
         /* The strain limit and the push may carry a vertex past its radius again: the max distance
          * is what keeps a garment on its wearer, so it has the last word before CCD. */
         g->stats.tether_vertices_clamped += clamp_tethers(g);
@@ -503,6 +576,55 @@ weft_result weft__garment_finish_step(weft_garment *g)
     return WEFT_OK;
 }
 
+bool weft__garment_cut(weft_garment *g, weft_result *r)
+{
+    *r = WEFT_OK;
+    if (!(g->cut_distance > 0.0f)) {
+        return false;
+    }
+    const float limit2 = g->cut_distance * g->cut_distance;
+    const float *c0 = g->collider_prev, *c1 = g->collider_next;
+    bool jumped = false;
+    for (size_t i = 0; i < (size_t)g->collider_vertex_count && !jumped; ++i) {
+        const float d[3] = {c1[3 * i] - c0[3 * i], c1[3 * i + 1] - c0[3 * i + 1], c1[3 * i + 2] - c0[3 * i + 2]};
+        jumped = d[0] * d[0] + d[1] * d[1] + d[2] * d[2] > limit2;
+    }
+    if (!jumped) {
+        return false;
+    }
+    *r = xskin_eval(g->skin, g->collider_triangles, c1, "weft_garment_step: cut", g->x_next);
+    if (*r != WEFT_OK) {
+        return true;
+    }
+    for (uint32_t k = 0; k < g->pin_count; ++k) {
+        memcpy(g->x_next + 3 * (size_t)g->pin_indices[k], g->pin_targets + 3 * (size_t)k, 3 * sizeof(float));
+    }
+    size_t bad = weft__first_outside(g->x_next, (size_t)g->vertex_count * 3);
+    if (bad != SIZE_MAX) {
+        *r = weft__fail(WEFT_ERROR_NOT_FINITE, "weft_garment_step: cut: the skinned garment puts vertex %zu at %g; "
+                        "state kept", bad / 3, (double)g->x_next[bad]);
+        return true;
+    }
+    /* At rest on the new collider: t-1 = t = the skinned garment. */
+    const size_t nv3 = (size_t)g->vertex_count * 3 * sizeof(float);
+    float *old = g->x;
+    g->x = g->x_next;
+    g->x_next = old;
+    memcpy(g->x_prev, g->x, nv3);
+    float *c = g->collider_prev;
+    g->collider_prev = g->collider_next;
+    g->collider_next = c;
+    g->collider_next_set = false;
+    if (g->ops->reset) {
+        g->ops->reset(g);
+    }
+    const uint64_t frame = g->stats.frame;
+    g->stats = (weft_step_stats){0};
+    g->stats.frame = frame + 1;
+    g->stats.collider_cut = true;
+    return true;
+}
+
 weft_result weft_garment_step(weft_garment *g)
 {
     if (!g) {
@@ -513,7 +635,14 @@ weft_result weft_garment_step(weft_garment *g)
                           "weft_garment_step: call weft_garment_set_collider with the collider at t+1 first");
     }
     double t0 = weft__now_ms();
-    weft_result r = g->ops->step(g);
+    weft_result r;
+    if (weft__garment_cut(g, &r)) {
+        if (r == WEFT_OK) {
+            g->stats.step_ms = weft__now_ms() - t0;
+        }
+        return r;
+    }
+    r = g->ops->step(g);
     if (r == WEFT_OK) {
         r = weft__garment_finish_step(g);
     }

@@ -24,9 +24,13 @@ struct weft_garment {
     uint32_t max_collider_tokens;       /* 0: no cap */
     void *ccd_state;                    /* runtime/ccd world when ccd is set (weft__ccd_garment_create) */
 
-    struct xskin *tether_skin;          /* NULL: no tethers (runtime/xpbd/lbs.c binding) */
-    float *tether_radius;               /* vertex_count radii (uniform ones expanded) */
+    /* The garment bound to the collider (runtime/xpbd/lbs.c binding), made at creation when the
+     * garment has tethers or a cut distance; NULL otherwise. */
+    struct xskin *skin;
+    float *tether_radius;               /* vertex_count radii (uniform ones expanded); NULL: no tethers */
     float *tether_target;               /* vertex_count * 3 scratch: skinned positions at t+1 */
+    float cut_distance;                 /* collider jump that resets the cloth (metres); 0: off */
+    bool cut_pending;                   /* weft_garments_step: cut in this call's first pass */
 
     float strain_limit;                 /* 0: off (runtime/garment/strain.c) */
     uint32_t strain_iterations;
@@ -95,6 +99,18 @@ struct weft_method_ops {
  * tethers, CCD post-process, buffer rotation, frame count. On failure the state is unchanged.
  * The caller sets stats.step_ms. */
 weft_result weft__garment_finish_step(weft_garment *g);
+
+/* A collider that moved farther than cut_distance since the last frame (a teleport, a cut in the
+ * animation) is a cut: the garment is reset to its skinned positions on the collider of t+1, at
+ * rest, the method's history cleared, and no method step runs. Returns true when it did so
+ * (stats.collider_cut; the caller sets step_ms); *r gets a failure of the skinning. */
+bool weft__garment_cut(weft_garment *g, weft_result *r);
+
+/* Positions (count xyz triplets) finite and within +-WEFT_MAX_COORDINATE; `what` names them. */
+weft_result weft__check_positions(const char *what, const float *positions, size_t count);
+/* Every vertex in a triangle, no edge of more than two triangles, no duplicate triangles. */
+weft_result weft__check_cloth_topology(const weft_context *ctx, const char *what, const uint32_t *triangles,
+                                       uint32_t triangle_count, uint32_t vertex_count);
 
 /* Strain limiting (strain.c): edges and rest lengths made once; the limit applied to x_next. */
 weft_result weft__strain_create(weft_garment *g);

@@ -74,10 +74,29 @@ weft_result weft_garments_step(weft_garment *const *garments, uint32_t count)
         }
     }
     batch_status st = {WEFT_OK, 0, {0}};
+    /* Cuts first (weft__garment_cut): a garment whose collider jumped is reset, not stepped. */
+    for (uint32_t i = 0; i < count; ++i) {
+        weft_garment *g = garments[i];
+        g->cut_pending = false;
+        if (g->collider_vertex_count > 0 && g->collider_next_set) {
+            const double t0 = weft__now_ms();
+            weft_result r;
+            if (weft__garment_cut(g, &r)) {
+                g->cut_pending = true;
+                if (r == WEFT_OK) {
+                    g->stats.step_ms = weft__now_ms() - t0;
+                }
+                note(&st, i, r);
+            }
+        }
+    }
     weft_garment *group[WEFT_CT_GROUP_MAX];
     uint32_t index[WEFT_CT_GROUP_MAX];
     for (uint32_t i = 0; i < count; ++i) {
         weft_garment *g = garments[i];
+        if (g->cut_pending) {
+            continue;
+        }
         if (!weft__ct_batchable(g)) {
             note(&st, i, weft_garment_step(g));
             continue;
@@ -85,7 +104,7 @@ weft_result weft_garments_step(weft_garment *const *garments, uint32_t count)
         /* Garment i heads its group unless an earlier garment of the group already did. */
         bool led = false;
         for (uint32_t j = 0; j < i && !led; ++j) {
-            led = weft__ct_batchable(garments[j]) && same_group(garments[j], g);
+            led = !garments[j]->cut_pending && weft__ct_batchable(garments[j]) && same_group(garments[j], g);
         }
         if (led) {
             continue;
@@ -93,7 +112,7 @@ weft_result weft_garments_step(weft_garment *const *garments, uint32_t count)
         uint32_t n = 0;
         for (uint32_t j = i; j < count; ++j) {
             weft_garment *m = garments[j];
-            if (!weft__ct_batchable(m) || !same_group(m, g)) {
+            if (m->cut_pending || !weft__ct_batchable(m) || !same_group(m, g)) {
                 continue;
             }
             if (m->collider_vertex_count > 0 && !m->collider_next_set) {
@@ -110,6 +129,9 @@ weft_result weft_garments_step(weft_garment *const *garments, uint32_t count)
         if (n > 0) {
             run_group(group, index, n, &st);
         }
+    }
+    for (uint32_t i = 0; i < count; ++i) {
+        garments[i]->cut_pending = false;
     }
     if (st.first != WEFT_OK) {
         return weft__fail(st.first, "weft_garments_step: garments[%u]: %s", st.first_index, st.message);

@@ -964,6 +964,11 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
             printf("  off_body %5.1f %%  inside_body %5.1f %%  body_self_overlap %4.1f %%", 100.0 * wf.off_body,
                    100.0 * wf.inside_body, 100.0 * wf.body_self_overlap);
         }
+        if (dressed && simulated) {
+            const weft_step_stats st = weft_garment_stats(s.garment);
+            printf("%s%s", st.collider_cut ? "  cut (body jumped; garment reset to the skinned one)" : "",
+                   st.ccd_over_budget ? "  ccd over budget (cloth held)" : "");
+        }
         printf("\n");
     }
     const uint8_t *tile_ptrs[64];

@@ -383,6 +383,60 @@ static void postprocess_random_with_fallback(void)
     weft_context_destroy(ctx);
 }
 
+/* The work bound: a sheet scattered 10 m at random over a sphere (a model gone wrong) makes every
+ * swept box overlap every other. Unbounded, the passes visit millions of triangle pairs; with
+ * max_pairs they stop, hold every vertex at x0, certify that with one more pass, and visit at
+ * most twice the budget (plus the pair that trips it). Without the bound the same motion is
+ * resolved and visits many times more. */
+static void pair_budget_bounds_the_work(void)
+{
+    weft_context *ctx = make_ctx();
+    mesh cl = sheet(14, 1.4f, 0.56f, 0.0f, 0.0f), co = sphere(10, 16, 0.5f);
+    weft_ccd_world_def def = weft_default_ccd_world_def();
+    def.cloth_triangles = cl.t;
+    def.cloth_triangle_count = cl.nt;
+    def.cloth_vertex_count = cl.nv;
+    def.collider_triangles = co.t;
+    def.collider_triangle_count = co.nt;
+    def.collider_vertex_count = co.nv;
+    def.max_iterations = 4;
+    def.max_pairs = 5000;
+    weft_ccd_world *w = NULL, *unbounded = NULL;
+    CHECK_RESULT(weft_ccd_world_create(ctx, &def, &w), WEFT_OK);
+    def.max_pairs = 0;
+    CHECK_RESULT(weft_ccd_world_create(ctx, &def, &unbounded), WEFT_OK);
+    float *x1 = malloc(sizeof(float) * 3 * cl.nv), *x1u = malloc(sizeof(float) * 3 * cl.nv);
+    test_rng r = {99};
+    for (uint32_t i = 0; i < 3 * cl.nv; ++i) {
+        x1[i] = cl.x[i] + test_rng_float(&r, -5.0f, 5.0f);
+    }
+    memcpy(x1u, x1, sizeof(float) * 3 * cl.nv);
+    weft_ccd_postprocess_stats st = {0}, su = {0};
+    CHECK_RESULT(weft_ccd_postprocess(w, cl.x, x1, co.x, co.x, &st), WEFT_OK);
+    CHECK(st.over_budget && st.held_all && st.fallback);
+    CHECK_MSG(st.pairs_visited <= 2 * 5000 + 2, "%llu pairs", (unsigned long long)st.pairs_visited);
+    CHECK(memcmp(x1, cl.x, sizeof(float) * 3 * cl.nv) == 0); /* the cloth did not move */
+    check_resolved(w, cl.x, x1, co.x, co.x, &st, "over budget");
+    CHECK_RESULT(weft_ccd_postprocess(unbounded, cl.x, x1u, co.x, co.x, &su), WEFT_OK);
+    CHECK(!su.over_budget);
+    CHECK_MSG(su.pairs_visited > 10 * st.pairs_visited, "unbounded %llu, bounded %llu pairs",
+              (unsigned long long)su.pairs_visited, (unsigned long long)st.pairs_visited);
+    /* an ordinary motion stays within the budget and is resolved as before */
+    for (uint32_t i = 0; i < 3 * cl.nv; ++i) {
+        x1[i] = cl.x[i] - (i % 3 == 1 ? 0.01f : 0.0f);
+    }
+    CHECK_RESULT(weft_ccd_postprocess(w, cl.x, x1, co.x, co.x, &st), WEFT_OK);
+    CHECK(!st.over_budget && !st.held_all);
+    CHECK(st.pairs_visited > 0);
+    weft_ccd_world_destroy(w);
+    weft_ccd_world_destroy(unbounded);
+    free(x1);
+    free(x1u);
+    mesh_free(&cl);
+    mesh_free(&co);
+    weft_context_destroy(ctx);
+}
+
 /* A sphere rising 2 cm into a still sheet 5 mm above it: the fallback carries the touched cloth
  * with the sphere and the result is certified clean. */
 static void collider_pushes_cloth(void)
@@ -535,5 +589,5 @@ static void exact_triangle_tests(void)
 }
 
 TEST_MAIN(TEST_CASE(broad_phase_matches_brute_force), TEST_CASE(postprocess_through_sphere),
-          TEST_CASE(postprocess_self), TEST_CASE(postprocess_random_with_fallback),
+          TEST_CASE(postprocess_self), TEST_CASE(postprocess_random_with_fallback), TEST_CASE(pair_budget_bounds_the_work),
           TEST_CASE(collider_pushes_cloth), TEST_CASE(let_out_of_collider), TEST_CASE(moving_collider_resolved_or_reported), TEST_CASE(metrics_inside), TEST_CASE(exact_triangle_tests))

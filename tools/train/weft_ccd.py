@@ -56,6 +56,7 @@ class _WorldDef(ctypes.Structure):
         ("time_margin", ctypes.c_double),
         ("max_iterations", ctypes.c_uint32),
         ("max_hits", ctypes.c_uint32),
+        ("max_pairs", ctypes.c_uint64),
         ("internal_cookie", ctypes.c_uint32),
     ]
 
@@ -78,6 +79,9 @@ class _PostStats(ctypes.Structure):
         ("vertices_held", ctypes.c_uint32),
         ("unresolved_hits", ctypes.c_uint32),
         ("fallback", ctypes.c_bool),
+        ("held_all", ctypes.c_bool),
+        ("over_budget", ctypes.c_bool),
+        ("pairs_visited", ctypes.c_uint64),
     ]
 
 

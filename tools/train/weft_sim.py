@@ -52,6 +52,7 @@ class _GarmentDef(ctypes.Structure):
         ("collider_push_depth", ctypes.c_float),
         ("collider_triangle_parts", ctypes.c_void_p),
         ("collider_part_margin", ctypes.c_float),
+        ("collider_cut_distance", ctypes.c_float),
         ("internal_cookie", ctypes.c_uint32),
     ]
 
