@@ -177,6 +177,11 @@ typedef struct weft_model_info {
 /* Loads and validates a model. The whole file is checked (header, offsets, dtypes, shapes
  * against the config) before anything is used; a failure names the tensor or field. */
 WEFT_API weft_result weft_model_load_file(weft_context *context, const char *path, weft_model **out_model);
+/* Same, for a given architecture ("clothtransformer", "fnopt"): a file whose metadata
+ * "architecture" differs or is missing fails with WEFT_ERROR_BAD_METADATA after reading only
+ * its header, however large its tensors. */
+WEFT_API weft_result weft_model_load_file_as(weft_context *context, const char *path, const char *architecture,
+                                             weft_model **out_model);
 /* Same, from memory. The bytes are copied; the caller may free them afterwards. */
 WEFT_API weft_result weft_model_load_memory(weft_context *context, const void *bytes, size_t size,
                                             weft_model **out_model);

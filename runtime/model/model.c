@@ -694,9 +694,34 @@ static weft_result fill_from_file(void *user, const weft_st_entry *e, void *dst)
     return WEFT_OK;
 }
 
-weft_result weft_model_load_file(weft_context *context, const char *path, weft_model **out_model)
+/* Refuses a header whose metadata "architecture" is not `want` (NULL: any), before any tensor
+ * is read. */
+static weft_result check_architecture(weft_context *ctx, weft_st_header *header, const char *want, const char *path)
 {
-    weft_result r = check_load_args(context, path, out_model, "weft_model_load_file");
+    if (!want) {
+        return WEFT_OK;
+    }
+    const char *arch = NULL;
+    for (uint32_t i = 0; i < header->meta_count; ++i) {
+        if (strcmp(header->meta[i].key, "architecture") == 0) {
+            arch = header->meta[i].value;
+        }
+    }
+    if (arch && strcmp(arch, want) == 0) {
+        return WEFT_OK;
+    }
+    weft_result r = weft__fail(WEFT_ERROR_BAD_METADATA,
+                               "weft_model_load_file_as: '%s' is a model of architecture '%s', not '%s' (no tensor "
+                               "was read)",
+                               path, arch ? arch : "(none)", want);
+    weft__st_header_free(ctx, header);
+    return r;
+}
+
+static weft_result load_file(weft_context *context, const char *path, const char *architecture,
+                             weft_model **out_model, const char *fn)
+{
+    weft_result r = check_load_args(context, path, out_model, fn);
     if (r != WEFT_OK) {
         return r;
     }
@@ -733,9 +758,26 @@ weft_result weft_model_load_file(weft_context *context, const char *path, weft_m
     }
     weft__free(context, json, (size_t)header_size);
     if (r == WEFT_OK) {
+        r = check_architecture(context, &header, architecture, path);
+    }
+    if (r == WEFT_OK) {
         file_source src = {f, path};
         r = model_build(context, &header, fill_from_file, &src, out_model);
     }
     fclose(f);
     return r;
+}
+
+weft_result weft_model_load_file(weft_context *context, const char *path, weft_model **out_model)
+{
+    return load_file(context, path, NULL, out_model, "weft_model_load_file");
+}
+
+weft_result weft_model_load_file_as(weft_context *context, const char *path, const char *architecture,
+                                    weft_model **out_model)
+{
+    if (!architecture) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_model_load_file_as: architecture must not be NULL");
+    }
+    return load_file(context, path, architecture, out_model, "weft_model_load_file_as");
 }

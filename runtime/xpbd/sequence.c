@@ -793,6 +793,54 @@ static bool write_arrays(const char *dir, const xscene *sc, const weft_sim_seque
     return ok;
 }
 
+/* Each field of a sequence def against its range; a failure names the field, its value and the
+ * range. */
+static weft_result check_sequence_def(const weft_sim_sequence_def *d, const char *out_dir)
+{
+#define WEFT_SEQ_BAD(cond, ...)                                                                   \
+    do {                                                                                          \
+        if (cond) {                                                                               \
+            return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_sim_generate: " __VA_ARGS__);    \
+        }                                                                                         \
+    } while (0)
+    WEFT_SEQ_BAD((unsigned)d->scenario >= WEFT_SIM_SCENARIO_COUNT, "scenario %u is not a weft_sim_scenario",
+                 (unsigned)d->scenario);
+    WEFT_SEQ_BAD(d->frames < 2 || d->frames > 100000, "frames %u outside [2, 100000]", d->frames);
+    WEFT_SEQ_BAD(d->substeps == 0 || d->substeps > 1000, "substeps %u outside [1, 1000]", d->substeps);
+    WEFT_SEQ_BAD(d->max_substeps < d->substeps || d->max_substeps > 1000,
+                 "max_substeps %u outside [substeps = %u, 1000]", d->max_substeps, d->substeps);
+    WEFT_SEQ_BAD(d->fast_collider_factor < 1 || d->fast_collider_factor > 16, "fast_collider_factor %u outside [1, 16]",
+                 d->fast_collider_factor);
+    WEFT_SEQ_BAD(d->max_substeps * d->fast_collider_factor > 4000,
+                 "max_substeps x fast_collider_factor = %u x %u is over 4000", d->max_substeps,
+                 d->fast_collider_factor);
+    WEFT_SEQ_BAD(d->cloth_vertices < 16 || d->cloth_vertices > 200000, "cloth_vertices %u outside [16, 200000]",
+                 d->cloth_vertices);
+    WEFT_SEQ_BAD(strlen(out_dir) > 900, "out_dir is %zu characters long (at most 900)", strlen(out_dir));
+    WEFT_SEQ_BAD(!(d->motion_speed >= 0.1f && d->motion_speed <= 10.0f), "motion_speed %g outside [0.1, 10]",
+                 (double)d->motion_speed);
+    WEFT_SEQ_BAD(!(d->garment_retry_arm_spread >= 0.0f && d->garment_retry_arm_spread <= 0.8f),
+                 "garment_retry_arm_spread %g outside [0, 0.8]", (double)d->garment_retry_arm_spread);
+    WEFT_SEQ_BAD(!(d->garment_arm_spread >= 0.0f && d->garment_arm_spread + d->garment_retry_arm_spread <= 0.8f),
+                 "garment_arm_spread %g: must be >= 0 and, plus garment_retry_arm_spread %g, at most 0.8",
+                 (double)d->garment_arm_spread, (double)d->garment_retry_arm_spread);
+    WEFT_SEQ_BAD(!(d->garment_retry_ease_in >= 0.0f && d->garment_retry_ease_in <= 2.0f),
+                 "garment_retry_ease_in %g outside [0, 2]", (double)d->garment_retry_ease_in);
+    WEFT_SEQ_BAD(!(d->garment_retry_amplitude >= 0.1f && d->garment_retry_amplitude <= 1.0f),
+                 "garment_retry_amplitude %g outside [0.1, 1]", (double)d->garment_retry_amplitude);
+    WEFT_SEQ_BAD(!(d->garment_kind == -1 || d->garment_kind == WEFT_CLOTH_TSHIRT || d->garment_kind == WEFT_CLOTH_SKIRT ||
+                   d->garment_kind == WEFT_CLOTH_DRESS),
+                 "garment_kind %d is not -1 (any), tshirt, skirt or dress", (int)d->garment_kind);
+    WEFT_SEQ_BAD(d->checkpoint_frames > 100000, "checkpoint_frames %u outside [0, 100000]", d->checkpoint_frames);
+    WEFT_SEQ_BAD(!(d->time_limit_s >= 0.0 && d->time_limit_s <= 1e9), "time_limit_s %g outside [0, 1e9]",
+                 d->time_limit_s);
+    WEFT_SEQ_BAD(d->time_limit_s > 0.0 && d->checkpoint_frames == 0,
+                 "time_limit_s %g needs checkpoint_frames > 0 (a stopped run resumes from a checkpoint)",
+                 d->time_limit_s);
+#undef WEFT_SEQ_BAD
+    return WEFT_OK;
+}
+
 weft_result weft_sim_generate(weft_context *ctx, const weft_sim_sequence_def *def, const char *out_dir,
                               weft_sim_progress_fn *progress, void *user, weft_sim_sequence_result *out)
 {
@@ -803,28 +851,9 @@ weft_result weft_sim_generate(weft_context *ctx, const weft_sim_sequence_def *de
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
                           "weft_sim_generate: def was not initialised with weft_sim_default_sequence_def()");
     }
-    if ((unsigned)def->scenario >= WEFT_SIM_SCENARIO_COUNT || def->frames < 2 || def->frames > 100000 ||
-        def->substeps == 0 || def->substeps > 1000 || def->max_substeps < def->substeps || def->max_substeps > 1000 ||
-        def->fast_collider_factor < 1 || def->fast_collider_factor > 16 ||
-        def->max_substeps * def->fast_collider_factor > 4000 ||
-        def->cloth_vertices < 16 || def->cloth_vertices > 200000 || strlen(out_dir) > 900 ||
-        !(def->motion_speed >= 0.1f && def->motion_speed <= 10.0f) ||
-        !(def->garment_retry_arm_spread >= 0.0f && def->garment_retry_arm_spread <= 0.8f) ||
-        !(def->garment_arm_spread >= 0.0f && def->garment_arm_spread + def->garment_retry_arm_spread <= 0.8f) ||
-        !(def->garment_retry_ease_in >= 0.0f && def->garment_retry_ease_in <= 2.0f) ||
-        !(def->garment_retry_amplitude >= 0.1f && def->garment_retry_amplitude <= 1.0f) ||
-        !(def->garment_kind == -1 || def->garment_kind == WEFT_CLOTH_TSHIRT || def->garment_kind == WEFT_CLOTH_SKIRT ||
-          def->garment_kind == WEFT_CLOTH_DRESS) ||
-        def->checkpoint_frames > 100000 || !(def->time_limit_s >= 0.0 && def->time_limit_s <= 1e9) ||
-        (def->time_limit_s > 0.0 && def->checkpoint_frames == 0)) {
-        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
-                          "weft_sim_generate: scenario, frames (2..100000), substeps (1..max_substeps<=1000), "
-                          "fast_collider_factor (1..16, times max_substeps <= 4000), "
-                          "cloth_vertices (16..200000), motion_speed (0.1..10), garment_retry_arm_spread (0..0.8), "
-                          "garment_arm_spread (0.., plus the retry's <= 0.8), "
-                          "garment_retry_ease_in (0..2), garment_retry_amplitude (0.1..1), garment_kind (-1, "
-                          "tshirt, skirt, dress), checkpoint_frames "
-                          "(0..100000), time_limit_s (0..1e9, only with checkpoints) or out_dir length out of range");
+    weft_result bad = check_sequence_def(def, out_dir);
+    if (bad != WEFT_OK) {
+        return bad;
     }
     xscene sc;
     weft_result r = xscene_build(ctx, &sc, def, def->seed, NULL);

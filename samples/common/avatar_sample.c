@@ -611,7 +611,7 @@ weft_result weft_avatar_sample_garment_create(const weft_avatar_sample_options *
     const char *model_path = o->model_path ? o->model_path : shipped_model(o->precision);
     bool want_auto = strcmp(o->method, "auto") == 0;
     if (want_auto || strcmp(o->method, "model") == 0) {
-        weft_result r = weft_model_load_file(ctx, model_path, out_model);
+        weft_result r = weft_model_load_file_as(ctx, model_path, "clothtransformer", out_model);
         if (r != WEFT_OK && (o->model_path || !want_auto)) {
             fprintf(stderr, "avatar_render: loading the model %s: %s: %s\n", model_path, weft_result_string(r),
                     weft_last_error());

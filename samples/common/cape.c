@@ -212,7 +212,7 @@ weft_result weft_sample_cape_create(weft_context *ctx, const weft_body *body, co
             c->tris[t++] = v10, c->tris[t++] = v00 + 1, c->tris[t++] = v10 + 1;
         }
     }
-    if ((r = weft_model_load_file(ctx, model_path, &c->model)) != WEFT_OK) {
+    if ((r = weft_model_load_file_as(ctx, model_path, "fnopt", &c->model)) != WEFT_OK) {
         goto fail;
     }
     weft_fnopt_def def = weft_default_fnopt_def();

@@ -3,6 +3,9 @@
 #include "io/safetensors.h"
 #include "model/model.h"
 #include "test.h"
+#include <math.h>
+#include <stdio.h>
+#include <string.h>
 
 static weft_context *g_ctx;
 
@@ -241,5 +244,31 @@ static void setup(void)
 
 static void teardown(void) { weft_context_destroy(g_ctx); }
 
+/* weft_model_load_file_as refuses another architecture from the header alone: a file whose
+ * tensor holds NaN (which a full load reports) is refused for its architecture instead. */
+static void test_load_as_reads_the_header_only(void)
+{
+    static float nan_w[4] = {0.0f, 1.0f, 0.0f, 0.0f};
+    nan_w[2] = NAN;
+    static const uint64_t shape[] = {4};
+    const weft_st_tensor_in t[] = {{"w", WEFT_DTYPE_F32, 1, shape, nan_w}};
+    const weft_st_meta other[] = {{"architecture", "fnopt"}};
+    const char *path = WEFT_BINARY_DIR "/tests/load_as.safetensors";
+    CHECK_RESULT(weft__st_write_file(g_ctx, path, t, 1, other, 1), WEFT_OK);
+    weft_model *m = (weft_model *)(uintptr_t)0x40;
+    CHECK_RESULT(weft_model_load_file_as(g_ctx, path, "clothtransformer", &m), WEFT_ERROR_BAD_METADATA);
+    CHECK(strstr(weft_last_error(), "architecture 'fnopt', not 'clothtransformer' (no tensor was read)") != NULL);
+    CHECK(m == (weft_model *)(uintptr_t)0x40);
+    CHECK_RESULT(weft_model_load_file(g_ctx, path, &m), WEFT_ERROR_NOT_FINITE); /* a full load reads it */
+    CHECK_RESULT(weft_model_load_file_as(g_ctx, path, "fnopt", &m), WEFT_ERROR_NOT_FINITE);
+    CHECK_RESULT(weft_model_load_file_as(g_ctx, path, NULL, &m), WEFT_ERROR_INVALID_ARGUMENT);
+    /* no architecture at all */
+    CHECK_RESULT(weft__st_write_file(g_ctx, path, t, 1, NULL, 0), WEFT_OK);
+    CHECK_RESULT(weft_model_load_file_as(g_ctx, path, "clothtransformer", &m), WEFT_ERROR_BAD_METADATA);
+    CHECK(strstr(weft_last_error(), "'(none)'") != NULL);
+    remove(path);
+}
+
 TEST_MAIN(TEST_CASE(setup), TEST_CASE(test_find_and_require), TEST_CASE(test_config_and_metadata),
-          TEST_CASE(test_config_rejects), TEST_CASE(test_info_and_architectures), TEST_CASE(teardown))
+          TEST_CASE(test_config_rejects), TEST_CASE(test_info_and_architectures),
+          TEST_CASE(test_load_as_reads_the_header_only), TEST_CASE(teardown))

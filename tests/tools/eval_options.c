@@ -225,6 +225,73 @@ static void write_pos(void)
     CHECK_EQ_INT(tool_run(unwritable, o), 1);
 }
 
+/* The golden model with its out_scale raised to 1e9 (same header length, so the offsets hold):
+ * its first step puts the cloth beyond WEFT_MAX_COORDINATE. Returns false when it cannot. */
+static bool write_exploding_model(const char *path)
+{
+    FILE *f = fopen(WEFT_SOURCE_DIR "/tests/model/data/golden_model.safetensors", "rb");
+    if (!f) {
+        return false;
+    }
+    fseek(f, 0, SEEK_END);
+    const long size = ftell(f);
+    fseek(f, 0, SEEK_SET);
+    char *bytes = malloc((size_t)size + 1);
+    bool ok = bytes && fread(bytes, 1, (size_t)size, f) == (size_t)size;
+    fclose(f);
+    char *key = NULL;
+    if (ok) {
+        bytes[size] = '\0';
+        uint64_t n = 0;
+        memcpy(&n, bytes, 8);
+        const char save = bytes[8 + n];
+        bytes[8 + n] = '\0'; /* search the header only */
+        key = strstr(bytes + 8, "out_scale\\\": ");
+        bytes[8 + n] = save;
+    }
+    if (key) {
+        char *v = key + strlen("out_scale\\\": "), *end = v;
+        while ((*end >= '0' && *end <= '9') || *end == '.' || *end == 'e' || *end == '-' || *end == '+') {
+            ++end;
+        }
+        ok = end - v >= 3;
+        if (ok) {
+            memset(v, ' ', (size_t)(end - v));
+            memcpy(v, "1e9", 3);
+        }
+    }
+    ok = ok && key;
+    FILE *o = ok ? fopen(path, "wb") : NULL;
+    ok = o && fwrite(bytes, 1, (size_t)size, o) == (size_t)size;
+    if (o) {
+        fclose(o);
+    }
+    free(bytes);
+    return ok;
+}
+
+/* A rollout that fails is never a score: exit 1, MVE null, "failed": true. A model of another
+ * architecture is refused from its header. */
+static void failed_rollout_is_not_scored(void)
+{
+    char model[1100], o[1100], e[1100], j[2048], text[4096];
+    snprintf(model, sizeof model, "%s/exploding.safetensors", g_out);
+    snprintf(o, sizeof o, "%s/eval_failed.txt", g_out);
+    snprintf(e, sizeof e, "%s/eval_failed.err", g_out);
+    CHECK(write_exploding_model(model));
+    const char *argv[] = {g_exe, "eval", "--seq", g_seq, "--model", model, "--frames", "5", "--json", NULL};
+    CHECK_EQ_INT(tool_run_err(argv, o, e), 1);
+    CHECK(json_line(o, j, sizeof j));
+    CHECK_MSG(strstr(j, "\"mve_cm\": null") && strstr(j, "\"failed\": true"), "%s", j);
+    tool_slurp(e, text, sizeof text);
+    CHECK_MSG(strstr(text, "it is not scored") != NULL, "%s", text);
+    const char *fnopt[] = {g_exe, "eval", "--seq", g_seq, "--model",
+                           WEFT_SOURCE_DIR "/tools/fnopt/models/fnopt_32.safetensors", "--frames", "5", NULL};
+    CHECK_EQ_INT(tool_run_err(fnopt, o, e), 1);
+    tool_slurp(e, text, sizeof text);
+    CHECK_MSG(strstr(text, "architecture 'fnopt', not 'clothtransformer'") != NULL, "%s", text);
+}
+
 int main(int argc, char **argv)
 {
     if (argc < 4) {
@@ -246,6 +313,7 @@ int main(int argc, char **argv)
     mkdir(g_out, 0777);
     static const test_case_ cases[] = {TEST_CASE(sim_mesh_identity), TEST_CASE(sim_mesh_keeps_pins),
                                        TEST_CASE(tethers_and_bad_values),
-                                       TEST_CASE(strain_and_time_limits), TEST_CASE(write_pos)};
+                                       TEST_CASE(strain_and_time_limits), TEST_CASE(write_pos),
+                                       TEST_CASE(failed_rollout_is_not_scored)};
     return test_run_(cases, sizeof cases / sizeof cases[0], 1, argv);
 }

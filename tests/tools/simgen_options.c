@@ -169,6 +169,26 @@ static void like_makes_the_same_scene(void)
     CHECK_EQ_INT(tool_run(both, NULL), 2);
 }
 
+/* A run where every sequence fails names the bad field and writes no manifest. */
+static void failed_run_writes_no_manifest(void)
+{
+    char dir[1024], err[1100], manifest[1100], text[4096];
+    snprintf(dir, sizeof dir, "%s/all_failed", g_out);
+    snprintf(err, sizeof err, "%s/all_failed.err", g_out);
+    snprintf(manifest, sizeof manifest, "%s/manifest.json", dir);
+    const char *argv[] = {g_exe, "simgen", "--out", dir, "--scenario", "drop", "--count", "2", "--frames", "3",
+                          "--max-substeps", "1000", "--fast-collider", "16", NULL};
+    CHECK_EQ_INT(tool_run_err(argv, NULL, err), 1);
+    tool_slurp(err, text, sizeof text);
+    CHECK_MSG(strstr(text, "max_substeps x fast_collider_factor = 1000 x 16 is over 4000") != NULL, "%s", text);
+    CHECK_MSG(strstr(text, "manifest.json not written") != NULL, "%s", text);
+    FILE *f = fopen(manifest, "rb");
+    CHECK(f == NULL);
+    if (f) {
+        fclose(f);
+    }
+}
+
 static void bad_plan_options_fail(void)
 {
     char dir[1024];
@@ -228,6 +248,6 @@ int main(int argc, char **argv)
                                          TEST_CASE(split_generates_only_that_split), TEST_CASE(manifest_keeps_other_runs),
                                          TEST_CASE(only_generates_that_scenario),
                                          TEST_CASE(redo_rejected_runs_rejected_again), TEST_CASE(like_makes_the_same_scene),
-                                         TEST_CASE(bad_plan_options_fail)};
+                                         TEST_CASE(failed_run_writes_no_manifest), TEST_CASE(bad_plan_options_fail)};
     return test_run_(cases, sizeof cases / sizeof cases[0], argc - 2, argv + 2);
 }

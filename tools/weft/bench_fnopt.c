@@ -100,7 +100,7 @@ int weft_bench_fnopt(int argc, char **argv)
     weft_context_def cd = weft_default_context_def();
     weft_context *ctx = NULL;
     weft_model *model = NULL;
-    if (weft_context_create(&cd, &ctx) != WEFT_OK || weft_model_load_file(ctx, model_path, &model) != WEFT_OK) {
+    if (weft_context_create(&cd, &ctx) != WEFT_OK || weft_model_load_file_as(ctx, model_path, "fnopt", &model) != WEFT_OK) {
         fprintf(stderr, "weft bench fnopt: %s\n", weft_last_error());
         weft_context_destroy(ctx);
         return 1;

@@ -370,7 +370,7 @@ int weft_bench_mocap(int argc, char **argv)
     for (uint32_t k = 0; k < nm; ++k) {
         need_model |= methods[k].method == WEFT_METHOD_MODEL;
     }
-    if (need_model && weft_model_load_file(ctx, o.model, &model) != WEFT_OK) {
+    if (need_model && weft_model_load_file_as(ctx, o.model, "clothtransformer", &model) != WEFT_OK) {
         fprintf(stderr, "weft bench mocap: model %s: %s\n", o.model, weft_last_error());
         weft_body_destroy(body);
         weft_context_destroy(ctx);

@@ -907,7 +907,7 @@ int weft_cmd_eval(int argc, char **argv)
         return 1;
     }
     weft_model *model = NULL;
-    if (o.model_path && (r = weft_model_load_file(ctx, o.model_path, &model)) != WEFT_OK) {
+    if (o.model_path && (r = weft_model_load_file_as(ctx, o.model_path, "clothtransformer", &model)) != WEFT_OK) {
         fprintf(stderr, "weft eval: %s: %s: %s\n", o.model_path, weft_result_string(r), weft_last_error());
         weft_context_destroy(ctx);
         return 1;

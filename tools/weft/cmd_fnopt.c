@@ -746,7 +746,7 @@ int weft_cmd_fnopt(int argc, char **argv)
         return 1;
     }
     weft_model *model = NULL;
-    if (c.run.optimizer == WEFT_FNOPT_LEARNED && weft_model_load_file(ctx, c.model_path, &model) != WEFT_OK) {
+    if (c.run.optimizer == WEFT_FNOPT_LEARNED && weft_model_load_file_as(ctx, c.model_path, "fnopt", &model) != WEFT_OK) {
         fprintf(stderr, "weft fnopt: %s\n", weft_last_error());
         weft_context_destroy(ctx);
         return 1;

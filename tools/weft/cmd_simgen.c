@@ -654,6 +654,7 @@ int weft_cmd_simgen(int argc, char **argv)
         return 1;
     }
     int rc = 0;
+    bool write_it = true;
     if (!manifest_only) {
         weft_context_def cd = weft_default_context_def();
         weft_context *ctx = NULL;
@@ -742,10 +743,17 @@ int weft_cmd_simgen(int argc, char **argv)
             }
         }
         draw_bar(&ps, 0, 0);
-        fprintf(stderr, "\nsimgen: %u accepted, %u rejected, %.0f s\n", accepted, rejected, now_s() - ps.t0);
+        fprintf(stderr, "\nsimgen: %u accepted, %u rejected, %u failed, %.0f s\n", accepted, rejected,
+                ps.done - accepted - rejected, now_s() - ps.t0);
+        if (ps.done > 0 && accepted == 0) {
+            /* A manifest of nothing new would let a training run start on an empty or stale set. */
+            fprintf(stderr, "simgen: no sequence of this run was accepted; %s/manifest.json not written\n", out);
+            write_it = false;
+            rc = 1;
+        }
         weft_context_destroy(ctx);
     }
-    if (write_manifest(out, plan, n) != 0) {
+    if (write_it && write_manifest(out, plan, n) != 0) {
         rc = 1;
     }
     free(plan);
