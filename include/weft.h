@@ -254,7 +254,11 @@ typedef struct weft_garment_def {
      * run as with fixed substeps. Ground truth uses it; 0 (default) keeps every frame at
      * `substeps`, a game's fixed budget. At most 4000. */
     uint32_t substeps_max;
-    bool ccd;                           /* run CCD post-processing after each step (default true) */
+    /* Run the CCD post-process after each step (default true). Its work is bounded: all passes of
+     * a step visit at most 64 triangle pairs per cloth triangle plus 16384; a step that would need
+     * more keeps the result of the stages before CCD, uncertified, and sets
+     * stats.ccd_over_budget, rather than hold the garment still while the body moves on. */
+    bool ccd;
     /* CCD back-off passes before the fallback that carries cloth with the collider or holds it
      * (default 16, 1..64; only looked at with ccd). On worn garments pressed by the body the
      * back-off rarely converges, so most frames use every pass and then the fallback: 8 passes
@@ -368,7 +372,9 @@ typedef struct weft_step_stats {
                                          * the collider's far side, so the nearest surface would
                                          * push them through it */
     bool ccd_over_budget;               /* CCD reached its work bound (64 triangle pairs per cloth
-                                         * triangle, all passes together) and held every vertex at t */
+                                         * triangle plus 16384, all passes together): the step kept
+                                         * the result of the stages before CCD, not certified
+                                         * (docs/CCD.md, *Work bound*) */
     bool collider_cut;                  /* the last step was a cut (collider_cut_distance) */
 } weft_step_stats;
 

@@ -1531,6 +1531,11 @@ weft_result weft__ccd_garment_create(weft_garment *g)
         return r;
     }
     weft__ccd_world_set_parts(w, g->part_mask, g->ctri_bits);
+    g->ccd_input = weft__alloc(g->ctx, (size_t)g->vertex_count * 3 * sizeof(float));
+    if (!g->ccd_input) {
+        weft_ccd_world_destroy(w);
+        return WEFT_ERROR_OUT_OF_MEMORY;
+    }
     g->ccd_state = w;
     return WEFT_OK;
 }
@@ -1539,6 +1544,8 @@ void weft__ccd_garment_destroy(weft_garment *g)
 {
     weft_ccd_world_destroy(g->ccd_state);
     g->ccd_state = NULL;
+    weft__free(g->ctx, g->ccd_input, (size_t)g->vertex_count * 3 * sizeof(float));
+    g->ccd_input = NULL;
 }
 
 void weft__ccd_postprocess_garment(weft_garment *g)
@@ -1554,7 +1561,14 @@ void weft__ccd_postprocess_garment(weft_garment *g)
     const float *c0 = g->collider_vertex_count ? g->collider_prev : NULL;
     const float *c1 = g->collider_vertex_count ? g->collider_next : NULL;
     weft_ccd_postprocess_stats st = {0};
+    memcpy(g->ccd_input, g->x_next, (size_t)g->vertex_count * 3 * sizeof(float));
     if (weft_ccd_postprocess(w, g->x, g->x_next, c0, c1, &st) == WEFT_OK || st.iterations > 0) {
+        if (st.over_budget) {
+            /* Out of its work bound, CCD would hold the whole garment where it was while the body
+             * moves on (a garment left behind, frame after frame, where a body overlaps itself).
+             * The step keeps the stages' result uncertified instead, and says so. */
+            memcpy(g->x_next, g->ccd_input, (size_t)g->vertex_count * 3 * sizeof(float));
+        }
         g->stats.ccd_iterations = st.iterations;
         g->stats.ccd_vertices_moved = st.vertices_moved;
         g->stats.ccd_fallback = st.fallback;

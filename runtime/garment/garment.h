@@ -23,6 +23,8 @@ struct weft_garment {
     weft_collider_crop crop_rule;
     uint32_t max_collider_tokens;       /* 0: no cap */
     void *ccd_state;                    /* runtime/ccd world when ccd is set (weft__ccd_garment_create) */
+    float *ccd_input;                   /* vertex_count * 3: x_next as CCD got it, restored when CCD
+                                         * runs out of its work bound */
 
     /* The garment bound to the collider (runtime/xpbd/lbs.c binding), made at creation when the
      * garment has tethers or a cut distance; NULL otherwise. */

@@ -967,7 +967,7 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
         if (dressed && simulated) {
             const weft_step_stats st = weft_garment_stats(s.garment);
             printf("%s%s", st.collider_cut ? "  cut (body jumped; garment reset to the skinned one)" : "",
-                   st.ccd_over_budget ? "  ccd over budget (cloth held)" : "");
+                   st.ccd_over_budget ? "  ccd over budget (uncertified)" : "");
         }
         printf("\n");
     }

@@ -224,6 +224,44 @@ static void test_cut_in_a_batch(void)
     test_mesh_free(&box);
 }
 
+/* CCD's work bound at the garment: a two-triangle 1 m patch pinned and dragged 40 cm across and
+ * 2 cm down a frame, through a 20,000-triangle floor, overlaps every floor triangle: more pairs
+ * than the bound (64 per cloth triangle plus 16384). The step says so and keeps the stages'
+ * result (the pins' targets, as without CCD) instead of holding the patch where it was. */
+static void test_ccd_over_budget_keeps_the_step(void)
+{
+    test_mesh floor_mesh = test_sheet(101, 101, 1.0f, 1.0f, 0.0f, 0.0f, 0.0f);
+    float patch_pos[] = {-0.5f, 0.01f, -0.5f, 0.5f, 0.01f, -0.5f, 0.5f, 0.01f, 0.5f, -0.5f, 0.01f, 0.5f};
+    uint32_t patch_tris[] = {0, 2, 1, 0, 3, 2};
+    const test_mesh patch = {patch_pos, patch_tris, 4, 2};
+    weft_garment_def gd = def_for(WEFT_METHOD_LBS, &patch, &floor_mesh);
+    weft_garment *with = NULL, *without = NULL;
+    CHECK_RESULT(weft_garment_create(ctx_, &gd, &without), WEFT_OK);
+    gd.ccd = true;
+    CHECK_RESULT(weft_garment_create(ctx_, &gd, &with), WEFT_OK);
+    const uint32_t pins[4] = {0, 1, 2, 3};
+    float targets[12];
+    for (int f = 1; f <= 2; ++f) {
+        for (int i = 0; i < 12; ++i) {
+            targets[i] = patch_pos[i] + (i % 3 == 0 ? 0.4f * (float)f : i % 3 == 1 ? -0.02f * (float)f : 0.0f);
+        }
+        weft_garment *both[2] = {with, without};
+        for (int k = 0; k < 2; ++k) {
+            CHECK_RESULT(weft_garment_set_pins(both[k], pins, targets, 4), WEFT_OK);
+            CHECK_RESULT(weft_garment_set_collider(both[k], floor_mesh.pos), WEFT_OK);
+            CHECK_RESULT(weft_garment_step(both[k]), WEFT_OK);
+        }
+        const weft_step_stats st = weft_garment_stats(with);
+        /* frame 1 crosses the floor; frame 2 stays under it, where no box meets the floor's */
+        CHECK_MSG(st.ccd_over_budget == (f == 1) && !st.collider_cut, "frame %d", f);
+        CHECK(memcmp(weft_garment_positions(with), weft_garment_positions(without), sizeof patch_pos) == 0);
+        CHECK(memcmp(weft_garment_positions(with), targets, sizeof targets) == 0);
+    }
+    weft_garment_destroy(with);
+    weft_garment_destroy(without);
+    test_mesh_free(&floor_mesh);
+}
+
 static void teardown(void)
 {
     weft_model_destroy(model_);
@@ -231,4 +269,5 @@ static void teardown(void)
 }
 
 TEST_MAIN(TEST_CASE(setup), TEST_CASE(test_same_mesh_rules_for_every_method), TEST_CASE(test_coordinates_beyond_range),
-          TEST_CASE(test_cut_resets_to_the_skinned_garment), TEST_CASE(test_cut_in_a_batch), TEST_CASE(teardown))
+          TEST_CASE(test_cut_resets_to_the_skinned_garment), TEST_CASE(test_cut_in_a_batch),
+          TEST_CASE(test_ccd_over_budget_keeps_the_step), TEST_CASE(teardown))
