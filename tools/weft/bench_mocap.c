@@ -168,6 +168,7 @@ typedef struct mc_cell {
     char why[160];
     weft_wear_summary wear;
     double p50, p99, max;
+    uint32_t cuts, ccd_over_budget; /* frames that were cuts, or where CCD ran out of its bound */
 } mc_cell;
 
 /* One (clip, garment, method) run. Returns non-zero only for setup failures. */
@@ -252,6 +253,9 @@ static int run_cell(const mc_options *o, weft_context *ctx, const weft_body *bod
             continue;
         }
         ms[k - MC_SETTLE] = t1 - t0;
+        const weft_step_stats st = weft_garment_stats(g);
+        cell->cuts += st.collider_cut;
+        cell->ccd_over_budget += st.ccd_over_budget;
         weft_wear_frame wf;
         if (weft_body_skin_points(body, &pose, cloth->positions, cloth->weights, cloth->vertex_count, skinned) != WEFT_OK ||
             weft_wear_measure(wear, bverts, weft_garment_positions(g), skinned, off_distance, &wf) != WEFT_OK) {
@@ -278,7 +282,7 @@ static int run_cell(const mc_options *o, weft_context *ctx, const weft_body *bod
 }
 
 typedef struct mc_total {
-    uint32_t cells, lost, failed;
+    uint32_t cells, lost, failed, cuts, ccd_over_budget;
     double inside_mean_sum, inside_max, ratio_max, p50_sum;
 } mc_total;
 
@@ -426,6 +430,8 @@ int weft_bench_mocap(int argc, char **argv)
                     const double ratio = cell.p50 > 0.0 ? cell.max / cell.p50 : 0.0;
                     t->ratio_max = ratio > t->ratio_max ? ratio : t->ratio_max;
                     t->p50_sum += cell.p50;
+                    t->cuts += cell.cuts;
+                    t->ccd_over_budget += cell.ccd_over_budget;
                     snprintf(line, sizeof line,
                              "| %.63s | %s | %.31s | %s | %.1f | %.1f / %.1f | %.1f / %.1f | %.2f / %.2f / %.2f | %.1f |\n",
                              clip_names[c], kind_names[gk], methods[k].label, w->frames_off ? "**lost**" : "no",
@@ -443,13 +449,15 @@ int weft_bench_mocap(int argc, char **argv)
     if (rc == 0) {
         table = bench_append(table, &len, &cap,
                              "\n| method | cells | garments lost | failed | inside_body mean of means / worst frame % | "
-                             "worst max / p50 | mean p50 ms |\n|---|---:|---:|---:|---:|---:|---:|\n");
+                             "worst max / p50 | mean p50 ms | cut frames | CCD over budget |\n"
+                             "|---|---:|---:|---:|---:|---:|---:|---:|---:|\n");
         for (uint32_t k = 0; table && k < nm; ++k) {
             const mc_total *t = &totals[k];
             const uint32_t ok_cells = t->cells - t->failed;
-            snprintf(line, sizeof line, "| %s | %u | %u | %u | %.1f / %.1f | %.1f | %.2f |\n", methods[k].label, t->cells,
-                     t->lost, t->failed, ok_cells ? 100.0 * t->inside_mean_sum / ok_cells : 0.0, 100.0 * t->inside_max,
-                     t->ratio_max, ok_cells ? t->p50_sum / ok_cells : 0.0);
+            snprintf(line, sizeof line, "| %s | %u | %u | %u | %.1f / %.1f | %.1f | %.2f | %u | %u |\n",
+                     methods[k].label, t->cells, t->lost, t->failed,
+                     ok_cells ? 100.0 * t->inside_mean_sum / ok_cells : 0.0, 100.0 * t->inside_max, t->ratio_max,
+                     ok_cells ? t->p50_sum / ok_cells : 0.0, t->cuts, t->ccd_over_budget);
             fputs(line, stdout);
             table = bench_append(table, &len, &cap, line);
         }
