@@ -11,6 +11,9 @@
  *
  *   game_loop [--method xpbd|lbs|model] [--model FILE] [--frames N] [--grid N] [--quiet]
  *
+ * --frames takes 1..100000 (default 120), --grid 2..512 vertices a side (default 32); anything
+ * else, or a value with trailing text, is refused with exit status 2.
+ *
  * Without --method it uses the first method this build provides, trying XPBD, then LBS.
  * A method the build lacks, or the model method without a model, fails with weft's message.
  */
@@ -127,7 +130,25 @@ static void ball_at(uint32_t frame, uint32_t frames, const mesh *unit, float *ou
 
 static void usage(void)
 {
-    fprintf(stderr, "usage: game_loop [--method xpbd|lbs|model] [--model FILE] [--frames N] [--grid N] [--quiet]\n");
+    fprintf(stderr, "usage: game_loop [--method xpbd|lbs|model] [--model FILE] [--frames N (1..100000)]\n"
+                    "                 [--grid N (2..512)] [--quiet]\n");
+}
+
+/* A whole number in [lo, hi] and nothing else: digits only (no sign, no spaces, no trailing
+ * text), without overflow. Prints what it wanted and returns 0 otherwise, *out untouched. */
+static int parse_count(const char *option, const char *s, uint32_t lo, uint32_t hi, uint32_t *out)
+{
+    uint64_t v = 0;
+    size_t n = 0;
+    for (; s[n] >= '0' && s[n] <= '9' && v <= hi; ++n) {
+        v = v * 10u + (uint64_t)(s[n] - '0');
+    }
+    if (n == 0 || s[n] != '\0' || v < lo || v > hi) {
+        fprintf(stderr, "game_loop: %s wants a whole number in [%u, %u], got '%s'\n", option, lo, hi, s);
+        return 0;
+    }
+    *out = (uint32_t)v;
+    return 1;
 }
 
 int main(int argc, char **argv)
@@ -141,9 +162,15 @@ int main(int argc, char **argv)
         } else if (strcmp(argv[i], "--model") == 0 && i + 1 < argc) {
             model_path = argv[++i];
         } else if (strcmp(argv[i], "--frames") == 0 && i + 1 < argc) {
-            frames = (uint32_t)strtoul(argv[++i], NULL, 10);
+            if (!parse_count(argv[i], argv[i + 1], 1, 100000, &frames)) {
+                return 2;
+            }
+            ++i;
         } else if (strcmp(argv[i], "--grid") == 0 && i + 1 < argc) {
-            grid = (uint32_t)strtoul(argv[++i], NULL, 10);
+            if (!parse_count(argv[i], argv[i + 1], 2, 512, &grid)) {
+                return 2;
+            }
+            ++i;
         } else if (strcmp(argv[i], "--quiet") == 0) {
             quiet = 1;
         } else {
@@ -151,11 +178,6 @@ int main(int argc, char **argv)
             return 2;
         }
     }
-    if (frames < 1 || frames > 100000 || grid < 2 || grid > 512) {
-        fprintf(stderr, "game_loop: --frames must be 1..100000 and --grid 2..512\n");
-        return 2;
-    }
-
     weft_context_def cdef = weft_default_context_def();
     weft_context *ctx = NULL;
     if (weft_context_create(&cdef, &ctx) != WEFT_OK) {

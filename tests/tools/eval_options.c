@@ -143,7 +143,7 @@ static void tethers_and_bad_values(void)
     CHECK(json_line(o, j, sizeof j));
     CHECK_MSG(isfinite(json_number(j, "mve_cm")) && isfinite(json_number(j, "ccd_passes")), "%s", j);
     const char *negative[] = {g_exe, "eval", "--seq", g_seq, "--method", "lbs", "--tether-cm", "-1", "--json", NULL};
-    CHECK_EQ_INT(tool_run(negative, o), 1); /* the library rejects the radius; nothing is scored */
+    CHECK_EQ_INT(tool_run(negative, o), 2); /* out of the option's range: refused before anything is scored */
     const char *garbage[] = {g_exe, "eval", "--seq", g_seq, "--tether-cm", "3cm", NULL};
     CHECK_EQ_INT(tool_run(garbage, o), 2);
     const char *missing[] = {g_exe, "eval", "--seq", g_seq, "--method", "lbs", "--sim-mesh", g_out, "--json", NULL};
@@ -176,7 +176,7 @@ static void strain_and_time_limits(void)
     CHECK_MSG(strstr(j, "\"time_limited\": true") && json_number(j, "frames") >= 1 && json_number(j, "frames") < 10,
               "%s", j);
     const char *bad_strain[] = {g_exe, "eval", "--seq", g_seq, "--method", "lbs", "--strain-limit", "-5", "--json", NULL};
-    CHECK_EQ_INT(tool_run(bad_strain, o), 1); /* the library rejects the limit */
+    CHECK_EQ_INT(tool_run(bad_strain, o), 2); /* out of the option's range: refused before anything is scored */
     const char *bad_time[] = {g_exe, "eval", "--seq", g_seq, "--time-limit", "0", NULL};
     CHECK_EQ_INT(tool_run(bad_time, o), 2);
     const char *junk_time[] = {g_exe, "eval", "--seq", g_seq, "--time-limit", "5s", NULL};

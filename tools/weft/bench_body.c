@@ -5,6 +5,8 @@
 #include "weft/body.h"
 #include "weft/ccd.h"
 
+#include "support_cli.h"
+
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -103,19 +105,22 @@ static int self_contact(weft_context *ctx)
 
 int weft_bench_body(int argc, char **argv)
 {
-    int frames = 600;
+    uint32_t frame_count = 600;
     bool contact = false;
     for (int i = 1; i < argc; ++i) {
         if (strcmp(argv[i], "--frames") == 0 && i + 1 < argc) {
-            frames = atoi(argv[++i]);
+            if (!cli_u32("weft bench body", argv[i], argv[i + 1], 1, 1000000, &frame_count)) {
+                return 2;
+            }
+            ++i;
         } else if (strcmp(argv[i], "--self-contact") == 0) {
             contact = true;
         } else {
-            fprintf(stderr, "usage: weft bench body [--frames N] [--self-contact]\n");
+            fprintf(stderr, "usage: weft bench body [--frames N (1..1000000, default 600)] [--self-contact]\n");
             return 2;
         }
     }
-    frames = frames < 1 ? 1 : frames;
+    const int frames = (int)frame_count;
     weft_context_def cd = weft_default_context_def();
     weft_context *ctx = NULL;
     if (weft_context_create(&cd, &ctx) != WEFT_OK) {

@@ -6,6 +6,8 @@
 #include "core/core.h"
 #include "weft/ccd.h"
 
+#include "support_cli.h"
+
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -304,28 +306,27 @@ static int bench_postprocess(int frames, const scenario *sc)
 int weft_bench_ccd(int argc, char **argv);
 int weft_bench_ccd(int argc, char **argv)
 {
-    size_t queries = 200000;
-    int frames = 20;
+    uint32_t queries = 200000, frames = 20;
     for (int i = 1; i < argc; ++i) {
-        if (strcmp(argv[i], "--queries") == 0 && i + 1 < argc) {
-            queries = (size_t)strtoul(argv[++i], NULL, 10);
-        } else if (strcmp(argv[i], "--frames") == 0 && i + 1 < argc) {
-            frames = atoi(argv[++i]);
+        const bool q = strcmp(argv[i], "--queries") == 0;
+        if ((q || strcmp(argv[i], "--frames") == 0) && i + 1 < argc) {
+            /* 10^7 queries hold 1.9 GB of coordinates */
+            if (!cli_u32("weft bench ccd", argv[i], argv[i + 1], 1, q ? 10000000 : 100000, q ? &queries : &frames)) {
+                return 2;
+            }
+            ++i;
         } else {
-            printf("usage: weft bench ccd [--queries N] [--frames N]\n");
+            printf("usage: weft bench ccd [--queries N (1..10000000, default 200000)] [--frames N (1..100000, "
+                   "default 20)]\n");
             return strcmp(argv[i], "--help") == 0 ? 0 : 2;
         }
-    }
-    if (queries == 0 || frames <= 0) {
-        fprintf(stderr, "weft bench ccd: --queries and --frames must be positive\n");
-        return 2;
     }
     printf("# %s\n", weft_config_string());
     bench_narrow(queries, 3);
     static const scenario scenarios[2] = {{"typical", 0.001f, 0.01f, 0.02f}, {"stress", 0.004f, 0.02f, 0.02f}};
     int status = 0;
     for (int i = 0; i < 2 && status == 0; ++i) {
-        status = bench_postprocess(frames, &scenarios[i]);
+        status = bench_postprocess((int)frames, &scenarios[i]);
     }
     return status;
 }

@@ -341,8 +341,7 @@ int weft_bench_chart(int argc, char **argv)
             if (strcmp(a, "--xpbd") == 0 || strcmp(a, "--xpbd-fast") == 0) {
                 const bool fast = strcmp(a, "--xpbd-fast") == 0;
                 size_t *n = fast ? &o.nxpbd_fast : &o.nxpbd;
-                if ((*n = bench_parse_substeps(v, fast ? o.xpbd_fast : o.xpbd, 8)) == 0) {
-                    fprintf(stderr, "weft bench chart: %s wants substep counts like 5,10,20,40\n", a);
+                if (!bench_parse_substeps("chart", a, v, fast ? o.xpbd_fast : o.xpbd, 8, n)) {
                     return 2;
                 }
             } else if (strcmp(a, "--data") == 0) {

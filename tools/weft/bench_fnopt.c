@@ -3,27 +3,13 @@
  * resolutions and iteration counts, with the e3D of each run against the fp32 learned run and,
  * with --gt, against the XPBD reference. CSV on stdout; docs/FNOPT.md records the figures. */
 #include "../fnopt/fnopt_scene.h"
+#include "support_cli.h"
 
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 #include <time.h>
-
-/* Next number of a comma-separated list; false at the end. */
-static bool next_u32(const char **p, uint32_t *out)
-{
-    while (**p == ',') {
-        (*p)++;
-    }
-    if (!**p) {
-        return false;
-    }
-    char *end = NULL;
-    *out = (uint32_t)strtoul(*p, &end, 10);
-    *p = end && end != *p ? end : *p + strlen(*p);
-    return true;
-}
 
 /* e3D (docs/FNOPT.md) of `frames` frames of positions against a reference trajectory, both in
  * world metres with the origin at the cloth's initial centre; NaN without frames. */
@@ -49,8 +35,8 @@ int weft_bench_fnopt(int argc, char **argv)
 {
     const char *model_path = "tools/fnopt/models/fnopt_32.safetensors";
     uint32_t frames = 20;
-    const char *res_list = "32,64,100";
-    const char *iters_list = "10";
+    uint32_t res_list[16] = {32, 64, 100}, iters_list[16] = {10};
+    size_t res_count = 3, iters_count = 1;
     bool classical = true, with_gt = false;
     const char *prec_list = "fp32";
     float Y = 1000.0f, S = 8.0f, B = 0.5f;
@@ -59,22 +45,39 @@ int weft_bench_fnopt(int argc, char **argv)
         if (strcmp(argv[i], "--model") == 0 && v) {
             model_path = v, ++i;
         } else if (strcmp(argv[i], "--frames") == 0 && v) {
-            frames = (uint32_t)atoi(v), ++i;
+            if (!cli_u32("weft bench fnopt", argv[i], v, 0, 100000, &frames)) {
+                return 2;
+            }
+            ++i;
         } else if (strcmp(argv[i], "--res") == 0 && v) {
-            res_list = v, ++i;
+            if (!cli_u32_list("weft bench fnopt", argv[i], v, 10, 1024, res_list, 16, &res_count)) {
+                return 2;
+            }
+            ++i;
         } else if (strcmp(argv[i], "--iters") == 0 && v) {
-            iters_list = v, ++i;
+            if (!cli_u32_list("weft bench fnopt", argv[i], v, 1, 10000, iters_list, 16, &iters_count)) {
+                return 2;
+            }
+            ++i;
         } else if (strcmp(argv[i], "--learned-only") == 0) {
             classical = false;
         } else if (strcmp(argv[i], "--precision") == 0 && v) {
             prec_list = v, ++i;
         } else if (strcmp(argv[i], "--gt") == 0) {
             with_gt = true;
-        } else if (strcmp(argv[i], "--material") == 0 && v && sscanf(v, "%f,%f,%f", &Y, &S, &B) == 3) {
-            ++i;
+        } else if (strcmp(argv[i], "--material") == 0 && v) {
+            float m[3];
+            if (!cli_floats("weft bench fnopt", argv[i], v, 0.0f, 1e6f, m, 3)) {
+                return 2;
+            }
+            Y = m[0], S = m[1], B = m[2], ++i;
         } else {
             printf("usage: weft bench fnopt [--res 32,64,100] [--iters 10,100] [--frames 20] [--model PATH]\n"
                    "                        [--learned-only] [--precision fp32,fp16,int8] [--material Y,S,B] [--gt]\n"
+                   "  --res:       up to 16 grid resolutions, each 10..1024\n"
+                   "  --iters:     up to 16 inner iteration counts, each 1..10000\n"
+                   "  --frames:    frames per run, 0..100000 (0: the whole trajectory)\n"
+                   "  --material:  the energy coefficients, each 0..1e6 (default 1000,8,0.5)\n"
                    "  e3d_vs_fp32: against the fp32 learned run at the same res and iters (run first)\n"
                    "  e3d_xpbd:    against the XPBD reference (--gt; cached under data/fnopt/gt/)\n");
             return strcmp(argv[i], "--help") == 0 ? 0 : 2;
@@ -111,9 +114,8 @@ int weft_bench_fnopt(int argc, char **argv)
     printf("res,optimizer,precision,iters,frames,ms_per_frame,cpu_ms_per_frame,ms_per_iteration,e3d_vs_fp32,"
            "e3d_xpbd\n");
     static const char *prec_names[WEFT_PRECISION_COUNT] = {"fp32", "fp16", "int8"};
-    const char *rp = res_list;
-    uint32_t res = 0;
-    while (next_u32(&rp, &res)) {
+    for (size_t ri = 0; ri < res_count; ++ri) {
+        const uint32_t res = res_list[ri];
         fnopt_scene_opts so = {.res = res, .size_m = 1.0f, .fps = 60.0f, .speed = 1.0f,
                                .amplitude_m = 0.5f, .motion = "xy", .handles = "corners", .frames = frames};
         fnopt_scene s;
@@ -126,9 +128,8 @@ int weft_bench_fnopt(int argc, char **argv)
         }
         const size_t traj_floats = (size_t)s.frames * s.n * 3;
         float *ref = malloc(traj_floats * sizeof(float)), *pos = malloc(traj_floats * sizeof(float));
-        const char *ip = iters_list;
-        uint32_t iters = 0;
-        while (ref && pos && next_u32(&ip, &iters)) {
+        for (size_t ii = 0; ref && pos && ii < iters_count; ++ii) {
+            const uint32_t iters = iters_list[ii];
             bool have_ref = false;
             const weft_fnopt_optimizer kinds[4] = {WEFT_FNOPT_LEARNED, WEFT_FNOPT_GD, WEFT_FNOPT_ADAM, WEFT_FNOPT_LBFGS};
             const char *names[4] = {"learned", "gd", "adam", "lbfgs"};

@@ -16,6 +16,7 @@
 #include "weft/body.h"
 #include "weft/lod.h"
 #include "support_bench.h"
+#include "support_cli.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -108,8 +109,11 @@ static void usage(FILE *f)
             "  --scenario S  only the split's sequences of scenario S (e.g. garment)\n"
             "  --name NAME   write OUT/NAME.csv and the tables into their own sections of OUT/LOD.md (default lod)\n"
             "  --tether-cm X, --strain-limit P  also measure LBS, the first XPBD and every model's int8 (CCD on and\n"
-            "                off) with tethers of X cm and/or a P %% strain limit (levels named ...-tX-sP)\n"
-            "  --push-cm X   ... and/or the collider push at X cm (levels named ...-pX; docs/CCD.md)\n",
+            "                off) with tethers of X cm and/or a P %% strain limit, each 0.01..1000 (levels named\n"
+            "                ...-tX-sP)\n"
+            "  --push-cm X   ... and/or the collider push at X cm, 0.01..10 (levels named ...-pX; docs/CCD.md)\n"
+            "  --frames N, --max-seqs N  0..1000000 (0: whole sequences, every sequence); --scale-frames N\n"
+            "                1..1000000; --xpbd: up to 8 substep counts, each 1..1000\n",
             LOD_MAX_SIM, LOD_MAX_CROPS);
 }
 
@@ -1028,21 +1032,13 @@ int weft_bench_lod(int argc, char **argv)
                 }
             }
         } else if (strcmp(a, "--push-cm") == 0) {
-            char *end;
-            double x = strtod(v, &end);
-            if (*end || end == v || !(x > 0.0) || x > 10.0) {
-                fprintf(stderr, "weft bench lod: bad value '%s' for --push-cm (a number in (0, 10])\n", v);
+            if (!cli_double("weft bench lod", a, v, 0.01, 10.0, &o.push_cm)) {
                 return 2;
             }
-            o.push_cm = x;
         } else if (strcmp(a, "--tether-cm") == 0 || strcmp(a, "--strain-limit") == 0) {
-            char *end;
-            double x = strtod(v, &end);
-            if (*end || end == v || !(x > 0.0) || x > 1000.0) {
-                fprintf(stderr, "weft bench lod: bad value '%s' for %s (a number in (0, 1000])\n", v, a);
+            if (!cli_double("weft bench lod", a, v, 0.01, 1000.0, a[2] == 't' ? &o.tether_cm : &o.strain_pct)) {
                 return 2;
             }
-            *(a[2] == 't' ? &o.tether_cm : &o.strain_pct) = x;
         } else if (strcmp(a, "--sim-data") == 0) {
             if (o.nsim == LOD_MAX_SIM) {
                 fprintf(stderr, "weft bench lod: at most %d --sim-data folders\n", LOD_MAX_SIM);
@@ -1060,8 +1056,7 @@ int weft_bench_lod(int argc, char **argv)
                 return 2;
             }
         } else if (strcmp(a, "--xpbd") == 0) {
-            if ((o.nxpbd = bench_parse_substeps(v, o.xpbd, 8)) == 0) {
-                fprintf(stderr, "weft bench lod: --xpbd wants substep counts like 5,10,20\n");
+            if (!bench_parse_substeps("lod", a, v, o.xpbd, 8, &o.nxpbd)) {
                 return 2;
             }
         } else if (strcmp(a, "--frames") == 0 || strcmp(a, "--max-seqs") == 0 || strcmp(a, "--scale-frames") == 0) {

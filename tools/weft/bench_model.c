@@ -12,6 +12,7 @@
 #include "kernels/qkernels.h"
 #include "model/transformer.h"
 #include "support_bench.h"
+#include "support_cli.h"
 #include "support_peaks.h"
 #include "weft.h"
 #include "weft/body.h"
@@ -423,13 +424,10 @@ int weft_bench_model(int argc, char **argv)
     weft_avatar_def ad = weft_default_avatar_def();
     for (int i = 1; i < argc; ++i) {
         if (strcmp(argv[i], "--avatar-vertices") == 0 && i + 1 < argc) {
-            char *end;
-            unsigned long v = strtoul(argv[++i], &end, 10);
-            if (*end || v < 2000 || v > 40000) {
-                fprintf(stderr, "weft bench model: --avatar-vertices takes 2000 .. 40000\n");
+            if (!cli_u32("weft bench model", argv[i], argv[i + 1], 2000, 40000, &ad.target_vertices)) {
                 return 2;
             }
-            ad.target_vertices = (uint32_t)v;
+            ++i;
         } else if (strcmp(argv[i], "--quick") == 0) {
             quick = true;
         } else if (strcmp(argv[i], "--md") == 0) {
@@ -437,7 +435,8 @@ int weft_bench_model(int argc, char **argv)
         } else if (strcmp(argv[i], "--no-torch") == 0) {
             torch = false;
         } else {
-            fprintf(stderr, "usage: weft bench model [--quick] [--md] [--no-torch] [--avatar-vertices N]\n%s\n",
+            fprintf(stderr,
+                    "usage: weft bench model [--quick] [--md] [--no-torch] [--avatar-vertices N (2000..40000)]\n%s\n",
                     weft_bench_model_help);
             return 2;
         }

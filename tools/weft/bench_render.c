@@ -2,9 +2,13 @@
  *
  *   weft bench render [--size N] [--repeats N] [--supersample N] [--deterministic]
  *
+ *   --size 16..4096 pixels (256), --repeats 1..10000 (10), --supersample 1..4 (2)
+ *
  * Mesa picks its driver once per process, so one run measures either llvmpipe (default) or
  * softpipe (--deterministic, what the golden tests use). */
 #include "weft.h"
+
+#include "support_cli.h"
 
 #include <stdio.h>
 #include <stdlib.h>
@@ -22,22 +26,30 @@ int weft_bench_render(int argc, char **argv)
     uint32_t size = 256, repeats = 10, supersample = 2;
     bool deterministic = false;
     for (int i = 1; i < argc; ++i) {
-        if (strcmp(argv[i], "--size") == 0 && i + 1 < argc) {
-            size = (uint32_t)strtoul(argv[++i], NULL, 10);
-        } else if (strcmp(argv[i], "--repeats") == 0 && i + 1 < argc) {
-            repeats = (uint32_t)strtoul(argv[++i], NULL, 10);
-        } else if (strcmp(argv[i], "--supersample") == 0 && i + 1 < argc) {
-            supersample = (uint32_t)strtoul(argv[++i], NULL, 10);
-        } else if (strcmp(argv[i], "--deterministic") == 0) {
+        /* the renderer takes 16..4096 pixels a side and supersamples 1..4 times */
+        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
+        if (strcmp(a, "--size") == 0 && v) {
+            if (!cli_u32("weft bench render", a, v, 16, 4096, &size)) {
+                return 2;
+            }
+            ++i;
+        } else if (strcmp(a, "--repeats") == 0 && v) {
+            if (!cli_u32("weft bench render", a, v, 1, 10000, &repeats)) {
+                return 2;
+            }
+            ++i;
+        } else if (strcmp(a, "--supersample") == 0 && v) {
+            if (!cli_u32("weft bench render", a, v, 1, 4, &supersample)) {
+                return 2;
+            }
+            ++i;
+        } else if (strcmp(a, "--deterministic") == 0) {
             deterministic = true;
         } else {
-            fprintf(stderr, "usage: weft bench render [--size N] [--repeats N] [--supersample N] [--deterministic]\n");
+            fprintf(stderr, "usage: weft bench render [--size 16..4096 (256)] [--repeats 1..10000 (10)]\n"
+                            "                         [--supersample 1..4 (2)] [--deterministic]\n");
             return 2;
         }
-    }
-    if (repeats < 1 || repeats > 10000) {
-        fprintf(stderr, "weft bench render: --repeats must be 1..10000\n");
-        return 2;
     }
     weft_context_def cdef = weft_default_context_def();
     weft_context *ctx = NULL;

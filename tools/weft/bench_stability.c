@@ -750,8 +750,7 @@ int weft_bench_stability(int argc, char **argv)
             } else if (strcmp(a, "--xpbd") == 0 || strcmp(a, "--xpbd-fast") == 0) {
                 const bool fast = strcmp(a, "--xpbd-fast") == 0;
                 size_t *n = fast ? &o.nxpbd_fast : &o.nxpbd;
-                if ((*n = bench_parse_substeps(v, fast ? o.xpbd_fast : o.xpbd, 8)) == 0) {
-                    fprintf(stderr, "weft bench stability: %s wants substep counts like 5,10,20,40\n", a);
+                if (!bench_parse_substeps("stability", a, v, fast ? o.xpbd_fast : o.xpbd, 8, n)) {
                     return 2;
                 }
             } else if (strcmp(a, "--data") == 0) {

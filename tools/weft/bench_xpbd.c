@@ -11,6 +11,8 @@
 #include "weft/sim.h"
 #include "xpbd/scene.h"
 
+#include "support_cli.h"
+
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -189,25 +191,40 @@ int weft_bench_xpbd(int argc, char **argv)
     bool with80 = true, tshirt = false;
     bool fast = false;
     for (int i = 1; i < argc; ++i) {
-        if (strcmp(argv[i], "--vertices") == 0 && i + 1 < argc) {
-            vertices = (uint32_t)strtoul(argv[++i], NULL, 10);
-        } else if (strcmp(argv[i], "--frames") == 0 && i + 1 < argc) {
-            frames = (uint32_t)strtoul(argv[++i], NULL, 10);
+        const char *v = i + 1 < argc ? argv[i + 1] : NULL;
+        if (strcmp(argv[i], "--vertices") == 0 && v) {
+            if (!cli_u32("weft bench xpbd", argv[i], v, 64, 200000, &vertices)) {
+                return 2;
+            }
+            ++i;
+        } else if (strcmp(argv[i], "--frames") == 0 && v) {
+            if (!cli_u32("weft bench xpbd", argv[i], v, 1, 100000, &frames)) {
+                return 2;
+            }
+            ++i;
         } else if (strcmp(argv[i], "--no-80") == 0) {
             with80 = false;
         } else if (strcmp(argv[i], "--fast") == 0) {
             fast = true;
-        } else if (strcmp(argv[i], "--only") == 0 && i + 1 < argc) {
-            only = (uint32_t)strtoul(argv[++i], NULL, 10);
-        } else if (strcmp(argv[i], "--seed") == 0 && i + 1 < argc) {
-            seed = strtoull(argv[++i], NULL, 10);
+        } else if (strcmp(argv[i], "--only") == 0 && v) {
+            if (!cli_u32("weft bench xpbd", argv[i], v, 1, 1000, &only)) {
+                return 2;
+            }
+            ++i;
+        } else if (strcmp(argv[i], "--seed") == 0 && v) {
+            uint64_t sd = 0;
+            if (!cli_u64("weft bench xpbd", argv[i], v, 0, UINT64_MAX, &sd)) {
+                return 2;
+            }
+            seed = sd, ++i;
         } else if (strcmp(argv[i], "--scene") == 0 && i + 1 < argc &&
                    (strcmp(argv[i + 1], "sheet") == 0 || strcmp(argv[i + 1], "tshirt") == 0)) {
             tshirt = strcmp(argv[++i], "tshirt") == 0;
         } else {
             fprintf(stderr,
-                    "usage: weft bench xpbd [--scene sheet|tshirt] [--vertices N (4096)] [--frames T (60)] [--no-80]\n"
-                    "                       [--only S] [--seed X] [--fast]\n"
+                    "usage: weft bench xpbd [--scene sheet|tshirt] [--vertices N (64..200000, 4096)]\n"
+                    "                       [--frames T (1..100000, 60)] [--no-80] [--only S (1..1000)]\n"
+                    "                       [--seed X (0..2^64-1)] [--fast]\n"
                     "  --scene    sheet: a sheet dropped onto a box (default); tshirt: a T-shirt on the default\n"
                     "             avatar (body and motion drawn from --seed, default 1), draped once at S = 40,\n"
                     "             then T frames of the motion at every S from that draped state\n"
@@ -218,10 +235,6 @@ int weft_bench_xpbd(int argc, char **argv)
                     "             --only, the fast method alone\n");
             return strcmp(argv[i], "--help") == 0 ? 0 : 2;
         }
-    }
-    if (vertices < 64 || vertices > 200000 || frames < 1 || frames > 100000 || (only != 0 && (only > 1000))) {
-        fprintf(stderr, "bench xpbd: --vertices 64..200000, --frames 1..100000, --only 1..1000\n");
-        return 2;
     }
     weft_context_def cd = weft_default_context_def();
     weft_context *ctx = NULL;

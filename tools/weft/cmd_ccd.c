@@ -7,6 +7,8 @@
 #include "core/core.h"
 #include "weft/ccd.h"
 
+#include "support_cli.h"
+
 #include <ctype.h>
 #include <errno.h>
 #include <math.h>
@@ -21,6 +23,7 @@ static int usage(FILE *out)
 {
     fprintf(out, "usage: weft ccd --queries FILE [--min-separation METRES]\n"
                  "       weft ccd --csv FILE --type vf|ee [--min-separation METRES]\n"
+                 "  --min-separation: the gap kept between the primitives, 0..1 m (default 0)\n"
                  "  --queries: one query per line, `vf` or `ee` then 24 numbers (4 points at t=0, then at t=1);\n"
                  "             '-' reads stdin. Output: `1 t_c` (collision, earliest time) or `0` per query.\n"
                  "  --csv: the public CCD benchmark's rational format (8 rows per query:\n"
@@ -69,8 +72,10 @@ static int run_csv(const char *path, bool vf, double eta)
             status = 1;
             break;
         }
-        int g = atoi(field[6]);
-        if ((g != 0 && g != 1) || (row > 0 && g != gt)) {
+        /* the ground truth is the digit 0 or 1 (spaces around it allowed), nothing else */
+        const char *gtf = field[6] + strspn(field[6], " \t");
+        const int g = (gtf[0] == '0' || gtf[0] == '1') && gtf[1 + strspn(gtf + 1, " \t")] == '\0' ? gtf[0] - '0' : -1;
+        if (g < 0 || (row > 0 && g != gt)) {
             fprintf(stderr, "weft ccd: %s:%lu: ground truth must be 0 or 1 and equal on a query's 8 rows\n", path,
                     lineno);
             status = 1;
@@ -125,12 +130,10 @@ int weft_cmd_ccd(int argc, char **argv)
         } else if (strcmp(argv[i], "--type") == 0 && i + 1 < argc) {
             type = argv[++i];
         } else if (strcmp(argv[i], "--min-separation") == 0 && i + 1 < argc) {
-            char *end = NULL;
-            eta = strtod(argv[++i], &end);
-            if (!end || *end || !(eta >= 0.0)) {
-                fprintf(stderr, "weft ccd: --min-separation needs a number >= 0\n");
+            if (!cli_double("weft ccd", argv[i], argv[i + 1], 0.0, 1.0, &eta)) {
                 return 2;
             }
+            ++i;
         } else if (strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "-h") == 0) {
             return usage(stdout);
         } else {

@@ -23,9 +23,9 @@
 #include "assets/npz.h"
 #include "io/npy_write.h"
 #include "support_bench.h"
+#include "support_cli.h"
 
 #include <dirent.h>
-#include <errno.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -696,48 +696,44 @@ static void usage(FILE *f)
                "                 [--strain-limit PCT] [--strain-contact-cm X] [--sim-mesh DIR] [--time-limit S]\n"
                "                 [--push-cm X] [--push-depth-cm X] [--write-pos DIR] [--pins xpbd|all]\n"
                "  DIR is one sequence folder (meta.json + .npy) or a folder of them.\n"
-               "  --method        xpbd:S the reference solver at S substeps (default 10); xpbd-fast:S the same\n"
-               "                  material with a game's collision projection instead of its bounds\n"
+               "  --method        xpbd:S the reference solver at S substeps (1..1000, default 10); xpbd-fast:S the\n"
+               "                  same material with a game's collision projection instead of its bounds\n"
+               "  --frames N      score at most N frames per sequence (1..100000000)\n"
                "  --ccd-iterations N  CCD back-off passes before its fallback (1..64, default 16)\n"
-               "  --tether-cm X   tethers to the skinned garment, radius X cm (0 on vertices pinned at the start)\n"
-               "  --strain-limit PCT  shorten edges stretched over PCT %% after each step (and in CCD)\n"
-               "  --strain-contact-cm X  contact-aware limit: vertices within X cm of the collider stay put\n"
+               "  --crop-cm X     the model's collider crop margin, 0..10000 cm (0: the model's own)\n"
+               "  --max-collider-tokens N  keep at most N collider triangles (0..4294967295, 0: all)\n"
+               "  --tether-cm X   tethers to the skinned garment, radius X cm, 0..1000 (0 on vertices pinned at\n"
+               "                  the start)\n"
+               "  --strain-limit PCT  shorten edges stretched over PCT %%, 0..1000 (0: off), after each step (and\n"
+               "                  in CCD)\n"
+               "  --strain-contact-cm X  contact-aware limit, 0..100: vertices within X cm of the collider stay put\n"
                "                  while it shortens edges (weft_garment_def.strain_limit_contact)\n"
-               "  --push-cm X     push cloth inside the collider (up to --push-depth-cm, default 2) or closer\n"
-               "                  than X cm to X cm in front of it, before CCD (weft_garment_def.collider_push)\n"
+               "  --push-cm X     push cloth inside the collider (up to --push-depth-cm, 0..50, default 2) or\n"
+               "                  closer than X cm, 0..10, to X cm in front of it, before CCD\n"
+               "                  (weft_garment_def.collider_push)\n"
                "  --sim-mesh DIR  simulate on DIR's rest_pos.npy + faces.npy (the same garment at another\n"
                "                  resolution) and score its map onto the sequence's mesh (ms/frame includes the map);\n"
                "                  a simulated vertex is pinned where its nearest scored vertex is, and so is the\n"
                "                  nearest one to each pinned scored vertex, at the reference sampled there\n"
-               "  --time-limit S  stop each rollout once its steps took S seconds (JSON: time_limited, frames)\n"
+               "  --time-limit S  stop each rollout once its steps took S seconds, 0.001..1e6 (JSON:\n"
+               "                  time_limited, frames)\n"
                "  --pins xpbd|all the sequence's pins (gripper grasps) for the XPBD methods only (default, the\n"
                "                  documented protocol) or for every method (set after a learned or LBS step)\n"
                "  --write-pos DIR write each rollout to DIR/<sequence>.npy, [frames + 2, N, 3] float32: the two\n"
                "                  reference frames it starts from, then every step (on the scored mesh)\n");
 }
 
-/* A whole-string number in hundredths (cm or %) as a fraction of one: metres or a ratio. */
-static bool parse_hundredths(const char *v, float *out)
+static const char k_tool[] = "weft eval";
+
+/* A whole-string number of hundredths (cm or %) in [0, hi], as a fraction of one: metres or a
+ * ratio. */
+static bool parse_hundredths(const char *option, const char *v, float hi, float *out)
 {
-    char *end;
-    float f = strtof(v, &end);
-    if (*end || end == v) {
+    float f = 0.0f;
+    if (!cli_float(k_tool, option, v, 0.0f, hi, &f)) {
         return false;
     }
     *out = f / 100.0f;
-    return true;
-}
-
-/* A whole-string unsigned integer in [lo, hi]. */
-static bool parse_u32(const char *v, unsigned long lo, unsigned long hi, uint32_t *out)
-{
-    char *end;
-    errno = 0;
-    unsigned long n = strtoul(v, &end, 10);
-    if (v[0] < '0' || v[0] > '9' || *end || end == v || errno == ERANGE || n < lo || n > hi) {
-        return false;
-    }
-    *out = (uint32_t)n;
     return true;
 }
 
@@ -765,8 +761,7 @@ int weft_cmd_eval(int argc, char **argv)
         } else if (strcmp(a, "--split") == 0) {
             o.split = v, ++i;
         } else if (strcmp(a, "--frames") == 0) {
-            if (!parse_u32(v, 1, 100000000, &o.max_frames)) {
-                fprintf(stderr, "weft eval: bad --frames '%s' (a whole number of frames, 1..100000000)\n", v);
+            if (!cli_u32(k_tool, a, v, 1, 100000000, &o.max_frames)) {
                 return 2;
             }
             ++i;
@@ -782,13 +777,9 @@ int weft_cmd_eval(int argc, char **argv)
                 const size_t at = fast ? 9 : 4;
                 o.method = fast ? WEFT_METHOD_XPBD_FAST : WEFT_METHOD_XPBD;
                 if (v[at] == ':') {
-                    char *end;
-                    unsigned long s = strtoul(v + at + 1, &end, 10);
-                    if (*end || s == 0 || s > 1000) {
-                        fprintf(stderr, "weft eval: bad substep count in '%s'\n", v);
+                    if (!cli_u32(k_tool, "--method's substep count", v + at + 1, 1, 1000, &o.substeps)) {
                         return 2;
                     }
-                    o.substeps = (uint32_t)s;
                 } else if (v[at] != '\0') {
                     fprintf(stderr, "weft eval: unknown method '%s'\n", v);
                     return 2;
@@ -811,19 +802,16 @@ int weft_cmd_eval(int argc, char **argv)
             }
         } else if (strcmp(a, "--crop-cm") == 0) {
             /* model collider crop margin in cm (0: the model's own); the library validates it */
-            if (!parse_hundredths(v, &o.crop_margin)) {
-                fprintf(stderr, "weft eval: bad --crop-cm '%s'\n", v);
+            if (!parse_hundredths(a, v, 10000.0f, &o.crop_margin)) {
                 return 2;
             }
             ++i;
         } else if (strcmp(a, "--time-limit") == 0) {
-            char *end;
-            double sec = strtod(v, &end);
-            ++i;
-            if (*end || end == v || !(sec > 0.0) || sec > 1e6) {
-                fprintf(stderr, "weft eval: bad --time-limit '%s' (seconds > 0)\n", v);
+            double sec = 0.0;
+            if (!cli_double(k_tool, a, v, 0.001, 1e6, &sec)) {
                 return 2;
             }
+            ++i;
             o.time_limit_ms = sec * 1e3;
         } else if (strcmp(a, "--pins") == 0) {
             if (strcmp(v, "all") != 0 && strcmp(v, "xpbd") != 0) {
@@ -837,28 +825,24 @@ int weft_cmd_eval(int argc, char **argv)
             o.sim_mesh = v, ++i; /* rest_pos.npy + faces.npy of the same garment at another resolution */
         } else if (strcmp(a, "--tether-cm") == 0) {
             /* tethers to the skinned garment, radius in cm (0: off); the library validates it */
-            if (!parse_hundredths(v, &o.tether)) {
-                fprintf(stderr, "weft eval: bad --tether-cm '%s'\n", v);
+            if (!parse_hundredths(a, v, 1000.0f, &o.tether)) {
                 return 2;
             }
             ++i;
         } else if (strcmp(a, "--strain-limit") == 0) {
             /* percent over rest length (0: off); the library validates it */
-            if (!parse_hundredths(v, &o.strain_limit)) {
-                fprintf(stderr, "weft eval: bad --strain-limit '%s'\n", v);
+            if (!parse_hundredths(a, v, 1000.0f, &o.strain_limit)) {
                 return 2;
             }
             ++i;
         } else if (strcmp(a, "--strain-contact-cm") == 0) {
-            if (!parse_hundredths(v, &o.strain_contact)) {
-                fprintf(stderr, "weft eval: bad --strain-contact-cm '%s'\n", v);
+            if (!parse_hundredths(a, v, 100.0f, &o.strain_contact)) {
                 return 2;
             }
             ++i;
         } else if (strcmp(a, "--push-cm") == 0 || strcmp(a, "--push-depth-cm") == 0) {
-            /* the library validates the ranges */
-            if (!parse_hundredths(v, strcmp(a, "--push-cm") == 0 ? &o.push : &o.push_depth)) {
-                fprintf(stderr, "weft eval: bad %s '%s'\n", a, v);
+            const bool push = strcmp(a, "--push-cm") == 0;
+            if (!parse_hundredths(a, v, push ? 10.0f : 50.0f, push ? &o.push : &o.push_depth)) {
                 return 2;
             }
             ++i;
@@ -870,8 +854,7 @@ int weft_cmd_eval(int argc, char **argv)
             }
             o.crop = strcmp(v, "cells") == 0 ? WEFT_COLLIDER_CROP_CELLS : WEFT_COLLIDER_CROP_BOX;
         } else if (strcmp(a, "--max-collider-tokens") == 0) {
-            if (!parse_u32(v, 0, UINT32_MAX, &o.max_collider_tokens)) {
-                fprintf(stderr, "weft eval: bad --max-collider-tokens '%s'\n", v);
+            if (!cli_u32(k_tool, a, v, 0, UINT32_MAX, &o.max_collider_tokens)) {
                 return 2;
             }
             ++i;
@@ -883,8 +866,7 @@ int weft_cmd_eval(int argc, char **argv)
             }
             o.ccd = strcmp(v, "on") == 0;
         } else if (strcmp(a, "--ccd-iterations") == 0) {
-            if (!parse_u32(v, 1, 64, &o.ccd_iterations)) {
-                fprintf(stderr, "weft eval: --ccd-iterations takes 1..64, not '%s'\n", v);
+            if (!cli_u32(k_tool, a, v, 1, 64, &o.ccd_iterations)) {
                 return 2;
             }
             ++i;

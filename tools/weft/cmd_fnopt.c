@@ -8,6 +8,7 @@
  * FNOpt step per frame; gravity is 9.81 m/s^2 converted with the frame rate. */
 #define _POSIX_C_SOURCE 200809L /* mkdir */
 #include "../fnopt/fnopt_scene.h"
+#include "support_cli.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -538,22 +539,24 @@ static const char *optimizer_name(weft_fnopt_optimizer o)
     return (unsigned)o < 4 ? names[o] : "?";
 }
 
+static const char k_tool[] = "weft fnopt";
+
 static void usage(void)
 {
     printf("usage: weft fnopt run|fit [options]\n"
-           "  --res N            grid resolution (32)\n"
+           "  --res N            grid resolution, 10..1024 (32)\n"
            "  --motion M         xy yz xz xyz xyz3 xyz4 rot_h0 rot_h1, optionally with _opp (xy)\n"
            "  --handles H        corners diagonal middle corner-middle corner-center single-corner\n"
            "                     single-middle single-center (corners)\n"
-           "  --frames F         frames to run (0: the whole 2.75 s trajectory at speed 1)\n"
-           "  --speed S          trajectory speed factor (1)\n"
-           "  --amplitude A      translation per move in metres (0.5)\n"
+           "  --frames F         frames to run, 0..100000 (0: the whole 2.75 s trajectory at speed 1)\n"
+           "  --speed S          trajectory speed factor, 0.01..100 (1)\n"
+           "  --amplitude A      translation per move in metres, 0..10 (0.5)\n"
            "  --optimizer O      learned gd adam lbfgs (learned)\n"
-           "  --iters K          inner iterations per step (10)\n"
-           "  --lr X             step size of gd/adam/lbfgs (0.01)\n"
+           "  --iters K          inner iterations per step, 1..10000 (10)\n"
+           "  --lr X             step size of gd/adam/lbfgs, 1e-6..100 (0.01)\n"
            "  --model PATH       FNOpt weights (tools/fnopt/models/fnopt_32.safetensors)\n"
-           "  --material Y,S,B   energy coefficients in grid units (1000,8,0.5)\n"
-           "  --repulsion K      self-repulsion weight (0)\n"
+           "  --material Y,S,B   energy coefficients in grid units, each 0..1e6 (1000,8,0.5)\n"
+           "  --repulsion K      self-repulsion weight, 0..1e6 (0)\n"
            "  --precision P      fp32 fp16 int8: the learned optimizer's FNO arithmetic (fp32)\n"
            "  --gt               score against the XPBD reference (e3D, Chamfer)\n"
            "  --loss             also report the mean final loss per step\n"
@@ -576,25 +579,39 @@ static int parse(int argc, char **argv, cli *c)
         } else if (strcmp(a, "--loss") == 0) {
             c->run.report_loss = true;
         } else if (ARG("--res")) {
-            c->scene.res = (uint32_t)atoi(v);
+            if (!cli_u32(k_tool, a, v, 10, 1024, &c->scene.res)) {
+                return 2;
+            }
         } else if (ARG("--motion")) {
             c->scene.motion = v;
         } else if (ARG("--handles")) {
             c->scene.handles = v;
         } else if (ARG("--frames")) {
-            c->scene.frames = (uint32_t)atoi(v);
+            if (!cli_u32(k_tool, a, v, 0, 100000, &c->scene.frames)) {
+                return 2;
+            }
         } else if (ARG("--speed")) {
-            c->scene.speed = (float)atof(v);
+            if (!cli_float(k_tool, a, v, 0.01f, 100.0f, &c->scene.speed)) {
+                return 2;
+            }
         } else if (ARG("--amplitude")) {
-            c->scene.amplitude_m = (float)atof(v);
+            if (!cli_float(k_tool, a, v, 0.0f, 10.0f, &c->scene.amplitude_m)) {
+                return 2;
+            }
         } else if (ARG("--iters")) {
-            c->run.iterations = (uint32_t)atoi(v);
+            if (!cli_u32(k_tool, a, v, 1, 10000, &c->run.iterations)) {
+                return 2;
+            }
         } else if (ARG("--lr")) {
-            c->run.learning_rate = (float)atof(v);
+            if (!cli_float(k_tool, a, v, 1e-6f, 100.0f, &c->run.learning_rate)) {
+                return 2;
+            }
         } else if (ARG("--model")) {
             c->model_path = v;
         } else if (ARG("--repulsion")) {
-            c->run.repulsion = (float)atof(v);
+            if (!cli_float(k_tool, a, v, 0.0f, 1e6f, &c->run.repulsion)) {
+                return 2;
+            }
         } else if (ARG("--precision")) {
             if (!fnopt_parse_precision(v, &c->run.precision)) {
                 fprintf(stderr, "weft fnopt: --precision wants fp32, fp16 or int8\n");
@@ -605,10 +622,11 @@ static int parse(int argc, char **argv, cli *c)
         } else if (ARG("--out")) {
             c->out = v;
         } else if (ARG("--material")) {
-            if (sscanf(v, "%f,%f,%f", &c->run.Y, &c->run.S, &c->run.B) != 3) {
-                fprintf(stderr, "weft fnopt: --material wants Y,S,B\n");
+            float m[3];
+            if (!cli_floats(k_tool, a, v, 0.0f, 1e6f, m, 3)) {
                 return 2;
             }
+            c->run.Y = m[0], c->run.S = m[1], c->run.B = m[2];
         } else if (ARG("--optimizer")) {
             int k = 0;
             for (; k < 4 && strcmp(v, optimizer_name((weft_fnopt_optimizer)k)) != 0; ++k) {

@@ -1,9 +1,8 @@
 /* weft quantize: fp32 model -> int8 or fp16 model, with calibration, optional SmoothQuant, a
  * per-layer error report and the end-to-end MVE change on a validation sequence. */
 #include "quant.h"
+#include "support_cli.h"
 
-#include <errno.h>
-#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -15,6 +14,8 @@ const char weft_cmd_quantize_help[] = "quantise an fp32 model to int8 or fp16 (c
 
 #define MAX_LIST 64
 
+static const char k_tool[] = "weft quantize";
+
 static void usage(FILE *out)
 {
     fprintf(out,
@@ -24,42 +25,19 @@ static void usage(FILE *out)
             "                     [--val SEQ_DIR | --no-val] [--val-frames N] [--min-dim N] [--keep TENSOR]...\n"
             "                     [--report REPORT.json]\n"
             "       (--in IN and --out OUT are accepted too)\n"
-            "Weights with both dimensions >= min-dim (default 16) are quantised; biases, norms, small layers\n"
-            "and tensors named by --keep or the model's \"keep_fp32\" metadata stay fp32.\n"
+            "Weights with both dimensions >= min-dim (1..1048576, default 16) are quantised; biases, norms,\n"
+            "small layers and tensors named by --keep or the model's \"keep_fp32\" metadata stay fp32.\n"
             "--calib rolls the fp32 model out autoregressively over simgen sequences (a sequence folder, a\n"
             "folder of them filtered by --calib-split, or a split list file), records every layer's input\n"
-            "range and measures its quantised output error; layers above --max-layer-error (default %.3g)\n"
-            "stay fp32. --calib-frames (default %u) frames are recorded in total.\n"
+            "range and measures its quantised output error; layers above --max-layer-error (1e-6..1e6,\n"
+            "default %.3g) stay fp32. --calib-frames (1..16777216, default %u) frames are recorded in total.\n"
             "--smoothquant ALPHA in [0, 1] migrates activation outliers into the weights through the\n"
             "preceding LayerNorm, kept per norm only where it lowers the measured error.\n"
             "--val runs the fp32 and the quantised model on a sequence (default: %s) and reports the MVE\n"
-            "ratio. Each layer's decision is written as metadata \"quant.layer.<name>\".\n"
+            "ratio over --val-frames frames (0..16777216, default 0: the whole sequence). Each layer's\n"
+            "decision is written as metadata \"quant.layer.<name>\".\n"
             "On any error nothing is written.\n",
             WEFT_QUANT_DEFAULT_MAX_LAYER_ERROR, WEFT_QUANT_DEFAULT_CALIB_FRAMES, weft_quant_default_val_dir());
-}
-
-static bool parse_u32(const char *v, uint32_t lo, uint32_t hi, uint32_t *out)
-{
-    char *end;
-    errno = 0;
-    unsigned long n = strtoul(v, &end, 10);
-    if (errno || end == v || *end || v[0] == '-' || n < lo || n > hi) {
-        return false;
-    }
-    *out = (uint32_t)n;
-    return true;
-}
-
-static bool parse_double(const char *v, double *out)
-{
-    char *end;
-    errno = 0;
-    double d = strtod(v, &end);
-    if (errno || end == v || *end || !isfinite(d)) {
-        return false;
-    }
-    *out = d;
-    return true;
 }
 
 static bool is_dir(const char *p)
@@ -78,7 +56,6 @@ int weft_cmd_quantize(int argc, char **argv)
     for (int i = 1; i < argc; ++i) {
         const char *a = argv[i];
         const char *v = i + 1 < argc ? argv[i + 1] : NULL;
-        double d;
         if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
             usage(stdout);
             return 0;
@@ -118,35 +95,30 @@ int weft_cmd_quantize(int argc, char **argv)
             }
             ++i;
         } else if (strcmp(a, "--min-dim") == 0) {
-            if (!parse_u32(v, 1, 1u << 20, &def.min_dim)) {
-                fprintf(stderr, "weft quantize: bad --min-dim '%s'\n", v);
+            if (!cli_u32(k_tool, a, v, 1, 1u << 20, &def.min_dim)) {
                 return 2;
             }
             ++i;
         } else if (strcmp(a, "--calib-frames") == 0) {
-            if (!parse_u32(v, 1, 1u << 24, &def.calib_frames)) {
-                fprintf(stderr, "weft quantize: bad --calib-frames '%s' (1 or more)\n", v);
+            if (!cli_u32(k_tool, a, v, 1, 1u << 24, &def.calib_frames)) {
                 return 2;
             }
             ++i;
         } else if (strcmp(a, "--val-frames") == 0) {
-            if (!parse_u32(v, 0, 1u << 24, &def.val_frames)) {
-                fprintf(stderr, "weft quantize: bad --val-frames '%s'\n", v);
+            if (!cli_u32(k_tool, a, v, 0, 1u << 24, &def.val_frames)) {
                 return 2;
             }
             ++i;
         } else if (strcmp(a, "--smoothquant") == 0) {
-            if (!parse_double(v, &d) || d < 0.0 || d > 1.0) {
-                fprintf(stderr, "weft quantize: --smoothquant takes an alpha in [0, 1], not '%s'\n", v);
+            if (!cli_float(k_tool, a, v, 0.0f, 1.0f, &def.smoothquant_alpha)) {
                 return 2;
             }
-            def.smoothquant_alpha = (float)d, ++i;
+            ++i;
         } else if (strcmp(a, "--max-layer-error") == 0) {
-            if (!parse_double(v, &d) || d <= 0.0) {
-                fprintf(stderr, "weft quantize: --max-layer-error takes a positive number, not '%s'\n", v);
+            if (!cli_double(k_tool, a, v, 1e-6, 1e6, &def.max_layer_error)) {
                 return 2;
             }
-            def.max_layer_error = d, ++i;
+            ++i;
         } else if (strcmp(a, "--keep") == 0 && nkeep < MAX_LIST) {
             keep[nkeep++] = v, ++i;
         } else if (strcmp(a, "--calib") == 0 && ncalib < MAX_LIST) {

@@ -10,6 +10,8 @@
  */
 #include "weft.h"
 
+#include "support_cli.h"
+
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -56,17 +58,6 @@ static int goldens(const char *dir, const char *out_dir, bool update)
     return status;
 }
 
-static bool parse_angle(const char *s, float limit, float *out)
-{
-    char *end = NULL;
-    float v = strtof(s, &end);
-    if (end == s || *end != '\0' || !(v >= -limit && v <= limit)) {
-        return false;
-    }
-    *out = v;
-    return true;
-}
-
 /* "N" (square, h = 0) or "WxH", digits only, each 64..1024. */
 static bool parse_tile(const char *s, uint32_t *w, uint32_t *h)
 {
@@ -108,10 +99,11 @@ static int sequence_sheet(weft_seq_sheet_options *o, const char *frames, int nre
     for (int i = 1; i < nrest; ++i) {
         bool yaw = strcmp(rest[i], "--yaw") == 0, pitch = strcmp(rest[i], "--pitch") == 0;
         if ((yaw || pitch) && i + 1 < nrest) {
-            if (!parse_angle(rest[++i], yaw ? 360.0f : 85.0f, yaw ? &o->yaw : &o->pitch)) {
-                fprintf(stderr, "weft render: bad %s value '%s'\n", yaw ? "--yaw" : "--pitch", rest[i]);
+            const float limit = yaw ? 360.0f : 85.0f;
+            if (!cli_float("weft render", rest[i], rest[i + 1], -limit, limit, yaw ? &o->yaw : &o->pitch)) {
                 return 2;
             }
+            ++i;
         } else {
             fprintf(stderr, "weft render: option '%s' does not apply to --seq (see weft render --help)\n", rest[i]);
             return 2;
@@ -179,8 +171,12 @@ int weft_cmd_render(int argc, char **argv)
         } else if (strcmp(argv[i], "--docs-sheet") == 0 && i + 1 < argc) {
             docs_sheet = argv[++i];
         } else if (strcmp(argv[i], "--tile") == 0 && i + 1 < argc) {
+            /* --seq takes N or WxH (checked below), the docs sheet a square tile */
             tile_text = argv[++i];
-            tile = (uint32_t)strtoul(tile_text, NULL, 10);
+            if (!seq_mode && !cli_u32("weft render", argv[i - 1], tile_text, 64, 1024, &tile)) {
+                free(rest);
+                return 2;
+            }
         } else if (strcmp(argv[i], "--seq") == 0 && i + 1 < argc) {
             seq.seq_dir = argv[++i];
         } else if (strcmp(argv[i], "--sheet") == 0 && i + 1 < argc) {
@@ -188,14 +184,11 @@ int weft_cmd_render(int argc, char **argv)
         } else if (strcmp(argv[i], "--frames") == 0 && i + 1 < argc && seq_mode) {
             seq_frames = argv[++i];
         } else if (strcmp(argv[i], "--columns") == 0 && i + 1 < argc) {
-            char *end = NULL;
-            unsigned long c = strtoul(argv[++i], &end, 10);
-            if (end == argv[i] || *end != '\0' || c < 1 || c > WEFT_SEQ_SHEET_MAX_FRAMES) {
-                fprintf(stderr, "weft render: --columns takes 1..%u\n", WEFT_SEQ_SHEET_MAX_FRAMES);
+            if (!cli_u32("weft render", argv[i], argv[i + 1], 1, WEFT_SEQ_SHEET_MAX_FRAMES, &seq.columns)) {
                 free(rest);
                 return 2;
             }
-            seq.columns = (uint32_t)c;
+            ++i;
         } else if (strcmp(argv[i], "--no-caption") == 0) {
             seq.caption = false;
         } else {
@@ -214,7 +207,7 @@ int weft_cmd_render(int argc, char **argv)
         }
         uint32_t w = 0, h = 0;
         if (tile_text && !parse_tile(tile_text, &w, &h)) {
-            fprintf(stderr, "weft render: --tile takes N or WxH pixels (64..1024)\n");
+            fprintf(stderr, "weft render: --tile wants N or WxH pixels, each in [64, 1024], got '%s'\n", tile_text);
             free(rest);
             return 2;
         }
@@ -237,11 +230,13 @@ int weft_cmd_render(int argc, char **argv)
             fprintf(out,
                     "  --update-goldens        re-render the golden images into --golden-dir (default tests/golden)\n"
                     "  --check-goldens         compare with the goldens; diffs go to --out\n"
-                    "  --docs-sheet PATH       render the avatar/garment/pose contact sheet (--tile N, default 200)\n"
+                    "  --docs-sheet PATH       render the avatar/garment/pose contact sheet (--tile N, 64..1024,\n"
+                    "                          default 200)\n"
                     "  --seq DIR --sheet PNG   contact sheet of a simgen sequence folder: --frames 0,60,120 (default\n"
-                    "                          0, T/4, T/2, 3T/4, T-1), --tile N or WxH (default 240, 240x320 for\n"
-                    "                          garments), --columns N,\n"
-                    "                          --yaw/--pitch DEG (default per scenario), --no-caption\n");
+                    "                          0, T/4, T/2, 3T/4, T-1), --tile N or WxH, each 64..1024 (default\n"
+                    "                          240, 240x320 for garments), --columns N (1..32),\n"
+                    "                          --yaw DEG (-360..360) / --pitch DEG (-85..85) (default per\n"
+                    "                          scenario), --no-caption\n");
             free(rest);
             return parsed == 1 ? 0 : 2;
         }

@@ -335,26 +335,54 @@ static void usage(FILE *f)
             "  --fast-collider F  a frame whose collider moves fast near the cloth gets up to F times the\n"
             "                   attempt's substeps, so the solver's bounds can keep the cloth it pushes\n"
             "                   outside it (1..16; default %u, 1 = fixed substeps)\n"
-            "  --garment-substeps S  first attempt of a garment sequence when above --substeps\n"
+            "  --garment-substeps S  first attempt of a garment sequence when above --substeps (0..4000)\n"
             "                   (default: none, garments start at --substeps like the others)\n"
             "  --redo-rejected  generate the finished but rejected sequences again (after a generator\n"
             "                   change, e.g. the gentle garment retry), besides the unfinished ones\n"
-            "  --shard I/N      only sequences whose plan index is I modulo N (job arrays)\n"
-            "  --limit N        stop after generating N new sequences\n"
-            "  --checkpoint-frames N  save a sequence's state every N frames (DIR/<name>/checkpoint.bin)\n"
+            "  --shard I/N      only sequences whose plan index is I modulo N (job arrays; 0 <= I < N <= 100000)\n"
+            "  --limit N        stop after generating N new sequences (0..100000000)\n"
+            "  --checkpoint-frames N  save a sequence's state every N frames, 0..100000 (DIR/<name>/checkpoint.bin)\n"
             "                   and continue from it when rerun (default: 10 for sequences of 16k\n"
             "                   vertices or more, 0 = none below); part of what defines the sequence\n"
             "  --like DIR       the scene of the sequence in DIR (its meta.json's scenario, seed_u64, frames and\n"
             "                   motion speed) at --vertices, as DIR-NAME_v<vertices>: a twin at another\n"
             "                   resolution for cross-resolution tests (e.g. the 1k twin of a 16k sequence)\n"
-            "  --time-limit S   stop at the first checkpoint after S seconds (sequences without\n"
+            "  --time-limit S   stop at the first checkpoint after S seconds, 0..1e9 (sequences without\n"
             "                   checkpoints are not started once S has passed); rerun to continue\n"
             "Finished sequences (DIR/<name>/meta.json present) are skipped, so a run resumes.\n"
             "Writes DIR/manifest.json and DIR/splits/<scenario>_{train,val,test}.txt (8:1:1).\n",
             weft_sim_default_sequence_def().fast_collider_factor);
+    fprintf(f, "Ranges: --count 1..100000, --vertices 3..10000000, --frames 1..1000000, --substeps 1..4000,\n"
+               "--max-substeps 0..4000, --seed 0..2^64-1; a value out of range or not a whole number is refused.\n");
 }
 
 /* Index of a garment float option (the arm spread and the gentle retry's three), -1 for others. */
+/* "I/N": two whole numbers, 0 <= I < N <= 100000, nothing else. */
+static bool parse_shard(const char *v, uint32_t *i, uint32_t *n)
+{
+    char part[2][16];
+    const char *slash = strchr(v, '/');
+    const size_t len = slash ? (size_t)(slash - v) : 0;
+    if (!slash || len == 0 || len >= sizeof part[0] || strlen(slash + 1) >= sizeof part[1]) {
+        return false;
+    }
+    memcpy(part[0], v, len);
+    part[0][len] = '\0';
+    snprintf(part[1], sizeof part[1], "%s", slash + 1);
+    for (int k = 0; k < 2; ++k) {
+        if (part[k][0] == '\0' || strspn(part[k], "0123456789") != strlen(part[k]) || strlen(part[k]) > 6) {
+            return false;
+        }
+    }
+    const unsigned long a = strtoul(part[0], NULL, 10), b = strtoul(part[1], NULL, 10);
+    if (b == 0 || b > 100000 || a >= b) {
+        return false;
+    }
+    *i = (uint32_t)a;
+    *n = (uint32_t)b;
+    return true;
+}
+
 static int garment_option(const char *arg)
 {
     static const char *const names[4] = {"--arm-spread-retry", "--ease-in-retry", "--amplitude-retry", "--arm-spread"};
@@ -395,7 +423,7 @@ int weft_cmd_simgen(int argc, char **argv)
         } else if (strcmp(a, "--no-garments") == 0) {
             garments = false;
         } else if (v && strcmp(a, "--speed") == 0) {
-            if (!cli_float("simgen", a, v, 0.01f, 100.0f, &motion_speed)) {
+            if (!cli_float("simgen", a, v, 0.1f, 10.0f, &motion_speed)) {
                 return 2;
             }
             ++i;
@@ -417,17 +445,11 @@ int weft_cmd_simgen(int argc, char **argv)
             /* range, unit and target of the garment arm spread and the gentle-retry settings */
             const int k = garment_option(a);
             static const float lo[4] = {0.0f, 0.0f, 0.1f, 0.0f}, hi[4] = {0.8f, 2.0f, 1.0f, 0.8f};
-            static const char *const unit[4] = {"radians", "seconds", "a scale", "radians"};
             float *target[4] = {&arm_spread_retry, &ease_in_retry, &amplitude_retry, &arm_spread};
-            char *end = NULL;
-            float x = strtof(v, &end);
-            ++i;
-            if (!end || end == v || *end || !(x >= lo[k] && x <= hi[k])) {
-                fprintf(stderr, "simgen: %s wants %s in [%g, %g], got '%s'\n", a, unit[k], (double)lo[k], (double)hi[k],
-                        v);
+            if (!cli_float("simgen", a, v, lo[k], hi[k], target[k])) {
                 return 2;
             }
-            *target[k] = x;
+            ++i;
         } else if (strcmp(a, "--redo-rejected") == 0) {
             redo_rejected = true;
         } else if (strcmp(a, "--resolution-series") == 0) {
@@ -485,22 +507,17 @@ int weft_cmd_simgen(int argc, char **argv)
                 return 2;
             }
             ++i;
-        } else if (v && (strcmp(a, "--checkpoint-frames") == 0 || strcmp(a, "--time-limit") == 0)) {
-            char *end = NULL;
-            const double x = strtod(v, &end);
-            const bool frames_opt = a[2] == 'c';
-            ++i;
-            if (!end || end == v || *end || !(x >= 0.0 && x <= (frames_opt ? 100000.0 : 1e9)) ||
-                (frames_opt && x != (double)(long)x)) {
-                fprintf(stderr, "simgen: %s wants %s, got '%s'\n", a,
-                        frames_opt ? "a whole number of frames in 0..100000" : "seconds in 0..1e9", v);
+        } else if (v && strcmp(a, "--checkpoint-frames") == 0) {
+            uint32_t every = 0;
+            if (!cli_u32("simgen", a, v, 0, 100000, &every)) {
                 return 2;
             }
-            if (frames_opt) {
-                checkpoint_frames = (long)x;
-            } else {
-                time_limit = x;
+            checkpoint_frames = (long)every, ++i;
+        } else if (v && strcmp(a, "--time-limit") == 0) {
+            if (!cli_double("simgen", a, v, 0.0, 1e9, &time_limit)) {
+                return 2;
             }
+            ++i;
         } else if (v && strcmp(a, "--limit") == 0) {
             if (!cli_u32("simgen", a, v, 0, 100000000, &limit)) {
                 return 2;
@@ -514,8 +531,8 @@ int weft_cmd_simgen(int argc, char **argv)
             seed0 = sd;
             ++i;
         } else if (v && strcmp(a, "--shard") == 0) {
-            if (sscanf(v, "%u/%u", &shard_i, &shard_n) != 2 || shard_n == 0 || shard_i >= shard_n) {
-                fprintf(stderr, "simgen: --shard wants I/N with 0 <= I < N, got '%s'\n", v);
+            if (!parse_shard(v, &shard_i, &shard_n)) {
+                fprintf(stderr, "simgen: --shard wants I/N with 0 <= I < N <= 100000, got '%s'\n", v);
                 return 2;
             }
             ++i;

@@ -3,6 +3,7 @@
  * table, not the whole run, and every figure comes from the same code path users run. */
 #define _POSIX_C_SOURCE 200809L /* posix_spawn, readlink, mkstemp, opendir */
 #include "support_bench.h"
+#include "support_cli.h"
 #include "weft/sim.h"
 
 #include <cjson/cJSON.h>
@@ -294,14 +295,9 @@ void bench_command_line(char *out, size_t cap, const char *prefix, int argc, cha
 
 bool bench_parse_u32(const char *tool, const char *opt, const char *v, uint32_t lo, uint32_t hi, uint32_t *out)
 {
-    char *end = NULL; /* stays NULL unless v starts with a digit (strtoul alone takes "-1", " 5") */
-    unsigned long x = v && *v >= '0' && *v <= '9' ? strtoul(v, &end, 10) : 0;
-    if (!end || *end || x < lo || x > hi) {
-        fprintf(stderr, "weft bench %s: bad number '%s' for %s\n", tool, v ? v : "", opt);
-        return false;
-    }
-    *out = (uint32_t)x;
-    return true;
+    char name[64];
+    snprintf(name, sizeof name, "weft bench %s", tool);
+    return cli_u32(name, opt, v, lo, hi, out);
 }
 
 bool bench_list_sequences(const char *root, const char *split, bench_seq **out, size_t *count)
@@ -440,19 +436,20 @@ void bench_model_file(const char *dir, const char *stem, const char *base, const
     }
 }
 
-size_t bench_parse_substeps(const char *v, unsigned *out, size_t cap)
+bool bench_parse_substeps(const char *tool, const char *opt, const char *v, unsigned *out, size_t cap, size_t *count)
 {
+    char name[64];
+    uint32_t got[8];
     size_t n = 0;
-    while (*v) {
-        char *end;
-        unsigned long x = strtoul(v, &end, 10);
-        if (end == v || x == 0 || x > 1000 || n == cap || (*end && *end != ',')) {
-            return 0;
-        }
-        out[n++] = (unsigned)x;
-        v = *end ? end + 1 : end;
+    snprintf(name, sizeof name, "weft bench %s", tool);
+    if (!cli_u32_list(name, opt, v, 1, 1000, got, cap < 8 ? cap : 8, &n)) {
+        return false;
     }
-    return n;
+    for (size_t k = 0; k < n; ++k) {
+        out[k] = got[k];
+    }
+    *count = n;
+    return true;
 }
 
 bool bench_start(const char *tool, const char *data, const char *split, const char *out, char *exe, size_t exe_cap,

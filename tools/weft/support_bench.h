@@ -96,8 +96,9 @@ bool bench_start(const char *tool, const char *data, const char *split, const ch
  * argv[0], space-separated, cut to cap. */
 void bench_command_line(char *out, size_t cap, const char *prefix, int argc, char **argv);
 
-/* An option's unsigned value: all digits, within [lo, hi]. On failure prints
- * "weft bench <tool>: bad number 'v' for opt" and returns false, *out untouched. */
+/* An option's unsigned value: all digits, within [lo, hi] (cli_u32 of support_cli.h). On failure
+ * prints "weft bench <tool>: <opt> wants a whole number in [lo, hi], got 'v'" and returns false,
+ * *out untouched. */
 bool bench_parse_u32(const char *tool, const char *opt, const char *v, uint32_t lo, uint32_t hi, uint32_t *out);
 
 /* Collapses a stderr line into something safe for one CSV / markdown cell. */
@@ -123,7 +124,9 @@ bool bench_plot(const char *exe, const char *tool, const char *script, const cha
 void bench_model_file(const char *dir, const char *stem, const char *base, const char *precision, char *out,
                       size_t cap);
 
-/* "5,10,20" into out (at most cap values in 1..1000); 0 on a malformed list. */
-size_t bench_parse_substeps(const char *v, unsigned *out, size_t cap);
+/* Substep counts "5,10,20" of option opt into out: one to cap (at most 8) values, each 1..1000,
+ * their number in *count. On a malformed list prints "weft bench <tool>: <opt> wants ..." (as
+ * cli_u32_list) and returns false, out and *count untouched. */
+bool bench_parse_substeps(const char *tool, const char *opt, const char *v, unsigned *out, size_t cap, size_t *count);
 
 #endif
