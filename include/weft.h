@@ -222,6 +222,76 @@ typedef enum weft_collider_crop {
     WEFT_COLLIDER_CROP_COUNT
 } weft_collider_crop;
 
+/* ---- The constraint stage ------------------------------------------------------------------
+ * After the method's step, every garment runs one stage of constraints, in this order: tethers,
+ * strain limit, collision (the push out of the collider), tethers again, then the optional CCD
+ * pass. Each constraint has its own small def inside weft_garment_def, off unless set (CCD: on).
+ * Cuts (collision.cut_distance) replace the whole step. Body parts (collision.triangle_parts)
+ * also filter the collider contacts of both XPBD methods. docs/WEAR.md, docs/CCD.md. */
+
+/* Tethers (every method; game cloth's "max distance"). Each vertex farther than its radius from
+ * its skinned position is moved back onto that sphere, after the method's step and once more
+ * after the strain limit and the push: without CCD no output vertex is farther than its radius.
+ * The skinned position is the initial state bound to the collider at creation (the binding
+ * WEFT_METHOD_LBS uses) and carried by the collider of t+1; set_state does not rebind. Radius 0
+ * glues a vertex (a waistband for a method without pins). Pinned vertices keep their targets.
+ * Needs a collider. */
+typedef struct weft_tether_def {
+    float distance;                     /* metres, one radius for every vertex; 0 (default) = off; finite, >= 0 */
+    const float *distances;             /* optional vertex_count radii (finite, >= 0) replacing distance */
+} weft_tether_def;
+
+/* Strain limit (every method). Edges longer than (1 + limit) x their rest length are shortened
+ * by `iterations` Gauss-Seidel sweeps, each end moving half (pinned vertices and radius-0 tethers
+ * stay put): a learned step or a tether clamp moves vertices one by one, and this keeps the cloth
+ * from being torn open. With `contact` > 0 a vertex within that distance of the collider at t+1
+ * keeps only the part of its correction that does not point into the collider, so a sheet
+ * draped over an object is not dragged into it by its hanging part. */
+typedef struct weft_strain_limit_def {
+    float limit;                        /* 0 (default) = off; in [0, 10] */
+    uint32_t iterations;                /* default 8; in [1, 1000] when the limit is on */
+    float contact;                      /* metres; 0 (default) = plain limit; in [0, 1]; needs a collider */
+} weft_strain_limit_def;
+
+/* Collision with the collider (every method).
+ * push: each vertex inside the collider at t+1 by at most push_depth, or in front of it by less
+ *   than push, goes to push in front of the nearest collider point (inside told by the angle-
+ *   weighted pseudonormal, exact on a closed collider wound outward). Deeper vertices, and those
+ *   that came in through the far side, are left alone: past half a limb the nearest surface is
+ *   the wrong one. With CCD on, cloth that starts the step inside is let out (CCD skips its
+ *   collider contacts that step). Pinned vertices and radius-0 tethers are not moved.
+ * triangle_parts: a partition of the collider's triangles into parts (e.g. each triangle's
+ *   dominant bone, weft_body_triangle_parts in weft/body.h). Each garment vertex then collides
+ *   only with the parts it lies against in the initial state (those within part_margin of its
+ *   nearest collider point, and the parts meeting those at a collider vertex): where a skinned
+ *   body overlaps itself the cloth between is claimed by one part, not trapped. The push, the
+ *   contact-aware strain limit, both XPBD methods and CCD all skip the other parts.
+ * cut_distance: a collider vertex that moved farther than this since the last frame (a teleport,
+ *   a respawn, a cut in the animation) makes the step a cut: the garment is reset to its skinned
+ *   positions on the collider of t+1, at rest, pins at their targets, the method's history
+ *   cleared, no method step and no constraint (stats.collider_cut). The binding costs about 128
+ *   bytes per garment vertex. */
+typedef struct weft_collision_def {
+    float push;                         /* metres; 0 (default) = off; in [0, 0.1]; needs a collider */
+    float push_depth;                   /* metres; default 0.02; in [0, 0.5] */
+    const uint8_t *triangle_parts;      /* collider_triangle_count ids in [0, 31], copied at creation;
+                                         * NULL (default) = one part; needs a collider */
+    float part_margin;                  /* metres; default 0.03; in [0, 1] */
+    float cut_distance;                 /* metres; default 1 (60 m/s at 60 Hz); 0 = off;
+                                         * in [0, WEFT_MAX_COORDINATE] */
+} weft_collision_def;
+
+/* The CCD post-process (the seed's safety net): the cloth's motion x(t) -> x(t+1) against the
+ * collider's and itself, hits moved back along their path, `iterations` back-off passes, then a
+ * fallback that carries cloth with the collider or holds it; certified intersection-free. Its work
+ * is bounded: all passes of a step visit at most 64 triangle pairs per cloth triangle plus 16384;
+ * a step that would need more keeps the stages' result, uncertified (stats.ccd_over_budget),
+ * rather than hold the garment still while the body moves on. docs/CCD.md. */
+typedef struct weft_ccd_def {
+    bool enabled;                       /* default true */
+    uint32_t iterations;                /* back-off passes; default 16; in [1, 64] when enabled */
+} weft_ccd_def;
+
 typedef struct weft_garment_def {
     weft_method method;
     const weft_model *model;            /* WEFT_METHOD_MODEL only */
@@ -254,17 +324,6 @@ typedef struct weft_garment_def {
      * run as with fixed substeps. Ground truth uses it; 0 (default) keeps every frame at
      * `substeps`, a game's fixed budget. At most 4000. */
     uint32_t substeps_max;
-    /* Run the CCD post-process after each step (default true). Its work is bounded: all passes of
-     * a step visit at most 64 triangle pairs per cloth triangle plus 16384; a step that would need
-     * more keeps the result of the stages before CCD, uncertified, and sets
-     * stats.ccd_over_budget, rather than hold the garment still while the body moves on. */
-    bool ccd;
-    /* CCD back-off passes before the fallback that carries cloth with the collider or holds it
-     * (default 16, 1..64; only looked at with ccd). On worn garments pressed by the body the
-     * back-off rarely converges, so most frames use every pass and then the fallback: 8 passes
-     * measured 24-41 % faster there, at -0.4 to +7 % MVE (docs/CCD.md, *Passes on worn
-     * garments*). */
-    uint32_t ccd_iterations;
 
     /* WEFT_METHOD_MODEL: collider cropping (ignored by other methods, but still validated).
      * collider_crop_margin: metres; 0 (default) means the model's own crop_margin (0.15 m for
@@ -278,79 +337,11 @@ typedef struct weft_garment_def {
     weft_collider_crop collider_crop;
     uint32_t max_collider_tokens;
 
-    /* Tethers (every method; game cloth's "max distance" constraint). After the method's step, and
-     * once more after the strain limit and the collider push (which may carry a vertex past its
-     * radius), each vertex farther than its radius from its skinned position is moved back onto
-     * that sphere: without CCD no output vertex is farther than its radius. The skinned position is the initial state bound to the collider at creation
-     * (the binding WEFT_METHOD_LBS uses) and carried by the collider of t+1. A learned model that
-     * drifts (a T-shirt sliding off the shoulders) stays on its wearer; radius 0 glues a vertex
-     * (a waistband for a method without pins). Pinned vertices keep their pin targets.
-     * tether_distance: metres, one radius for every vertex; 0 (default) = off. Finite, >= 0.
-     * tether_distances: optional, vertex_count radii (finite, >= 0) replacing tether_distance.
-     * Needs a collider. The binding is made once, at creation; set_state does not rebind. */
-    float tether_distance;
-    const float *tether_distances;
-
-    /* Strain limit (every method). After the method's step and the tethers, before CCD: edges
-     * longer than (1 + strain_limit) x their rest length are shortened by strain_limit_iterations
-     * Gauss-Seidel sweeps, each end moving half (pinned vertices and radius-0 tethers stay put). A
-     * learned step or a tether clamp moves vertices one by one; this keeps the cloth from being
-     * torn open for a few sweeps over the edges. CCD runs after it and may still stretch edges
-     * where it holds vertices back. 0 (default) = off; in [0, 10].
-     * strain_limit_iterations: default 8, in [1, 1000] when the limit is on.
-     * strain_limit_contact: metres; > 0 makes the limit contact-aware: a vertex within this
-     * distance of the collider at t+1 keeps only the part of its correction that does not point
-     * into the collider (it may slide along the surface or leave it), so a sheet draped over an
-     * object is not dragged into it by its hanging part. Needs a collider; 0 (default) = off;
-     * in [0, 1]. */
-    float strain_limit;
-    uint32_t strain_limit_iterations;
-    float strain_limit_contact;
-
-    /* Collider push (every method). After the strain limit, before CCD: each vertex inside the
-     * collider at t+1 by at most collider_push_depth, or in front of it by less than
-     * collider_push, is moved to collider_push in front of the nearest collider point. Inside is
-     * told by the angle-weighted pseudonormal of the nearest face, edge or corner, which is exact
-     * on a closed collider. A learned step that dips the cloth into the body then hands CCD a
-     * frame the body does not cut; CCD's back-off alone can only hold such cloth back, and the
-     * body drags it along. Deeper penetrations are left to CCD: past about half a limb's
-     * thickness the nearest surface is the far side; so is a vertex that moved out, relative to
-     * the collider, by more than its depth (it came in through the far side). With ccd, cloth
-     * that starts the step inside the collider (within collider_push_depth) is let out: CCD
-     * skips its collider contacts that step (weft_ccd_world_let_out), since its way out crosses
-     * the surface. Pinned vertices and radius-0 tethers are not moved. The collider must be
-     * closed and wound outward, as weft's bodies and objects are; the sign needs it.
-     * collider_push: metres, 0 (default) = off, in [0, 0.1]; needs a collider.
-     * collider_push_depth: metres, default 0.02, in [0, 0.5]. docs/CCD.md, *Collider push*. */
-    float collider_push;
-    float collider_push_depth;
-
-    /* Body parts (every method's body collision). A skinned body overlaps itself (a forearm sunk
-     * into the chest in a crouch, a hand inside a thigh); cloth caught between the two surfaces
-     * is claimed by both and, held by CCD or pushed out of the nearest, is dragged off or through
-     * the body. With a partition of the collider's triangles into parts (e.g. each triangle's
-     * dominant bone, weft_body_triangle_parts in weft/body.h), each garment vertex collides only
-     * with the parts it lies against in the initial state: those of the triangles within
-     * collider_part_margin of its nearest collider point, and every part meeting one of those at
-     * a collider vertex. The collider push, the contact-aware strain limit, both XPBD methods and
-     * the CCD post-process all skip the other parts; cloth then passes through a limb that is not
-     * its own, as game cloth does against per-bone shapes. docs/CCD.md, *Body parts*.
-     * collider_triangle_parts: collider_triangle_count ids in [0, 31], copied into masks at
-     * creation; NULL (default) = one part, every vertex meets the whole collider. Needs a collider.
-     * collider_part_margin: metres, default 0.03, in [0, 1]. */
-    const uint8_t *collider_triangle_parts;
-    float collider_part_margin;
-
-    /* Cuts (every method with a collider). A collider vertex that moved farther than this since
-     * the last frame (a teleport, a cut in the animation, a respawn) makes the step a cut: the
-     * garment is reset to its skinned positions on the collider of t+1 (the initial state bound
-     * to the collider at creation, as for tethers and LBS), at rest, pins at their targets, the
-     * method's history cleared; no method step, no collision stage, so the frame costs less than
-     * a normal one (stats.collider_cut). Without it a 5 m teleport is swept through by XPBD and
-     * CCD at many times a normal step's cost and drags the cloth along. Metres, default 1 (60 m/s
-     * at 60 Hz, beyond any limb); 0 = off; in [0, WEFT_MAX_COORDINATE]. The binding costs about
-     * 128 bytes per garment vertex. docs/WEAR.md, *Cuts and bounded work*. */
-    float collider_cut_distance;
+    /* The constraint stage, in its order (see above). */
+    weft_tether_def tethers;
+    weft_strain_limit_def strain;
+    weft_collision_def collision;
+    weft_ccd_def ccd;
     uint32_t internal_cookie;           /* set by weft_default_garment_def(); do not touch */
 } weft_garment_def;
 
@@ -366,7 +357,7 @@ typedef struct weft_step_stats {
     uint32_t strain_limited_edges;      /* edges over the strain limit before limiting, last step */
     uint32_t pushed_vertices;           /* vertices the collider push moved in the last step */
     uint32_t ccd_let_out;               /* with the push and CCD: vertices that began the step inside
-                                         * the collider (within collider_push_depth), whose collider
+                                         * the collider (within collision.push_depth), whose collider
                                          * contacts CCD skipped so they could leave it */
     uint32_t push_from_far_side;        /* vertices inside that it left to CCD: they came in through
                                          * the collider's far side, so the nearest surface would
@@ -375,7 +366,7 @@ typedef struct weft_step_stats {
                                          * triangle plus 16384, all passes together): the step kept
                                          * the result of the stages before CCD, not certified
                                          * (docs/CCD.md, *Work bound*) */
-    bool collider_cut;                  /* the last step was a cut (collider_cut_distance) */
+    bool collider_cut;                  /* the last step was a cut (collision.cut_distance) */
 } weft_step_stats;
 
 WEFT_API weft_garment_def weft_default_garment_def(void);

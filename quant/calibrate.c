@@ -285,7 +285,7 @@ static void garment_def_for(const quant_seq *s, const weft_model *m, weft_precis
     d->method = WEFT_METHOD_MODEL;
     d->model = m;
     d->precision = precision;
-    d->ccd = false; /* the model alone, as the MVE tables in docs/ are measured */
+    d->ccd.enabled = false; /* the model alone, as the MVE tables in docs/ are measured */
     d->rest_positions = s->rest;
     d->vertex_count = s->V;
     d->triangles = s->faces;

@@ -133,7 +133,7 @@ WEFT_API const uint32_t *weft_body_triangles(const weft_body *body);
 WEFT_API const float *weft_body_rest_vertices(const weft_body *body);
 /* Skinning weights, vertex_count * 24. */
 WEFT_API const float *weft_body_weights(const weft_body *body);
-/* Body parts for the garment's body collision (weft_garment_def.collider_triangle_parts): for
+/* Body parts for the garment's body collision (weft_garment_def.collision.triangle_parts): for
  * each triangle, the joint (0..23) with the largest summed skinning weight over its three
  * corners, ties to the lower joint; triangle_count entries. */
 WEFT_API weft_result weft_body_triangle_parts(const weft_body *body, uint8_t *out_parts, uint32_t count);

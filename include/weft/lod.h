@@ -51,13 +51,13 @@
  *   (a row of a table with all three, from `weft bench lod --crops model,5:cells,model@3000`)
  *   game-int8-noccd-cells5,model,game,int8,-,off,1,4.02397,6.39549,1.53334,3,180,5,cells,-
  *
- * Optional columns for every method (weft_garment_def's tether_distance and strain_limit):
+ * Optional columns for every method (weft_garment_def's tethers.distance and strain.limit):
  *
  *   tether_cm            tether radius in cm, in (0, 100000]; "-": no tethers
  *   strain_limit_pct     strain limit in %, in (0, 1000]; "-": none
  *   strain_contact_cm    contact-aware strain limit distance in cm, in (0, 100], only with a
- *                        strain limit (weft_garment_def.strain_limit_contact); "-": plain limit
- *   push_cm              collider push thickness in cm, in (0, 10] (weft_garment_def.collider_push,
+ *                        strain limit (weft_garment_def.strain.contact); "-": plain limit
+ *   push_cm              collider push thickness in cm, in (0, 10] (weft_garment_def.collision.push,
  *                        with the default depth); "-": no push
  *
  * Columns may come in any order; unknown columns are an error (a misspelt name would otherwise
@@ -88,10 +88,10 @@ typedef struct weft_lod_level {
     double crop_cm;                     /* 0: the model's own margin */
     weft_collider_crop collider_crop;   /* BOX unless the table says cells */
     uint32_t max_collider_tokens;       /* 0: no cap */
-    double tether_cm;                   /* 0: no tethers (weft_garment_def.tether_distance, in cm) */
-    double strain_limit_pct;            /* 0: none (weft_garment_def.strain_limit, in %) */
-    double strain_contact_cm;           /* 0: plain limit (weft_garment_def.strain_limit_contact, in cm) */
-    double push_cm;                     /* 0: no push (weft_garment_def.collider_push, in cm) */
+    double tether_cm;                   /* 0: no tethers (weft_garment_def.tethers.distance, in cm) */
+    double strain_limit_pct;            /* 0: none (weft_garment_def.strain.limit, in %) */
+    double strain_contact_cm;           /* 0: plain limit (weft_garment_def.strain.contact, in cm) */
+    double push_cm;                     /* 0: no push (weft_garment_def.collision.push, in cm) */
     double ms_per_frame;
     double mve_cm;
     double max_edge_strain;

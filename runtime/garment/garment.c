@@ -12,12 +12,12 @@ weft_garment_def weft_default_garment_def(void)
     def.method = WEFT_METHOD_MODEL;
     def.precision = WEFT_PRECISION_FP32;
     def.substeps = 10;
-    def.ccd = true;
-    def.ccd_iterations = 16;
-    def.strain_limit_iterations = 8;
-    def.collider_push_depth = 0.02f;
-    def.collider_part_margin = 0.03f;
-    def.collider_cut_distance = 1.0f;
+    def.ccd.enabled = true;
+    def.ccd.iterations = 16;
+    def.strain.iterations = 8;
+    def.collision.push_depth = 0.02f;
+    def.collision.part_margin = 0.03f;
+    def.collision.cut_distance = 1.0f;
     def.internal_cookie = WEFT_DEF_COOKIE;
     return def;
 }
@@ -177,70 +177,70 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_garment_create: collider_crop %u is not a weft_collider_crop",
                           (unsigned)def->collider_crop);
     }
-    const bool tethers = def->tether_distances || def->tether_distance != 0.0f;
-    if (!isfinite(def->tether_distance) || def->tether_distance < 0.0f) {
+    const bool tethers = def->tethers.distances || def->tethers.distance != 0.0f;
+    if (!isfinite(def->tethers.distance) || def->tethers.distance < 0.0f) {
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
-                          "weft_garment_create: tether_distance %g is not a finite number >= 0 (0: no tethers)",
-                          (double)def->tether_distance);
+                          "weft_garment_create: tethers.distance %g is not a finite number >= 0 (0: no tethers)",
+                          (double)def->tethers.distance);
     }
-    for (uint32_t i = 0; def->tether_distances && i < def->vertex_count; ++i) {
-        if (!isfinite(def->tether_distances[i]) || def->tether_distances[i] < 0.0f) {
+    for (uint32_t i = 0; def->tethers.distances && i < def->vertex_count; ++i) {
+        if (!isfinite(def->tethers.distances[i]) || def->tethers.distances[i] < 0.0f) {
             return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
-                              "weft_garment_create: tether_distances[%u] = %g is not a finite number >= 0", i,
-                              (double)def->tether_distances[i]);
+                              "weft_garment_create: tethers.distances[%u] = %g is not a finite number >= 0", i,
+                              (double)def->tethers.distances[i]);
         }
     }
-    if (def->ccd && (def->ccd_iterations == 0 || def->ccd_iterations > 64)) {
-        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_garment_create: ccd_iterations %u outside [1, 64]",
-                          def->ccd_iterations);
+    if (def->ccd.enabled && (def->ccd.iterations == 0 || def->ccd.iterations > 64)) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_garment_create: ccd.iterations %u outside [1, 64]",
+                          def->ccd.iterations);
     }
-    if (!(def->strain_limit >= 0.0f && def->strain_limit <= 10.0f)) {
+    if (!(def->strain.limit >= 0.0f && def->strain.limit <= 10.0f)) {
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
-                          "weft_garment_create: strain_limit %g is not in [0, 10] (0: off)", (double)def->strain_limit);
+                          "weft_garment_create: strain.limit %g is not in [0, 10] (0: off)", (double)def->strain.limit);
     }
-    if (def->strain_limit > 0.0f && (def->strain_limit_iterations == 0 || def->strain_limit_iterations > 1000)) {
-        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_garment_create: strain_limit_iterations %u outside [1, 1000]",
-                          def->strain_limit_iterations);
+    if (def->strain.limit > 0.0f && (def->strain.iterations == 0 || def->strain.iterations > 1000)) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_garment_create: strain.iterations %u outside [1, 1000]",
+                          def->strain.iterations);
     }
-    if (!(def->strain_limit_contact >= 0.0f && def->strain_limit_contact <= 1.0f)) {
+    if (!(def->strain.contact >= 0.0f && def->strain.contact <= 1.0f)) {
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
-                          "weft_garment_create: strain_limit_contact %g is not in [0, 1] metres (0: off)",
-                          (double)def->strain_limit_contact);
+                          "weft_garment_create: strain.contact %g is not in [0, 1] metres (0: off)",
+                          (double)def->strain.contact);
     }
-    if (def->strain_limit > 0.0f && def->strain_limit_contact > 0.0f && def->collider_vertex_count == 0) {
+    if (def->strain.limit > 0.0f && def->strain.contact > 0.0f && def->collider_vertex_count == 0) {
         return weft__fail(WEFT_ERROR_NO_COLLIDER,
-                          "weft_garment_create: strain_limit_contact looks for the collider, and the garment has none");
+                          "weft_garment_create: strain.contact looks for the collider, and the garment has none");
     }
-    if (!(def->collider_push >= 0.0f && def->collider_push <= 0.1f)) {
+    if (!(def->collision.push >= 0.0f && def->collision.push <= 0.1f)) {
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
-                          "weft_garment_create: collider_push %g is not in [0, 0.1] metres (0: off)",
-                          (double)def->collider_push);
+                          "weft_garment_create: collision.push %g is not in [0, 0.1] metres (0: off)",
+                          (double)def->collision.push);
     }
-    if (def->collider_push > 0.0f && !(def->collider_push_depth >= 0.0f && def->collider_push_depth <= 0.5f)) {
+    if (def->collision.push > 0.0f && !(def->collision.push_depth >= 0.0f && def->collision.push_depth <= 0.5f)) {
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
-                          "weft_garment_create: collider_push_depth %g is not in [0, 0.5] metres",
-                          (double)def->collider_push_depth);
+                          "weft_garment_create: collision.push_depth %g is not in [0, 0.5] metres",
+                          (double)def->collision.push_depth);
     }
-    if (def->collider_push > 0.0f && def->collider_vertex_count == 0) {
+    if (def->collision.push > 0.0f && def->collider_vertex_count == 0) {
         return weft__fail(WEFT_ERROR_NO_COLLIDER,
-                          "weft_garment_create: collider_push pushes cloth out of the collider, and the garment has none");
+                          "weft_garment_create: collision.push pushes cloth out of the collider, and the garment has none");
     }
-    if (def->collider_triangle_parts) {
+    if (def->collision.triangle_parts) {
         if (def->collider_vertex_count == 0) {
             return weft__fail(WEFT_ERROR_NO_COLLIDER,
-                              "weft_garment_create: collider_triangle_parts partitions the collider, and the garment "
+                              "weft_garment_create: collision.triangle_parts partitions the collider, and the garment "
                               "has none");
         }
-        if (!(def->collider_part_margin >= 0.0f && def->collider_part_margin <= 1.0f)) {
+        if (!(def->collision.part_margin >= 0.0f && def->collision.part_margin <= 1.0f)) {
             return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
-                              "weft_garment_create: collider_part_margin %g is not in [0, 1] metres",
-                              (double)def->collider_part_margin);
+                              "weft_garment_create: collision.part_margin %g is not in [0, 1] metres",
+                              (double)def->collision.part_margin);
         }
         for (uint32_t t = 0; t < def->collider_triangle_count; ++t) {
-            if (def->collider_triangle_parts[t] > 31) {
+            if (def->collision.triangle_parts[t] > 31) {
                 return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
-                                  "weft_garment_create: collider_triangle_parts[%u] = %u is not a part id in [0, 31]", t,
-                                  (unsigned)def->collider_triangle_parts[t]);
+                                  "weft_garment_create: collision.triangle_parts[%u] = %u is not a part id in [0, 31]", t,
+                                  (unsigned)def->collision.triangle_parts[t]);
             }
         }
     }
@@ -271,10 +271,10 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
                                    def->vertex_count)) != WEFT_OK) {
         return r;
     }
-    if (!(def->collider_cut_distance >= 0.0f && def->collider_cut_distance <= WEFT_MAX_COORDINATE)) {
+    if (!(def->collision.cut_distance >= 0.0f && def->collision.cut_distance <= WEFT_MAX_COORDINATE)) {
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
-                          "weft_garment_create: collider_cut_distance %g is not in [0, %g] metres (0: off)",
-                          (double)def->collider_cut_distance, (double)WEFT_MAX_COORDINATE);
+                          "weft_garment_create: collision.cut_distance %g is not in [0, %g] metres (0: off)",
+                          (double)def->collision.cut_distance, (double)WEFT_MAX_COORDINATE);
     }
     const weft_method_ops *ops = weft__method_ops(def->method);
     if (!ops) {
@@ -294,16 +294,16 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
     g->precision = def->precision;
     g->substeps = def->substeps;
     g->substeps_max = def->substeps_max > def->substeps ? def->substeps_max : def->substeps;
-    g->ccd = def->ccd;
-    g->ccd_iterations = def->ccd_iterations;
+    g->ccd = def->ccd.enabled;
+    g->ccd_iterations = def->ccd.iterations;
     g->crop_margin = def->collider_crop_margin;
     g->crop_rule = def->collider_crop;
     g->max_collider_tokens = def->max_collider_tokens;
-    g->strain_limit = def->strain_limit;
-    g->strain_iterations = def->strain_limit_iterations;
-    g->strain_contact = def->strain_limit > 0.0f ? def->strain_limit_contact : 0.0f;
-    g->push_thickness = def->collider_push;
-    g->push_depth = def->collider_push_depth;
+    g->strain_limit = def->strain.limit;
+    g->strain_iterations = def->strain.iterations;
+    g->strain_contact = def->strain.limit > 0.0f ? def->strain.contact : 0.0f;
+    g->push_thickness = def->collision.push;
+    g->push_depth = def->collision.push_depth;
     g->vertex_count = def->vertex_count;
     g->triangle_count = def->triangle_count;
     g->collider_vertex_count = def->collider_vertex_count;
@@ -349,10 +349,10 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
             return WEFT_ERROR_OUT_OF_MEMORY;
         }
         for (uint32_t i = 0; i < def->vertex_count; ++i) {
-            g->tether_radius[i] = def->tether_distances ? def->tether_distances[i] : def->tether_distance;
+            g->tether_radius[i] = def->tethers.distances ? def->tethers.distances[i] : def->tethers.distance;
         }
     }
-    g->cut_distance = def->collider_vertex_count > 0 ? def->collider_cut_distance : 0.0f;
+    g->cut_distance = def->collider_vertex_count > 0 ? def->collision.cut_distance : 0.0f;
     if (tethers || g->cut_distance > 0.0f) {
         r = xskin_create(g, tethers ? "weft_garment_create: tethers" : "weft_garment_create: cut binding", &g->skin);
         if (r != WEFT_OK) {
@@ -360,7 +360,7 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
             return r;
         }
     }
-    if ((r = weft__parts_create(g, def->collider_triangle_parts, def->collider_part_margin)) != WEFT_OK) {
+    if ((r = weft__parts_create(g, def->collision.triangle_parts, def->collision.part_margin)) != WEFT_OK) {
         free_buffers(g);
         return r;
     }

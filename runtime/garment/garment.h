@@ -57,7 +57,7 @@ struct weft_garment {
     uint8_t *near_inside;               /* push with CCD: vertex_count, inside the collider at t */
     uint32_t *near_last;                /* push: per vertex, its last nearest collider triangle (a seed) */
 
-    /* Body parts (parts.c); all NULL when the def gave no collider_triangle_parts. */
+    /* Body parts (parts.c); all NULL when the def gave no collision.triangle_parts. */
     uint32_t *part_mask;                /* vertex_count: the parts each cloth vertex collides with */
     uint32_t *ctri_bits;                /* collider_triangle_count: 1 << the triangle's part */
     uint32_t *cvert_bits;               /* collider_vertex_count: the parts of the triangles around it */

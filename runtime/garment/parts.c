@@ -5,11 +5,11 @@
  * off with whichever moves away; pushed out of the nearest, it goes through the other. Game
  * cloth avoids this by colliding each garment region only with the body shapes it belongs to;
  * weft does the same with a partition of the collider's triangles that the host gives
- * (weft_garment_def.collider_triangle_parts, e.g. the dominant bone of each triangle from
+ * (weft_garment_def.collision.triangle_parts, e.g. the dominant bone of each triangle from
  * weft_body_triangle_parts).
  *
  * At creation each garment vertex gets a 32-bit mask of parts: those of the collider triangles
- * within collider_part_margin of its nearest collider point in the initial state, and every
+ * within collision.part_margin of its nearest collider point in the initial state, and every
  * part adjacent to one of those on the collider mesh (sharing a vertex), so that cloth sliding
  * across a joint still meets the next part. Every collision stage (the collider push, the
  * contact-aware strain limit, the fast XPBD projection, the reference XPBD's contacts and the

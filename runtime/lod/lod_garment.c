@@ -130,7 +130,7 @@ static weft_result make_garment(weft_lod_garment *lg, const weft_lod_level *lv, 
 {
     weft_garment_def d = weft_default_garment_def();
     d.method = lv->method;
-    d.ccd = lv->ccd;
+    d.ccd.enabled = lv->ccd;
     if (lv->method == WEFT_METHOD_MODEL) {
         d.model = find_model(lg->models, lg->model_count, lv);
         d.precision = lv->precision;
@@ -145,10 +145,10 @@ static weft_result make_garment(weft_lod_garment *lg, const weft_lod_level *lv, 
     if (lv->method == WEFT_METHOD_XPBD) {
         d.substeps = lv->substeps;
     }
-    d.tether_distance = (float)(lv->tether_cm / 100.0);
-    d.strain_limit = (float)(lv->strain_limit_pct / 100.0);
-    d.strain_limit_contact = (float)(lv->strain_contact_cm / 100.0);
-    d.collider_push = (float)(lv->push_cm / 100.0);
+    d.tethers.distance = (float)(lv->tether_cm / 100.0);
+    d.strain.limit = (float)(lv->strain_limit_pct / 100.0);
+    d.strain.contact = (float)(lv->strain_contact_cm / 100.0);
+    d.collision.push = (float)(lv->push_cm / 100.0);
     d.rest_positions = rest;
     d.vertex_count = nv;
     d.triangles = tris;

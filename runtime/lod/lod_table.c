@@ -280,7 +280,7 @@ static weft_result parse_level(char cells[COL_COUNT][LOD_CELL_CAP], uint32_t ln,
                           "lod table line %u column 'max_collider_tokens': '%s' is not '-' (no cap) or an integer >= 1",
                           ln, c);
     }
-    /* Tethers and strain limit (every method; weft_garment_def.tether_distance / strain_limit). */
+    /* Tethers and strain limit (every method; weft_garment_def.tethers.distance / strain_limit). */
     c = cells[COL_TETHER_CM];
     if (strcmp(c, "-") != 0 && (!parse_f64(c, &lv->tether_cm) || !(lv->tether_cm > 0.0) || lv->tether_cm > 1e5)) {
         return weft__fail(WEFT_ERROR_FORMAT,

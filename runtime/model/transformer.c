@@ -1016,7 +1016,7 @@ static weft_result prior_sim_create(weft_garment *g, ct_state *s)
     d.collider_triangle_count = g->collider_vertex_count > 0 ? g->collider_triangle_count : 0;
     d.initial_positions = g->x;
     d.substeps = s->c.prior_substeps;
-    d.ccd = false;
+    d.ccd.enabled = false;
     return weft_garment_create(g->ctx, &d, &s->prior_sim);
 }
 

@@ -3,7 +3,7 @@
  * follows them every frame. Blending up to LBS_SLOTS nearby triangles, weighted by inverse
  * distance, smooths the result across triangle borders; a rigid collider motion is
  * reproduced exactly because every binding is rigid-invariant. The same binding (xskin) gives
- * the tether targets of every method (weft_garment_def.tether_distance, garment.c). */
+ * the tether targets of every method (weft_garment_def.tethers.distance, garment.c). */
 #include "xpbd/xpbd.h"
 
 #include <float.h>

@@ -962,7 +962,7 @@ weft_garment_def xscene_garment_def(const xscene *sc, uint32_t substeps, uint32_
     gd.method = WEFT_METHOD_XPBD;
     gd.substeps = substeps;
     gd.substeps_max = fast_collider_factor > 1 ? substeps * fast_collider_factor : 0;
-    gd.ccd = false;
+    gd.ccd.enabled = false;
     gd.rest_positions = sc->cloth.pos;
     gd.vertex_count = sc->cloth.nv;
     gd.triangles = sc->cloth.tris;

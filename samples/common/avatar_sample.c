@@ -585,12 +585,12 @@ weft_result weft_sample_worn_def(const weft_body *body, const weft_cloth_mesh *c
         if (r != WEFT_OK) {
             return r;
         }
-        d.collider_triangle_parts = parts;
+        d.collision.triangle_parts = parts;
     }
-    d.ccd = false;
-    d.tether_distance = WEFT_WORN_TETHER_CM / 100.0f;
-    d.collider_push = WEFT_WORN_PUSH_CM / 100.0f;
-    d.strain_limit = method == WEFT_METHOD_MODEL ? WEFT_WORN_STRAIN_PCT / 100.0f : 0.0f;
+    d.ccd.enabled = false;
+    d.tethers.distance = WEFT_WORN_TETHER_CM / 100.0f;
+    d.collision.push = WEFT_WORN_PUSH_CM / 100.0f;
+    d.strain.limit = method == WEFT_METHOD_MODEL ? WEFT_WORN_STRAIN_PCT / 100.0f : 0.0f;
     *out = d;
     return WEFT_OK;
 }
@@ -645,11 +645,11 @@ weft_result weft_avatar_sample_garment_create(const weft_avatar_sample_options *
         /* The options override the worn-garment recipe: --tether-cm (8, 0 turns it off),
          * --strain-limit (10 % for the learned model), --push-cm, --ccd. */
         float tether_cm = o->tether_cm >= 0.0f ? o->tether_cm : WEFT_WORN_TETHER_CM;
-        gdef.tether_distance = tether_cm / 100.0f;
-        float strain_pct = o->strain_pct >= 0.0f ? o->strain_pct : gdef.strain_limit * 100.0f;
-        gdef.strain_limit = strain_pct / 100.0f;
-        gdef.collider_push = o->push_cm / 100.0f;
-        gdef.ccd = o->ccd;
+        gdef.tethers.distance = tether_cm / 100.0f;
+        float strain_pct = o->strain_pct >= 0.0f ? o->strain_pct : gdef.strain.limit * 100.0f;
+        gdef.strain.limit = strain_pct / 100.0f;
+        gdef.collision.push = o->push_cm / 100.0f;
+        gdef.ccd.enabled = o->ccd;
         weft_result r = weft_garment_create(ctx, &gdef, out_garment);
         free(parts);
         if (r != WEFT_OK) {

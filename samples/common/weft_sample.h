@@ -21,12 +21,12 @@ typedef struct weft_avatar_sample_options {
     const char *model_path;     /* safetensors model for the model method; NULL (default): the shipped
                                    garment model for `precision`, tools/train/models/garment[.fp16|.int8].safetensors */
     weft_precision precision;   /* the model's arithmetic (default int8) */
-    float tether_cm;            /* tether radius in cm (weft_garment_def.tether_distance); < 0 (default):
+    float tether_cm;            /* tether radius in cm (weft_garment_def.tethers.distance); < 0 (default):
                                    8 cm, the worn-garment recipe's max distance; 0: none */
-    float strain_pct;           /* strain limit in % (weft_garment_def.strain_limit); < 0 (default): 10 %
+    float strain_pct;           /* strain limit in % (weft_garment_def.strain.limit); < 0 (default): 10 %
                                    for the learned model, none for XPBD; 0: none */
-    float push_cm;              /* collider push in cm (weft_garment_def.collider_push) (default 0.5); 0: off */
-    bool body_parts;            /* the body collision by parts (weft_garment_def.collider_triangle_parts from
+    float push_cm;              /* collider push in cm (weft_garment_def.collision.push) (default 0.5); 0: off */
+    bool body_parts;            /* the body collision by parts (weft_garment_def.collision.triangle_parts from
                                    weft_body_triangle_parts) (default true) */
     bool ccd;                   /* the CCD post-process (weft_garment_def.ccd) (default false) */
     const char *export_dir;     /* --export DIR: garment.obj + garment.pc2, body.obj + body.pc2 over the

@@ -187,18 +187,18 @@ static void garment_step_ccd(uint32_t iterations)
     weft_garment *g = NULL;
     static const uint32_t bad[] = {0, 65, 1000};
     for (size_t b = 0; b < sizeof bad / sizeof bad[0]; ++b) {
-        gd.ccd_iterations = bad[b];
+        gd.ccd.iterations = bad[b];
         CHECK_RESULT(weft_garment_create(ctx, &gd, &g), WEFT_ERROR_INVALID_ARGUMENT);
         CHECK(g == NULL);
-        CHECK(strstr(weft_last_error(), "ccd_iterations") != NULL);
+        CHECK(strstr(weft_last_error(), "ccd.iterations") != NULL);
     }
-    gd.ccd = false;
-    gd.ccd_iterations = 0; /* not looked at without CCD */
+    gd.ccd.enabled = false;
+    gd.ccd.iterations = 0; /* not looked at without CCD */
     CHECK_RESULT(weft_garment_create(ctx, &gd, &g), WEFT_OK);
     weft_garment_destroy(g);
     g = NULL;
-    gd.ccd = true;
-    gd.ccd_iterations = iterations;
+    gd.ccd.enabled = true;
+    gd.ccd.iterations = iterations;
     weft_result r = weft_garment_create(ctx, &gd, &g);
     CHECK_RESULT(r, WEFT_OK);
     if (r == WEFT_OK) {

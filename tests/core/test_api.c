@@ -125,7 +125,7 @@ static void test_garment_needs_model(void)
 
     weft_garment_def def = weft_default_garment_def();
     CHECK(def.method == WEFT_METHOD_MODEL);
-    CHECK(def.ccd);
+    CHECK(def.ccd.enabled);
     CHECK(def.substeps == 10);
     def.rest_positions = g_sheet;
     def.vertex_count = 9;

@@ -1,4 +1,4 @@
-/* Body parts (weft_garment_def.collider_triangle_parts, runtime/garment/parts.c): a "torso" box
+/* Body parts (weft_garment_def.collision.triangle_parts, runtime/garment/parts.c): a "torso" box
  * and a "limb" box that sinks into it, as a forearm sinks into a chest on real motion. Cloth made
  * against the torso ignores the limb and cloth made against the limb ignores the torso, in the
  * push and in CCD, while cloth still collides with its own part; without parts both claim it.
@@ -66,9 +66,9 @@ static weft_garment *make(weft_context *ctx, const scene *s, const float *pts, b
 {
     weft_garment_def gd = test_garment_def(WEFT_METHOD_LBS, &s->cloth, &s->body, 0);
     gd.initial_positions = pts;
-    gd.collider_triangle_parts = parts ? s->parts : NULL;
-    gd.collider_push = push;
-    gd.ccd = ccd;
+    gd.collision.triangle_parts = parts ? s->parts : NULL;
+    gd.collision.push = push;
+    gd.ccd.enabled = ccd;
     weft_garment *g = NULL;
     CHECK_RESULT(weft_garment_create(ctx, &gd, &g), WEFT_OK);
     return g;
@@ -180,16 +180,16 @@ static void test_bad_parts_fail_at_creation(void)
     weft_garment *g = NULL;
     weft_garment_def gd = test_garment_def(WEFT_METHOD_LBS, &s.cloth, &s.body, 0);
     s.parts[5] = 32;
-    gd.collider_triangle_parts = s.parts;
+    gd.collision.triangle_parts = s.parts;
     CHECK_RESULT(weft_garment_create(ctx, &gd, &g), WEFT_ERROR_INVALID_ARGUMENT);
-    CHECK(strstr(weft_last_error(), "collider_triangle_parts[5]") != NULL);
+    CHECK(strstr(weft_last_error(), "collision.triangle_parts[5]") != NULL);
     s.parts[5] = 3;
-    gd.collider_part_margin = -0.01f;
+    gd.collision.part_margin = -0.01f;
     CHECK_RESULT(weft_garment_create(ctx, &gd, &g), WEFT_ERROR_INVALID_ARGUMENT);
-    gd.collider_part_margin = NAN;
+    gd.collision.part_margin = NAN;
     CHECK_RESULT(weft_garment_create(ctx, &gd, &g), WEFT_ERROR_INVALID_ARGUMENT);
     weft_garment_def none = test_garment_def(WEFT_METHOD_LBS, &s.cloth, NULL, 0);
-    none.collider_triangle_parts = s.parts;
+    none.collision.triangle_parts = s.parts;
     CHECK_RESULT(weft_garment_create(ctx, &none, &g), WEFT_ERROR_NO_COLLIDER);
     CHECK(g == NULL);
     free_scene(&s);

@@ -1,4 +1,4 @@
-/* Collider push (weft_garment_def.collider_push, runtime/garment/near.c): points placed inside
+/* Collider push (weft_garment_def.collision.push, runtime/garment/near.c): points placed inside
  * and just outside a box end where the box's exact distance field says (nearest face, edge or
  * corner plus the thickness); deeper ones, pinned ones and ones that came through from beyond
  * stay; beyond a thin wedge's sharp edge, where the two faces' normals disagree, both sides are
@@ -23,7 +23,7 @@ static weft_garment_def push_def(const test_mesh *sheet, const test_mesh *col, c
 {
     weft_garment_def gd = weft_default_garment_def();
     gd.method = WEFT_METHOD_LBS;
-    gd.ccd = false;
+    gd.ccd.enabled = false;
     gd.rest_positions = sheet->pos;
     gd.vertex_count = sheet->nv;
     gd.triangles = sheet->tris;
@@ -33,8 +33,8 @@ static weft_garment_def push_def(const test_mesh *sheet, const test_mesh *col, c
     gd.collider_vertex_count = col->nv;
     gd.collider_triangles = col->tris;
     gd.collider_triangle_count = col->nt;
-    gd.collider_push = push;
-    gd.collider_push_depth = DEPTH;
+    gd.collision.push = push;
+    gd.collision.push_depth = DEPTH;
     return gd;
 }
 
@@ -236,7 +236,7 @@ static void test_push_with_ccd_lets_cloth_out(void)
     const float in[3] = {0.02f, 0.195f, 0.03f}; /* 5 mm under the top */
     memcpy(pts[4], in, sizeof in);
     weft_garment_def gd = push_def(&sheet, &box, &pts[0][0], THICK);
-    gd.ccd = true;
+    gd.ccd.enabled = true;
     weft_garment *g = NULL;
     CHECK_RESULT(weft_garment_create(ctx, &gd, &g), WEFT_OK);
     CHECK_RESULT(weft_garment_set_collider(g, box.pos), WEFT_OK);
@@ -266,18 +266,18 @@ static void test_push_bad_input(void)
     const float bad[] = {-0.001f, NAN, INFINITY, 0.2f};
     for (size_t k = 0; k < sizeof bad / sizeof bad[0]; ++k) {
         CHECK(make(ctx, &sheet, &box, sheet.pos, bad[k], WEFT_ERROR_INVALID_ARGUMENT) == NULL);
-        CHECK(strstr(weft_last_error(), "collider_push") != NULL);
+        CHECK(strstr(weft_last_error(), "collision.push") != NULL);
     }
     weft_garment_def gd = push_def(&sheet, &box, NULL, 0.01f);
     weft_garment *g = NULL;
     const float bad_depth[] = {-0.01f, NAN, 0.6f};
     for (size_t k = 0; k < sizeof bad_depth / sizeof bad_depth[0]; ++k) {
-        gd.collider_push_depth = bad_depth[k];
+        gd.collision.push_depth = bad_depth[k];
         CHECK_RESULT(weft_garment_create(ctx, &gd, &g), WEFT_ERROR_INVALID_ARGUMENT);
         CHECK(g == NULL);
-        CHECK(strstr(weft_last_error(), "collider_push_depth") != NULL);
+        CHECK(strstr(weft_last_error(), "collision.push_depth") != NULL);
     }
-    gd.collider_push_depth = 0.02f;
+    gd.collision.push_depth = 0.02f;
     gd.method = WEFT_METHOD_XPBD; /* LBS needs a collider anyway; XPBD does not */
     gd.collider_vertex_count = 0;
     gd.collider_rest_positions = NULL;
@@ -285,7 +285,7 @@ static void test_push_bad_input(void)
     gd.collider_triangle_count = 0;
     CHECK_RESULT(weft_garment_create(ctx, &gd, &g), WEFT_ERROR_NO_COLLIDER);
     CHECK(g == NULL);
-    CHECK(strstr(weft_last_error(), "collider_push") != NULL);
+    CHECK(strstr(weft_last_error(), "collision.push") != NULL);
     test_mesh_free(&box);
     test_mesh_free(&sheet);
     weft_context_destroy(ctx);

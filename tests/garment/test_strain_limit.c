@@ -1,4 +1,4 @@
-/* Strain limiting (weft_garment_def.strain_limit): after a step that tears the sheet (a pinned
+/* Strain limiting (weft_garment_def.strain.limit): after a step that tears the sheet (a pinned
  * corner yanked far away in one frame), no edge is longer than (1 + limit) x rest once the sweeps
  * converge, pins keep their targets, radius-0 tethers stay glued, the contact-aware limit does not
  * drag the cloth lying on the box into it, and bad limits fail at creation. */
@@ -34,7 +34,7 @@ static weft_garment_def scene_def(const strain_scene *s)
     weft_garment_def gd = weft_default_garment_def();
     gd.method = WEFT_METHOD_XPBD;
     gd.substeps = 1; /* one substep cannot follow the yank: the step itself tears the sheet */
-    gd.ccd = false;  /* the limit acts before CCD; this test checks the limit itself */
+    gd.ccd.enabled = false;  /* the limit acts before CCD; this test checks the limit itself */
     gd.rest_positions = s->sheet.pos;
     gd.vertex_count = s->sheet.nv;
     gd.triangles = s->sheet.tris;
@@ -84,8 +84,8 @@ static void test_strain_limit_bounds_the_stretch(void)
     weft_garment_def gd = scene_def(&s);
     weft_garment *torn = NULL, *limited = NULL;
     CHECK_RESULT(weft_garment_create(s.ctx, &gd, &torn), WEFT_OK);
-    gd.strain_limit = 0.1f;
-    gd.strain_limit_iterations = 1000; /* Gauss-Seidel needs many sweeps to drag a whole sheet */
+    gd.strain.limit = 0.1f;
+    gd.strain.iterations = 1000; /* Gauss-Seidel needs many sweeps to drag a whole sheet */
     CHECK_RESULT(weft_garment_create(s.ctx, &gd, &limited), WEFT_OK);
     yank(&s, torn);
     yank(&s, limited);
@@ -96,7 +96,7 @@ static void test_strain_limit_bounds_the_stretch(void)
     CHECK_MSG(weft_garment_stats(limited).strain_limited_edges > 0, "no edge was counted over the limit");
     CHECK_EQ_INT(weft_garment_stats(torn).strain_limited_edges, 0);
     /* The default 8 sweeps do not converge on this yank, but they shorten the worst edge. */
-    gd.strain_limit_iterations = weft_default_garment_def().strain_limit_iterations;
+    gd.strain.iterations = weft_default_garment_def().strain.iterations;
     weft_garment *few = NULL;
     CHECK_RESULT(weft_garment_create(s.ctx, &gd, &few), WEFT_OK);
     yank(&s, few);
@@ -117,9 +117,9 @@ static void test_strain_limit_keeps_glued_vertices(void)
     for (uint32_t i = 0; i < s.sheet.nv; ++i) {
         radii[i] = i >= 90 ? 0.0f : 1.0f; /* the far row glued to the (still) box */
     }
-    gd.tether_distances = radii;
-    gd.strain_limit = 0.1f;
-    gd.strain_limit_iterations = 50;
+    gd.tethers.distances = radii;
+    gd.strain.limit = 0.1f;
+    gd.strain.iterations = 50;
     weft_garment *g = NULL;
     CHECK_RESULT(weft_garment_create(s.ctx, &gd, &g), WEFT_OK);
     yank(&s, g);
@@ -154,13 +154,13 @@ static void test_strain_limit_contact_keeps_cloth_out(void)
     strain_scene s;
     scene_make(&s);
     weft_garment_def gd = scene_def(&s);
-    gd.strain_limit = 0.1f;
-    gd.strain_limit_iterations = 1000;
+    gd.strain.limit = 0.1f;
+    gd.strain.iterations = 1000;
     weft_garment *plain = NULL, *aware = NULL, *torn = NULL;
     CHECK_RESULT(weft_garment_create(s.ctx, &gd, &plain), WEFT_OK);
-    gd.strain_limit_contact = 0.02f;
+    gd.strain.contact = 0.02f;
     CHECK_RESULT(weft_garment_create(s.ctx, &gd, &aware), WEFT_OK);
-    gd.strain_limit = 0.0f;
+    gd.strain.limit = 0.0f;
     CHECK_RESULT(weft_garment_create(s.ctx, &gd, &torn), WEFT_OK);
     const uint32_t pin = 0;
     const float target[3] = {s.sheet.pos[0] - 0.1f, s.sheet.pos[1] - 0.4f, s.sheet.pos[2] - 0.1f};
@@ -194,35 +194,35 @@ static void test_strain_limit_bad_input(void)
     weft_garment *g = NULL;
     const float bad[] = {-0.01f, NAN, INFINITY, 11.0f};
     for (size_t k = 0; k < sizeof bad / sizeof bad[0]; ++k) {
-        gd.strain_limit = bad[k];
+        gd.strain.limit = bad[k];
         CHECK_RESULT(weft_garment_create(s.ctx, &gd, &g), WEFT_ERROR_INVALID_ARGUMENT);
         CHECK(g == NULL);
-        CHECK(strstr(weft_last_error(), "strain_limit") != NULL);
+        CHECK(strstr(weft_last_error(), "strain.limit") != NULL);
     }
-    gd.strain_limit = 0.1f;
-    gd.strain_limit_iterations = 0;
+    gd.strain.limit = 0.1f;
+    gd.strain.iterations = 0;
     CHECK_RESULT(weft_garment_create(s.ctx, &gd, &g), WEFT_ERROR_INVALID_ARGUMENT);
     CHECK(g == NULL);
-    CHECK(strstr(weft_last_error(), "strain_limit_iterations") != NULL);
-    gd.strain_limit_iterations = 8;
+    CHECK(strstr(weft_last_error(), "strain.iterations") != NULL);
+    gd.strain.iterations = 8;
     const float bad_contact[] = {-0.01f, NAN, INFINITY, 1.5f};
     for (size_t k = 0; k < sizeof bad_contact / sizeof bad_contact[0]; ++k) {
-        gd.strain_limit_contact = bad_contact[k];
+        gd.strain.contact = bad_contact[k];
         CHECK_RESULT(weft_garment_create(s.ctx, &gd, &g), WEFT_ERROR_INVALID_ARGUMENT);
         CHECK(g == NULL);
-        CHECK(strstr(weft_last_error(), "strain_limit_contact") != NULL);
+        CHECK(strstr(weft_last_error(), "strain.contact") != NULL);
     }
-    gd.strain_limit_contact = 0.01f; /* looks for a collider the garment does not have */
+    gd.strain.contact = 0.01f; /* looks for a collider the garment does not have */
     gd.collider_vertex_count = 0;
     gd.collider_rest_positions = NULL;
     gd.collider_triangles = NULL;
     gd.collider_triangle_count = 0;
     CHECK_RESULT(weft_garment_create(s.ctx, &gd, &g), WEFT_ERROR_NO_COLLIDER);
     CHECK(g == NULL);
-    CHECK(strstr(weft_last_error(), "strain_limit_contact") != NULL);
+    CHECK(strstr(weft_last_error(), "strain.contact") != NULL);
     gd = scene_def(&s);
-    gd.strain_limit = 0.0f; /* off: the sweep count is not looked at */
-    gd.strain_limit_iterations = 0;
+    gd.strain.limit = 0.0f; /* off: the sweep count is not looked at */
+    gd.strain.iterations = 0;
     CHECK_RESULT(weft_garment_create(s.ctx, &gd, &g), WEFT_OK);
     weft_garment_destroy(g);
     scene_free(&s);

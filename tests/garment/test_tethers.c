@@ -1,4 +1,4 @@
-/* Tethers (weft_garment_def.tether_distance / tether_distances): after the method's step every
+/* Tethers (weft_garment_def.tethers.distance / tethers.distances): after the method's step every
  * vertex lies within its radius of the garment skinned to the collider, pins keep their targets,
  * radius 0 glues a vertex, and bad radii or a failing binding leave everything untouched. */
 #include "../xpbd/scene.h"
@@ -37,7 +37,7 @@ static weft_garment_def scene_def(const tether_scene *s, weft_method method)
     weft_garment_def gd = weft_default_garment_def();
     gd.method = method;
     gd.substeps = 5;
-    gd.ccd = false; /* tethers act before CCD; this test checks the tether bound itself */
+    gd.ccd.enabled = false; /* tethers act before CCD; this test checks the tether bound itself */
     gd.rest_positions = s->sheet.pos;
     gd.vertex_count = s->sheet.nv;
     gd.triangles = s->sheet.tris;
@@ -96,7 +96,7 @@ static void test_tethers_bound_the_drift(void)
     weft_garment_def gd = scene_def(&s, WEFT_METHOD_XPBD);
     weft_garment *free_g = NULL, *tied = NULL;
     CHECK_RESULT(weft_garment_create(s.ctx, &gd, &free_g), WEFT_OK);
-    gd.tether_distance = 0.01f;
+    gd.tethers.distance = 0.01f;
     CHECK_RESULT(weft_garment_create(s.ctx, &gd, &tied), WEFT_OK);
     double free_gap = 0.0, tied_gap = 0.0;
     uint32_t clamped = 0;
@@ -130,8 +130,8 @@ static void test_tethers_keep_pins_and_glue(void)
     for (uint32_t i = 0; i < s.sheet.nv; ++i) {
         radii[i] = i < 10 ? 0.0f : 0.05f; /* the first row glued */
     }
-    gd.tether_distance = 1.0f; /* replaced by the per-vertex radii */
-    gd.tether_distances = radii;
+    gd.tethers.distance = 1.0f; /* replaced by the per-vertex radii */
+    gd.tethers.distances = radii;
     weft_garment *g = NULL;
     CHECK_RESULT(weft_garment_create(s.ctx, &gd, &g), WEFT_OK);
     free(radii); /* copied at creation */
@@ -168,21 +168,21 @@ static void test_tethers_bad_input(void)
     weft_garment *g = NULL;
     const float bad[] = {-0.01f, NAN, INFINITY};
     for (size_t k = 0; k < sizeof bad / sizeof bad[0]; ++k) {
-        gd.tether_distance = bad[k];
+        gd.tethers.distance = bad[k];
         CHECK_RESULT(weft_garment_create(s.ctx, &gd, &g), WEFT_ERROR_INVALID_ARGUMENT);
         CHECK(g == NULL);
-        CHECK(strstr(weft_last_error(), "tether_distance") != NULL);
+        CHECK(strstr(weft_last_error(), "tethers.distance") != NULL);
     }
     float *radii = malloc(sizeof(float) * s.sheet.nv);
     for (uint32_t i = 0; i < s.sheet.nv; ++i) {
         radii[i] = 0.02f;
     }
     radii[17] = NAN;
-    gd.tether_distance = 0.0f;
-    gd.tether_distances = radii;
+    gd.tethers.distance = 0.0f;
+    gd.tethers.distances = radii;
     CHECK_RESULT(weft_garment_create(s.ctx, &gd, &g), WEFT_ERROR_INVALID_ARGUMENT);
     CHECK(g == NULL);
-    CHECK(strstr(weft_last_error(), "tether_distances[17]") != NULL);
+    CHECK(strstr(weft_last_error(), "tethers.distances[17]") != NULL);
     radii[17] = 0.02f;
     /* tethers follow the collider: none, no tethers */
     weft_garment_def lone = gd;

@@ -1,7 +1,7 @@
 /* What every garment gets whatever its method: one mesh validation (a host falling back from the
  * learned model to XPBD never meets a mesh the second refuses), positions within
  * WEFT_MAX_COORDINATE everywhere (named as such, not as a degenerate triangle), and cuts: a
- * collider that jumps farther than collider_cut_distance resets the cloth to the skinned garment
+ * collider that jumps farther than collision.cut_distance resets the cloth to the skinned garment
  * at rest instead of sweeping it through the jump, single and batched. */
 #include "../xpbd/scene.h"
 #include "test.h"
@@ -31,7 +31,7 @@ static weft_garment_def def_for(weft_method method, const test_mesh *cloth, cons
     gd.method = method;
     gd.model = method == WEFT_METHOD_MODEL ? model_ : NULL;
     gd.substeps = 4;
-    gd.ccd = false;
+    gd.ccd.enabled = false;
     gd.rest_positions = cloth->pos;
     gd.vertex_count = cloth->nv;
     gd.triangles = cloth->tris;
@@ -165,7 +165,7 @@ static void test_cut_resets_to_the_skinned_garment(void)
         weft_garment_destroy(g);
 
         /* cut_distance 0: the jump is stepped through (no cut) */
-        gd.collider_cut_distance = 0.0f;
+        gd.collision.cut_distance = 0.0f;
         CHECK_RESULT(weft_garment_create(ctx_, &gd, &g), WEFT_OK);
         for (uint32_t i = 0; i < 3 * box.nv; ++i) {
             c[i] = box.pos[i] + (i % 3 == 0 ? 5.0f : 0.0f);
@@ -175,9 +175,9 @@ static void test_cut_resets_to_the_skinned_garment(void)
         CHECK(!weft_garment_stats(g).collider_cut);
         weft_garment_destroy(g);
 
-        gd.collider_cut_distance = -1.0f;
+        gd.collision.cut_distance = -1.0f;
         CHECK_RESULT(weft_garment_create(ctx_, &gd, &g), WEFT_ERROR_INVALID_ARGUMENT);
-        CHECK(strstr(weft_last_error(), "collider_cut_distance") != NULL);
+        CHECK(strstr(weft_last_error(), "collision.cut_distance") != NULL);
     }
     free(c);
     test_mesh_free(&sheet);
@@ -237,7 +237,7 @@ static void test_ccd_over_budget_keeps_the_step(void)
     weft_garment_def gd = def_for(WEFT_METHOD_LBS, &patch, &floor_mesh);
     weft_garment *with = NULL, *without = NULL;
     CHECK_RESULT(weft_garment_create(ctx_, &gd, &without), WEFT_OK);
-    gd.ccd = true;
+    gd.ccd.enabled = true;
     CHECK_RESULT(weft_garment_create(ctx_, &gd, &with), WEFT_OK);
     const uint32_t pins[4] = {0, 1, 2, 3};
     float targets[12];

@@ -138,7 +138,7 @@ static uint32_t plain_step(weft_context *ctx, const scene *s, const weft_model *
     weft_garment_def d = weft_default_garment_def();
     d.method = WEFT_METHOD_MODEL;
     d.model = m;
-    d.ccd = l->ccd;
+    d.ccd.enabled = l->ccd;
     d.collider_crop_margin = (float)(l->crop_cm / 100.0);
     d.collider_crop = l->collider_crop;
     d.max_collider_tokens = l->max_collider_tokens;

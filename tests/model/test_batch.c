@@ -55,7 +55,7 @@ static weft_garment *make(weft_context *ctx, const fixture *f, const weft_model 
     d.method = method;
     d.model = method == WEFT_METHOD_MODEL ? m : NULL;
     d.precision = prec;
-    d.ccd = ccd;
+    d.ccd.enabled = ccd;
     d.rest_positions = f->rest;
     d.vertex_count = (uint32_t)f->V;
     d.triangles = f->faces;

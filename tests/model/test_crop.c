@@ -291,7 +291,7 @@ static weft_garment_def scene_def(const scene *s, const weft_model *m)
     weft_garment_def d = weft_default_garment_def();
     d.method = WEFT_METHOD_MODEL;
     d.model = m;
-    d.ccd = false;
+    d.ccd.enabled = false;
     d.rest_positions = s->rest;
     d.vertex_count = s->nv;
     d.triangles = s->tris;

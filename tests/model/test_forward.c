@@ -240,7 +240,7 @@ static weft_garment_def garment_def(const golden *g, const weft_model *m, size_t
     weft_garment_def d = weft_default_garment_def();
     d.method = WEFT_METHOD_MODEL;
     d.model = m;
-    d.ccd = false;
+    d.ccd.enabled = false;
     d.rest_positions = g->rest.data;
     d.vertex_count = g->V;
     d.triangles = g->faces.data;

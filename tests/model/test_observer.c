@@ -129,7 +129,7 @@ static void every_linear_once_per_step(void)
     const uint32_t Vc = (uint32_t)(ncpos / T / 3);
     weft_garment_def d = weft_default_garment_def();
     d.model = m;
-    d.ccd = false;
+    d.ccd.enabled = false;
     d.rest_positions = rest;
     d.vertex_count = (uint32_t)V;
     d.triangles = faces;

@@ -199,7 +199,7 @@ static double rollout(const void *bytes, size_t size, weft_precision prec, uint3
         gd.method = WEFT_METHOD_MODEL;
         gd.model = m;
         gd.precision = prec;
-        gd.ccd = false;
+        gd.ccd.enabled = false;
         gd.rest_positions = rest;
         gd.vertex_count = V;
         gd.triangles = faces;

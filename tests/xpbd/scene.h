@@ -105,7 +105,7 @@ static inline weft_garment_def test_garment_def(weft_method method, const test_m
     weft_garment_def gd = weft_default_garment_def();
     gd.method = method;
     gd.substeps = substeps;
-    gd.ccd = false;
+    gd.ccd.enabled = false;
     gd.rest_positions = cloth->pos;
     gd.vertex_count = cloth->nv;
     gd.triangles = cloth->tris;

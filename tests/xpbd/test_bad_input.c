@@ -11,7 +11,7 @@ static weft_garment_def xpbd_def(const test_mesh *m)
 {
     weft_garment_def gd = weft_default_garment_def();
     gd.method = WEFT_METHOD_XPBD;
-    gd.ccd = false;
+    gd.ccd.enabled = false;
     gd.rest_positions = m->pos;
     gd.vertex_count = m->nv;
     gd.triangles = m->tris;

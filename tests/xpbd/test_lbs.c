@@ -27,7 +27,7 @@ static void test_lbs_follows_rigid_motion(void)
     test_mesh box = test_box(lo, hi);
     weft_garment_def gd = weft_default_garment_def();
     gd.method = WEFT_METHOD_LBS;
-    gd.ccd = false;
+    gd.ccd.enabled = false;
     gd.rest_positions = sheet.pos;
     gd.vertex_count = sheet.nv;
     gd.triangles = sheet.tris;

@@ -22,6 +22,28 @@ import weft_ccd
 METHOD_XPBD = 1
 
 
+class _TetherDef(ctypes.Structure):
+    _fields_ = [("distance", ctypes.c_float), ("distances", ctypes.c_void_p)]
+
+
+class _StrainLimitDef(ctypes.Structure):
+    _fields_ = [("limit", ctypes.c_float), ("iterations", ctypes.c_uint32), ("contact", ctypes.c_float)]
+
+
+class _CollisionDef(ctypes.Structure):
+    _fields_ = [
+        ("push", ctypes.c_float),
+        ("push_depth", ctypes.c_float),
+        ("triangle_parts", ctypes.c_void_p),
+        ("part_margin", ctypes.c_float),
+        ("cut_distance", ctypes.c_float),
+    ]
+
+
+class _CcdDef(ctypes.Structure):
+    _fields_ = [("enabled", ctypes.c_bool), ("iterations", ctypes.c_uint32)]
+
+
 class _GarmentDef(ctypes.Structure):
     _fields_ = [
         ("method", ctypes.c_int),
@@ -38,21 +60,13 @@ class _GarmentDef(ctypes.Structure):
         ("initial_positions", ctypes.c_void_p),
         ("substeps", ctypes.c_uint32),
         ("substeps_max", ctypes.c_uint32),
-        ("ccd", ctypes.c_bool),
-        ("ccd_iterations", ctypes.c_uint32),
         ("collider_crop_margin", ctypes.c_float),
         ("collider_crop", ctypes.c_int),
         ("max_collider_tokens", ctypes.c_uint32),
-        ("tether_distance", ctypes.c_float),
-        ("tether_distances", ctypes.c_void_p),
-        ("strain_limit", ctypes.c_float),
-        ("strain_limit_iterations", ctypes.c_uint32),
-        ("strain_limit_contact", ctypes.c_float),
-        ("collider_push", ctypes.c_float),
-        ("collider_push_depth", ctypes.c_float),
-        ("collider_triangle_parts", ctypes.c_void_p),
-        ("collider_part_margin", ctypes.c_float),
-        ("collider_cut_distance", ctypes.c_float),
+        ("tethers", _TetherDef),
+        ("strain", _StrainLimitDef),
+        ("collision", _CollisionDef),
+        ("ccd", _CcdDef),
         ("internal_cookie", ctypes.c_uint32),
     ]
 
@@ -111,7 +125,7 @@ class XpbdPrior:
             d.collider_triangles = cf.ctypes.data
             d.collider_triangle_count = cf.size // 3
         d.substeps = int(substeps)
-        d.ccd = False
+        d.ccd.enabled = False
         self._g = ctypes.c_void_p()
         r = lib.weft_garment_create(self._ctx, ctypes.byref(d), ctypes.byref(self._g))
         if r != 0:

@@ -791,7 +791,7 @@ static int crop_cost(const lod_opts *o)
         weft_garment_def d = weft_default_garment_def();
         d.method = WEFT_METHOD_MODEL;
         d.model = model;
-        d.ccd = false;
+        d.ccd.enabled = false;
         d.collider_crop_margin = (float)(o->crops[k].cm / 100.0);
         d.collider_crop = o->crops[k].cells ? WEFT_COLLIDER_CROP_CELLS : WEFT_COLLIDER_CROP_BOX;
         d.max_collider_tokens = o->crops[k].tokens;

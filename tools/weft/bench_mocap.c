@@ -212,10 +212,10 @@ static int run_cell(const mc_options *o, weft_context *ctx, const weft_body *bod
         d.model = m->method == WEFT_METHOD_MODEL ? model : NULL;
         d.precision = WEFT_PRECISION_INT8;
         d.substeps = m->substeps ? m->substeps : d.substeps;
-        d.ccd = o->ccd;
-        d.tether_distance = o->tether_cm / 100.0f;
-        d.collider_push = o->push_cm / 100.0f;
-        d.strain_limit = m->method == WEFT_METHOD_MODEL ? o->strain_pct / 100.0f : 0.0f;
+        d.ccd.enabled = o->ccd;
+        d.tethers.distance = o->tether_cm / 100.0f;
+        d.collision.push = o->push_cm / 100.0f;
+        d.strain.limit = m->method == WEFT_METHOD_MODEL ? o->strain_pct / 100.0f : 0.0f;
         if (rc == 0 && weft_garment_create(ctx, &d, &g) != WEFT_OK) {
             fprintf(stderr, "weft bench mocap: %s: %s\n", m->label, weft_last_error());
             rc = 1;

@@ -94,7 +94,7 @@ static weft_garment *garment_make(weft_context *ctx, const scene *s, const weft_
     d.method = WEFT_METHOD_MODEL;
     d.model = m;
     d.precision = p;
-    d.ccd = false; /* the model alone: CCD has its own benchmark (weft bench ccd) */
+    d.ccd.enabled = false; /* the model alone: CCD has its own benchmark (weft bench ccd) */
     d.rest_positions = s->shirt->positions;
     d.vertex_count = s->V;
     d.triangles = s->shirt->triangles;

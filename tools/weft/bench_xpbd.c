@@ -55,7 +55,7 @@ static int run(weft_context *ctx, const bench_scene *sc, uint32_t S, uint32_t fr
     weft_garment_def gd = weft_default_garment_def();
     gd.method = fast ? WEFT_METHOD_XPBD_FAST : WEFT_METHOD_XPBD;
     gd.substeps = S;
-    gd.ccd = false;
+    gd.ccd.enabled = false;
     gd.rest_positions = cloth->pos;
     gd.vertex_count = cloth->nv;
     gd.triangles = cloth->tris;

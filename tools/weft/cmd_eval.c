@@ -43,15 +43,15 @@ typedef struct eval_opts {
     uint32_t substeps;
     weft_precision precision;
     bool ccd, json;
-    uint32_t ccd_iterations;            /* weft_garment_def.ccd_iterations */
+    uint32_t ccd_iterations;            /* weft_garment_def.ccd.iterations */
     uint32_t max_frames;
     float crop_margin;                  /* m, 0: the model's own */
     weft_collider_crop crop;
     uint32_t max_collider_tokens;
     float tether;                       /* m, 0: no tethers */
     float strain_limit;                 /* fraction, 0: off */
-    float strain_contact;               /* metres, 0: off (weft_garment_def.strain_limit_contact) */
-    float push, push_depth;             /* metres (weft_garment_def.collider_push, collider_push_depth) */
+    float strain_contact;               /* metres, 0: off (weft_garment_def.strain.contact) */
+    float push, push_depth;             /* metres (weft_garment_def.collision.push, collision.push_depth) */
     const char *sim_mesh;               /* folder with rest_pos.npy + faces.npy: simulate on this mesh */
     const char *write_pos;              /* folder: write each rollout as <sequence>.npy [frames + 2, N, 3] */
     bool pins_all;                      /* the sequence's pins for every method, not only XPBD */
@@ -445,8 +445,8 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
     d.model = model;
     d.precision = o->precision;
     d.substeps = o->substeps;
-    d.ccd = o->ccd;
-    d.ccd_iterations = o->ccd_iterations;
+    d.ccd.enabled = o->ccd;
+    d.ccd.iterations = o->ccd_iterations;
     d.collider_crop_margin = o->crop_margin;
     d.collider_crop = o->crop;
     d.max_collider_tokens = o->max_collider_tokens;
@@ -465,11 +465,11 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
      * a method without pins keeps the scenario's attachment; on a --sim-mesh, the vertices the
      * sequence's pins reach there. */
     float *radii = NULL;
-    d.tether_distance = o->tether; /* a bad radius, or tethers without a collider, fail in the library */
-    d.strain_limit = o->strain_limit;
-    d.strain_limit_contact = o->strain_contact;
-    d.collider_push = o->push;
-    d.collider_push_depth = o->push_depth;
+    d.tethers.distance = o->tether; /* a bad radius, or tethers without a collider, fail in the library */
+    d.strain.limit = o->strain_limit;
+    d.strain.contact = o->strain_contact;
+    d.collision.push = o->push;
+    d.collision.push_depth = o->push_depth;
     uint8_t *sim_pinned = up && s.pinned ? calloc(SV, 1) : NULL;
     if (o->tether > 0.0f && s.cpos) {
         radii = malloc((size_t)SV * sizeof(float));
@@ -481,7 +481,7 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
                 up ? sim_pinned && sim_pinned[i] : s.pinned && s.pinned[(size_t)1 * s.V + i] != 0.0f;
             radii[i] = pinned_at_start ? 0.0f : o->tether;
         }
-        d.tether_distances = radii;
+        d.tethers.distances = radii;
     }
     weft_garment *g = NULL;
     weft_result r = weft_garment_create(ctx, &d, &g);
@@ -707,10 +707,10 @@ static void usage(FILE *f)
                "  --strain-limit PCT  shorten edges stretched over PCT %%, 0..1000 (0: off), after each step (and\n"
                "                  in CCD)\n"
                "  --strain-contact-cm X  contact-aware limit, 0..100: vertices within X cm of the collider stay put\n"
-               "                  while it shortens edges (weft_garment_def.strain_limit_contact)\n"
+               "                  while it shortens edges (weft_garment_def.strain.contact)\n"
                "  --push-cm X     push cloth inside the collider (up to --push-depth-cm, 0..50, default 2) or\n"
                "                  closer than X cm, 0..10, to X cm in front of it, before CCD\n"
-               "                  (weft_garment_def.collider_push)\n"
+               "                  (weft_garment_def.collision.push)\n"
                "  --sim-mesh DIR  simulate on DIR's rest_pos.npy + faces.npy (the same garment at another\n"
                "                  resolution) and score its map onto the sequence's mesh (ms/frame includes the map);\n"
                "                  a simulated vertex is pinned where its nearest scored vertex is, and so is the\n"
@@ -740,8 +740,8 @@ static bool parse_hundredths(const char *option, const char *v, float hi, float 
 int weft_cmd_eval(int argc, char **argv)
 {
     eval_opts o = {.method = WEFT_METHOD_MODEL, .substeps = 10, .precision = WEFT_PRECISION_FP32, .ccd = true,
-                   .ccd_iterations = weft_default_garment_def().ccd_iterations,
-                   .push_depth = weft_default_garment_def().collider_push_depth};
+                   .ccd_iterations = weft_default_garment_def().ccd.iterations,
+                   .push_depth = weft_default_garment_def().collision.push_depth};
     for (int i = 1; i < argc; ++i) {
         const char *a = argv[i];
         const char *v = i + 1 < argc ? argv[i + 1] : NULL;

@@ -190,7 +190,7 @@ weft_result fnopt_scene_ground_truth(weft_context *ctx, const fnopt_scene *s, fl
     def.vertex_count = s->n;
     def.triangles = s->tris;
     def.triangle_count = s->tri_count;
-    def.ccd = false;
+    def.ccd.enabled = false;
     weft_garment *g = NULL;
     weft_result r = weft_garment_create(ctx, &def, &g);
     if (r != WEFT_OK) {
