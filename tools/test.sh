@@ -2,7 +2,8 @@
 # The whole test suite, from a fresh Debian 12 machine (as root, or with sudo):
 #   1. installs missing Debian packages (tools/debian-packages.txt);
 #   2. AArch64 cross build of the core + kernels, tests run under qemu-user (NEON twins);
-#   3. clang build with ASan + UBSan, full suite, plus a bounded libFuzzer run per fuzz target;
+#   3. clang build with ASan + UBSan, full suite, plus a bounded libFuzzer run per fuzz target
+#      (tools/fuzz.sh: seeds from tests/fuzz/corpus/<target>, its dictionary and -max_len);
 #   4. gcc Release build with warnings as errors, full suite (its ctest summary closes the run).
 # Environment: WEFT_TEST_QUICK=1 skips steps 2-3; WEFT_FUZZ_SECONDS (default 30) per target.
 set -euo pipefail
@@ -26,16 +27,10 @@ if [ "${WEFT_TEST_QUICK:-0}" != "1" ]; then
         ctest --test-dir build-asan -j"$jobs" --output-on-failure --timeout 1200
 
     step "libFuzzer: bounded runs"
-    for fuzzer in build-asan/tests/fuzz_*; do
-        [ -x "$fuzzer" ] || continue
-        name="$(basename "$fuzzer")"; name="${name#fuzz_}"
-        corpus="tests/fuzz/corpus/$name"
-        work="$(mktemp -d)"
-        [ -d "$corpus" ] && cp -r "$corpus"/. "$work"/
-        echo "fuzz $name for ${WEFT_FUZZ_SECONDS:-30} s"
-        "$fuzzer" -max_total_time="${WEFT_FUZZ_SECONDS:-30}" -print_final_stats=1 "$work" 2>&1 | tail -n 4
-        rm -rf "$work"
-    done
+    # every build-asan/tests/fuzz_* on a copy of tests/fuzz/corpus/<target> with its dictionary
+    # and -max_len; fails on any crash (artifacts kept under build-asan/fuzz-runs/test-sh)
+    rm -rf build-asan/fuzz-runs/test-sh
+    WEFT_FUZZ_OUT=build-asan/fuzz-runs/test-sh bash tools/fuzz.sh "${WEFT_FUZZ_SECONDS:-30}"
 fi
 
 step "gcc Release: full suite"

@@ -786,8 +786,11 @@ weft_result weft_bvh_load_memory(weft_context *context, const void *data, size_t
     }
     weft_clip *out = NULL;
     if (src->frame_count == 1 || fabsf(src->fps - def->fps) < 1e-4f * def->fps) {
+        /* A source within 1e-4 of the requested rate (a 60 Hz file whose Frame Time is rounded,
+         * 0.0166666) keeps its frames, labelled at the requested rate as promised: the frames
+         * drift by less than 0.4 s an hour. */
         out = src;
-        out->fps = src->frame_count == 1 ? def->fps : out->fps;
+        out->fps = def->fps;
     } else {
         res = weft_clip_resample(src, def->fps, &out);
         weft_clip_destroy(src);

@@ -2,6 +2,7 @@
 #define _POSIX_C_SOURCE 200809L
 
 #include "gltf.h"
+#include "assimp_check.h"
 #include "core/core.h"
 
 #include <assimp/cimport.h>
@@ -416,7 +417,8 @@ static weft_result import_scene(const struct aiScene *scene, float fps, skin_nod
             }
         }
     }
-    uint32_t frames = anim ? (uint32_t)floor(duration * fps + 1e-6) + 1 : 1;
+    /* only once the duration passed the range check: a refused one may not fit in 32 bits */
+    uint32_t frames = res == WEFT_OK && anim ? (uint32_t)floor(duration * fps + 1e-6) + 1 : 1;
     a->frame_count = frames;
     a->fps = fps;
     double(*global)[16] = NULL;
@@ -487,11 +489,11 @@ weft_result weft_skinned_load_file(weft_context *context, const char *path, floa
     if (!(fps >= 1.0f && fps <= 1000.0f)) {
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_skinned_load_file: fps must be in 1..1000");
     }
-    FILE *f = fopen(path, "rb");
-    if (!f) {
-        return weft__fail(WEFT_ERROR_IO, "skinned mesh: cannot open '%s': %s", path, strerror(errno));
+    /* opens the file (IO errors) and refuses inputs assimp 5.2 crashes on */
+    weft_result checked = weft__assimp_check_file(path);
+    if (checked != WEFT_OK) {
+        return checked;
     }
-    fclose(f);
     /* Triangulate splits polygons (FBX quads) without reordering vertices */
     const struct aiScene *scene = aiImportFile(path, aiProcess_ValidateDataStructure | aiProcess_Triangulate);
     if (!scene) {

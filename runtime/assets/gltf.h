@@ -14,7 +14,9 @@
  * the four largest weights per vertex (renormalised) and samples the first animation at a fixed
  * rate (translation lerp, rotation slerp, scale lerp between keys). Bad input (unreadable file,
  * no skinned mesh, out-of-range weights, NaN) fails with WEFT_ERROR_FORMAT / _NOT_FINITE and a
- * message; nothing is returned.
+ * message; nothing is returned. glTF files are checked before assimp reads them: a skin must
+ * name inverseBindMatrices, a float MAT4 accessor with a matrix per joint (optional in glTF 2.0,
+ * but assimp 5.2 crashes without it), and the JSON must parse.
  */
 #ifndef WEFT_ASSETS_GLTF_H
 #define WEFT_ASSETS_GLTF_H

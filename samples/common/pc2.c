@@ -112,8 +112,11 @@ weft_result weft_pc2_read(const char *path, float **out_positions, uint32_t *out
     }
     const uint32_t version = get_u32(h + 12), points = get_u32(h + 16), samples = get_u32(h + 28);
     const float start = get_f32(h + 20);
-    const uint64_t want = 32 + (uint64_t)points * samples * 12;
-    if (memcmp(h, k_signature, 12) != 0 || version != 1 || points == 0 || !isfinite(start) || want != (uint64_t)size) {
+    /* points x samples fits in 64 bits, points x samples x 12 may not: compare records, not bytes,
+     * so that a wrapped product cannot match a small file. */
+    const uint64_t records = (uint64_t)points * samples, payload = (uint64_t)size - 32;
+    if (memcmp(h, k_signature, 12) != 0 || version != 1 || points == 0 || !isfinite(start) || payload % 12 != 0 ||
+        payload / 12 != records) {
         fclose(f);
         return weft__fail(WEFT_ERROR_FORMAT,
                           "PC2: '%s': signature, version %u, %u points x %u samples disagree with its %ld bytes", path,

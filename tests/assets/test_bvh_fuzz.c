@@ -1,9 +1,10 @@
-/* libFuzzer target for the BVH importer: arbitrary bytes -> weft_bvh_load_memory. An accepted
+/* Fuzz target for the BVH importer: arbitrary bytes -> weft_bvh_load_memory. An accepted
  * input must give a finite clip at 60 Hz; a rejected one must explain itself in
- * weft_last_error(). Built only with -DWEFT_BUILD_FUZZ=ON (clang); every ctest run exercises
- * the same properties through the mutation loop in test_bvh.c.
+ * weft_last_error(). Built two ways (tests/fuzz/CMakeLists.txt): with libFuzzer
+ * (-DWEFT_BUILD_FUZZ=ON, clang), and as the ctest fuzz.bvh_replay together with
+ * tests/fuzz/replay_main.c; test_bvh.c runs its own mutation loop over the CMU clips too.
  *
- *   build/tests/fuzz_bvh -dict=... /usr/share/assimp/models/BVH/ */
+ *   bash tools/fuzz.sh 60 bvh     (seeds: tests/fuzz/corpus/bvh, dictionary: tests/fuzz/bvh.dict) */
 #include "bvh.h"
 
 #include <math.h>

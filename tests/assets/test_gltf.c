@@ -1,5 +1,6 @@
 /* Skinned glTF import through assimp: assimp-testmodels' simple_skin, a round trip of weft's
- * own avatar and motion through the glTF writer, and malformed files. */
+ * own avatar and motion through the glTF writer, malformed files, and the inputs assimp 5.2
+ * crashes on (refused before assimp reads them). */
 #define _POSIX_C_SOURCE 200809L
 
 #include "test.h"
@@ -288,6 +289,28 @@ static void test_bad_files(void)
     }
 }
 
+/* Inputs assimp 5.2 crashes on are refused before assimp reads them (runtime/assets/assimp_check.h);
+ * the fuzz seeds in tests/fuzz/corpus/gltf hold one of each, two as the fuzzer found them, next
+ * to valid glTF, glb and ASCII FBX skins that must still load. */
+static void test_assimp_guards(void)
+{
+    static const char *const refused[] = {"bad_skin_without_ibm.gltf",  "bad_skin_short_ibm.glb",
+                                          "crash_skin_without_ibm.glb", "bad_cyclic_connections.fbx",
+                                          "crash_fbx_self_connection.fbx", "bad_deep_nesting.fbx"};
+    char path[1024];
+    for (size_t i = 0; i < sizeof refused / sizeof refused[0]; ++i) {
+        snprintf(path, sizeof path, "%s/tests/fuzz/corpus/gltf/%s", WEFT_SOURCE_DIR, refused[i]);
+        expect_load_fail(path, WEFT_ERROR_FORMAT, refused[i]);
+    }
+    static const char *const loaded[] = {"chain3_bend.glb", "strip_skin.fbx", "smpl24_walk.gltf"};
+    for (size_t i = 0; i < sizeof loaded / sizeof loaded[0]; ++i) {
+        snprintf(path, sizeof path, "%s/tests/fuzz/corpus/gltf/%s", WEFT_SOURCE_DIR, loaded[i]);
+        weft_skinned_asset *a = NULL;
+        CHECK_MSG(weft_skinned_load_file(g_ctx, path, 30.0f, &a) == WEFT_OK, "%s: %s", loaded[i], weft_last_error());
+        weft_skinned_asset_destroy(a);
+    }
+}
+
 static void setup(void)
 {
     weft_context_def cdef = weft_default_context_def();
@@ -298,4 +321,4 @@ static void setup(void)
 static void teardown(void) { weft_context_destroy(g_ctx); }
 
 TEST_MAIN(TEST_CASE(setup), TEST_CASE(test_simple_skin), TEST_CASE(test_fbx), TEST_CASE(test_avatar_roundtrip), TEST_CASE(test_bad_files),
-          TEST_CASE(teardown))
+          TEST_CASE(test_assimp_guards), TEST_CASE(teardown))
