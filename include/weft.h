@@ -207,6 +207,11 @@ typedef enum weft_method {
      * a collider or a fold that moves more than those radii in a substep can pass through.
      * Fixed substeps only (substeps_max must be 0). docs/REFSIM.md, *The fast XPBD baseline*. */
     WEFT_METHOD_XPBD_FAST,
+    /* Positions from the host's own solver (an FNOpt cloth, a game's): the garment runs no method
+     * of its own, only the constraint stage on what weft_garment_constrain is given each frame
+     * (tethers, strain limit, collision with body parts, CCD), plus cuts. weft_garment_step
+     * refuses it. */
+    WEFT_METHOD_EXTERNAL,
     WEFT_METHOD_COUNT
 } weft_method;
 
@@ -424,6 +429,14 @@ WEFT_API weft_result weft_garment_step(weft_garment *garment);
  * allocation fails, the group is stepped one garment at a time (same results, no error).
  * Threads: the garments of one call must not be used elsewhere during it. */
 WEFT_API weft_result weft_garments_step(weft_garment *const *garments, uint32_t count);
+
+/* The step of a WEFT_METHOD_EXTERNAL garment: `next_positions` (vertex_count * 3, the host
+ * solver's result for t+1) go through the constraint stage against the collider of t+1 (set
+ * first with weft_garment_set_collider when the garment has one) and become the state, exactly
+ * as a method's result would; weft_garment_positions then holds the constrained positions. A
+ * cut resets to the skinned garment as for any method. Pins (weft_garment_set_pins) are set on
+ * the result first. On failure the state is unchanged. Other methods refuse it. */
+WEFT_API weft_result weft_garment_constrain(weft_garment *garment, const float *next_positions);
 
 /* Current positions (vertex_count * 3), valid until the next step, set_state or destroy. */
 WEFT_API const float *weft_garment_positions(const weft_garment *garment);

@@ -278,7 +278,7 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
     }
     const weft_method_ops *ops = weft__method_ops(def->method);
     if (!ops) {
-        static const char *const names[] = {"model", "xpbd", "lbs"};
+        static const char *const names[] = {"model", "xpbd", "lbs", "xpbd-fast", "external"};
         return weft__fail(WEFT_ERROR_UNSUPPORTED, "weft_garment_create: method '%s' is not available in this build",
                           names[def->method]);
     }
@@ -651,6 +651,38 @@ weft_result weft_garment_step(weft_garment *g)
     }
     g->stats.step_ms = weft__now_ms() - t0;
     return WEFT_OK;
+}
+
+weft_result weft_garment_constrain(weft_garment *g, const float *next_positions)
+{
+    if (!g || !next_positions) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_garment_constrain: garment and next_positions are required");
+    }
+    if (g->method != WEFT_METHOD_EXTERNAL) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
+                          "weft_garment_constrain: the garment's method is '%s'; only an external garment "
+                          "(WEFT_METHOD_EXTERNAL) takes its positions from the host",
+                          g->ops->name);
+    }
+    if (g->collider_vertex_count > 0 && !g->collider_next_set) {
+        return weft__fail(WEFT_ERROR_NO_COLLIDER,
+                          "weft_garment_constrain: call weft_garment_set_collider with the collider at t+1 first");
+    }
+    const double t0 = weft__now_ms();
+    weft_result r;
+    if (g->collider_vertex_count > 0 && weft__garment_cut(g, &r)) {
+        if (r == WEFT_OK) {
+            g->stats.step_ms = weft__now_ms() - t0;
+        }
+        return r;
+    }
+    /* x_next is scratch until the rotation; a failing stage leaves x and x_prev as they were */
+    memcpy(g->x_next, next_positions, (size_t)g->vertex_count * 3 * sizeof(float));
+    r = weft__garment_finish_step(g);
+    if (r == WEFT_OK) {
+        g->stats.step_ms = weft__now_ms() - t0;
+    }
+    return r;
 }
 
 const float *weft_garment_positions(const weft_garment *g) { return g ? g->x : NULL; }

@@ -4,9 +4,11 @@
  * nearest skin vertex, so every frame their targets are the body's own skinning of them.
  *
  * FNOpt has no body collision in its energy (its only contact term is the cloth's
- * self-repulsion), so the cape can pass through the body when the motion swings the legs or
- * the back into it; the pins sit a few centimetres off the back and the cape starts tilted
- * away from the body to keep that rare in the sample's motions. */
+ * self-repulsion). The cape gets it from weft's constraint stage: after each FNOpt step its
+ * positions go through an external garment (WEFT_METHOD_EXTERNAL, weft_garment_constrain) whose
+ * collision pushes cloth inside the body (up to 5 cm deep) or nearer than 1 cm to 1 cm in front
+ * of it; where that moved the cloth, the corrected positions (and the velocities by the same
+ * correction) go back into the optimizer. */
 #include "weft_sample.h"
 
 #if WEFT_RENDER_HAVE_SAMPLE
@@ -19,6 +21,8 @@
 
 #define CAPE_CURVE_SAMPLES 256u
 #define CAPE_OFFSET_M 0.035f    /* pins this far outside the skin (bind pose) */
+#define CAPE_PUSH_M 0.01f      /* body collision: cloth kept this far in front of the skin */
+#define CAPE_PUSH_DEPTH_M 0.05f /* and pushed out from up to this deep inside it */
 #define CAPE_TILT_RAD 0.03f     /* initial lean of the hanging cloth away from the back: small, a large one swings the cape into the body */
 
 struct weft_sample_cape {
@@ -33,6 +37,9 @@ struct weft_sample_cape {
     uint32_t *tris;
     uint32_t tri_count;
     uint32_t failed_steps;
+    weft_garment *collide;      /* the body collision stage (external garment) */
+    float *grid_fix, *vel_fix;  /* n * 3: corrected grid positions and velocities */
+    uint32_t pushed;            /* cape vertices the last step's collision moved */
 };
 
 void weft_sample_cape_destroy(weft_sample_cape *c)
@@ -40,6 +47,9 @@ void weft_sample_cape_destroy(weft_sample_cape *c)
     if (!c) {
         return;
     }
+    weft_garment_destroy(c->collide);
+    free(c->grid_fix);
+    free(c->vel_fix);
     weft_fnopt_destroy(c->fnopt);
     weft_model_destroy(c->model);
     free(c->pin_rest);
@@ -233,6 +243,29 @@ weft_result weft_sample_cape_create(weft_context *ctx, const weft_body *body, co
     for (size_t q = 0; q < (size_t)c->n * 3; ++q) {
         c->world[q] = grid0[q] / c->lc;
     }
+    /* the body collision: the cape as laid out in the bind pose against the body in it */
+    weft_garment_def gd = weft_default_garment_def();
+    gd.method = WEFT_METHOD_EXTERNAL;
+    gd.rest_positions = c->world;
+    gd.vertex_count = c->n;
+    gd.triangles = c->tris;
+    gd.triangle_count = c->tri_count;
+    gd.collider_rest_positions = weft_body_rest_vertices(body);
+    gd.collider_vertex_count = weft_body_vertex_count(body);
+    gd.collider_triangles = weft_body_triangles(body);
+    gd.collider_triangle_count = weft_body_triangle_count(body);
+    gd.collision.push = CAPE_PUSH_M;
+    gd.collision.push_depth = CAPE_PUSH_DEPTH_M;
+    gd.ccd.enabled = false;
+    c->grid_fix = malloc((size_t)c->n * 3 * sizeof(float));
+    c->vel_fix = malloc((size_t)c->n * 3 * sizeof(float));
+    if (!c->grid_fix || !c->vel_fix) {
+        r = WEFT_ERROR_OUT_OF_MEMORY;
+        goto fail;
+    }
+    if ((r = weft_garment_create(ctx, &gd, &c->collide)) != WEFT_OK) {
+        goto fail;
+    }
     free(grid0);
     *out = c;
     return WEFT_OK;
@@ -242,7 +275,8 @@ fail:
     return r;
 }
 
-weft_result weft_sample_cape_step(weft_sample_cape *c, const weft_body *body, const weft_pose *pose)
+weft_result weft_sample_cape_step(weft_sample_cape *c, const weft_body *body, const weft_pose *pose,
+                                  const float *body_vertices)
 {
     weft_result r = weft_body_skin_points(body, pose, c->pin_rest, c->pin_weights, c->across, c->pin_world);
     if (r != WEFT_OK) {
@@ -264,8 +298,35 @@ weft_result weft_sample_cape_step(weft_sample_cape *c, const weft_body *body, co
     for (size_t q = 0; q < (size_t)c->n * 3; ++q) {
         c->world[q] = g[q] / c->lc;
     }
+    c->pushed = 0;
+    if (!body_vertices) {
+        return WEFT_OK;
+    }
+    if ((r = weft_garment_set_collider(c->collide, body_vertices)) != WEFT_OK ||
+        (r = weft_garment_set_pins(c->collide, c->pin_index, c->pin_world, c->across)) != WEFT_OK ||
+        (r = weft_garment_constrain(c->collide, c->world)) != WEFT_OK) {
+        return r;
+    }
+    const weft_step_stats st = weft_garment_stats(c->collide);
+    const float *x = weft_garment_positions(c->collide);
+    if (st.pushed_vertices == 0 && !st.collider_cut) {
+        return WEFT_OK;
+    }
+    /* the correction goes back into the optimizer, positions and velocities alike */
+    c->pushed = st.pushed_vertices;
+    const float *v = weft_fnopt_velocities(c->fnopt);
+    for (size_t q = 0; q < (size_t)c->n * 3; ++q) {
+        c->grid_fix[q] = x[q] * c->lc;
+        c->vel_fix[q] = st.collider_cut ? 0.0f : v[q] + (x[q] - c->world[q]) * c->lc;
+    }
+    if ((r = weft_fnopt_set_state(c->fnopt, c->grid_fix, c->vel_fix)) != WEFT_OK) {
+        return r;
+    }
+    memcpy(c->world, x, (size_t)c->n * 3 * sizeof(float));
     return WEFT_OK;
 }
+
+uint32_t weft_sample_cape_pushed(const weft_sample_cape *c) { return c->pushed; }
 
 const float *weft_sample_cape_positions(const weft_sample_cape *c) { return c->world; }
 uint32_t weft_sample_cape_vertex_count(const weft_sample_cape *c) { return c->n; }

@@ -112,14 +112,18 @@ void weft_avatar_sample_crowd_usage(FILE *out);
 
 /* The FNOpt cape (cape.c): an across x down grid cloth stepped by weft/fnopt.h, its top row
  * pinned on a curve behind the shoulders and neck of `body` (bind pose), the pins skinned with
- * the body every step. No body collision (FNOpt has none); see cape.c. */
+ * the body every step; body collision through weft's constraint stage (cape.c). */
 typedef struct weft_sample_cape weft_sample_cape;
 
 weft_result weft_sample_cape_create(weft_context *context, const weft_body *body, const char *model_path,
                                     weft_precision precision, uint32_t across, uint32_t down,
                                     weft_sample_cape **out_cape);
-/* One 1/60 s step with the pins at `pose`. On failure the cape keeps its previous state. */
-weft_result weft_sample_cape_step(weft_sample_cape *cape, const weft_body *body, const weft_pose *pose);
+/* One 1/60 s step with the pins at `pose`; with `body_vertices` (the body posed at `pose`) the
+ * result goes through the body collision (cape.c). On failure the cape keeps its previous state. */
+weft_result weft_sample_cape_step(weft_sample_cape *cape, const weft_body *body, const weft_pose *pose,
+                                  const float *body_vertices);
+/* Cape vertices the last step's body collision moved. */
+uint32_t weft_sample_cape_pushed(const weft_sample_cape *cape);
 const float *weft_sample_cape_positions(const weft_sample_cape *cape); /* world metres */
 uint32_t weft_sample_cape_vertex_count(const weft_sample_cape *cape);
 const uint32_t *weft_sample_cape_triangles(const weft_sample_cape *cape, uint32_t *count);

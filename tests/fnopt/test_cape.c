@@ -1,6 +1,7 @@
 /* The render sample's FNOpt cape (samples/common/cape.c): argument checks, pins that follow the
  * body, a cloth that hangs below them, and a finite state over a few steps of a walk. */
 #include "fnopt_test_util.h"
+#include "wear.h"
 #include "weft_sample.h"
 
 #if WEFT_RENDER_HAVE_SAMPLE
@@ -50,7 +51,7 @@ static void test_cape_follows_body(void)
     for (int s = 0; s < 4; ++s) {
         /* the body walks sideways 1 cm per step: the pinned top row must go with it */
         pose.translation[0] += 0.01f;
-        CHECK_RESULT(weft_sample_cape_step(cape, body, &pose), WEFT_OK);
+        CHECK_RESULT(weft_sample_cape_step(cape, body, &pose, NULL), WEFT_OK);
     }
     p = weft_sample_cape_positions(cape);
     CHECK_NEAR(p[0] - x0, 0.04, 1e-4);
@@ -72,7 +73,72 @@ static void test_cape_follows_body(void)
     weft_context_destroy(ctx);
 }
 
-TEST_MAIN(TEST_CASE(test_cape_follows_body))
+/* Body collision: the body (not the pins) moves 2 cm a step back into the hanging cape. Without
+ * the collision stage part of the cape ends up inside it; with it none does, and the push is what
+ * moved it. */
+static void test_cape_collides_with_body(void)
+{
+    weft_context *ctx = fnopt_test_context();
+    weft_avatar_def ad = weft_default_avatar_def();
+    ad.target_vertices = 2000;
+    weft_body *body = NULL;
+    CHECK_RESULT(weft_avatar_create(ctx, &ad, &body), WEFT_OK);
+    if (!body) {
+        weft_context_destroy(ctx);
+        return;
+    }
+    const uint32_t across = 12, down = 16, n = across * down;
+    weft_sample_cape *with = NULL, *without = NULL;
+    CHECK_RESULT(weft_sample_cape_create(ctx, body, FNOPT_MODEL_PATH, WEFT_PRECISION_FP32, across, down, &with),
+                 WEFT_OK);
+    CHECK_RESULT(weft_sample_cape_create(ctx, body, FNOPT_MODEL_PATH, WEFT_PRECISION_FP32, across, down, &without),
+                 WEFT_OK);
+    const uint32_t nbv = weft_body_vertex_count(body), nbt = weft_body_triangle_count(body);
+    float *bv = malloc(sizeof(float) * 3 * nbv);
+    weft_wear *wear = NULL;
+    CHECK_RESULT(weft_wear_create(weft_body_triangles(body), nbt, nbv, n, &wear), WEFT_OK);
+    if (!with || !without || !bv || !wear) {
+        goto done;
+    }
+    weft_pose pose;
+    weft_body_bind_pose(body, &pose);
+    uint32_t pushed = 0;
+    for (int s = 0; s < 6; ++s) {
+        CHECK_RESULT(weft_body_pose(body, &pose, bv, NULL), WEFT_OK);
+        for (uint32_t v = 0; v < nbv; ++v) {
+            bv[3 * v + 2] -= 0.02f * (float)(s + 1); /* the cape hangs behind: -z */
+        }
+        CHECK_RESULT(weft_sample_cape_step(with, body, &pose, bv), WEFT_OK);
+        CHECK_RESULT(weft_sample_cape_step(without, body, &pose, NULL), WEFT_OK);
+        pushed += weft_sample_cape_pushed(with);
+    }
+    /* the pinned top row follows the pose, not the moved body, and pins win over collision: it
+     * is left out of the count (moved far away) */
+    float *pw = malloc(sizeof(float) * 3 * n), *po = malloc(sizeof(float) * 3 * n);
+    memcpy(pw, weft_sample_cape_positions(with), sizeof(float) * 3 * n);
+    memcpy(po, weft_sample_cape_positions(without), sizeof(float) * 3 * n);
+    for (uint32_t i = 0; i < across; ++i) {
+        pw[3 * (size_t)i * down + 1] = po[3 * (size_t)i * down + 1] = 100.0f;
+    }
+    weft_wear_frame fw = {0}, fo = {0};
+    CHECK_RESULT(weft_wear_measure(wear, bv, pw, pw, 0.1f, &fw), WEFT_OK);
+    CHECK_RESULT(weft_wear_measure(wear, bv, po, po, 0.1f, &fo), WEFT_OK);
+    free(pw);
+    free(po);
+    CHECK_MSG(fo.inside_body > 0.02, "without collision %.1f %% of the cape inside", 100.0 * fo.inside_body);
+    CHECK_MSG(fw.inside_body == 0.0, "with collision %.1f %% of the cape inside", 100.0 * fw.inside_body);
+    CHECK(pushed > 0);
+    CHECK_EQ_INT(weft_sample_cape_pushed(without), 0);
+done:
+    weft_wear_destroy(wear);
+    free(bv);
+    weft_sample_cape_destroy(with);
+    weft_sample_cape_destroy(without);
+    weft_body_destroy(body);
+    weft_context_destroy(ctx);
+}
+
+TEST_MAIN(TEST_CASE(test_cape_follows_body), TEST_CASE(test_cape_collides_with_body))
 
 #else
 
