@@ -66,7 +66,9 @@ void weft_avatar_sample_usage(FILE *out, const char *program)
             "  --resolution RES        garment mesh 1k | 4k | 16k | 40k (default 4k)\n"
             "  --sim-resolution RES    simulate this mesh of the garment and draw --resolution from it\n"
             "                          (a mesh map; e.g. 1k for a 4k garment; default: the drawn mesh)\n"
-            "  --method M              auto | model | xpbd | lbs | skin (default auto: the learned model, else xpbd, lbs)\n"
+            "  --method M              auto | model | xpbd[:S] | xpbd-fast[:S] | lbs | skin (default auto: the learned\n"
+            "                          model, else xpbd, lbs); S substeps, 1..1000 (default 10); xpbd-fast is XPBD as\n"
+            "                          a game runs it (docs/REFSIM.md)\n"
             "  --model FILE            safetensors model for the model method (default: the shipped garment model\n"
             "                          for --precision, tools/train/models/garment[.fp16|.int8].safetensors)\n"
             "  --precision P           fp32 | fp16 | int8: the model's arithmetic (default int8)\n"
@@ -111,8 +113,32 @@ static bool parse_precision(const char *s, weft_precision *out)
     return false;
 }
 
+static bool parse_u32(const char *s, uint32_t lo, uint32_t hi, uint32_t *out);
+
+/* --method: auto | model | lbs | skin | xpbd[:S] | xpbd-fast[:S] (S substeps, 1..1000; 0 when not
+ * given: the default 10). */
+static bool split_method(const char *v, char base[16], uint32_t *substeps)
+{
+    const char *colon = strchr(v, ':');
+    const size_t n = colon ? (size_t)(colon - v) : strlen(v);
+    if (n >= 16) {
+        return false;
+    }
+    memcpy(base, v, n);
+    base[n] = '\0';
+    *substeps = 0;
+    const bool xpbd = !strcmp(base, "xpbd") || !strcmp(base, "xpbd-fast");
+    if (colon) {
+        return xpbd && parse_u32(colon + 1, 1, 1000, substeps);
+    }
+    return xpbd || !strcmp(base, "auto") || !strcmp(base, "model") || !strcmp(base, "lbs") || !strcmp(base, "skin");
+}
+
 static bool parse_u32(const char *s, uint32_t lo, uint32_t hi, uint32_t *out)
 {
+    if (!s || *s < '0' || *s > '9') { /* strtoul alone takes " 5", "+5" and "-1" */
+        return false;
+    }
     char *end = NULL;
     errno = 0;
     unsigned long v = strtoul(s, &end, 10);
@@ -125,6 +151,9 @@ static bool parse_u32(const char *s, uint32_t lo, uint32_t hi, uint32_t *out)
 
 static bool parse_float(const char *s, float lo, float hi, float *out)
 {
+    if (!s || !((*s >= '0' && *s <= '9') || *s == '-' || *s == '.')) {
+        return false;
+    }
     char *end = NULL;
     float v = strtof(s, &end);
     if (!end || *end || end == s || !(v >= lo && v <= hi)) {
@@ -181,7 +210,9 @@ int weft_avatar_sample_parse(int argc, char **argv, int first, weft_avatar_sampl
             o->sim_resolution = v;
         } else if (strcmp(a, "--method") == 0) {
             o->method = v;
-            ok = !strcmp(v, "auto") || !strcmp(v, "model") || !strcmp(v, "xpbd") || !strcmp(v, "lbs") || !strcmp(v, "skin");
+            char base[16];
+            uint32_t substeps = 0;
+            ok = split_method(v, base, &substeps);
         } else if (strcmp(a, "--model") == 0) {
             o->model_path = v;
         } else if (strcmp(a, "--precision") == 0) {
@@ -632,9 +663,18 @@ weft_result weft_avatar_sample_garment_create(const weft_avatar_sample_options *
     static const struct {
         const char *name;
         weft_method method;
-    } order[] = {{"model", WEFT_METHOD_MODEL}, {"xpbd", WEFT_METHOD_XPBD}, {"lbs", WEFT_METHOD_LBS}};
+    } order[] = {{"model", WEFT_METHOD_MODEL},
+                 {"xpbd", WEFT_METHOD_XPBD},
+                 {"xpbd-fast", WEFT_METHOD_XPBD_FAST},
+                 {"lbs", WEFT_METHOD_LBS}};
+    char base[16];
+    uint32_t substeps = 0;
+    if (!split_method(o->method, base, &substeps)) {
+        fprintf(stderr, "avatar_render: unknown method '%s'\n", o->method);
+        return WEFT_ERROR_INVALID_ARGUMENT;
+    }
     for (size_t m = 0; m < sizeof order / sizeof order[0] && !*out_garment; ++m) {
-        if (want_auto ? (order[m].method == WEFT_METHOD_MODEL && !*out_model) : strcmp(o->method, order[m].name) != 0) {
+        if (want_auto ? (order[m].method == WEFT_METHOD_MODEL && !*out_model) : strcmp(base, order[m].name) != 0) {
             continue;
         }
         uint8_t *parts = o->body_parts ? malloc(weft_body_triangle_count(body)) : NULL;
@@ -647,6 +687,7 @@ weft_result weft_avatar_sample_garment_create(const weft_avatar_sample_options *
         }
         gdef.model = *out_model;
         gdef.precision = o->precision;
+        gdef.substeps = substeps ? substeps : gdef.substeps;
         /* The options override the worn-garment recipe: --tether-cm (8, 0 turns it off),
          * --strain-limit (10 % for the learned model), --push-cm, --ccd. */
         float tether_cm = o->tether_cm >= 0.0f ? o->tether_cm : WEFT_WORN_TETHER_CM;
@@ -664,6 +705,8 @@ weft_result weft_avatar_sample_garment_create(const weft_avatar_sample_options *
         static const char *const prec[] = {"fp32", "fp16", "int8"};
         if (order[m].method == WEFT_METHOD_MODEL) {
             snprintf(label, label_cap, "model %s", prec[o->precision]);
+        } else if (substeps) {
+            snprintf(label, label_cap, "%s:%u", order[m].name, substeps);
         } else {
             snprintf(label, label_cap, "%s", order[m].name);
         }
