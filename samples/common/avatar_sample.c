@@ -603,19 +603,27 @@ static const char *shipped_model(weft_precision precision)
     return shipped[precision < WEFT_PRECISION_COUNT ? precision : WEFT_PRECISION_FP32];
 }
 
-weft_result weft_sample_worn_def(const weft_body *body, const weft_cloth_mesh *cloth, weft_method method, uint8_t *parts,
-                                 weft_garment_def *out)
+weft_garment_def weft_sample_body_garment_def(const weft_body *body, weft_method method, const float *positions,
+                                              uint32_t vertex_count, const uint32_t *triangles, uint32_t triangle_count)
 {
     weft_garment_def d = weft_default_garment_def();
     d.method = method;
-    d.rest_positions = cloth->positions;
-    d.vertex_count = cloth->vertex_count;
-    d.triangles = cloth->triangles;
-    d.triangle_count = cloth->triangle_count;
+    d.rest_positions = positions;
+    d.vertex_count = vertex_count;
+    d.triangles = triangles;
+    d.triangle_count = triangle_count;
     d.collider_rest_positions = weft_body_rest_vertices(body);
     d.collider_vertex_count = weft_body_vertex_count(body);
     d.collider_triangles = weft_body_triangles(body);
     d.collider_triangle_count = weft_body_triangle_count(body);
+    return d;
+}
+
+weft_result weft_sample_worn_def(const weft_body *body, const weft_cloth_mesh *cloth, weft_method method, uint8_t *parts,
+                                 weft_garment_def *out)
+{
+    weft_garment_def d = weft_sample_body_garment_def(body, method, cloth->positions, cloth->vertex_count,
+                                                      cloth->triangles, cloth->triangle_count);
     if (parts) {
         weft_result r = weft_body_triangle_parts(body, parts, d.collider_triangle_count);
         if (r != WEFT_OK) {

@@ -244,16 +244,8 @@ weft_result weft_sample_cape_create(weft_context *ctx, const weft_body *body, co
         c->world[q] = grid0[q] / c->lc;
     }
     /* the body collision: the cape as laid out in the bind pose against the body in it */
-    weft_garment_def gd = weft_default_garment_def();
-    gd.method = WEFT_METHOD_EXTERNAL;
-    gd.rest_positions = c->world;
-    gd.vertex_count = c->n;
-    gd.triangles = c->tris;
-    gd.triangle_count = c->tri_count;
-    gd.collider_rest_positions = weft_body_rest_vertices(body);
-    gd.collider_vertex_count = weft_body_vertex_count(body);
-    gd.collider_triangles = weft_body_triangles(body);
-    gd.collider_triangle_count = weft_body_triangle_count(body);
+    weft_garment_def gd =
+        weft_sample_body_garment_def(body, WEFT_METHOD_EXTERNAL, c->world, c->n, c->tris, c->tri_count);
     gd.collision.push = CAPE_PUSH_M;
     gd.collision.push_depth = CAPE_PUSH_DEPTH_M;
     gd.ccd.enabled = false;

@@ -78,6 +78,10 @@ weft_result weft_avatar_sample_garment_create(const weft_avatar_sample_options *
                                               const weft_body *body, const weft_cloth_mesh *cloth,
                                               weft_model **out_model, weft_garment **out_garment, char *label,
                                               size_t label_cap);
+/* weft_default_garment_def() with `method`, the given cloth mesh as rest shape and the body (bind
+ * pose) as collider. */
+weft_garment_def weft_sample_body_garment_def(const weft_body *body, weft_method method, const float *positions,
+                                              uint32_t vertex_count, const uint32_t *triangles, uint32_t triangle_count);
 /* The worn-garment recipe (docs/WEAR.md) for `method`: the cloth mesh on the body as collider,
  * body parts from weft_body_triangle_parts written into `parts` (weft_body_triangle_count(body)
  * bytes, kept by the caller until the garment is created; NULL: no parts), no CCD, an 8 cm max
