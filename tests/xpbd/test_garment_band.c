@@ -6,7 +6,7 @@
 #include "weft/ccd.h"
 #include "weft/sim.h"
 /* the runtime scene header (tests/xpbd/scene.h, the test meshes, shadows "xpbd/scene.h") */
-#include "../../runtime/xpbd/scene.h"
+#include "../../tools/lab/scene.h"
 
 #include <stdio.h>
 #include <stdlib.h>

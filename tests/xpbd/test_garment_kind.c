@@ -3,7 +3,7 @@
 #include "test.h"
 #include "weft/sim.h"
 /* the runtime scene header (tests/xpbd/scene.h, the test meshes, shadows "xpbd/scene.h") */
-#include "../../runtime/xpbd/scene.h"
+#include "../../tools/lab/scene.h"
 
 #include <string.h>
 

@@ -5,7 +5,7 @@
 #include "test.h"
 #include "weft/sim.h"
 /* the runtime scene header (tests/xpbd/scene.h, the test meshes, shadows "xpbd/scene.h") */
-#include "../../runtime/xpbd/scene.h"
+#include "../../tools/lab/scene.h"
 
 static void test_setdown_height(void)
 {

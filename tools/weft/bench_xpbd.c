@@ -9,7 +9,7 @@
 #define _POSIX_C_SOURCE 200809L /* clock_gettime, CLOCK_THREAD_CPUTIME_ID */
 #include "weft.h"
 #include "weft/sim.h"
-#include "xpbd/scene.h"
+#include "scene.h"
 
 #include "support_cli.h"
 

@@ -21,7 +21,7 @@
 #include "weft/lod.h"
 #include "weft/sim.h"
 #include "assets/npz.h"
-#include "io/npy_write.h"
+#include "npy_write.h"
 #include "support_bench.h"
 #include "support_cli.h"
 

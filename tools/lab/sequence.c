@@ -1,9 +1,9 @@
 /* One dataset sequence: build the scenario, simulate it with XPBD, validate every frame,
  * and write the arrays (.npy) and meta.json. */
 #define _POSIX_C_SOURCE 200809L /* mkdir, rename */
-#include "xpbd/scene.h"
+#include "scene.h"
 
-#include "io/npy_write.h"
+#include "npy_write.h"
 
 #include <cjson/cJSON.h>
 #include <errno.h>

@@ -1,6 +1,6 @@
 /* Procedural geometry and kinematics for the drop and gripper scenarios. */
 #include "weft/ccd.h"
-#include "xpbd/scene.h"
+#include "scene.h"
 
 #include <stdio.h>
 #include <stdlib.h>

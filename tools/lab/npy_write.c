@@ -1,6 +1,6 @@
 /* Writing .npy arrays (the dataset generator, `weft eval --write-pos`). Reading them lives in
  * runtime/assets (weft_npy_parse), which the core library does not link. */
-#include "io/npy_write.h"
+#include "npy_write.h"
 
 #include <stdio.h>
 

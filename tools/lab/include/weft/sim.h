@@ -16,7 +16,7 @@
 #ifndef WEFT_SIM_H
 #define WEFT_SIM_H
 
-#include "ccd.h"
+#include "weft/ccd.h"
 #include "weft.h"
 
 #ifdef __cplusplus
