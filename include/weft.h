@@ -352,7 +352,10 @@ typedef struct weft_garment_def {
 
 typedef struct weft_step_stats {
     uint64_t frame;                     /* frames stepped since creation or the last set_state */
-    double step_ms;                     /* wall time of the last step */
+    double step_ms;                     /* wall time of the last step: */
+    double method_ms;                   /*   the method's own step (a batched one: its even share) */
+    double constraints_ms;              /*   the range check, tethers, strain limit and collision */
+    double ccd_ms;                      /*   the CCD pass */
     uint32_t ccd_iterations;            /* CCD post-process passes in the last step */
     uint32_t ccd_vertices_moved;        /* vertices the CCD post-process moved back */
     bool ccd_fallback;                  /* CCD did not converge; unresolved vertices were held */

@@ -520,6 +520,7 @@ static weft_result apply_tethers(weft_garment *g)
 
 weft_result weft__garment_finish_step(weft_garment *g)
 {
+    const double t0 = weft__now_ms();
     g->stats.collider_cut = false;
     size_t bad = weft__first_outside(g->x_next, (size_t)g->vertex_count * 3);
     if (bad != SIZE_MAX) {
@@ -560,7 +561,10 @@ weft_result weft__garment_finish_step(weft_garment *g)
          * is what keeps a garment on its wearer, so it has the last word before CCD. */
         g->stats.tether_vertices_clamped += clamp_tethers(g);
     }
+    const double t1 = weft__now_ms();
     weft__ccd_postprocess_garment(g); /* sweeps x -> x_next against the collider and itself */
+    g->stats.constraints_ms = t1 - t0;
+    g->stats.ccd_ms = weft__now_ms() - t1;
     /* Rotate: t-1 <- t, t <- t+1 (pointer swaps, no copies). */
     float *old_prev = g->x_prev;
     g->x_prev = g->x;
@@ -643,8 +647,12 @@ weft_result weft_garment_step(weft_garment *g)
         return r;
     }
     r = g->ops->step(g);
+    const double t1 = weft__now_ms();
     if (r == WEFT_OK) {
         r = weft__garment_finish_step(g);
+    }
+    if (r == WEFT_OK) {
+        g->stats.method_ms = t1 - t0;
     }
     if (r != WEFT_OK) {
         return r;
@@ -680,6 +688,7 @@ weft_result weft_garment_constrain(weft_garment *g, const float *next_positions)
     memcpy(g->x_next, next_positions, (size_t)g->vertex_count * 3 * sizeof(float));
     r = weft__garment_finish_step(g);
     if (r == WEFT_OK) {
+        g->stats.method_ms = 0.0;
         g->stats.step_ms = weft__now_ms() - t0;
     }
     return r;

@@ -36,6 +36,7 @@ static weft_result finish(weft_garment *g, weft_result r, double forward_ms)
     const double t0 = weft__now_ms();
     r = weft__garment_finish_step(g);
     if (r == WEFT_OK) {
+        g->stats.method_ms = forward_ms;
         g->stats.step_ms = forward_ms + (weft__now_ms() - t0);
     }
     return r;

@@ -1,0 +1,407 @@
+/* weft bench frame: what a worn garment costs a game per frame, split by stage.
+ *
+ * The default avatar wears the T-shirt with the worn-garment recipe of the render sample (body
+ * parts, an 8 cm max distance, a 0.5 cm push, a 10 % strain limit for the learned model, no CCD),
+ * is settled from the bind pose into each motion over 30 frames, and is stepped --frames frames
+ * by each method at each resolution, one thread. Per cell the medians of: posing the body (the
+ * game's own skinning, listed for scale), the whole cloth step, and its parts from
+ * weft_step_stats: the method, the constraint stage, CCD. Then the ratios that matter for a
+ * game budget, each from medians of this one run: learned int8 over fast XPBD-10, int8 over
+ * fp32, the whole step over the game's XPBD-10 (target 1/20). A step that fails makes the bench
+ * exit non-zero and write no table. */
+#define _POSIX_C_SOURCE 200809L
+#include "weft.h"
+#include "weft/body.h"
+#include "support_bench.h"
+#include "support_cli.h"
+#include "core/core.h"
+
+#include <math.h>
+#include <stdio.h>
+#include <stdlib.h>
+#include <string.h>
+
+const char weft_bench_frame_help[] =
+    "a worn garment's whole frame by stage (method, constraints, CCD) at 1k/4k: learned int8/fp16/fp32, fast XPBD, LBS";
+
+#if WEFT_RENDER_HAVE_SAMPLE && WEFT_RENDER_HAVE_ASSETS
+#include "bvh.h"
+#include "weft_sample.h"
+
+#define FR_SETTLE 30
+#define FR_MAX 8
+
+typedef struct fr_method {
+    char label[40];
+    weft_method method;
+    weft_precision precision;
+    uint32_t substeps;
+} fr_method;
+
+typedef struct fr_cell {
+    double pose, step, method, constraints, ccd; /* medians, ms */
+} fr_cell;
+
+static void usage(FILE *f)
+{
+    fprintf(f, "usage: weft bench frame [--motions walk,mocap:CLIP,...] [--resolutions 1k,4k]\n"
+               "                        [--methods model:int8,model:fp16,model:fp32,xpbd-fast:5,xpbd-fast:10,lbs]\n"
+               "                        [--frames N] [--md FILE]\n"
+               "  Defaults: the procedural walk and the mocap clip walk_cmu07_01, 1k and 4k, those six methods,\n"
+               "  60 measured frames (1..100000) after a 30-frame settle. The learned model is the shipped\n"
+               "  garment model at each precision. --md writes the table into FILE between <!-- frame-table -->\n"
+               "  markers (docs/MODEL_BENCH.md).\n");
+}
+
+static bool parse_method(const char *item, size_t n, fr_method *m)
+{
+    char buf[32];
+    if (n == 0 || n >= sizeof buf) {
+        return false;
+    }
+    memcpy(buf, item, n);
+    buf[n] = '\0';
+    memset(m, 0, sizeof *m);
+    snprintf(m->label, sizeof m->label, "%s", buf);
+    if (!strcmp(buf, "lbs")) {
+        m->method = WEFT_METHOD_LBS;
+        return true;
+    }
+    static const char *const prec[] = {"fp32", "fp16", "int8"};
+    for (int p = 0; p < 3; ++p) {
+        char want[16];
+        snprintf(want, sizeof want, "model:%s", prec[p]);
+        if (!strcmp(buf, want)) {
+            m->method = WEFT_METHOD_MODEL;
+            m->precision = (weft_precision)p;
+            snprintf(m->label, sizeof m->label, "learned %s", prec[p]);
+            return true;
+        }
+    }
+    const char *colon = strchr(buf, ':');
+    if (colon && (!strncmp(buf, "xpbd-fast:", 10) || !strncmp(buf, "xpbd:", 5))) {
+        m->method = !strncmp(buf, "xpbd-fast:", 10) ? WEFT_METHOD_XPBD_FAST : WEFT_METHOD_XPBD;
+        return cli_u32("weft bench frame", "--methods", colon + 1, 1, 1000, &m->substeps);
+    }
+    return false;
+}
+
+static const char *shipped_model(weft_precision p)
+{
+    static const char *const path[] = {"tools/train/models/garment.safetensors",
+                                       "tools/train/models/garment.fp16.safetensors",
+                                       "tools/train/models/garment.int8.safetensors"};
+    return path[p];
+}
+
+/* Poses of one motion at 60 Hz: settle frames then the measured ones. */
+typedef struct fr_motion {
+    bool procedural;
+    weft_motion_def def;
+    weft_clip *clip;
+} fr_motion;
+
+static weft_result motion_at(const fr_motion *m, double t, weft_pose *out)
+{
+    return m->procedural ? weft_motion_sample(&m->def, t, out) : weft_clip_sample(m->clip, t, out);
+}
+
+static int cmp_double(const void *a, const void *b)
+{
+    const double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+static double median(double *v, uint32_t n)
+{
+    qsort(v, n, sizeof *v, cmp_double);
+    return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+/* One (motion, resolution, method) run. Returns 0, or 1 with the reason printed. */
+static int run_cell(weft_context *ctx, weft_body *body, const fr_motion *mo, const char *resolution,
+                    const fr_method *m, weft_model *model, uint32_t frames, fr_cell *out)
+{
+    weft_cloth_def cdef = weft_default_cloth_def(WEFT_CLOTH_TSHIRT);
+    if (weft_cloth_resolution_from_name(resolution, &cdef.resolution) != WEFT_OK) {
+        fprintf(stderr, "weft bench frame: --resolutions: %s is not 1k, 4k, 16k or 40k\n", resolution);
+        return 1;
+    }
+    weft_cloth_mesh *cloth = NULL;
+    if (weft_cloth_create(ctx, &cdef, body, &cloth) != WEFT_OK) {
+        fprintf(stderr, "weft bench frame: garment: %s\n", weft_last_error());
+        return 1;
+    }
+    const uint32_t nbv = weft_body_vertex_count(body);
+    uint8_t *parts = malloc(weft_body_triangle_count(body));
+    float *bverts = malloc((size_t)nbv * 3 * sizeof(float));
+    double *t[5];
+    for (int k = 0; k < 5; ++k) {
+        t[k] = calloc(frames, sizeof(double));
+    }
+    int rc = parts && bverts && t[0] && t[1] && t[2] && t[3] && t[4] ? 0 : 1;
+    weft_garment *g = NULL;
+    weft_garment_def d;
+    if (rc == 0 && weft_sample_worn_def(body, cloth, m->method, parts, &d) != WEFT_OK) {
+        rc = 1;
+    }
+    if (rc == 0) {
+        d.model = model;
+        d.precision = m->precision;
+        d.substeps = m->substeps ? m->substeps : d.substeps;
+        if (weft_garment_create(ctx, &d, &g) != WEFT_OK) {
+            rc = 1;
+        }
+    }
+    weft_pose bind, first, pose;
+    weft_body_bind_pose(body, &bind);
+    if (rc == 0 && motion_at(mo, 0.0, &first) != WEFT_OK) {
+        rc = 1;
+    }
+    for (uint32_t k = 0; rc == 0 && k < FR_SETTLE + frames; ++k) {
+        if (k < FR_SETTLE) {
+            weft_avatar_sample_settle_pose(&bind, &first, k, FR_SETTLE, &pose);
+        } else if (motion_at(mo, (double)(k - FR_SETTLE) / 60.0, &pose) != WEFT_OK) {
+            rc = 1;
+            break;
+        }
+        const double t0 = weft__now_ms();
+        if (weft_body_pose(body, &pose, bverts, NULL) != WEFT_OK) {
+            rc = 1;
+            break;
+        }
+        const double t1 = weft__now_ms();
+        if (weft_garment_set_collider(g, bverts) != WEFT_OK || weft_garment_step(g) != WEFT_OK) {
+            rc = 1;
+            break;
+        }
+        if (k >= FR_SETTLE) {
+            const weft_step_stats st = weft_garment_stats(g);
+            const uint32_t i = k - FR_SETTLE;
+            t[0][i] = t1 - t0;
+            t[1][i] = st.step_ms;
+            t[2][i] = st.method_ms;
+            t[3][i] = st.constraints_ms;
+            t[4][i] = st.ccd_ms;
+        }
+    }
+    if (rc != 0) {
+        fprintf(stderr, "weft bench frame: %s at %s: %s\n", m->label, resolution, weft_last_error());
+    } else {
+        out->pose = median(t[0], frames);
+        out->step = median(t[1], frames);
+        out->method = median(t[2], frames);
+        out->constraints = median(t[3], frames);
+        out->ccd = median(t[4], frames);
+    }
+    weft_garment_destroy(g);
+    for (int k = 0; k < 5; ++k) {
+        free(t[k]);
+    }
+    free(parts);
+    free(bverts);
+    weft_cloth_destroy(cloth);
+    return rc;
+}
+
+/* The list item `name` of a comma-separated list, copied into buf; false past the end. */
+static bool list_item(const char *list, uint32_t index, char *buf, size_t cap)
+{
+    const char *p = list;
+    for (uint32_t i = 0; i < index; ++i) {
+        p = strchr(p, ',');
+        if (!p) {
+            return false;
+        }
+        ++p;
+    }
+    const size_t n = strcspn(p, ",");
+    if (n == 0 || n >= cap) {
+        return false;
+    }
+    memcpy(buf, p, n);
+    buf[n] = '\0';
+    return true;
+}
+
+int weft_bench_frame(int argc, char **argv)
+{
+    const char *motions = "walk,mocap:walk_cmu07_01", *resolutions = "1k,4k", *md = NULL;
+    const char *methods_text = "model:int8,model:fp16,model:fp32,xpbd-fast:5,xpbd-fast:10,lbs";
+    uint32_t frames = 60;
+    for (int i = 1; i < argc; i += 2) {
+        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
+        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
+            usage(stdout);
+            return 0;
+        }
+        if (!v) {
+            fprintf(stderr, "weft bench frame: %s needs a value\n", a);
+            return 2;
+        }
+        if (!strcmp(a, "--motions")) {
+            motions = v;
+        } else if (!strcmp(a, "--resolutions")) {
+            resolutions = v;
+        } else if (!strcmp(a, "--methods")) {
+            methods_text = v;
+        } else if (!strcmp(a, "--md")) {
+            md = v;
+        } else if (!strcmp(a, "--frames")) {
+            if (!cli_u32("weft bench frame", a, v, 1, 100000, &frames)) {
+                return 2;
+            }
+        } else {
+            fprintf(stderr, "weft bench frame: unknown option '%s'\n", a);
+            usage(stderr);
+            return 2;
+        }
+    }
+    fr_method methods[FR_MAX];
+    uint32_t nm = 0;
+    char item[64];
+    for (uint32_t k = 0; list_item(methods_text, k, item, sizeof item); ++k) {
+        if (nm == FR_MAX || !parse_method(item, strlen(item), &methods[nm])) {
+            fprintf(stderr, "weft bench frame: bad method '%s' (model:int8|fp16|fp32, xpbd-fast:S, xpbd:S, lbs; at "
+                            "most %d)\n", item, FR_MAX);
+            return 2;
+        }
+        ++nm;
+    }
+    if (nm == 0) {
+        fprintf(stderr, "weft bench frame: --methods is empty\n");
+        return 2;
+    }
+    weft_context_def cd = weft_default_context_def();
+    weft_context *ctx = NULL;
+    weft_body *body = NULL;
+    weft_avatar_def ad = weft_default_avatar_def();
+    if (weft_context_create(&cd, &ctx) != WEFT_OK || weft_avatar_create(ctx, &ad, &body) != WEFT_OK) {
+        fprintf(stderr, "weft bench frame: %s\n", weft_last_error());
+        weft_context_destroy(ctx);
+        return 1;
+    }
+    weft_model *models[WEFT_PRECISION_COUNT] = {NULL, NULL, NULL};
+    int rc = 0;
+    for (uint32_t k = 0; rc == 0 && k < nm; ++k) {
+        const weft_precision p = methods[k].precision;
+        if (methods[k].method == WEFT_METHOD_MODEL && !models[p] &&
+            weft_model_load_file_as(ctx, shipped_model(p), "clothtransformer", &models[p]) != WEFT_OK) {
+            fprintf(stderr, "weft bench frame: %s: %s (run from the repository root)\n", shipped_model(p),
+                    weft_last_error());
+            rc = 1;
+        }
+    }
+    char *table = NULL;
+    size_t len = 0, cap = 0;
+    char line[1024];
+    snprintf(line, sizeof line,
+             "`weft bench frame --motions %s --resolutions %s --methods %s --frames %u` (%s; one thread; medians "
+             "of %u frames; ms)\n\n"
+             "| motion | garment | method | body posing | whole cloth step | method | constraints | CCD |\n"
+             "|---|---|---|---:|---:|---:|---:|---:|\n",
+             motions, resolutions, methods_text, frames, weft_config_string(), frames);
+    table = rc == 0 ? bench_append(table, &len, &cap, line) : NULL;
+    char ratios[4096] = "";
+    char motion_spec[128], res[16];
+    for (uint32_t mi = 0; rc == 0 && table && list_item(motions, mi, motion_spec, sizeof motion_spec); ++mi) {
+        fr_motion mo = {0};
+        if (!strncmp(motion_spec, "mocap:", 6) || !strncmp(motion_spec, "bvh:", 4)) {
+            char path[1024];
+            weft_bvh_def bdef = weft_default_bvh_def();
+            bdef.rest_joints = weft_body_rest_joints(body);
+            if (weft_sample_motion_path(motion_spec, path, sizeof path) != WEFT_OK ||
+                weft_bvh_load_file(ctx, path, &bdef, &mo.clip) != WEFT_OK) {
+                fprintf(stderr, "weft bench frame: motion %s: %s\n", motion_spec, weft_last_error());
+                rc = 1;
+                break;
+            }
+        } else {
+            weft_motion mk;
+            if (weft_motion_from_name(motion_spec, &mk) != WEFT_OK) {
+                fprintf(stderr, "weft bench frame: motion %s: %s\n", motion_spec, weft_last_error());
+                rc = 1;
+                break;
+            }
+            mo.procedural = true;
+            mo.def = weft_default_motion_def(mk);
+        }
+        for (uint32_t ri = 0; rc == 0 && list_item(resolutions, ri, res, sizeof res); ++ri) {
+            fr_cell cells[FR_MAX];
+            for (uint32_t k = 0; rc == 0 && k < nm; ++k) {
+                rc = run_cell(ctx, body, &mo, res, &methods[k],
+                              methods[k].method == WEFT_METHOD_MODEL ? models[methods[k].precision] : NULL, frames,
+                              &cells[k]);
+                if (rc != 0) {
+                    break;
+                }
+                snprintf(line, sizeof line, "| %s | T-shirt %s | %s | %.2f | %.2f | %.2f | %.2f | %.2f |\n", motion_spec,
+                         res, methods[k].label, cells[k].pose, cells[k].step, cells[k].method, cells[k].constraints,
+                         cells[k].ccd);
+                fputs(line, stdout);
+                fflush(stdout);
+                table = bench_append(table, &len, &cap, line);
+                rc = table ? 0 : 1;
+            }
+            if (rc != 0) {
+                break;
+            }
+            /* ratios of medians of this run, where both sides were measured */
+            int i8 = -1, f32 = -1, x10 = -1;
+            for (uint32_t k = 0; k < nm; ++k) {
+                if (methods[k].method == WEFT_METHOD_MODEL && methods[k].precision == WEFT_PRECISION_INT8) {
+                    i8 = (int)k;
+                } else if (methods[k].method == WEFT_METHOD_MODEL && methods[k].precision == WEFT_PRECISION_FP32) {
+                    f32 = (int)k;
+                } else if (methods[k].method == WEFT_METHOD_XPBD_FAST && methods[k].substeps == 10) {
+                    x10 = (int)k;
+                }
+            }
+            char r[512];
+            int w = snprintf(r, sizeof r, "| %s | T-shirt %s |", motion_spec, res);
+            w += snprintf(r + w, sizeof r - (size_t)w, i8 >= 0 && x10 >= 0 ? " %.2f (target <= 0.05) |" : " - |",
+                          i8 >= 0 && x10 >= 0 ? cells[i8].step / cells[x10].step : 0.0);
+            w += snprintf(r + w, sizeof r - (size_t)w, i8 >= 0 && f32 >= 0 ? " %.2f |" : " - |",
+                          i8 >= 0 && f32 >= 0 ? cells[i8].step / cells[f32].step : 0.0);
+            snprintf(r + w, sizeof r - (size_t)w, i8 >= 0 ? " %.0f %% |\n" : " - |\n",
+                     i8 >= 0 && cells[i8].step > 0.0 ? 100.0 * cells[i8].method / cells[i8].step : 0.0);
+            strncat(ratios, r, sizeof ratios - strlen(ratios) - 1);
+        }
+        weft_clip_destroy(mo.clip);
+    }
+    if (rc == 0 && table) {
+        table = bench_append(table, &len, &cap,
+                             "\n| motion | garment | learned int8 / fast XPBD-10 (whole step) | int8 / fp32 | network "
+                             "share of the int8 step |\n|---|---|---:|---:|---:|\n");
+        table = table ? bench_append(table, &len, &cap, ratios) : NULL;
+        rc = table ? 0 : 1;
+        if (table) {
+            printf("\n%s", strstr(table, "| motion | garment | learned int8 /"));
+        }
+    }
+    if (rc == 0 && md) {
+        size_t dsize = 0;
+        char *doc = bench_slurp(md, &dsize);
+        doc = bench_replace_block(doc, "frame-table", table, "# The frame");
+        rc = bench_write_doc("frame", md, doc) ? 0 : 1;
+    }
+    free(table);
+    for (int p = 0; p < WEFT_PRECISION_COUNT; ++p) {
+        weft_model_destroy(models[p]);
+    }
+    weft_body_destroy(body);
+    weft_context_destroy(ctx);
+    return rc;
+}
+
+#else
+
+int weft_bench_frame(int argc, char **argv)
+{
+    (void)argc;
+    (void)argv;
+    fprintf(stderr, "weft bench frame: this build has no avatar, wardrobe and BVH import (weft_render, weft_assets)\n");
+    return 1;
+}
+
+#endif
