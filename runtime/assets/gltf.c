@@ -15,6 +15,7 @@
 #include <stdlib.h>
 #include <string.h>
 
+#define SKIN_MAX_ENTRY 1.0e6f /* largest skinning-matrix entry accepted (metres / scale) */
 #define SKIN_MAX_NODES 4096u
 #define SKIN_MAX_FRAMES 100000u
 #define SKIN_MAX_VERTICES (1u << 24)
@@ -361,8 +362,12 @@ static weft_result import_scene(const struct aiScene *scene, float fps, skin_nod
         }
         vbase += mesh->mNumVertices;
     }
-    if (res == WEFT_OK && !weft__all_finite(a->positions, nv * 3)) {
-        res = weft__fail(WEFT_ERROR_NOT_FINITE, "skinned mesh: vertex positions contain NaN or infinity");
+    const size_t bad_position = res == WEFT_OK ? weft__first_outside(a->positions, nv * 3) : SIZE_MAX;
+    if (bad_position != SIZE_MAX) {
+        res = weft__fail(WEFT_ERROR_NOT_FINITE,
+                         "skinned mesh: vertex %zu has coordinate %g (NaN, infinite or beyond +-%g m, "
+                         "WEFT_MAX_COORDINATE)",
+                         bad_position / 3, (double)a->positions[bad_position], (double)WEFT_MAX_COORDINATE);
     }
     for (uint32_t v = 0; v < a->vertex_count && res == WEFT_OK; ++v) {
         float *w = a->joint_weights + 4 * (size_t)v;
@@ -474,6 +479,17 @@ static weft_result import_scene(const struct aiScene *scene, float fps, skin_nod
     if (res == WEFT_OK && (!weft__all_finite(a->skin_matrices, (size_t)frames * joints * 16) ||
                            !weft__all_finite(a->local_rotations, (size_t)frames * joints * 4))) {
         res = weft__fail(WEFT_ERROR_NOT_FINITE, "skinned mesh: the animation produces non-finite transforms");
+    }
+    /* Skinning sums weighted products of these with positions within WEFT_MAX_COORDINATE: entries
+     * beyond SKIN_MAX_ENTRY (a joint moved or scaled absurdly far) could overflow float there. */
+    for (size_t i = 0; res == WEFT_OK && i < (size_t)frames * joints * 16; ++i) {
+        if (!(fabsf(a->skin_matrices[i]) <= SKIN_MAX_ENTRY)) {
+            res = weft__fail(WEFT_ERROR_FORMAT,
+                             "skinned mesh: frame %zu moves or scales joint %zu absurdly (a skinning matrix entry of "
+                             "%g, beyond %g)",
+                             i / ((size_t)joints * 16), i / 16 % joints, (double)a->skin_matrices[i],
+                             (double)SKIN_MAX_ENTRY);
+        }
     }
     free(global);
     free(inverse_bind);
