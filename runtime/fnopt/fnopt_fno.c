@@ -1,4 +1,4 @@
-/* The FNO of the learned optimizer (docs/FNOPT.md, "Network"), in fp32, fp16 or int8.
+/* The FNO of the learned optimizer (docs/FNOPT.md, *Formulation (as implemented)*), in fp32, fp16 or int8.
  *
  * Activations are pixel-major, channels fastest: row (s*n + p) of a [batch*n][C] matrix is
  * pixel p of sample s, so every 1x1 convolution is one gemm through the context's kernels.

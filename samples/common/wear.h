@@ -1,5 +1,5 @@
 /* How a worn garment sits on its body, frame by frame: the measures the render sample, `weft
- * render` and the stability suite report for real motion (docs/STABILITY.md, *Wear measures*).
+ * render` and the stability suite report for real motion (docs/WEAR.md, *Wear measures*).
  *
  *   off_body           share of garment vertices farther than a distance (10 cm; 25 cm for skirts
  *                      and dresses) from the same garment skinned to the body; a clip loses the
