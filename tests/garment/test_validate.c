@@ -149,6 +149,10 @@ static void test_cut_resets_to_the_skinned_garment(void)
             CHECK_RESULT(weft_garment_step(g), WEFT_OK);
             const weft_step_stats st = weft_garment_stats(g);
             CHECK_MSG(st.collider_cut == (f == 3), "%s frame %d: cut %d", method_names_[m], f, (int)st.collider_cut);
+            /* the stage split of step_ms: parts within the whole; a cut runs no stage */
+            CHECK(st.method_ms >= 0.0 && st.constraints_ms >= 0.0 && st.ccd_ms >= 0.0);
+            CHECK(st.method_ms + st.constraints_ms + st.ccd_ms <= st.step_ms + 1e-6);
+            CHECK(f != 3 || (st.method_ms == 0.0 && st.constraints_ms == 0.0 && st.ccd_ms == 0.0));
             CHECK_EQ_INT(st.frame, (uint64_t)f);
             if (f == 3) {
                 const float *x = weft_garment_positions(g);
