@@ -242,6 +242,11 @@ typedef struct weft_clip {
 /* Allocates a clip with zeroed frames. */
 WEFT_API weft_result weft_clip_create(weft_context *context, uint32_t frame_count, float fps, weft_clip **out_clip);
 WEFT_API void weft_clip_destroy(weft_clip *clip);
+/* (1 - u) a + u b for poses: each joint's rotation by quaternion slerp (the shorter way),
+ * the root translation linearly; u in [0, 1]. Blends a character into a clip (the render
+ * sample settles from the bind pose into a clip's first frame this way) or between two clips. */
+WEFT_API weft_result weft_pose_blend(const weft_pose *a, const weft_pose *b, double u, weft_pose *out_pose);
+
 /* Interpolated pose at time t: rotations by quaternion slerp, translation linearly. */
 WEFT_API weft_result weft_clip_sample(const weft_clip *clip, double t, weft_pose *out_pose);
 /* A new clip of the same duration at `fps` (e.g. 60). Rejects non-finite frames. */

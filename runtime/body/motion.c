@@ -425,6 +425,31 @@ static void sample_frames(const weft_clip *clip, double t, weft_pose *out)
     }
 }
 
+weft_result weft_pose_blend(const weft_pose *a, const weft_pose *b, double u, weft_pose *out_pose)
+{
+    if (!a || !b || !out_pose) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_pose_blend: a, b and out_pose are required");
+    }
+    if (!(u >= 0.0 && u <= 1.0)) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_pose_blend: u = %g is not in [0, 1]", u);
+    }
+    if (!weft__all_finite(a->rotations, WEFT_POSE_ROTATION_FLOATS) || !weft__all_finite(a->translation, 3) ||
+        !weft__all_finite(b->rotations, WEFT_POSE_ROTATION_FLOATS) || !weft__all_finite(b->translation, 3)) {
+        return weft__fail(WEFT_ERROR_NOT_FINITE, "weft_pose_blend: a pose holds NaN or infinity");
+    }
+    weft_pose p;
+    for (uint32_t j = 0; j < WEFT_BODY_JOINTS; ++j) {
+        const float *ra = a->rotations + 3 * j, *rb = b->rotations + 3 * j;
+        double da[3] = {ra[0], ra[1], ra[2]}, db[3] = {rb[0], rb[1], rb[2]};
+        quat_to_aa(quat_slerp(quat_from_aa(da), quat_from_aa(db), u), p.rotations + 3 * j);
+    }
+    for (int k = 0; k < 3; ++k) {
+        p.translation[k] = (float)((1.0 - u) * a->translation[k] + u * b->translation[k]);
+    }
+    *out_pose = p;
+    return WEFT_OK;
+}
+
 weft_result weft_clip_sample(const weft_clip *clip, double t, weft_pose *out_pose)
 {
     weft_result r = check_clip(clip);

@@ -294,81 +294,6 @@ static bool make_dirs(const char *path)
 #if WEFT_RENDER_HAVE_SAMPLE
 
 /* ---------------------------------------------------------------------------------------- */
-/* Pose blending for the settle phase: per-joint quaternion slerp, linear translation.        */
-
-static void aa_to_quat(const float *aa, double q[4])
-{
-    double th = sqrt((double)aa[0] * aa[0] + (double)aa[1] * aa[1] + (double)aa[2] * aa[2]);
-    if (th < 1e-12) {
-        q[0] = 1.0;
-        q[1] = aa[0] * 0.5;
-        q[2] = aa[1] * 0.5;
-        q[3] = aa[2] * 0.5;
-        return;
-    }
-    double s = sin(0.5 * th) / th;
-    q[0] = cos(0.5 * th);
-    q[1] = aa[0] * s;
-    q[2] = aa[1] * s;
-    q[3] = aa[2] * s;
-}
-
-static void quat_to_aa(double q[4], float *aa)
-{
-    if (q[0] < 0) {
-        for (int k = 0; k < 4; ++k) {
-            q[k] = -q[k];
-        }
-    }
-    double v = sqrt(q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
-    if (v < 1e-12) {
-        aa[0] = (float)(2 * q[1]);
-        aa[1] = (float)(2 * q[2]);
-        aa[2] = (float)(2 * q[3]);
-        return;
-    }
-    double angle = 2.0 * atan2(v, q[0]);
-    for (int k = 0; k < 3; ++k) {
-        aa[k] = (float)(q[k + 1] / v * angle);
-    }
-}
-
-static void blend_pose(const weft_pose *a, const weft_pose *b, double u, weft_pose *out)
-{
-    for (int j = 0; j < WEFT_BODY_JOINTS; ++j) {
-        double qa[4], qb[4], q[4];
-        aa_to_quat(a->rotations + 3 * j, qa);
-        aa_to_quat(b->rotations + 3 * j, qb);
-        double d = qa[0] * qb[0] + qa[1] * qb[1] + qa[2] * qb[2] + qa[3] * qb[3];
-        if (d < 0) {
-            d = -d;
-            for (int k = 0; k < 4; ++k) {
-                qb[k] = -qb[k];
-            }
-        }
-        double wa = 1.0 - u, wb = u;
-        if (d < 0.9995) {
-            double th = acos(d);
-            wa = sin((1.0 - u) * th) / sin(th);
-            wb = sin(u * th) / sin(th);
-        }
-        double n = 0;
-        for (int k = 0; k < 4; ++k) {
-            q[k] = wa * qa[k] + wb * qb[k];
-            n += q[k] * q[k];
-        }
-        n = sqrt(n);
-        for (int k = 0; k < 4; ++k) {
-            q[k] /= n;
-        }
-        quat_to_aa(q, out->rotations + 3 * j);
-    }
-    for (int k = 0; k < 3; ++k) {
-        out->translation[k] = (float)((1.0 - u) * a->translation[k] + u * b->translation[k]);
-    }
-}
-
-/* ---------------------------------------------------------------------------------------- */
 
 typedef struct sample_motion {
     bool procedural;
@@ -742,7 +667,9 @@ void weft_avatar_sample_settle_pose(const weft_pose *bind, const weft_pose *firs
                                     weft_pose *out)
 {
     double u = (double)(k + 1) / (double)settle;
-    blend_pose(bind, first, u * u * (3.0 - 2.0 * u), out);
+    if (weft_pose_blend(bind, first, u * u * (3.0 - 2.0 * u), out) != WEFT_OK) {
+        *out = *first; /* a non-finite pose: the clip's own frame, which the step then refuses */
+    }
 }
 
 int weft_avatar_sample_run(const weft_avatar_sample_options *o)

@@ -284,6 +284,36 @@ static void cleanup(void)
     CHECK(1);
 }
 
-TEST_MAIN(TEST_CASE(test_all_motions_loop_and_are_smooth), TEST_CASE(test_motions_do_what_they_say),
+/* weft_pose_blend: the ends are the poses, the middle of a 1 rad turn is a 0.5 rad turn (slerp,
+ * not a lerp of axis-angle vectors), the short way round, bad input refused untouched. */
+static void test_pose_blend(void)
+{
+    weft_pose a, b, out;
+    memset(&a, 0, sizeof a);
+    memset(&b, 0, sizeof b);
+    b.rotations[3 * 5 + 2] = 1.0f;  /* joint 5: 1 rad about z */
+    b.rotations[3 * 7 + 0] = 3.0f;  /* joint 7: 3 rad about x ... */
+    a.rotations[3 * 7 + 0] = -3.0f; /* ... from -3 rad: the short way is through pi */
+    b.translation[1] = 2.0f;
+    CHECK_RESULT(weft_pose_blend(&a, &b, 0.0, &out), WEFT_OK);
+    CHECK_NEAR(out.rotations[3 * 5 + 2], 0.0f, 1e-6);
+    CHECK_RESULT(weft_pose_blend(&a, &b, 1.0, &out), WEFT_OK);
+    CHECK_NEAR(out.rotations[3 * 5 + 2], 1.0f, 1e-5);
+    CHECK_NEAR(out.translation[1], 2.0f, 1e-6);
+    CHECK_RESULT(weft_pose_blend(&a, &b, 0.5, &out), WEFT_OK);
+    CHECK_NEAR(out.rotations[3 * 5 + 2], 0.5f, 1e-5);
+    CHECK_NEAR(out.translation[1], 1.0f, 1e-6);
+    /* halfway between -3 and 3 rad about x the short way: pi about x (either sign) */
+    CHECK_NEAR(fabsf(out.rotations[3 * 7 + 0]), 3.14159265f, 1e-4);
+    weft_pose keep = out;
+    CHECK_RESULT(weft_pose_blend(&a, &b, 1.5, &out), WEFT_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(weft_pose_blend(&a, &b, NAN, &out), WEFT_ERROR_INVALID_ARGUMENT);
+    b.rotations[0] = NAN;
+    CHECK_RESULT(weft_pose_blend(&a, &b, 0.5, &out), WEFT_ERROR_NOT_FINITE);
+    CHECK(memcmp(&keep, &out, sizeof out) == 0);
+    CHECK_RESULT(weft_pose_blend(NULL, &b, 0.5, &out), WEFT_ERROR_INVALID_ARGUMENT);
+}
+
+TEST_MAIN(TEST_CASE(test_all_motions_loop_and_are_smooth), TEST_CASE(test_pose_blend), TEST_CASE(test_motions_do_what_they_say),
           TEST_CASE(test_arm_spread), TEST_CASE(test_clips),
           TEST_CASE(test_bad_input), TEST_CASE(cleanup))
