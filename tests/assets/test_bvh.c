@@ -388,6 +388,234 @@ static void test_cmu_on_avatar(void)
     }
 }
 
+
+/* ---------------------------------------------------------------------------------------- */
+/* Joint angles against the file's own forward kinematics.                                    */
+
+#define REF_MAX_JOINTS 64
+
+/* A BVH read independently of the importer (no assimp): hierarchy, channels, frames. */
+typedef struct ref_bvh {
+    uint32_t n, frames;
+    char name[REF_MAX_JOINTS][32];
+    int parent[REF_MAX_JOINTS];
+    double offset[REF_MAX_JOINTS][3];
+    int nch[REF_MAX_JOINTS], ch[REF_MAX_JOINTS][6], ch0[REF_MAX_JOINTS]; /* channel kinds, first column */
+    uint32_t columns;
+    double *values; /* frames * columns */
+} ref_bvh;
+
+/* Channel kinds: 0..2 X/Y/Z position, 3..5 X/Y/Z rotation. */
+static int ref_channel(const char *t)
+{
+    static const char *const k[6] = {"Xposition", "Yposition", "Zposition", "Xrotation", "Yrotation", "Zrotation"};
+    for (int i = 0; i < 6; ++i) {
+        if (!strcmp(t, k[i])) {
+            return i;
+        }
+    }
+    return -1;
+}
+
+static bool ref_bvh_read(const char *path, ref_bvh *b)
+{
+    memset(b, 0, sizeof *b);
+    FILE *f = fopen(path, "r");
+    if (!f) {
+        return false;
+    }
+    char tok[64];
+    int stack[REF_MAX_JOINTS + 2], depth = 0, current = -1;
+    bool end_site = false, ok = true;
+    while (ok && fscanf(f, "%63s", tok) == 1 && strcmp(tok, "MOTION") != 0) {
+        if (!strcmp(tok, "ROOT") || !strcmp(tok, "JOINT")) {
+            ok = b->n < REF_MAX_JOINTS && fscanf(f, "%31s", b->name[b->n]) == 1;
+            b->parent[b->n] = current;
+            current = (int)b->n++;
+        } else if (!strcmp(tok, "End")) {
+            ok = fscanf(f, "%63s", tok) == 1; /* Site */
+            end_site = true;
+        } else if (!strcmp(tok, "{")) {
+            stack[depth++] = end_site ? -2 : current;
+        } else if (!strcmp(tok, "}")) {
+            const int closed = stack[--depth];
+            end_site = false;
+            if (closed >= 0) {
+                current = b->parent[closed];
+            }
+        } else if (!strcmp(tok, "OFFSET")) {
+            double o[3];
+            ok = fscanf(f, "%lf %lf %lf", &o[0], &o[1], &o[2]) == 3;
+            if (!end_site) {
+                memcpy(b->offset[current], o, sizeof o);
+            }
+        } else if (!strcmp(tok, "CHANNELS")) {
+            ok = fscanf(f, "%d", &b->nch[current]) == 1 && b->nch[current] <= 6;
+            b->ch0[current] = (int)b->columns;
+            for (int c = 0; ok && c < b->nch[current]; ++c) {
+                ok = fscanf(f, "%63s", tok) == 1 && (b->ch[current][c] = ref_channel(tok)) >= 0;
+            }
+            b->columns += (uint32_t)b->nch[current];
+        }
+    }
+    double dt = 0;
+    ok = ok && fscanf(f, " Frames: %u Frame Time: %lf", &b->frames, &dt) == 2 && b->frames > 0;
+    b->values = ok ? malloc(sizeof(double) * b->frames * b->columns) : NULL;
+    for (size_t i = 0; ok && b->values && i < (size_t)b->frames * b->columns; ++i) {
+        ok = fscanf(f, "%lf", &b->values[i]) == 1;
+    }
+    fclose(f);
+    return ok && b->values;
+}
+
+static int ref_find(const ref_bvh *b, const char *name)
+{
+    for (uint32_t j = 0; j < b->n; ++j) {
+        if (!strcmp(b->name[j], name)) {
+            return (int)j;
+        }
+    }
+    return -1;
+}
+
+static void mat_mul(double a[3][3], double b[3][3], double out[3][3])
+{
+    double t[3][3];
+    for (int i = 0; i < 3; ++i) {
+        for (int k = 0; k < 3; ++k) {
+            t[i][k] = a[i][0] * b[0][k] + a[i][1] * b[1][k] + a[i][2] * b[2][k];
+        }
+    }
+    memcpy(out, t, sizeof t);
+}
+
+/* World joint positions of frame f: R = R_parent * (the channel rotations in file order). */
+static void ref_fk(const ref_bvh *b, uint32_t f, double pos[REF_MAX_JOINTS][3])
+{
+    double world[REF_MAX_JOINTS][3][3];
+    const double *v = b->values + (size_t)f * b->columns;
+    for (uint32_t j = 0; j < b->n; ++j) {
+        double r[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}}, t[3] = {0, 0, 0};
+        for (int c = 0; c < b->nch[j]; ++c) {
+            const double x = v[b->ch0[j] + c];
+            const int kind = b->ch[j][c];
+            if (kind < 3) {
+                t[kind] = x;
+                continue;
+            }
+            const double a = x * PI_D / 180.0, cs = cos(a), sn = sin(a);
+            double e[3][3] = {{1, 0, 0}, {0, 1, 0}, {0, 0, 1}};
+            const int p = (kind - 3 + 1) % 3, q = (kind - 3 + 2) % 3; /* the plane the axis turns */
+            e[p][p] = cs, e[p][q] = -sn, e[q][p] = sn, e[q][q] = cs;
+            mat_mul(r, e, r);
+        }
+        const int pj = b->parent[j];
+        if (pj < 0) {
+            memcpy(world[j], r, sizeof r);
+            for (int k = 0; k < 3; ++k) {
+                pos[j][k] = t[k] + b->offset[j][k];
+            }
+            continue;
+        }
+        mat_mul(world[pj], r, world[j]);
+        for (int k = 0; k < 3; ++k) {
+            pos[j][k] = pos[pj][k] + world[pj][k][0] * b->offset[j][0] + world[pj][k][1] * b->offset[j][1] +
+                        world[pj][k][2] * b->offset[j][2];
+        }
+    }
+}
+
+/* Angle in degrees between the bones a0 -> a1 and b0 -> b1. */
+static double bone_angle(const double a0[3], const double a1[3], const double b0[3], const double b1[3])
+{
+    double u[3], w[3], uu = 0, ww = 0, uw = 0;
+    for (int k = 0; k < 3; ++k) {
+        u[k] = a1[k] - a0[k];
+        w[k] = b1[k] - b0[k];
+        uu += u[k] * u[k];
+        ww += w[k] * w[k];
+        uw += u[k] * w[k];
+    }
+    const double c = uw / sqrt(uu * ww);
+    return acos(c > 1 ? 1 : c < -1 ? -1 : c) * 180.0 / PI_D;
+}
+
+/* Retargeting matches bone directions, so every angle between two bones (an elbow's bend, a
+ * knee's, an upper arm against the trunk) is the file's own, whatever the two skeletons' rest
+ * poses: CMU 01_01 read and forward-kinematised here without assimp, against the retargeted
+ * clip's SMPL joints, over all its frames. */
+static void test_joint_angles_match_the_file(void)
+{
+    ref_bvh b;
+    if (!ref_bvh_read(CMU_DIR "01_01.bvh", &b)) {
+        printf("no %s01_01.bvh: skipped\n", CMU_DIR);
+        return;
+    }
+    weft_bvh_def def = weft_default_bvh_def();
+    def.fps = 120.0f; /* the file's own rate (Frame Time .0083333): frame f here is frame f there */
+    weft_clip *clip = NULL;
+    CHECK_RESULT(weft_bvh_load_file(g_ctx, CMU_DIR "01_01.bvh", &def, &clip), WEFT_OK);
+    /* bones as (CMU joint, CMU joint, SMPL joint, SMPL joint) */
+    static const struct {
+        const char *what, *a0, *a1, *b0, *b1;
+        int s[4];
+    } pairs[] = {
+        {"left elbow", "LeftArm", "LeftForeArm", "LeftForeArm", "LeftHand",
+         {WEFT_JOINT_LEFT_SHOULDER, WEFT_JOINT_LEFT_ELBOW, WEFT_JOINT_LEFT_ELBOW, WEFT_JOINT_LEFT_WRIST}},
+        {"right elbow", "RightArm", "RightForeArm", "RightForeArm", "RightHand",
+         {WEFT_JOINT_RIGHT_SHOULDER, WEFT_JOINT_RIGHT_ELBOW, WEFT_JOINT_RIGHT_ELBOW, WEFT_JOINT_RIGHT_WRIST}},
+        {"left knee", "LeftUpLeg", "LeftLeg", "LeftLeg", "LeftFoot",
+         {WEFT_JOINT_LEFT_HIP, WEFT_JOINT_LEFT_KNEE, WEFT_JOINT_LEFT_KNEE, WEFT_JOINT_LEFT_ANKLE}},
+        {"right knee", "RightUpLeg", "RightLeg", "RightLeg", "RightFoot",
+         {WEFT_JOINT_RIGHT_HIP, WEFT_JOINT_RIGHT_KNEE, WEFT_JOINT_RIGHT_KNEE, WEFT_JOINT_RIGHT_ANKLE}},
+        {"left upper arm to right upper arm", "LeftArm", "LeftForeArm", "RightArm", "RightForeArm",
+         {WEFT_JOINT_LEFT_SHOULDER, WEFT_JOINT_LEFT_ELBOW, WEFT_JOINT_RIGHT_SHOULDER, WEFT_JOINT_RIGHT_ELBOW}},
+        {"left thigh to right shin", "LeftUpLeg", "LeftLeg", "RightLeg", "RightFoot",
+         {WEFT_JOINT_LEFT_HIP, WEFT_JOINT_LEFT_KNEE, WEFT_JOINT_RIGHT_KNEE, WEFT_JOINT_RIGHT_ANKLE}},
+        {"left forearm to right thigh", "LeftForeArm", "LeftHand", "RightUpLeg", "RightLeg",
+         {WEFT_JOINT_LEFT_ELBOW, WEFT_JOINT_LEFT_WRIST, WEFT_JOINT_RIGHT_HIP, WEFT_JOINT_RIGHT_KNEE}},
+    };
+    const size_t np = sizeof pairs / sizeof pairs[0];
+    int idx[16][4];
+    bool found = true;
+    for (size_t i = 0; i < np; ++i) {
+        const char *n[4] = {pairs[i].a0, pairs[i].a1, pairs[i].b0, pairs[i].b1};
+        for (int k = 0; k < 4; ++k) {
+            idx[i][k] = ref_find(&b, n[k]);
+            found &= idx[i][k] >= 0;
+        }
+    }
+    CHECK(found);
+    if (clip && found) {
+        CHECK_EQ_INT(clip->frame_count, b.frames);
+        const float *rest = weft_bvh_default_rest_joints();
+        double worst[16] = {0}, sum[16] = {0};
+        const uint32_t frames = clip->frame_count < b.frames ? clip->frame_count : b.frames;
+        for (uint32_t f = 0; f < frames; ++f) {
+            double rp[REF_MAX_JOINTS][3], sp[24][3];
+            ref_fk(&b, f, rp);
+            weft_pose pose;
+            memcpy(pose.rotations, clip->rotations + (size_t)72 * f, sizeof pose.rotations);
+            memcpy(pose.translation, clip->translations + (size_t)3 * f, sizeof pose.translation);
+            fk(&pose, rest, sp);
+            for (size_t i = 0; i < np; ++i) {
+                const double want = bone_angle(rp[idx[i][0]], rp[idx[i][1]], rp[idx[i][2]], rp[idx[i][3]]);
+                const double got = bone_angle(sp[pairs[i].s[0]], sp[pairs[i].s[1]], sp[pairs[i].s[2]], sp[pairs[i].s[3]]);
+                const double e = fabs(got - want);
+                worst[i] = fmax(worst[i], e);
+                sum[i] += e;
+            }
+        }
+        for (size_t i = 0; i < np; ++i) {
+            printf("  %-36s mean %.5f deg, worst %.5f deg over %u frames\n", pairs[i].what, sum[i] / frames, worst[i],
+                   frames);
+            CHECK_MSG(worst[i] < 0.05, "%s: worst %.3f deg", pairs[i].what, worst[i]);
+        }
+    }
+    weft_clip_destroy(clip);
+    free(b.values);
+}
+
 static void test_cmu_01_01(void) { check_cmu_clip(CMU_DIR "01_01.bvh", 20.0); }
 static void test_cmu_01_03(void) { check_cmu_clip(CMU_DIR "01_03.bvh", 30.0); }
 static void test_boxing_toes(void) { check_cmu_clip(CMU_DIR "Boxing_Toes.bvh", 25.0); }
@@ -880,4 +1108,5 @@ TEST_MAIN(TEST_CASE(setup), TEST_CASE(test_synthetic_exact), TEST_CASE(test_rest
           TEST_CASE(test_cmu_01_03), TEST_CASE(test_boxing_toes), TEST_CASE(test_cmu_on_avatar), TEST_CASE(test_bad_input), TEST_CASE(test_fuzz_synthetic),
           TEST_CASE(test_fuzz_cmu), TEST_CASE(test_mocap_gz_equals_plain), TEST_CASE(test_mocap_test_split_loads),
           TEST_CASE(test_bvh_path_is_a_directory), TEST_CASE(test_namings_retarget_identically),
-          TEST_CASE(test_unknown_skeleton_names_the_missing), TEST_CASE(teardown))
+          TEST_CASE(test_unknown_skeleton_names_the_missing), TEST_CASE(test_joint_angles_match_the_file),
+          TEST_CASE(teardown))
