@@ -12,7 +12,7 @@
  * Typical use:
  *
  *   weft_lod_table *table;
- *   weft_lod_table_load_file(ctx, "docs/lod.csv", &table);
+ *   weft_lod_table_load_file(ctx, "samples/data/lod.csv", &table);
  *   uint32_t level;
  *   weft_lod_pick_result fit = weft_lod_pick(table, 0.5, 1.0, &level);   // 0.5 ms, 1 cm
  *   ... weft_lod_garment_create(ctx, &def_with_level, &lg) ...

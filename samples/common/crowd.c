@@ -1,10 +1,11 @@
 /* Crowd mode of the avatar sample (`avatar_render --crowd N`): N avatars in a grid, each wearing
  * a garment stepped at its own level of detail. Levels come from the measured LOD table
- * (docs/lod.csv, `weft bench lod`): every character asks weft_lod_pick for the cheapest level
- * whose measured error meets an accuracy target that loosens with its depth from the camera, so
- * the front row gets the most accurate level and the back rows cheaper ones (levels with CCD
- * only). The garments of one level are stepped together by weft_garments_step. Prints the total
- * and per-level cloth ms per frame and writes one PNG (garments coloured by level, with a legend). */
+ * (samples/data/lod_garment.csv, else samples/data/lod.csv; `weft bench lod`): every character
+ * asks weft_lod_pick for the cheapest level whose measured error meets an accuracy target that
+ * loosens with its depth from the camera, so the front row gets the most accurate level and the
+ * back rows cheaper ones (levels with CCD only). The garments of one level are stepped together
+ * by weft_garments_step. Prints the total and per-level cloth ms per frame and writes one PNG
+ * (garments coloured by level, with a legend). */
 #define _POSIX_C_SOURCE 200809L
 
 #include "weft_sample.h"
@@ -193,12 +194,12 @@ static bool load_table(crowd *c, const weft_avatar_sample_options *o)
     /* Default: the worn-garment table (tethered and strain-limited levels, measured on garments),
      * else the table over every scenario. */
     struct stat st;
-    const char *path = o->lod_table                                   ? o->lod_table
-                       : stat("docs/lod_garment.csv", &st) == 0 ? "docs/lod_garment.csv"
-                                                                     : "docs/lod.csv";
+    const char *path = o->lod_table                                           ? o->lod_table
+                       : stat("samples/data/lod_garment.csv", &st) == 0 ? "samples/data/lod_garment.csv"
+                                                                             : "samples/data/lod.csv";
     if (weft_lod_table_load_file(c->ctx, path, &c->table) != WEFT_OK) {
         fprintf(stderr, "avatar_render --crowd: the LOD table: %s\n  (run from the source root, or pass --lod-table; "
-                        "`weft bench lod` writes docs/lod.csv and docs/lod_garment.csv)\n",
+                        "`weft bench lod` writes samples/data/lod.csv and samples/data/lod_garment.csv)\n",
                 weft_last_error());
         return false;
     }
@@ -619,8 +620,8 @@ void weft_avatar_sample_crowd_usage(FILE *out)
 {
     fprintf(out, "  --crowd N               crowd mode: N (1..256) avatars in a grid, garments at mixed levels of detail\n"
                  "                          picked from the LOD table by depth; writes OUT/crowd.png (no frames)\n"
-                 "  --lod-table FILE        the measured LOD table for --crowd (default docs/lod_garment.csv, else\n"
-                 "                          docs/lod.csv)\n"
+                 "  --lod-table FILE        the measured LOD table for --crowd (default samples/data/lod_garment.csv,\n"
+                 "                          else samples/data/lod.csv; paths from the source root)\n"
                  "  --crowd-mve CM          accuracy target of the front row (default: the best usable level's MVE);\n"
                  "                          it grows by 100%% per metre of depth\n"
                  "  --crowd-budget MS       per-character ms/frame budget for the pick (default none)\n");

@@ -42,7 +42,8 @@ typedef struct weft_avatar_sample_options {
     bool deterministic;         /* softpipe (reproducible) instead of llvmpipe (faster) (default false) */
     float start;                /* seconds into the motion to start at (default 0) */
     uint32_t crowd;             /* --crowd N: N avatars at mixed levels of detail (crowd.c); 0 = off (default) */
-    const char *lod_table;      /* --lod-table: the measured LOD table for --crowd (default docs/lod.csv) */
+    const char *lod_table;      /* --lod-table: the measured LOD table for --crowd (default
+                                 * samples/data/lod_garment.csv, else samples/data/lod.csv) */
     float crowd_mve;            /* --crowd-mve: the front row's accuracy target in cm; 0 = the best level's */
     float crowd_budget;         /* --crowd-budget: per-character ms budget for --crowd; 0 = none */
     bool cape;                  /* add the FNOpt cape (cape.c) (default false) */

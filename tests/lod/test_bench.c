@@ -3,6 +3,7 @@
  * XPBD at the substeps asked for, the `game` model at three precisions with and without CCD),
  * finite measured numbers, and a LOD.md with the generated table between its markers;
  * --strain-limit and --push-cm add deployed levels; --max-seqs counts per scenario; --sim-data adds resolution levels simulated on a coarser mesh.
+ * The table goes beside LOD.md, or to --csv-dir, and the page links it either way.
  * argv: weft binary, data folder, models folder, output folder. Exits 77 (skipped) without a
  * sample sequence. */
 #define _POSIX_C_SOURCE 200809L /* posix_spawn, symlink */
@@ -95,7 +96,56 @@ static void bench_writes_loadable_table(void)
         fclose(f);
         CHECK(strstr(text, "<!-- lod:table -->") != NULL && strstr(text, "<!-- /lod:table -->") != NULL);
         CHECK(strstr(text, "| game-int8 | model game | int8 |") != NULL);
+        CHECK_MSG(strstr(text, "The table: [lod.csv](lod.csv).") != NULL, "LOD.md does not link lod.csv beside it");
     }
+}
+
+/* Slurps path into buf (cap bytes); false when it cannot be read. */
+static bool read_text(const char *path, char *buf, size_t cap)
+{
+    FILE *f = fopen(path, "r");
+    if (!f) {
+        return false;
+    }
+    size_t n = fread(buf, 1, cap - 1, f);
+    buf[n] = '\0';
+    fclose(f);
+    return true;
+}
+
+/* --csv-dir: the table goes there, named by --name, not beside the page, and the page's generated
+ * block links it by a path relative to the page. */
+static void csv_dir_holds_the_table(void)
+{
+    char empty[1100], page[1100], tables[1100], csv[1200], beside[1200], md[1200];
+    snprintf(empty, sizeof empty, "%s/no_models", g_out);
+    snprintf(page, sizeof page, "%s/csv_dir/page", g_out);
+    snprintf(tables, sizeof tables, "%s/csv_dir/tables/lod", g_out); /* created by the run */
+    mkdir(empty, 0755);
+    snprintf(csv, sizeof csv, "%s/mine.csv", tables);
+    snprintf(beside, sizeof beside, "%s/mine.csv", page);
+    snprintf(md, sizeof md, "%s/LOD.md", page);
+    unlink(csv);
+    unlink(beside);
+    unlink(md);
+    const char *argv[] = {g_exe,   "bench", "lod",      "--data",    g_data, "--split",    "all",  "--frames", "2",
+                          "--xpbd", "1",    "--models", empty,       "--out", page,        "--csv-dir", tables,
+                          "--name", "mine", "--no-scale", NULL};
+    weft_context *ctx = NULL;
+    weft_lod_table *t = bench_table(argv, csv, &ctx);
+    if (t) {
+        uint32_t idx = 0;
+        CHECK_RESULT(weft_lod_table_find(t, "lbs", &idx), WEFT_OK);
+        weft_lod_table_destroy(t);
+    }
+    weft_context_destroy(ctx);
+    struct stat st;
+    CHECK_MSG(stat(beside, &st) != 0, "%s written beside the page as well", beside);
+    static char text[65536];
+    CHECK_MSG(read_text(md, text, sizeof text), "cannot read %s", md);
+    CHECK_MSG(strstr(text, "The table: [mine.csv](../tables/lod/mine.csv).") != NULL,
+              "LOD.md does not link ../tables/lod/mine.csv");
+    CHECK(strstr(text, "<!-- lod:table-mine -->") != NULL);
 }
 
 /* --crops: every model level again at each crop, named by it, and the crop in the CSV. */
@@ -284,6 +334,8 @@ int main(int argc, char **argv)
         return 77;
     }
     static const test_case_ cases[] = {TEST_CASE(bench_writes_loadable_table), TEST_CASE(bench_measures_crop_levels),
-                                       TEST_CASE(bench_measures_deployed_levels), TEST_CASE(max_seqs_counts_per_scenario), TEST_CASE(sim_data_adds_resolution_levels)};
+                                       TEST_CASE(bench_measures_deployed_levels),
+                                       TEST_CASE(max_seqs_counts_per_scenario),
+                                       TEST_CASE(sim_data_adds_resolution_levels), TEST_CASE(csv_dir_holds_the_table)};
     return test_run_(cases, sizeof cases / sizeof cases[0], 1, argv);
 }

@@ -3,7 +3,8 @@
  * method, statuses from the documented set and scores kept under each sequence; a second run
  * reuses the kept scores (the CSV, wall times included, comes out byte-identical); a model's kept
  * scores follow the model file's contents; the table replaces only the marked block of an
- * existing STABILITY.md; bad options fail. argv: weft binary, output folder. */
+ * existing STABILITY.md, which links the CSV beside it or in --csv-dir; bad options fail.
+ * argv: weft binary, output folder. */
 #define _POSIX_C_SOURCE 200809L /* stat, mkdir */
 #include "test.h"
 #include "tool_run.h"
@@ -193,6 +194,36 @@ static void prose_around_the_table_survives(void)
     CHECK(lead < open && open < table && table < close && close < tail);
     CHECK(strstr(doc, "stale table") == NULL);
     CHECK(strstr(close + 1, "<!-- stability:table -->") == NULL); /* replaced, not appended */
+    CHECK_MSG(strstr(doc, "Raw numbers: [stability.csv](stability.csv).") != NULL,
+              "no link to the CSV beside the page");
+    free(doc);
+}
+
+/* --csv-dir: the CSV goes there, not beside the page, and the page links it relatively. */
+static void csv_dir_keeps_the_data_apart(void)
+{
+    char data[1200], page[1200], csv_dir[1200], models[1200], path[1300];
+    snprintf(data, sizeof data, "%s/data", g_out);
+    snprintf(page, sizeof page, "%s/apart/page", g_out);
+    snprintf(csv_dir, sizeof csv_dir, "%s/apart/csv", g_out);
+    snprintf(models, sizeof models, "%s/no_models", g_out);
+    mkdir(models, 0777);
+    snprintf(path, sizeof path, "%s/stability.csv", page);
+    remove(path);
+    const char *argv[] = {g_exe,       "bench",  "stability", "--quick", "--frames",   "12",       "--long-frames",
+                          "16",        "--xpbd", "5",         "--xpbd-fast", "5",      "--no-fnopt", "--no-garment",
+                          "--no-plot", "--models", models,    "--data",  data,         "--out",    page,
+                          "--csv-dir", csv_dir,  "--axes",    "long",    NULL};
+    CHECK_EQ_INT(tool_run(argv, NULL), 0);
+    struct stat st;
+    CHECK_MSG(stat(path, &st) != 0, "%s written beside the page", path);
+    char *csv = stability_csv(csv_dir);
+    CHECK(csv && strstr(csv, "\nlong_16,") != NULL);
+    free(csv);
+    snprintf(path, sizeof path, "%s/STABILITY.md", page);
+    char *doc = slurp(path);
+    CHECK_MSG(doc && strstr(doc, "Raw numbers: [stability.csv](../csv/stability.csv).") != NULL,
+              "%s does not link ../csv/stability.csv", path);
     free(doc);
 }
 
@@ -274,6 +305,6 @@ int main(int argc, char **argv)
     mkdir(g_out, 0777);
     static const test_case_ cases[] = {TEST_CASE(runs_and_resumes), TEST_CASE(prose_around_the_table_survives),
                                        TEST_CASE(model_scores_follow_the_file), TEST_CASE(axes_choose_the_cases),
-                                       TEST_CASE(bad_options)};
+                                       TEST_CASE(csv_dir_keeps_the_data_apart), TEST_CASE(bad_options)};
     return test_run_(cases, sizeof cases / sizeof cases[0], 1, argv);
 }

@@ -1,7 +1,7 @@
 """MVE per method, scenario and resolution tier from the CSV heldout_table.py writes next to its table
 (the sequence names carry the tier: garment_4k_0005), averaged weighted by frames as the table is.
 
-  /usr/bin/python3 tools/bench/heldout_by_tier.py docs/heldout_test_specialists.csv
+  /usr/bin/python3 tools/bench/heldout_by_tier.py docs/data/heldout_test_specialists.csv
 """
 import collections
 import csv

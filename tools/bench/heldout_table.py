@@ -2,7 +2,7 @@
 
   /usr/bin/python3 tools/bench/heldout_table.py --data data/refsim --split test val \
       --method game=model:tools/train/models/game.safetensors --method LBS=lbs --method XPBD-5=xpbd:5 \
-      --out docs/heldout_test_val.md
+      --out docs/data/heldout_test_val.md
 
 Each --method is LABEL=METHOD[:ARG][,strain=PCT][,tether=CM][,scontact=CM][,push=CM] with METHOD one of model:PATH (fp32),
 int8:PATH, fp16:PATH, lbs, xpbd:S, xpbd-fast:S; strain= and tether= add the runtime's strain limit and

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Draws docs/img/chart.png from the CSV written by `weft bench chart`.
+"""Draws docs/img/chart.png from the CSV written by `weft bench chart` (docs/data/chart.csv).
 
 One panel per scenario (and one for the FNOpt grid scenes): ms/frame on a log x axis against
 error (MVE in cm; relative e3D for FNOpt), lower left is better. Every scored setting is a small
@@ -11,7 +11,7 @@ labelled points; anything beyond them is a triangle on the edge, pointing outwar
 value. A red ring marks a labelled point where some runs exploded. Rows with failed or NaN runs,
 or no error, are not scored, only counted under their panel. The full table is the CSV.
 
-Usage: plot_chart.py --csv chart.csv --out img/chart.png
+Usage: plot_chart.py --csv docs/data/chart.csv --out docs/img/chart.png
 """
 import argparse
 import csv

@@ -1,5 +1,5 @@
 #!/usr/bin/python3
-"""Draws docs/img/stability.png from the CSV written by `weft bench stability`.
+"""Draws docs/img/stability.png from the CSV written by `weft bench stability` (docs/data/stability.csv).
 
 A heat map, methods down, stress cases across: green pass, amber warning (penetrations, after CCD when it is on,
 MVE drift, or too slow to finish), red failure (NaN, explosion, run error), grey not measured. Each cell is

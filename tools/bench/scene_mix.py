@@ -2,9 +2,9 @@
 heldout_table.py writes: each scenario's rows come from the (CSV, method) named for it.
 
   /usr/bin/python3 tools/bench/scene_mix.py \
-      --scene drop=docs/heldout_test_specialists.csv:specialists \
-      --scene garment=docs/heldout_test_specialists.csv:specialists \
-      --scene gripper=docs/heldout_test_gripper.csv:gripper
+      --scene drop=docs/data/heldout_test_specialists.csv:specialists \
+      --scene garment=docs/data/heldout_test_specialists.csv:specialists \
+      --scene gripper=docs/data/heldout_test_gripper.csv:gripper
 
 prints the mean of every scenario and of all of them together (the `all` column of heldout_table.py:
 MVE weighted by scored frames), so a table measured per scene can be combined without running the

@@ -2,10 +2,11 @@
  *
  * Every (method, sequence) pair is one `weft eval --json` child process (same code path as the
  * user-facing command). Results are aggregated per scenario and method with frame-weighted means,
- * the Pareto front (lower ms and lower error) is marked, and the run writes <out>/chart.csv,
- * <out>/CHART.md and, through tools/bench/plot_chart.py, <out>/img/chart.png. The FNOpt grid
- * scenes are scored by `weft fnopt run --gt` (relative e3D against its XPBD reference, a
- * different metric from MVE, so they get their own panel). */
+ * the Pareto front (lower ms and lower error) is marked, and the run writes <out>/CHART.md, the
+ * CSV behind it (<csv-dir>/chart.csv: docs/data when <out> is docs, else <out>) and, through
+ * tools/bench/plot_chart.py, <out>/img/chart.png. The FNOpt grid scenes are scored by `weft
+ * fnopt run --gt` (relative e3D against its XPBD reference, a different metric from MVE, so they
+ * get their own panel). */
 #define _POSIX_C_SOURCE 200809L /* clock_gettime */
 #include "weft.h"
 #include "support_bench.h"
@@ -64,6 +65,7 @@ typedef struct chart_row {
 
 typedef struct chart_opts {
     const char *data, *split, *models, *out, *fnopt_model;
+    const char *csv_dir; /* where chart.csv goes (bench_csv_dir) */
     uint32_t frames, max_seqs;
     unsigned xpbd[8];
     size_t nxpbd;
@@ -77,13 +79,15 @@ static void usage(FILE *f)
 {
     fprintf(f,
             "usage: weft bench chart --data DIR [--split test|val|train|all] [--models DIR] [--frames N] [--out DIR]\n"
-            "                        [--max-seqs N] [--xpbd 5,10,20,40] [--xpbd-fast 5,10,20,40] [--quick] [--no-plot]\n"
-            "                        [--no-fnopt] [--fnopt-model PATH] [--fnopt-motions xy,xyz,rot_h0]\n"
+            "                        [--csv-dir DIR] [--max-seqs N] [--xpbd 5,10,20,40] [--xpbd-fast 5,10,20,40]\n"
+            "                        [--quick] [--no-plot] [--no-fnopt] [--fnopt-model PATH]\n"
+            "                        [--fnopt-motions xy,xyz,rot_h0]\n"
             "  Runs LBS, XPBD (5/10/20/40 substeps), the fast XPBD with a game's collision projection\n"
             "  (5/10/20/40, CCD off, and CCD on at the first), every DIR/*.safetensors model (fp32/fp16/int8,\n"
             "  CCD on/off)\n"
-            "  on each sequence of the split, and the FNOpt grid scenes; writes OUT/chart.csv, OUT/CHART.md and\n"
-            "  OUT/img/chart.png (default OUT: docs).\n"
+            "  on each sequence of the split, and the FNOpt grid scenes; writes OUT/CHART.md, OUT/img/chart.png and\n"
+            "  the CSV behind them, CSVDIR/chart.csv (default OUT: docs; default CSVDIR: docs/data when OUT is\n"
+            "  docs, else OUT).\n"
             "  --quick   30 frames, at most 2 sequences per scenario, one FNOpt scene (xy; whole trajectory)\n");
 }
 
@@ -183,11 +187,11 @@ static bool run_fnopt(const char *exe, const chart_opts *o, const chart_method *
 static void write_outputs(const chart_opts *o, const chart_method *methods, const chart_row *rows, size_t nrows,
                           char skipped[][300], size_t nskipped, const char *command, double wall_s, const char *exe)
 {
-    char path[1200];
-    snprintf(path, sizeof path, "%s/chart.csv", o->out);
-    FILE *f = fopen(path, "w");
+    char path[1200], csv[1200], link[1200];
+    snprintf(csv, sizeof csv, "%s/chart.csv", o->csv_dir);
+    FILE *f = bench_mkdirs(o->csv_dir) ? fopen(csv, "w") : NULL;
     if (!f) {
-        fprintf(stderr, "weft bench chart: cannot write %s\n", path);
+        fprintf(stderr, "weft bench chart: cannot write %s\n", csv);
         return;
     }
     fprintf(f, "scenario,method,family,precision,ccd,sequences,frames,mve_cm,e3d,ms_per_frame,collision_rate,"
@@ -308,11 +312,12 @@ static void write_outputs(const chart_opts *o, const chart_method *methods, cons
         }
         fprintf(f, "\n");
     }
-    fprintf(f, "Raw numbers: [chart.csv](chart.csv). Chart drawn by `tools/bench/plot_chart.py`.\n");
+    bench_link(o->out, o->csv_dir, "chart.csv", link, sizeof link);
+    fprintf(f, "Raw numbers: [chart.csv](%s). Chart drawn by `tools/bench/plot_chart.py`.\n", link);
     fclose(f);
 
     if (o->plot) {
-        bench_plot(exe, "chart", "plot_chart.py", o->out, "chart");
+        bench_plot(exe, "chart", "plot_chart.py", o->out, csv, "chart");
     }
 }
 
@@ -352,6 +357,8 @@ int weft_bench_chart(int argc, char **argv)
                 o.models = v;
             } else if (strcmp(a, "--out") == 0) {
                 o.out = v;
+            } else if (strcmp(a, "--csv-dir") == 0) {
+                o.csv_dir = v;
             } else if (strcmp(a, "--fnopt-model") == 0) {
                 o.fnopt_model = v;
             } else if (strcmp(a, "--fnopt-motions") == 0) {
@@ -374,6 +381,7 @@ int weft_bench_chart(int argc, char **argv)
         usage(stderr);
         return 2;
     }
+    o.csv_dir = bench_csv_dir(o.csv_dir, o.out, BENCH_DOCS_DATA_DIR);
     if (o.quick) {
         o.frames = o.frames ? o.frames : 30;
         o.max_seqs = o.max_seqs ? o.max_seqs : 2;
@@ -428,7 +436,7 @@ int weft_bench_chart(int argc, char **argv)
     snprintf(m->tether_cm, sizeof m->tether_cm, "3");
     m->garment_only = true;
     /* Every scene: the cheapest XPBD with the contact-aware strain limit, the strongest classical
-     * baseline of docs/heldout_test_contact.md. */
+     * baseline of docs/data/heldout_test_contact.md. */
     m = &methods[nm++];
     *m = methods[nm - 2 - o.nxpbd];
     snprintf(m->label, sizeof m->label, "XPBD-%u + strain 10%% + contact 1 cm", o.xpbd[0]);
@@ -629,7 +637,7 @@ int weft_bench_chart(int argc, char **argv)
     clock_gettime(CLOCK_MONOTONIC, &t1);
     double wall = (double)(t1.tv_sec - t0.tv_sec) + (double)(t1.tv_nsec - t0.tv_nsec) * 1e-9;
     write_outputs(&o, methods, rows, nrows, skipped, nskipped, command, wall, exe);
-    printf("wrote %s/chart.csv and %s/CHART.md (%zu rows, %.1f s)\n", o.out, o.out, nrows, wall);
+    printf("wrote %s/chart.csv and %s/CHART.md (%zu rows, %.1f s)\n", o.csv_dir, o.out, nrows, wall);
     free(seqs);
     return 0;
 }

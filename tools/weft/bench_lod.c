@@ -3,7 +3,8 @@
  * 1. Every candidate level (LBS, XPBD at a few substep counts, each model in DIR at fp32/fp16/
  *    int8 with and without CCD, at each collider crop of --crops) runs over the split's sequences, one `weft eval --json` child per
  *    (level, sequence), exactly as `weft bench chart` does. Frame-weighted means go to
- *    <out>/lod.csv, the file weft_lod_table_load_file() reads (include/weft/lod.h), and to the
+ *    <csv-dir>/lod.csv, the file weft_lod_table_load_file() reads (include/weft/lod.h; by default
+ *    samples/data, where the samples load it, when <out> is docs, else <out>), and to the
  *    generated sections of <out>/LOD.md.
  * 2. Per-character step cost at 1, 8 and 64 characters: N default avatars walking, each wearing
  *    a T-shirt driven by a weft_lod_garment at one level of the table just written, stepped in
@@ -25,7 +26,10 @@
 #include <time.h>
 
 const char weft_bench_lod_help[] =
-    "level-of-detail table: ms/frame and MVE per level (CSV the runtime loads + docs/LOD.md), crowd cost at 1/8/64";
+    "level-of-detail table: ms/frame and MVE per level (samples/data/lod.csv + docs/LOD.md), crowd cost at 1/8/64";
+
+/* Where the tables the samples load live (avatar_render --crowd: samples/common/crowd.c). */
+#define LOD_TABLE_DIR "samples/data"
 
 #define LOD_MAX_CANDS 160
 #define LOD_MAX_SCALE 16
@@ -59,8 +63,9 @@ typedef struct lod_cand {
 
 typedef struct lod_opts {
     const char *data, *split, *models, *out, *scale_levels, *scale_res;
+    const char *csv_dir;                /* where NAME.csv goes (bench_csv_dir: samples/data when OUT is docs) */
     const char *scenario;               /* only sequences of this scenario; NULL: all */
-    const char *name;                   /* OUT/<name>.csv, and its own blocks in OUT/LOD.md unless "lod" */
+    const char *name;                   /* CSVDIR/<name>.csv, and its own blocks in OUT/LOD.md unless "lod" */
     double tether_cm, strain_pct;       /* > 0: also measure the deployed garment levels with these */
     double push_cm;                     /* > 0: ... and with the collider push */
     uint32_t frames, max_seqs, scale_frames;
@@ -81,23 +86,25 @@ typedef struct lod_opts {
 static void usage(FILE *f)
 {
     fprintf(f,
-            "usage: weft bench lod --data DIR [--split test|val|train|all] [--models DIR] [--out DIR] [--frames N]\n"
-            "                      [--max-seqs N] [--xpbd 5,10,20] [--no-scale] [--scale-levels a,b,...]\n"
+            "usage: weft bench lod --data DIR [--split test|val|train|all] [--models DIR] [--out DIR] [--csv-dir DIR]\n"
+            "                      [--frames N] [--max-seqs N] [--xpbd 5,10,20] [--no-scale] [--scale-levels a,b,...]\n"
             "                      [--scale-frames N] [--scale-res 1k|4k] [--scale-only] [--crops model,8,4:cells]\n"
             "                      [--scenario S] [--name NAME] [--tether-cm X] [--strain-limit P] [--push-cm X]\n"
             "                      [--sim-data DIR]\n"
             "  Measures every level (LBS, XPBD at the given substeps, each DIR/*.safetensors model at\n"
-            "  fp32/fp16/int8 with and without CCD) on the split through `weft eval --json`, writes OUT/lod.csv\n"
+            "  fp32/fp16/int8 with and without CCD) on the split through `weft eval --json`, writes CSVDIR/lod.csv\n"
             "  (loadable by weft_lod_table_load_file) and the table in OUT/LOD.md, then measures the\n"
             "  per-character step cost of 1, 8 and 64 walking avatars at the --scale-levels (default: lbs,\n"
             "  xpbd-5, every model at int8 and fp32 with CCD and at fp32 without). Default OUT: docs.\n"
+            "  --csv-dir DIR where the table goes (default: samples/data, where the samples load it, when OUT is\n"
+            "                docs; else OUT)\n"
             "  --max-seqs N  at most N sequences of each scenario (the first by name), as bench chart\n"
             "  --sim-data DIR  resolution levels: each sequence is also simulated on its coarser mesh in DIR\n"
             "                (the sequence of the same scenario and index there, `weft simgen --resolution-series`)\n"
             "                and scored on its own mesh (weft eval --sim-mesh) for LBS, the first XPBD and every\n"
             "                model at its own crop; the level's resolution is the vertex share (named -rSHARE).\n"
             "                Up to %d times.\n"
-            "  --scale-only  skip the table: reuse OUT/lod.csv and regenerate only the per-character section\n"
+            "  --scale-only  skip the table: reuse CSVDIR/lod.csv and regenerate only the per-character section\n"
             "  --crops L     collider crops to measure every model level at (default: model, the model's own):\n"
             "                'model' or a margin in cm (box rule, as trained), optionally :cells (finer rule) and\n"
             "                @N (keep at most N triangles, the nearest), e.g. model,8,8:cells,model@3000; at most %d.\n"
@@ -107,7 +114,7 @@ static void usage(FILE *f)
             "                in turn each frame; prints median and min ms per step and the mean kept tokens.\n"
             "                --crop-model FILE (default MODELS/game.safetensors)\n"
             "  --scenario S  only the split's sequences of scenario S (e.g. garment)\n"
-            "  --name NAME   write OUT/NAME.csv and the tables into their own sections of OUT/LOD.md (default lod)\n"
+            "  --name NAME   write CSVDIR/NAME.csv and the tables into their own sections of OUT/LOD.md (default lod)\n"
             "  --tether-cm X, --strain-limit P  also measure LBS, the first XPBD and every model's int8 (CCD on and\n"
             "                off) with tethers of X cm and/or a P %% strain limit, each 0.01..1000 (levels named\n"
             "                ...-tX-sP)\n"
@@ -871,7 +878,7 @@ static int crop_cost(const lod_opts *o)
 /* LOD.md: replace the generated blocks (bench_replace_block), keep the rest.                   */
 
 static char *table_block(const lod_cand *c, size_t nc, const char *command, const lod_opts *o, double wall,
-                         char skipped[][300], size_t nskip)
+                         char skipped[][300], size_t nskip, const char *csv_name, const char *csv_link)
 {
     size_t len = 0, cap = 0;
     char *s = NULL, line[4096];
@@ -879,8 +886,10 @@ static char *table_block(const lod_cand *c, size_t nc, const char *command, cons
     char date[64];
     strftime(date, sizeof date, "%Y-%m-%d %H:%M UTC", gmtime(&now));
     snprintf(line, sizeof line,
-             "Generated by `%s` on %s in %.0f s (data `%s`, split `%s`%s). Build and machine: `%s`.\n\n", command,
-             date, wall, o->data, o->split, o->frames ? ", rollouts cut at --frames" : "", weft_config_string());
+             "Generated by `%s` on %s in %.0f s (data `%s`, split `%s`%s). Build and machine: `%s`. "
+             "The table: [%s](%s).\n\n",
+             command, date, wall, o->data, o->split, o->frames ? ", rollouts cut at --frames" : "",
+             weft_config_string(), csv_name, csv_link);
     s = bench_append(s, &len, &cap, line);
     s = s ? bench_append(s, &len, &cap,
                    "| level | method | precision | substeps | CCD | collider crop | resolution | sequences | frames | "
@@ -967,11 +976,11 @@ static char *scaling_block(const scale_row *r, size_t n, const char *desc, const
     return s ? bench_append(s, &len, &cap, "\n") : NULL;
 }
 
-/* Part 2 alone, on the table already in OUT/lod.csv. */
+/* Part 2 alone, on the table already in CSVDIR/lod.csv. */
 static int scale_only(const lod_opts *o, const char *command)
 {
     char csv[1200], md[1200];
-    snprintf(csv, sizeof csv, "%s/lod.csv", o->out);
+    snprintf(csv, sizeof csv, "%s/lod.csv", o->csv_dir);
     snprintf(md, sizeof md, "%s/LOD.md", o->out);
     static scale_row rows[LOD_MAX_SCALE * 6];
     char desc[256] = "";
@@ -1019,6 +1028,8 @@ int weft_bench_lod(int argc, char **argv)
             o.models = v;
         } else if (strcmp(a, "--out") == 0) {
             o.out = v;
+        } else if (strcmp(a, "--csv-dir") == 0) {
+            o.csv_dir = v;
         } else if (strcmp(a, "--crop-model") == 0) {
             o.cost_model = v;
         } else if (strcmp(a, "--scenario") == 0) {
@@ -1076,6 +1087,7 @@ int weft_bench_lod(int argc, char **argv)
         fprintf(stderr, "weft bench lod: --scale-res must be 1k, 4k, 16k or 40k\n");
         return 2;
     }
+    o.csv_dir = bench_csv_dir(o.csv_dir, o.out, LOD_TABLE_DIR);
     if (o.ncrops == 0) {
         o.crops[0] = (lod_crop){0.0, false, 0};
         o.ncrops = 1;
@@ -1155,8 +1167,9 @@ int weft_bench_lod(int argc, char **argv)
     o.sim_dir = NULL;
     free(seqs);
 
-    char csv[1200], md[1200];
-    snprintf(csv, sizeof csv, "%s/%s.csv", o.out, o.name);
+    char csv[1200], md[1200], csv_name[64], csv_link[1200];
+    snprintf(csv, sizeof csv, "%s/%s.csv", o.csv_dir, o.name);
+    snprintf(csv_name, sizeof csv_name, "%s.csv", o.name);
     const bool main_table = strcmp(o.name, "lod") == 0;
     char table_tag[64], scaling_tag[64];
     snprintf(table_tag, sizeof table_tag, main_table ? "lod:table" : "lod:table-%s", o.name);
@@ -1170,13 +1183,18 @@ int weft_bench_lod(int argc, char **argv)
         fprintf(stderr, "weft bench lod: no level produced a valid measurement; %s not written\n", csv);
         return 1;
     }
+    if (!bench_mkdirs(o.csv_dir)) {
+        fprintf(stderr, "weft bench lod: cannot create %s\n", o.csv_dir);
+        return 1;
+    }
     if (!write_csv(csv, cands, nc, command, &o)) {
         return 1;
     }
     printf("wrote %s (%zu levels)\n", csv, valid);
 
+    bench_link(o.out, o.csv_dir, csv_name, csv_link, sizeof csv_link);
     char *doc = bench_slurp(md, NULL);
-    char *block = table_block(cands, nc, command, &o, wall, skipped, nskip);
+    char *block = table_block(cands, nc, command, &o, wall, skipped, nskip, csv_name, csv_link);
     doc = block ? bench_replace_block(doc, table_tag, block, "# Level of detail\n") : NULL;
     free(block);
     if (o.scale && doc) {

@@ -72,6 +72,7 @@ typedef struct st_cell {
 
 typedef struct st_opts {
     const char *data, *out, *models, *scenario, *fnopt_model;
+    const char *csv_dir; /* where stability.csv goes (bench_csv_dir) */
     const char *axes; /* NULL: every axis; else a comma list of resolution, long, unseen, speed */
     uint32_t base_vertices, frames, long_frames, count;
     uint32_t time_limit; /* s of stepping per rollout before it counts as too slow */
@@ -86,7 +87,8 @@ typedef struct st_opts {
 static void usage(FILE *f)
 {
     fprintf(f,
-            "usage: weft bench stability [--data DIR] [--out DIR] [--models DIR] [--scenario gripper|drop|garment]\n"
+            "usage: weft bench stability [--data DIR] [--out DIR] [--csv-dir DIR] [--models DIR]\n"
+            "                            [--scenario gripper|drop|garment]\n"
             "                            [--base-vertices V] [--frames T] [--long-frames T] [--count N]\n"
             "                            [--xpbd 5,10,20,40] [--xpbd-fast 5,10] [--quick] [--no-plot] [--no-fnopt]\n"
             "                            [--no-garment]\n"
@@ -94,8 +96,9 @@ static void usage(FILE *f)
             "  Generates the stress cases with weft simgen under DIR (default data/stability; resumable), scores\n"
             "  LBS, XPBD 5/10/20/40, the fast XPBD (game collisions) 5/10 and every DIR/*.safetensors model\n"
             "  (fp32/fp16/int8, CCD on) on each, and\n"
-            "  writes OUT/stability.csv, OUT/img/stability.png and the table in OUT/STABILITY.md (between\n"
-            "  <!-- stability:table --> markers; the text around them is kept) (default OUT: docs).\n"
+            "  writes the table in OUT/STABILITY.md (between <!-- stability:table --> markers; the text around\n"
+            "  them is kept), OUT/img/stability.png and the CSV behind them, CSVDIR/stability.csv (default OUT:\n"
+            "  docs; default CSVDIR: docs/data when OUT is docs, else OUT).\n"
             "  defaults: V=256 vertices, T=240 frames, long 2400 frames, 2 sequences per case, S=900 s of stepping\n"
             "  per rollout before a method is marked too slow (its prefix is still scored)\n"
             "  --quick   V=64, T=60, long 480 frames, 1 sequence per case, FNOpt speed axis with adam only, S=300\n"
@@ -527,11 +530,11 @@ static int write_tables(const st_run *run)
     const double wall = run->wall;
     const bool fnopt_weights = run->fnopt_weights, garment_scenario = run->garment_scenario;
     /* CSV */
-    char path[1200];
-    snprintf(path, sizeof path, "%s/stability.csv", o.out);
-    FILE *f = fopen(path, "w");
+    char path[1200], csv[1200], link[1200];
+    snprintf(csv, sizeof csv, "%s/stability.csv", o.csv_dir);
+    FILE *f = fopen(csv, "w");
     if (!f) {
-        fprintf(stderr, "weft bench stability: cannot write %s\n", path);
+        fprintf(stderr, "weft bench stability: cannot write %s\n", csv);
         return 1;
     }
     fprintf(f, "case,axis,level,method,family,precision,sequences,frames,mve_cm,e3d,mve_first_quarter,"
@@ -695,18 +698,18 @@ static int write_tables(const st_run *run)
                    "2400-frame rollout, two sequences per case, all four FNOpt optimizers on three motions).\n",
                 o.frames, o.long_frames);
     }
-    fprintf(f, "\nRaw numbers: [stability.csv](stability.csv). Plot drawn by `tools/bench/plot_stability.py`.\n");
+    bench_link(o.out, o.csv_dir, "stability.csv", link, sizeof link);
+    fprintf(f, "\nRaw numbers: [stability.csv](%s). Plot drawn by `tools/bench/plot_stability.py`.\n", link);
     fclose(f);
     char *doc = gen ? bench_replace_block(bench_slurp(path, NULL), "stability:table", gen, "# Stability suite\n") : NULL;
     free(gen);
     if (!bench_write_doc("stability", path, doc)) {
         return 1;
     }
-    printf("wrote %s/stability.csv and %s/STABILITY.md (%zu of %zu cases, %.1f s)\n", o.out, o.out, run->done, nc,
-           wall);
+    printf("wrote %s and %s/STABILITY.md (%zu of %zu cases, %.1f s)\n", csv, o.out, run->done, nc, wall);
 
     if (o.plot) {
-        bench_plot(exe, "stability", "plot_stability.py", o.out, "stability");
+        bench_plot(exe, "stability", "plot_stability.py", o.out, csv, "stability");
     }
     return 0;
 }
@@ -757,6 +760,8 @@ int weft_bench_stability(int argc, char **argv)
                 o.data = v;
             } else if (strcmp(a, "--out") == 0) {
                 o.out = v;
+            } else if (strcmp(a, "--csv-dir") == 0) {
+                o.csv_dir = v;
             } else if (strcmp(a, "--models") == 0) {
                 o.models = v;
             } else if (strcmp(a, "--scenario") == 0) {
@@ -809,8 +814,9 @@ int weft_bench_stability(int argc, char **argv)
         fprintf(stderr, "weft bench stability: cannot find the running weft binary (/proc/self/exe)\n");
         return 1;
     }
-    if (!bench_mkdirs(o.data) || !bench_mkdirs(o.out)) {
-        fprintf(stderr, "weft bench stability: cannot create %s or %s\n", o.data, o.out);
+    o.csv_dir = bench_csv_dir(o.csv_dir, o.out, BENCH_DOCS_DATA_DIR);
+    if (!bench_mkdirs(o.data) || !bench_mkdirs(o.out) || !bench_mkdirs(o.csv_dir)) {
+        fprintf(stderr, "weft bench stability: cannot create %s, %s or %s\n", o.data, o.out, o.csv_dir);
         return 1;
     }
 

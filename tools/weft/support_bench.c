@@ -1,7 +1,7 @@
 /* Child-process and dataset helpers for the harness benchmarks. Each measured run is a separate
  * `weft eval` process so that one method crashing or exhausting memory costs one cell of the
  * table, not the whole run, and every figure comes from the same code path users run. */
-#define _POSIX_C_SOURCE 200809L /* posix_spawn, readlink, mkstemp, opendir */
+#define _XOPEN_SOURCE 700 /* POSIX 2008 (posix_spawn, readlink, mkstemp, opendir) and realpath */
 #include "support_bench.h"
 #include "support_cli.h"
 #include "weft/sim.h"
@@ -518,12 +518,12 @@ int bench_method_args(const bench_method_spec *spec, const char **out, int n)
     return n;
 }
 
-bool bench_plot(const char *exe, const char *tool, const char *script, const char *out_dir, const char *name)
+bool bench_plot(const char *exe, const char *tool, const char *script, const char *out_dir, const char *csv,
+                const char *name)
 {
-    char path[1200], png[1200], csv[1200], img[1200];
+    char path[1200], png[1200], img[1200];
     snprintf(img, sizeof img, "%s/img", out_dir);
     snprintf(png, sizeof png, "%s/img/%s.png", out_dir, name);
-    snprintf(csv, sizeof csv, "%s/%s.csv", out_dir, name);
     if (!bench_mkdirs(img) || !bench_find_script(exe, script, path, sizeof path)) {
         fprintf(stderr, "weft bench %s: tools/bench/%s not found (run from the source root); no PNG\n", tool, script);
         return false;
@@ -538,6 +538,67 @@ bool bench_plot(const char *exe, const char *tool, const char *script, const cha
     }
     printf("wrote %s\n", png);
     return true;
+}
+
+/* p without a leading "./" and trailing slashes equals "docs". */
+static bool is_docs_dir(const char *p)
+{
+    while (p[0] == '.' && p[1] == '/') {
+        p += 2;
+    }
+    size_t n = strlen(BENCH_DOCS_DIR);
+    if (strncmp(p, BENCH_DOCS_DIR, n) != 0) {
+        return false;
+    }
+    for (p += n; *p == '/'; ++p) {
+    }
+    return *p == '\0';
+}
+
+const char *bench_csv_dir(const char *given, const char *out, const char *data_dir)
+{
+    return given ? given : is_docs_dir(out) ? data_dir : out;
+}
+
+void bench_link(const char *from_dir, const char *to_dir, const char *name, char *out, size_t cap)
+{
+    char *from = realpath(from_dir, NULL), *to = realpath(to_dir, NULL);
+    if (!from || !to) {
+        snprintf(out, cap, "%s/%s", to_dir, name);
+        free(from);
+        free(to);
+        return;
+    }
+    /* The longest common leading run of whole components. */
+    size_t common = 0;
+    for (size_t i = 0;; ++i) {
+        const bool end_f = from[i] == '\0' || from[i] == '/', end_t = to[i] == '\0' || to[i] == '/';
+        if (end_f && end_t) {
+            common = i;
+            if (from[i] == '\0' || to[i] == '\0') {
+                break;
+            }
+        } else if (from[i] != to[i]) {
+            break;
+        }
+    }
+    size_t len = 0;
+    out[0] = '\0';
+    for (const char *p = from + common; *p && len < cap; ++p) { /* "../" per component of from below it */
+        if (*p == '/' && p[1] != '\0') {
+            len += (size_t)snprintf(out + len, cap - len, "../");
+        }
+    }
+    const char *rest = to + common;
+    rest += *rest == '/';
+    if (*rest && len < cap) {
+        len += (size_t)snprintf(out + len, cap - len, "%s/", rest);
+    }
+    if (len < cap) {
+        snprintf(out + len, cap - len, "%s", name);
+    }
+    free(from);
+    free(to);
 }
 
 char *bench_append(char *buf, size_t *len, size_t *cap, const char *s)

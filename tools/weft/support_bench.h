@@ -115,9 +115,26 @@ size_t bench_list_models(const char *dir, char names[][256], size_t cap);
  * (build-x/bin/weft -> ../../tools/bench). */
 bool bench_find_script(const char *exe, const char *name, char *out, size_t cap);
 
-/* Draws OUT/img/NAME.png from OUT/NAME.csv with tools/bench/SCRIPT (python3, matplotlib);
+/* Draws OUT/img/NAME.png from the CSV at csv with tools/bench/SCRIPT (python3, matplotlib);
  * prints what it wrote, or "weft bench TOOL: ..." on stderr and returns false. */
-bool bench_plot(const char *exe, const char *tool, const char *script, const char *out_dir, const char *name);
+bool bench_plot(const char *exe, const char *tool, const char *script, const char *out_dir, const char *csv,
+                const char *name);
+
+/* The page folder every harness benchmark writes by default (--out). */
+#define BENCH_DOCS_DIR "docs"
+/* Where the bench output data of the repository lives: the CSVs behind the pages of docs/. */
+#define BENCH_DOCS_DATA_DIR "docs/data"
+
+/* The folder a benchmark writes its CSV to: given (--csv-dir) when not NULL; else data_dir (the
+ * repository's folder for it, e.g. docs/data) when out is the default docs folder ("docs",
+ * "./docs", "docs/"); else out itself, beside the page, so that a run into another folder keeps
+ * its outputs together and leaves the repository's data alone. */
+const char *bench_csv_dir(const char *given, const char *out, const char *data_dir);
+
+/* The path of file `name` in folder to_dir as a link from a page in folder from_dir (both must
+ * exist): "name" when they are the same folder, "data/name" for a subfolder, "../x/name" ...;
+ * to_dir/name as given when a folder cannot be resolved. */
+void bench_link(const char *from_dir, const char *to_dir, const char *name, char *out, size_t cap);
 
 /* The file for one precision: MODEL.<precision>.safetensors when the quantiser wrote one, else
  * MODEL.safetensors (base), which the runtime converts at garment creation. */
