@@ -295,15 +295,15 @@ static bool make_dirs(const char *path)
 
 /* ---------------------------------------------------------------------------------------- */
 
-typedef struct sample_motion {
-    bool procedural;
-    weft_motion_def def;
-    weft_clip *clip;
-} sample_motion;
-
-static weft_result motion_pose(const sample_motion *m, double t, weft_pose *out)
+weft_result weft_sample_motion_pose(const weft_sample_motion *m, double t, weft_pose *out)
 {
     return m->procedural ? weft_motion_sample(&m->def, t, out) : weft_clip_sample(m->clip, t, out);
+}
+
+void weft_sample_motion_free(weft_sample_motion *m)
+{
+    weft_clip_destroy(m->clip);
+    m->clip = NULL;
 }
 
 typedef struct sample_state {
@@ -315,7 +315,7 @@ typedef struct sample_state {
     weft_model *model;
     weft_garment *garment;
     weft_renderer *renderer;
-    sample_motion motion;
+    weft_sample_motion motion;
     float *body_verts, *cloth_verts;
     float *skinned_verts;               /* the drawn garment skinned to the body (wear measures) */
     double *cloth_ms;                   /* per rendered frame */
@@ -338,7 +338,7 @@ static void sample_free(sample_state *s)
     weft_mesh_map_destroy(s->sim_map);
     weft_cloth_destroy(s->sim_cloth);
     if (s->motion.clip) {
-        weft_clip_destroy(s->motion.clip);
+        weft_sample_motion_free(&s->motion);
     }
     weft_body_destroy(s->body);
     weft_renderer_destroy(s->renderer);
@@ -401,50 +401,49 @@ weft_result weft_sample_motion_path(const char *spec, char *out_path, size_t siz
     return WEFT_OK;
 }
 
-static weft_result load_motion(const weft_avatar_sample_options *o, sample_state *s)
+weft_result weft_sample_motion_load(weft_context *ctx, const weft_body *body, const char *spec, float speed,
+                                   bool verbose, weft_sample_motion *out)
 {
-    if (strncmp(o->motion, "bvh:", 4) == 0 || strncmp(o->motion, "mocap:", 6) == 0) {
+    memset(out, 0, sizeof *out);
+    if (strncmp(spec, "bvh:", 4) == 0 || strncmp(spec, "mocap:", 6) == 0) {
 #if WEFT_RENDER_HAVE_ASSETS
         weft_bvh_def def = weft_default_bvh_def();
-        def.rest_joints = weft_body_rest_joints(s->body);
-        s->motion.procedural = false;
+        def.rest_joints = weft_body_rest_joints(body);
         char path[1024];
         weft_bvh_report rep;
         def.report = &rep;
-        weft_result r = weft_sample_motion_path(o->motion, path, sizeof path);
-        r = r != WEFT_OK ? r : weft_bvh_load_file(s->ctx, path, &def, &s->motion.clip);
-        if (r == WEFT_OK) {
-            printf("motion %s: %s joint names, %u of 24 SMPL joints driven by the clip\n", o->motion, rep.naming,
-                   rep.mapped);
+        weft_result r = weft_sample_motion_path(spec, path, sizeof path);
+        r = r != WEFT_OK ? r : weft_bvh_load_file(ctx, path, &def, &out->clip);
+        if (r == WEFT_OK && verbose) {
+            printf("motion %s: %s joint names, %u of 24 SMPL joints driven by the clip\n", spec, rep.naming, rep.mapped);
         }
         return r;
 #else
         return weft__fail(WEFT_ERROR_UNSUPPORTED, "this build has no weft_assets (BVH import)");
 #endif
     }
-    if (strncmp(o->motion, "gltf:", 5) == 0) {
+    if (strncmp(spec, "gltf:", 5) == 0) {
 #if WEFT_RENDER_HAVE_ASSETS
         /* a skinned glTF/FBX whose 24 joints carry SMPL names, e.g. one weft_gltf_write_body wrote */
         weft_skinned_asset *asset = NULL;
-        weft_result r = weft_skinned_load_file(s->ctx, o->motion + 5, 60.0f, &asset);
+        weft_result r = weft_skinned_load_file(ctx, spec + 5, 60.0f, &asset);
         if (r == WEFT_OK) {
-            r = weft_skinned_to_clip(s->ctx, asset, &s->motion.clip);
+            r = weft_skinned_to_clip(ctx, asset, &out->clip);
             weft_skinned_asset_destroy(asset);
         }
-        s->motion.procedural = false;
         return r;
 #else
         return weft__fail(WEFT_ERROR_UNSUPPORTED, "this build has no weft_assets (glTF import)");
 #endif
     }
     weft_motion m;
-    weft_result res = weft_motion_from_name(o->motion, &m);
+    weft_result res = weft_motion_from_name(spec, &m);
     if (res != WEFT_OK) {
         return res;
     }
-    s->motion.procedural = true;
-    s->motion.def = weft_default_motion_def(m);
-    s->motion.def.speed = o->speed;
+    out->procedural = true;
+    out->def = weft_default_motion_def(m);
+    out->def.speed = speed;
     return WEFT_OK;
 }
 
@@ -687,7 +686,7 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
     if (weft_avatar_create(s.ctx, &adef, &s.body) != WEFT_OK) {
         return fail_msg(&s, "weft_avatar_create");
     }
-    if (load_motion(o, &s) != WEFT_OK) {
+    if (weft_sample_motion_load(s.ctx, s.body, o->motion, o->speed, true, &s.motion) != WEFT_OK) {
         fprintf(stderr, "avatar_render: motion '%s': %s\n", o->motion, weft_last_error());
         sample_free(&s);
         return 2;
@@ -845,7 +844,7 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
     }
     weft_pose bind, first, pose;
     weft_body_bind_pose(s.body, &bind);
-    if (motion_pose(&s.motion, o->start, &first) != WEFT_OK) {
+    if (weft_sample_motion_pose(&s.motion, o->start, &first) != WEFT_OK) {
         return fail_msg(&s, "sampling the motion");
     }
     uint32_t settle = simulated || o->cape ? o->settle_frames : 0;
@@ -857,7 +856,7 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
         double t0 = weft__now_ms();
         if (k < settle) {
             weft_avatar_sample_settle_pose(&bind, &first, k, settle, &pose);
-        } else if (motion_pose(&s.motion, o->start + (double)(k - settle) / 60.0, &pose) != WEFT_OK) {
+        } else if (weft_sample_motion_pose(&s.motion, o->start + (double)(k - settle) / 60.0, &pose) != WEFT_OK) {
             return fail_msg(&s, "sampling the motion");
         }
         if (weft_body_pose(s.body, &pose, s.body_verts, NULL) != WEFT_OK) {

@@ -79,6 +79,19 @@ weft_result weft_avatar_sample_garment_create(const weft_avatar_sample_options *
                                               const weft_body *body, const weft_cloth_mesh *cloth,
                                               weft_model **out_model, weft_garment **out_garment, char *label,
                                               size_t label_cap);
+/* A motion by the render sample's --motion spelling: a procedural NAME (at `speed`),
+ * mocap:CLIP of the library, bvh:PATH (plain or .gz) or gltf:PATH (a skinned glTF/FBX with SMPL
+ * joint names), retargeted to `body`. verbose prints the BVH mapping report. */
+typedef struct weft_sample_motion {
+    bool procedural;
+    weft_motion_def def;
+    weft_clip *clip;
+} weft_sample_motion;
+weft_result weft_sample_motion_load(weft_context *ctx, const weft_body *body, const char *spec, float speed,
+                                   bool verbose, weft_sample_motion *out);
+weft_result weft_sample_motion_pose(const weft_sample_motion *m, double t, weft_pose *out);
+void weft_sample_motion_free(weft_sample_motion *m);
+
 /* weft_default_garment_def() with `method`, the given cloth mesh as rest shape and the body (bind
  * pose) as collider. */
 weft_garment_def weft_sample_body_garment_def(const weft_body *body, weft_method method, const float *positions,

@@ -25,7 +25,6 @@ const char weft_bench_frame_help[] =
     "a worn garment's whole frame by stage (method, constraints, CCD) at 1k/4k: learned int8/fp16/fp32, fast XPBD, LBS";
 
 #if WEFT_RENDER_HAVE_SAMPLE && WEFT_RENDER_HAVE_ASSETS
-#include "bvh.h"
 #include "weft_sample.h"
 
 #define FR_SETTLE 30
@@ -94,18 +93,6 @@ static const char *shipped_model(weft_precision p)
     return path[p];
 }
 
-/* Poses of one motion at 60 Hz: settle frames then the measured ones. */
-typedef struct fr_motion {
-    bool procedural;
-    weft_motion_def def;
-    weft_clip *clip;
-} fr_motion;
-
-static weft_result motion_at(const fr_motion *m, double t, weft_pose *out)
-{
-    return m->procedural ? weft_motion_sample(&m->def, t, out) : weft_clip_sample(m->clip, t, out);
-}
-
 static int cmp_double(const void *a, const void *b)
 {
     const double x = *(const double *)a, y = *(const double *)b;
@@ -119,7 +106,7 @@ static double median(double *v, uint32_t n)
 }
 
 /* One (motion, resolution, method) run. Returns 0, or 1 with the reason printed. */
-static int run_cell(weft_context *ctx, weft_body *body, const fr_motion *mo, const char *resolution,
+static int run_cell(weft_context *ctx, weft_body *body, const weft_sample_motion *mo, const char *resolution,
                     const fr_method *m, weft_model *model, uint32_t frames, fr_cell *out)
 {
     weft_cloth_def cdef = weft_default_cloth_def(WEFT_CLOTH_TSHIRT);
@@ -155,13 +142,13 @@ static int run_cell(weft_context *ctx, weft_body *body, const fr_motion *mo, con
     }
     weft_pose bind, first, pose;
     weft_body_bind_pose(body, &bind);
-    if (rc == 0 && motion_at(mo, 0.0, &first) != WEFT_OK) {
+    if (rc == 0 && weft_sample_motion_pose(mo, 0.0, &first) != WEFT_OK) {
         rc = 1;
     }
     for (uint32_t k = 0; rc == 0 && k < FR_SETTLE + frames; ++k) {
         if (k < FR_SETTLE) {
             weft_avatar_sample_settle_pose(&bind, &first, k, FR_SETTLE, &pose);
-        } else if (motion_at(mo, (double)(k - FR_SETTLE) / 60.0, &pose) != WEFT_OK) {
+        } else if (weft_sample_motion_pose(mo, (double)(k - FR_SETTLE) / 60.0, &pose) != WEFT_OK) {
             rc = 1;
             break;
         }
@@ -305,26 +292,11 @@ int weft_bench_frame(int argc, char **argv)
     char ratios[4096] = "";
     char motion_spec[128], res[16];
     for (uint32_t mi = 0; rc == 0 && table && list_item(motions, mi, motion_spec, sizeof motion_spec); ++mi) {
-        fr_motion mo = {0};
-        if (!strncmp(motion_spec, "mocap:", 6) || !strncmp(motion_spec, "bvh:", 4)) {
-            char path[1024];
-            weft_bvh_def bdef = weft_default_bvh_def();
-            bdef.rest_joints = weft_body_rest_joints(body);
-            if (weft_sample_motion_path(motion_spec, path, sizeof path) != WEFT_OK ||
-                weft_bvh_load_file(ctx, path, &bdef, &mo.clip) != WEFT_OK) {
-                fprintf(stderr, "weft bench frame: motion %s: %s\n", motion_spec, weft_last_error());
-                rc = 1;
-                break;
-            }
-        } else {
-            weft_motion mk;
-            if (weft_motion_from_name(motion_spec, &mk) != WEFT_OK) {
-                fprintf(stderr, "weft bench frame: motion %s: %s\n", motion_spec, weft_last_error());
-                rc = 1;
-                break;
-            }
-            mo.procedural = true;
-            mo.def = weft_default_motion_def(mk);
+        weft_sample_motion mo;
+        if (weft_sample_motion_load(ctx, body, motion_spec, 1.0f, false, &mo) != WEFT_OK) {
+            fprintf(stderr, "weft bench frame: motion %s: %s\n", motion_spec, weft_last_error());
+            rc = 1;
+            break;
         }
         for (uint32_t ri = 0; rc == 0 && list_item(resolutions, ri, res, sizeof res); ++ri) {
             fr_cell cells[FR_MAX];
@@ -367,7 +339,7 @@ int weft_bench_frame(int argc, char **argv)
                      i8 >= 0 && cells[i8].step > 0.0 ? 100.0 * cells[i8].method / cells[i8].step : 0.0);
             strncat(ratios, r, sizeof ratios - strlen(ratios) - 1);
         }
-        weft_clip_destroy(mo.clip);
+        weft_sample_motion_free(&mo);
     }
     if (rc == 0 && table) {
         table = bench_append(table, &len, &cap,
