@@ -60,18 +60,34 @@ static weft_result check_gltf_json(const char *path, const char *text, size_t le
 }
 
 /* The JSON of a .glb (its first chunk) or of a text glTF (first non-blank byte '{'); NULL when
- * the file is neither. *bad is set when a .glb's JSON chunk runs past the end. */
-static const char *gltf_json(const uint8_t *data, size_t size, size_t *len, bool *bad)
+ * the file is neither. *bad names what is wrong with a file that starts like a .glb but is not
+ * the glTF 2.0 binary layout (version 2, declared length = file size, a JSON chunk that fits):
+ * assimp reads such headers anyway, and one of them (version 670722, 55 bytes) kept it busy for
+ * minutes. */
+static const char *gltf_json(const uint8_t *data, size_t size, size_t *len, const char **bad)
 {
-    *bad = false;
+    *bad = NULL;
     if (size >= 4 && memcmp(data, "glTF", 4) == 0) {
-        if (size < 20 || memcmp(data + 16, "JSON", 4) != 0) {
-            return NULL; /* no JSON chunk: assimp refuses the file */
+        if (size < 20) {
+            *bad = "a glb header needs 20 bytes";
+            return NULL;
         }
+        const uint32_t version = (uint32_t)data[4] | (uint32_t)data[5] << 8 | (uint32_t)data[6] << 16 |
+                                 (uint32_t)data[7] << 24;
+        const uint32_t length = (uint32_t)data[8] | (uint32_t)data[9] << 8 | (uint32_t)data[10] << 16 |
+                                (uint32_t)data[11] << 24;
         const uint32_t chunk = (uint32_t)data[12] | (uint32_t)data[13] << 8 | (uint32_t)data[14] << 16 |
                                (uint32_t)data[15] << 24;
-        if (chunk > size - 20) {
-            *bad = true;
+        if (version != 2) {
+            *bad = "only glTF 2.0 binary (glb version 2) is read";
+        } else if (length != size) {
+            *bad = "the glb header's length is not the file's size";
+        } else if (memcmp(data + 16, "JSON", 4) != 0) {
+            *bad = "the glb has no JSON chunk first";
+        } else if (chunk > size - 20) {
+            *bad = "the glb JSON chunk runs past the end of the file";
+        }
+        if (*bad) {
             return NULL;
         }
         *len = chunk;
@@ -571,11 +587,20 @@ weft_result weft__assimp_check_file(const char *path)
     }
     data[size] = 0;
     size_t json_len = 0;
-    bool bad_glb = false;
+    const char *bad_glb = NULL;
     const char *json = gltf_json(data, (size_t)size, &json_len, &bad_glb);
     weft_result res = WEFT_OK;
+    const bool fbx = ((size_t)size >= 18 && memcmp(data, "Kaydara FBX Binary", 18) == 0) ||
+                     mentions_fbx(path, data, (size_t)size);
     if (bad_glb) {
-        res = weft__fail(WEFT_ERROR_FORMAT, "skinned mesh: '%s': the glb JSON chunk runs past the end of the file", path);
+        res = weft__fail(WEFT_ERROR_FORMAT, "skinned mesh: '%s': %s", path, bad_glb);
+    } else if (!json && !fbx) {
+        /* assimp would try its other readers on it, and some of them never return on a few
+         * bytes of noise: skinned characters come as glTF 2.0 or FBX */
+        res = weft__fail(WEFT_ERROR_FORMAT,
+                         "skinned mesh: '%s' is neither glTF 2.0 (JSON text or glb) nor FBX (binary, or ASCII "
+                         "naming FBX)",
+                         path);
     } else if (json) {
         res = check_gltf_json(path, json, json_len);
     }
