@@ -525,6 +525,44 @@ static bool mentions_fbx(const char *path, const uint8_t *data, size_t size)
     return false;
 }
 
+/* ASCII FBX: the largest control-point count of any geometry ("Vertices: *N", N / 3) and the
+ * largest skin-cluster vertex index ("Indexes: *N { a: i, j, ... }"); false when a cluster names a
+ * vertex beyond every geometry, or a negative one: assimp 5.2's converter asserts on it
+ * (FBXConverter.cpp, out_idx != nullptr) and aborts the process. Binary FBX is not checked. */
+static bool fbx_ascii_indices_ok(const char *text)
+{
+    long long control_points = 0;
+    for (const char *p = text; (p = strstr(p, "Vertices:")) != NULL; ++p) {
+        const char *q = p + 9;
+        while (*q == ' ' || *q == '\t') {
+            ++q;
+        }
+        if (*q == '*') {
+            const long long n = strtoll(q + 1, NULL, 10);
+            control_points = n / 3 > control_points ? n / 3 : control_points;
+        }
+    }
+    for (const char *p = text; (p = strstr(p, "Indexes:")) != NULL; ++p) {
+        const char *a = strstr(p, "a:"), *end = strchr(p, '}');
+        if (!a || !end || a > end) {
+            continue;
+        }
+        for (const char *q = a + 2; q < end;) {
+            char *next = NULL;
+            const long long v = strtoll(q, &next, 10);
+            if (next == q) {
+                ++q;
+                continue;
+            }
+            if (v < 0 || v >= control_points) {
+                return false;
+            }
+            q = next;
+        }
+    }
+    return true;
+}
+
 static weft_result check_fbx(const char *path, const uint8_t *data, size_t size)
 {
     links l = {NULL, 0, 0, false, false};
@@ -535,6 +573,13 @@ static weft_result check_fbx(const char *path, const uint8_t *data, size_t size)
         depth = b.max_depth;
     } else if (mentions_fbx(path, data, size)) {
         walk_fbx_ascii((const char *)data, size, &depth, &l);
+        if (!fbx_ascii_indices_ok((const char *)data)) {
+            free(l.edge);
+            return weft__fail(WEFT_ERROR_FORMAT,
+                              "skinned mesh: '%s': an FBX skin cluster names a vertex beyond the meshes' control "
+                              "points (assimp 5.2 would abort)",
+                              path);
+        }
     }
     weft_result res = WEFT_OK;
     if (depth > CHECK_MAX_DEPTH) {

@@ -11,7 +11,9 @@
  *   FBX (binary, or ASCII text when the name ends in .fbx or the first bytes mention FBX)
  *     - a cycle in the object connections, a self-connection included (assimp's node
  *       conversion recurses along them until the stack overflows),
- *     - scopes nested deeper than 64 levels (assimp's parser recurses per level).
+ *     - scopes nested deeper than 64 levels (assimp's parser recurses per level),
+ *     - (ASCII) a skin cluster index beyond every mesh's control points, or negative (assimp's
+ *       converter asserts and aborts).
  *   Anything else: a file that is neither glTF 2.0 (JSON text, or a glb of version 2 whose
  *     header length is the file's size and whose first chunk is JSON) nor FBX is refused, so
  *     assimp never tries its other readers (one kept busy for minutes by 55 bytes of noise).
