@@ -635,8 +635,18 @@ weft_result weft__assimp_check_file(const char *path)
     const char *bad_glb = NULL;
     const char *json = gltf_json(data, (size_t)size, &json_len, &bad_glb);
     weft_result res = WEFT_OK;
-    const bool fbx = ((size_t)size >= 18 && memcmp(data, "Kaydara FBX Binary", 18) == 0) ||
-                     mentions_fbx(path, data, (size_t)size);
+    /* ASCII FBX opens with its "; FBX x.y.z project file" comment or its first record; text that
+     * merely mentions FBX somewhere (a Quick3D file did, and assimp's Q3D reader then asked for
+     * 619 GB) is not FBX */
+    size_t first = 0;
+    while (first < (size_t)size && (data[first] == ' ' || data[first] == '\t' || data[first] == '\r' ||
+                                    data[first] == '\n')) {
+        first++;
+    }
+    const bool ascii_fbx = first < (size_t)size &&
+                           (data[first] == ';' || strncmp((const char *)data + first, "FBXHeaderExtension", 18) == 0) &&
+                           mentions_fbx(path, data, (size_t)size);
+    const bool fbx = ((size_t)size >= 18 && memcmp(data, "Kaydara FBX Binary", 18) == 0) || ascii_fbx;
     if (bad_glb) {
         res = weft__fail(WEFT_ERROR_FORMAT, "skinned mesh: '%s': %s", path, bad_glb);
     } else if (!json && !fbx) {

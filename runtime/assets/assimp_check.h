@@ -15,7 +15,8 @@
  *     - (ASCII) a skin cluster index beyond every mesh's control points, or negative (assimp's
  *       converter asserts and aborts).
  *   Anything else: a file that is neither glTF 2.0 (JSON text, or a glb of version 2 whose
- *     header length is the file's size and whose first chunk is JSON) nor FBX is refused, so
+ *     header length is the file's size and whose first chunk is JSON) nor FBX (binary, or ASCII
+ *     opening with its ';' comment or its first record) is refused, so
  *     assimp never tries its other readers (one kept busy for minutes by 55 bytes of noise).
  * Structure the checks do not understand inside glTF and FBX is left to assimp.
  */
