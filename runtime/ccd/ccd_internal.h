@@ -43,8 +43,7 @@ void weft__ccd_world_set_parts(weft_ccd_world *w, const uint32_t *cloth_masks, c
 /* ---- garment hook (world.c) ------------------------------------------------------------- */
 
 /* The garment's CCD work bound: triangle pairs all passes of one step may visit, per cloth
- * triangle (weft_ccd_world_def.max_pairs). A worn garment's step visits at most about 19 per
- * cloth triangle on the walk; a crouch that sinks a forearm into the chest, up to 950. */
+ * triangle (weft_ccd_world_def.max_pairs). docs/CCD.md, *Work bound*. */
 #define WEFT_CCD_PAIRS_PER_TRIANGLE 64u
 /* Plus this many for any garment: a small patch against a finely meshed collider meets many
  * collider triangles per cloth triangle. */
