@@ -284,6 +284,11 @@ typedef struct weft_collision_def {
     float part_margin;                  /* metres; default 0.03; in [0, 1] */
     float cut_distance;                 /* metres; default 1 (60 m/s at 60 Hz); 0 = off;
                                          * in [0, WEFT_MAX_COORDINATE] */
+    bool part_neighbours;               /* a vertex also collides with the parts meeting its own at a
+                                         * collider vertex (default true: cloth sliding across a
+                                         * joint meets the next part); false: only the parts within
+                                         * part_margin (the reference on real motion: torso cloth
+                                         * under an arm that sinks into the chest is not squeezed) */
 } weft_collision_def;
 
 /* The CCD post-process (the seed's safety net): the cloth's motion x(t) -> x(t+1) against the

@@ -37,7 +37,9 @@ int ccd_segment_crosses_triangle_strict(const double p[3], const double q[3], co
 
 /* Body parts for the cloth-collider pairs (garment/parts.c): cloth_masks (one per cloth
  * vertex) and collider_tri_bits (1 << part, one per collider triangle) are kept, not copied;
- * NULL clears. The validator's exact tests (weft_ccd_intersect_frame, metrics) ignore them. */
+ * NULL clears. weft_ccd_intersect_frame then skips a cloth-collider triangle pair unless all
+ * the cloth triangle's corners have the collider triangle's part (the lab's validator certifies
+ * ground truth on self-intersecting bodies this way); the metrics ignore them. */
 void weft__ccd_world_set_parts(weft_ccd_world *w, const uint32_t *cloth_masks, const uint32_t *collider_tri_bits);
 
 /* ---- garment hook (world.c) ------------------------------------------------------------- */

@@ -1332,7 +1332,13 @@ static void pair_isect_col(void *ctx, uint32_t ta, uint32_t tb)
 {
     isect_ctx *ic = ctx;
     double A[9], B[9];
-    load_tri(A, ic->x, ic->w->tris + 3 * (size_t)ta);
+    const uint32_t *a = ic->w->tris + 3 * (size_t)ta;
+    if (ic->w->part_mask && !((ic->w->part_mask[a[0]] & ic->w->part_mask[a[1]] & ic->w->part_mask[a[2]]) &
+                              ic->w->ctri_bits[tb])) {
+        return; /* body parts: a corner does not collide with this triangle's part (as the sweeps'
+                 * edge-edge pairs, which need both ends of a cloth edge) */
+    }
+    load_tri(A, ic->x, a);
     load_tri(B, ic->c, ic->w->ctris + 3 * (size_t)tb);
     ic->count += ccd_tri_tri(A, A + 3, A + 6, B, B + 3, B + 6);
 }

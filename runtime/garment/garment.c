@@ -17,6 +17,7 @@ weft_garment_def weft_default_garment_def(void)
     def.strain.iterations = 8;
     def.collision.push_depth = 0.02f;
     def.collision.part_margin = 0.03f;
+    def.collision.part_neighbours = true;
     def.collision.cut_distance = 1.0f;
     def.internal_cookie = WEFT_DEF_COOKIE;
     return def;
@@ -360,7 +361,8 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
             return r;
         }
     }
-    if ((r = weft__parts_create(g, def->collision.triangle_parts, def->collision.part_margin)) != WEFT_OK) {
+    if ((r = weft__parts_create(g, def->collision.triangle_parts, def->collision.part_margin,
+                                     def->collision.part_neighbours)) != WEFT_OK) {
         free_buffers(g);
         return r;
     }

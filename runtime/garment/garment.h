@@ -153,7 +153,7 @@ void weft__push(weft_garment *g);
 
 /* Body parts (parts.c): the masks made from the initial state x and the collider at rest;
  * nothing is made when parts is NULL. */
-weft_result weft__parts_create(weft_garment *g, const uint8_t *parts, float margin);
+weft_result weft__parts_create(weft_garment *g, const uint8_t *parts, float margin, bool neighbours);
 void weft__parts_destroy(weft_garment *g);
 /* The parts cloth vertex v collides with (every part when the garment has no partition). */
 static inline uint32_t weft__part_mask(const weft_garment *g, uint32_t v)

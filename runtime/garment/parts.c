@@ -55,7 +55,7 @@ static bool visit_within(uint32_t t, void *user)
     return true;
 }
 
-weft_result weft__parts_create(weft_garment *g, const uint8_t *parts, float margin)
+weft_result weft__parts_create(weft_garment *g, const uint8_t *parts, float margin, bool neighbours)
 {
     if (!parts) {
         return WEFT_OK;
@@ -137,7 +137,7 @@ weft_result weft__parts_create(weft_garment *g, const uint8_t *parts, float marg
         }
         xbvh_query(&tree, lo, hi, visit_within, &q);
         uint32_t mask = q.mask;
-        for (uint32_t bits = q.mask; bits; bits &= bits - 1) {
+        for (uint32_t bits = neighbours ? q.mask : 0u; bits; bits &= bits - 1) {
             mask |= adjacent[__builtin_ctz(bits)];
         }
         g->part_mask[v] = mask;

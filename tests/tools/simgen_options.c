@@ -189,6 +189,35 @@ static void failed_run_writes_no_manifest(void)
     }
 }
 
+/* --mocap: windows of the library's clips (WEFT_MOCAP_DIR, set by the test), here the first of
+ * the test clip walk_cmu07_01, short and unvalidated: its meta.json carries the library's split,
+ * the clip and the body-parts rule; the name says clip, vertices and first frame. Bad --mocap
+ * values and unknown clips are refused, and --clips needs --mocap. */
+static void mocap_windows_of_library_clips(void)
+{
+    char dir[1024], meta[1200], err[1100], text[1 << 14];
+    snprintf(dir, sizeof dir, "%s/mocap", g_out);
+    snprintf(meta, sizeof meta, "%s/mocap_walk_cmu07_01_v256_00000/meta.json", dir);
+    snprintf(err, sizeof err, "%s/mocap.err", g_out);
+    unlink(meta);
+    const char *argv[] = {g_exe, "simgen", "--out", dir, "--mocap", "test", "--clips", "walk_cmu07_01", "--vertices",
+                          "256", "--frames", "4", "--limit", "1", "--no-validate", NULL};
+    CHECK_EQ_INT(tool_run_err(argv, NULL, err), 0);
+    tool_slurp(meta, text, sizeof text);
+    CHECK_MSG(strstr(text, "\"split\":\t\"test\"") != NULL, "no test split in %.300s", text);
+    CHECK_MSG(strstr(text, "\"clip\":\t\"walk_cmu07_01\"") != NULL, "no clip in %.300s", text);
+    CHECK_MSG(strstr(text, "mocap walk_cmu07_01 from 0.00 s") != NULL, "description: %.300s", text);
+    CHECK(strstr(text, "\"body_parts\"") != NULL);
+    const char *bad[] = {g_exe, "simgen", "--out", dir, "--mocap", "holdout", NULL};
+    CHECK_EQ_INT(tool_run(bad, NULL), 2);
+    const char *unknown[] = {g_exe, "simgen", "--out", dir, "--mocap", "all", "--clips", "moonwalk_cmu99", NULL};
+    CHECK_EQ_INT(tool_run_err(unknown, NULL, err), 1);
+    tool_slurp(err, text, sizeof text);
+    CHECK_MSG(strstr(text, "no clip of") && strstr(text, "moonwalk_cmu99"), "%s", text);
+    const char *alone[] = {g_exe, "simgen", "--out", dir, "--scenario", "drop", "--clips", "walk_cmu07_01", NULL};
+    CHECK_EQ_INT(tool_run(alone, NULL), 2);
+}
+
 static void bad_plan_options_fail(void)
 {
     char dir[1024];
@@ -248,6 +277,7 @@ int main(int argc, char **argv)
                                          TEST_CASE(split_generates_only_that_split), TEST_CASE(manifest_keeps_other_runs),
                                          TEST_CASE(only_generates_that_scenario),
                                          TEST_CASE(redo_rejected_runs_rejected_again), TEST_CASE(like_makes_the_same_scene),
-                                         TEST_CASE(failed_run_writes_no_manifest), TEST_CASE(bad_plan_options_fail)};
+                                         TEST_CASE(failed_run_writes_no_manifest), TEST_CASE(mocap_windows_of_library_clips),
+                                         TEST_CASE(bad_plan_options_fail)};
     return test_run_(cases, sizeof cases / sizeof cases[0], argc - 2, argv + 2);
 }

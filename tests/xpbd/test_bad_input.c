@@ -175,6 +175,68 @@ static void test_validator_path(void)
     test_mesh_free(&sheet);
 }
 
+/* Body parts: a sheet falling into a box, and one resting cut by the box's faces, are certified
+ * when the sheet's vertices do not collide with the box's part, caught when they do; bad calls
+ * are refused and leave the parts as they were. */
+static void test_validator_parts(void)
+{
+    test_mesh sheet = test_sheet(5, 5, 0.2f, 0.2f, 0, 0.3f, 0);
+    const float lo[3] = {-0.3f, 0.0f, -0.3f}, hi[3] = {0.3f, 0.2f, 0.3f};
+    test_mesh box = test_box(lo, hi);
+    weft_sim_validator *v = NULL;
+    CHECK_RESULT(weft_sim_validator_create(ctx_, sheet.tris, sheet.nt, sheet.nv, box.tris, box.nt, box.nv, &v), WEFT_OK);
+    float *inside = malloc(sizeof(float) * 3 * sheet.nv);
+    uint32_t *masks = malloc(sizeof(uint32_t) * sheet.nv), *bits = malloc(sizeof(uint32_t) * box.nt);
+    memcpy(inside, sheet.pos, sizeof(float) * 3 * sheet.nv);
+    for (uint32_t i = 0; i < sheet.nv; ++i) {
+        inside[3 * i + 1] = 0.1f;
+        masks[i] = 1u << 2; /* the sheet collides with part 2 only */
+    }
+    for (uint32_t t = 0; t < box.nt; ++t) {
+        bits[t] = 1u << 5; /* the box is part 5 */
+    }
+    weft_sim_validation res;
+    CHECK_RESULT(weft_sim_validator_set_parts(v, masks, bits), WEFT_OK);
+    CHECK_RESULT(weft_sim_validator_check(v, sheet.pos, inside, box.pos, box.pos, &res), WEFT_OK);
+    CHECK_MSG(res.ccd_hits + res.intersection_hits == 0, "another part's box: %u CCD, %u intersection hits",
+              res.ccd_hits, res.intersection_hits);
+    /* a sheet cut by the box's side faces at rest */
+    float *across = malloc(sizeof(float) * 3 * sheet.nv);
+    memcpy(across, inside, sizeof(float) * 3 * sheet.nv);
+    for (uint32_t i = 0; i < sheet.nv; ++i) {
+        across[3 * i + 0] = 2.5f * sheet.pos[3 * i + 0]; /* 0.5 m wide: out through both sides */
+    }
+    CHECK_RESULT(weft_sim_validator_check(v, across, across, box.pos, box.pos, &res), WEFT_OK);
+    CHECK_EQ_INT(res.intersection_hits, 0);
+    for (uint32_t i = 0; i < sheet.nv; ++i) {
+        masks[i] |= 1u << 5;
+    }
+    CHECK_RESULT(weft_sim_validator_check(v, sheet.pos, inside, box.pos, box.pos, &res), WEFT_OK);
+    CHECK(res.ccd_hits > 0);
+    CHECK_RESULT(weft_sim_validator_check(v, across, across, box.pos, box.pos, &res), WEFT_OK);
+    CHECK(res.intersection_hits > 0);
+    /* one array without the other is refused; NULL, NULL clears */
+    CHECK_RESULT(weft_sim_validator_set_parts(v, masks, NULL), WEFT_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(weft_sim_validator_set_parts(NULL, masks, bits), WEFT_ERROR_INVALID_ARGUMENT);
+    for (uint32_t i = 0; i < sheet.nv; ++i) {
+        masks[i] = 1u << 2;
+    }
+    CHECK_RESULT(weft_sim_validator_set_parts(v, NULL, NULL), WEFT_OK);
+    CHECK_RESULT(weft_sim_validator_check(v, sheet.pos, inside, box.pos, box.pos, &res), WEFT_OK);
+    CHECK(res.ccd_hits > 0);
+    weft_sim_validator_destroy(v);
+    uint32_t ok_tris[] = {0, 1, 2};
+    CHECK_RESULT(weft_sim_validator_create(ctx_, ok_tris, 1, 3, NULL, 0, 0, &v), WEFT_OK);
+    CHECK_RESULT(weft_sim_validator_set_parts(v, masks, bits), WEFT_ERROR_INVALID_ARGUMENT); /* no collider */
+    weft_sim_validator_destroy(v);
+    free(across);
+    free(bits);
+    free(masks);
+    free(inside);
+    test_mesh_free(&box);
+    test_mesh_free(&sheet);
+}
+
 static void test_validator_catches_penetration(void)
 {
     /* A sheet falling through a box in one frame is caught by the sweeps; a sheet resting
@@ -271,4 +333,5 @@ static void teardown(void) { weft_context_destroy(ctx_); }
 TEST_MAIN(TEST_CASE(setup), TEST_CASE(test_non_manifold), TEST_CASE(test_duplicate_triangle),
           TEST_CASE(test_isolated_vertex), TEST_CASE(test_nan_and_configure), TEST_CASE(test_inverted_initial_state),
           TEST_CASE(test_validator_bad_input), TEST_CASE(test_validator_catches_penetration), TEST_CASE(test_validator_path),
+          TEST_CASE(test_validator_parts),
           TEST_CASE(test_generate_bad_def), TEST_CASE(teardown))

@@ -1,7 +1,9 @@
 /* Procedural geometry and kinematics for the drop and gripper scenarios. */
 #include "weft/ccd.h"
 #include "scene.h"
+#include "bvh.h"
 
+#include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
@@ -354,6 +356,8 @@ void xscene_free(xscene *sc)
     free(sc->band_bary);
     free(sc->band_off);
     weft_body_destroy(sc->body);
+    weft_clip_destroy(sc->clip);
+    free(sc->parts);
     *sc = (xscene){0};
 }
 
@@ -626,8 +630,74 @@ static weft_result build_gripper(xscene *sc, const weft_sim_sequence_def *def, x
 
 /* Body pose at frame f: blend from the bind pose to the motion's first pose over the first
  * half of the pre-roll, hold it to settle, then play the motion. */
+/* Unit quaternions (w, x, y, z) for the clip's heading. */
+static void quat_from_aa(const float *aa, double q[4])
+{
+    const double a = sqrt((double)aa[0] * aa[0] + (double)aa[1] * aa[1] + (double)aa[2] * aa[2]);
+    const double s = a > 1e-12 ? sin(0.5 * a) / a : 0.5;
+    q[0] = cos(0.5 * a);
+    for (int k = 0; k < 3; ++k) {
+        q[k + 1] = s * aa[k];
+    }
+}
+
+static void quat_to_aa(const double q[4], float *aa)
+{
+    const double w = q[0] < 0 ? -q[0] : q[0], sgn = q[0] < 0 ? -1.0 : 1.0;
+    const double v = sqrt(q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+    const double a = 2.0 * atan2(v, w);
+    const double f = v > 1e-12 ? a / v : 2.0;
+    for (int k = 0; k < 3; ++k) {
+        aa[k] = (float)(sgn * f * q[k + 1]);
+    }
+}
+
+static void quat_mul(const double a[4], const double b[4], double o[4])
+{
+    o[0] = a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3];
+    o[1] = a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2];
+    o[2] = a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1];
+    o[3] = a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0];
+}
+
+/* The clip's pose turned by -clip_yaw about the vertical through clip_from, moved to clip_to. */
+static void clip_normalise(const xscene *sc, weft_pose *pose)
+{
+    const double c = cos(-sc->clip_yaw), s = sin(-sc->clip_yaw);
+    const double turn[4] = {cos(-0.5 * sc->clip_yaw), 0.0, sin(-0.5 * sc->clip_yaw), 0.0};
+    double q[4], o[4];
+    quat_from_aa(pose->rotations, q);
+    quat_mul(turn, q, o);
+    quat_to_aa(o, pose->rotations);
+    const float *p0 = weft_body_rest_joints(sc->body); /* the pelvis at rest */
+    const double P[3] = {p0[0] + pose->translation[0] - sc->clip_from[0], p0[1] + pose->translation[1],
+                         p0[2] + pose->translation[2] - sc->clip_from[2]};
+    const double R[3] = {c * P[0] + s * P[2], P[1], -s * P[0] + c * P[2]};
+    pose->translation[0] = (float)(R[0] + sc->clip_to[0] - p0[0]);
+    pose->translation[1] = (float)(R[1] - p0[1]);
+    pose->translation[2] = (float)(R[2] + sc->clip_to[2] - p0[2]);
+}
+
+static void clip_pose_at(const xscene *sc, double t, weft_pose *pose)
+{
+    if (weft_clip_sample(sc->clip, sc->clip_start_s + t * sc->clip_speed, pose) != WEFT_OK) {
+        *pose = sc->start_pose; /* cannot happen: the clip was checked when loaded */
+        return;
+    }
+    clip_normalise(sc, pose);
+}
+
 static void garment_pose_at(const xscene *sc, uint32_t f, weft_pose *pose)
 {
+    if (sc->clip) {
+        if (f >= sc->preroll) {
+            clip_pose_at(sc, (f - sc->preroll) / 60.0, pose);
+        } else if (weft_pose_blend(&sc->bind_pose, &sc->start_pose, smooth01((double)f / (sc->preroll / 2)), pose) !=
+                   WEFT_OK) {
+            *pose = sc->start_pose;
+        }
+        return;
+    }
     if (f >= sc->preroll) {
         /* Eased in, the motion's clock speeds up linearly from 0 to 1 over ease_in_s (tau = t^2/2T,
          * then t - T/2): the limbs start from rest instead of at full speed (a run's fastest
@@ -829,6 +899,47 @@ static weft_result garment_intersects(weft_context *ctx, const weft_cloth_mesh *
     return res;
 }
 
+/* The motion-capture clip of def->motion_path retargeted to sc->body, its start pose moved
+ * horizontally over the origin, and the body parts of the reference garment and the validator. */
+static weft_result load_clip(weft_context *ctx, xscene *sc, const weft_sim_sequence_def *def)
+{
+    weft_bvh_def bd = weft_default_bvh_def();
+    bd.rest_joints = weft_body_rest_joints(sc->body);
+    weft_result res = weft_bvh_load_file(ctx, def->motion_path, &bd, &sc->clip);
+    if (res != WEFT_OK) {
+        return res;
+    }
+    const double duration = sc->clip->frame_count > 1 ? (sc->clip->frame_count - 1) / (double)sc->clip->fps : 0.0;
+    if (!(def->motion_start_s < duration)) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "simgen: motion_start_s %g is not before the end of %s (%.2f s)",
+                          def->motion_start_s, def->motion_path, duration);
+    }
+    sc->clip_start_s = def->motion_start_s;
+    sc->clip_speed = def->motion_speed;
+    weft_pose first;
+    if ((res = weft_clip_sample(sc->clip, sc->clip_start_s, &first)) != WEFT_OK) {
+        return res;
+    }
+    /* heading: the root's forward axis (+Z at rest) projected on the floor */
+    double q[4], f[3];
+    quat_from_aa(first.rotations, q);
+    f[0] = 2.0 * (q[1] * q[3] + q[0] * q[2]);
+    f[2] = 1.0 - 2.0 * (q[1] * q[1] + q[2] * q[2]);
+    sc->clip_yaw = atan2(f[0], f[2]);
+    const float *p0 = weft_body_rest_joints(sc->body);
+    sc->clip_from[0] = p0[0] + first.translation[0];
+    sc->clip_from[2] = p0[2] + first.translation[2];
+    sc->clip_to[0] = p0[0] + sc->bind_pose.translation[0];
+    sc->clip_to[2] = p0[2] + sc->bind_pose.translation[2];
+    clip_pose_at(sc, 0.0, &sc->start_pose);
+    const uint32_t nt = weft_body_triangle_count(sc->body);
+    sc->parts = malloc(nt ? nt : 1);
+    if (!sc->parts) {
+        return weft__fail(WEFT_ERROR_OUT_OF_MEMORY, "simgen: out of memory");
+    }
+    return weft_body_triangle_parts(sc->body, sc->parts, nt);
+}
+
 static weft_result build_garment(weft_context *ctx, xscene *sc, const weft_sim_sequence_def *def, xrng *r,
                                  const xscene_gentle *gentle)
 {
@@ -910,8 +1021,13 @@ static weft_result build_garment(weft_context *ctx, xscene *sc, const weft_sim_s
         sc->motion.amplitude *= gentle->amplitude_scale;
     }
     weft_body_bind_pose(sc->body, &sc->bind_pose);
-    res = weft_motion_sample(&sc->motion, 0.0, &sc->start_pose);
-    if (res != WEFT_OK) {
+    const char *motion_label = weft_motion_name(m);
+    if (def->motion_path) {
+        if ((res = load_clip(ctx, sc, def)) != WEFT_OK) {
+            return res;
+        }
+        motion_label = sc->clip->name;
+    } else if ((res = weft_motion_sample(&sc->motion, 0.0, &sc->start_pose)) != WEFT_OK) {
         return res;
     }
     sc->preroll = 90; /* 1.5 s: 45 frames of blending, 45 of settling */
@@ -923,10 +1039,16 @@ static weft_result build_garment(weft_context *ctx, xscene *sc, const weft_sim_s
         return weft__fail(WEFT_ERROR_OUT_OF_MEMORY, "simgen: out of memory");
     }
     snprintf(sc->objects, sizeof sc->objects, "avatar");
-    snprintf(sc->description, sizeof sc->description,
-             "garment: %s on avatar h=%.2f girth=%.2f, motion %s speed %.2f amplitude %.2f%s", weft_cloth_kind_name(kind),
-             ad.height, ad.girth, weft_motion_name(m), sc->motion.speed, sc->motion.amplitude,
-             gentle ? ", gentle retry" : "");
+    if (sc->clip) {
+        snprintf(sc->description, sizeof sc->description,
+                 "garment: %s on avatar h=%.2f girth=%.2f, mocap %s from %.2f s speed %.2f, body parts",
+                 weft_cloth_kind_name(kind), ad.height, ad.girth, motion_label, sc->clip_start_s, sc->clip_speed);
+    } else {
+        snprintf(sc->description, sizeof sc->description,
+                 "garment: %s on avatar h=%.2f girth=%.2f, motion %s speed %.2f amplitude %.2f%s",
+                 weft_cloth_kind_name(kind), ad.height, ad.girth, motion_label, sc->motion.speed, sc->motion.amplitude,
+                 gentle ? ", gentle retry" : "");
+    }
     return WEFT_OK;
 }
 
@@ -972,6 +1094,9 @@ weft_garment_def xscene_garment_def(const xscene *sc, uint32_t substeps, uint32_
     gd.collider_vertex_count = sc->collider.nv;
     gd.collider_triangles = sc->collider.tris;
     gd.collider_triangle_count = sc->collider.nt;
+    gd.collision.triangle_parts = sc->parts;
+    gd.collision.part_neighbours = false; /* docs/REFSIM.md, Real motion */
+    gd.collision.part_margin = 0.01f;
     return gd;
 }
 

@@ -59,6 +59,13 @@ typedef struct xscene {
     /* Garment scenario: avatar, motion and the drape pre-roll (frames before recording). */
     weft_body *body;
     weft_motion_def motion;
+    weft_clip *clip;             /* motion capture (def.motion_path), else NULL: `motion` */
+    double clip_start_s, clip_speed;
+    /* The clip's window starts where the bind pose stands, facing as it does: every pose is
+     * turned by -clip_yaw about the vertical through the start's pelvis, which moves over the
+     * bind pose's pelvis (clip_from: the start's pelvis, clip_to: the bind pose's). */
+    double clip_yaw, clip_from[3], clip_to[3];
+    uint8_t *parts;              /* collider triangle parts (clip scenes), else NULL */
     weft_pose bind_pose, start_pose;
     uint32_t preroll;
     float ease_in_s;             /* the motion's time ramps in over this after the pre-roll (0: none) */

@@ -250,6 +250,10 @@ static uint64_t def_fingerprint(const weft_sim_sequence_def *d, uint32_t nv, uin
                        d->garment_retry_amplitude};
     h = fnv1a(h, &d->seed, sizeof d->seed);
     h = fnv1a(h, u, sizeof u);
+    if (d->motion_path) { /* procedural sequences hash as before clips existed */
+        h = fnv1a(h, d->motion_path, strlen(d->motion_path));
+        h = fnv1a(h, &d->motion_start_s, sizeof d->motion_start_s);
+    }
     if (d->garment_kind >= 0) {
         h = fnv1a(h, &d->garment_kind, sizeof d->garment_kind); /* the default draw hashes as before it existed */
     }
@@ -450,7 +454,10 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
             weft_garment_destroy(g);
             return r;
         }
-        r = weft__xpbd_record_substeps(g, b->path, def->max_substeps * def->fast_collider_factor);
+        if (g->part_mask) { /* body parts: certified against the parts each vertex collides with */
+            r = weft_sim_validator_set_parts(val, g->part_mask, g->ctri_bits);
+        }
+        r = r != WEFT_OK ? r : weft__xpbd_record_substeps(g, b->path, def->max_substeps * def->fast_collider_factor);
         if (r != WEFT_OK) {
             weft_sim_validator_destroy(val);
             weft_garment_destroy(g);
@@ -635,6 +642,22 @@ static bool write_meta(const char *dir, const xscene *sc, const weft_sim_sequenc
     cJSON_AddNumberToObject(m, "chord_safe_retries", res->chord_retries);
     cJSON_AddNumberToObject(m, "path_validated_frames", res->path_frames);
     cJSON_AddNumberToObject(m, "motion_speed", def->motion_speed);
+    if (def->split) {
+        cJSON_AddStringToObject(m, "split", def->split);
+    }
+    if (sc->clip) {
+        const char *base = strrchr(def->motion_path, '/');
+        cJSON *mo = num_obj(m, "mocap");
+        cJSON_AddStringToObject(mo, "file", base ? base + 1 : def->motion_path);
+        cJSON_AddStringToObject(mo, "clip", sc->clip->name);
+        cJSON_AddNumberToObject(mo, "start_s", def->motion_start_s);
+        cJSON_AddNumberToObject(mo, "fps", sc->clip->fps);
+        cJSON_AddNumberToObject(mo, "turned_rad", -sc->clip_yaw);
+        cJSON_AddStringToObject(mo, "body_parts",
+                                "each cloth vertex collides with, and is validated against, the body parts "
+                                "(dominant joint of each body triangle) within 3 cm of it at the start and their "
+                                "neighbours; no arm spread");
+    }
     if (def->checkpoint_frames) {
         /* the solver's candidate lists restart at these frames (weft_sim_sequence_def) */
         cJSON_AddNumberToObject(m, "checkpoint_frames", def->checkpoint_frames);
@@ -831,6 +854,14 @@ static weft_result check_sequence_def(const weft_sim_sequence_def *d, const char
     WEFT_SEQ_BAD(!(d->garment_kind == -1 || d->garment_kind == WEFT_CLOTH_TSHIRT || d->garment_kind == WEFT_CLOTH_SKIRT ||
                    d->garment_kind == WEFT_CLOTH_DRESS),
                  "garment_kind %d is not -1 (any), tshirt, skirt or dress", (int)d->garment_kind);
+    WEFT_SEQ_BAD(d->motion_path && d->scenario != WEFT_SIM_SCENARIO_GARMENT,
+                 "motion_path is for the garment scenario, not %s", weft_sim_scenario_name(d->scenario));
+    WEFT_SEQ_BAD(d->motion_path && (!d->motion_path[0] || strlen(d->motion_path) > 900),
+                 "motion_path is empty or longer than 900 characters");
+    WEFT_SEQ_BAD(!(d->motion_start_s >= 0.0 && d->motion_start_s <= 1e6), "motion_start_s %g outside [0, 1e6]",
+                 d->motion_start_s);
+    WEFT_SEQ_BAD(d->split && strcmp(d->split, "train") && strcmp(d->split, "val") && strcmp(d->split, "test"),
+                 "split '%.32s' is not train, val or test", d->split);
     WEFT_SEQ_BAD(d->checkpoint_frames > 100000, "checkpoint_frames %u outside [0, 100000]", d->checkpoint_frames);
     WEFT_SEQ_BAD(!(d->time_limit_s >= 0.0 && d->time_limit_s <= 1e9), "time_limit_s %g outside [0, 1e9]",
                  d->time_limit_s);
@@ -891,7 +922,7 @@ weft_result weft_sim_generate(weft_context *ctx, const weft_sim_sequence_def *de
      * the first round never see the second. */
     const xscene_gentle gentle = {def->garment_retry_arm_spread, def->garment_retry_ease_in,
                                   def->garment_retry_amplitude};
-    const bool gentle_round = def->scenario == WEFT_SIM_SCENARIO_GARMENT && def->garment_retry;
+    const bool gentle_round = def->scenario == WEFT_SIM_SCENARIO_GARMENT && def->garment_retry && !def->motion_path;
     /* A checkpoint of this def picks the attempt (round, substeps) and the frame to go on from. */
     ckpt_header resume = {0};
     uint32_t round0 = 0, substeps0 = def->substeps;

@@ -4,6 +4,7 @@
  * two triangles intersect at the end of it (exact predicates). */
 #include "weft/ccd.h"
 #include "weft/sim.h"
+#include "ccd/ccd_internal.h"
 #include "core/core.h"
 
 #include <string.h>
@@ -128,6 +129,23 @@ static weft_result intersect(weft_sim_validator *v, const float *x, const float 
         res->intersection_hits += in.cloth_cloth + in.cloth_collider;
     }
     return r;
+}
+
+weft_result weft_sim_validator_set_parts(weft_sim_validator *v, const uint32_t *cloth_masks,
+                                        const uint32_t *collider_triangle_bits)
+{
+    if (!v) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_sim_validator_set_parts: validator is NULL");
+    }
+    if ((cloth_masks != NULL) != (collider_triangle_bits != NULL)) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
+                          "weft_sim_validator_set_parts: give both the cloth masks and the collider triangle bits, or neither");
+    }
+    if (cloth_masks && v->nc == 0) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_sim_validator_set_parts: the validator has no collider");
+    }
+    weft__ccd_world_set_parts(v->world, cloth_masks, collider_triangle_bits);
+    return WEFT_OK;
 }
 
 weft_result weft_sim_validator_check(weft_sim_validator *v, const float *cloth0, const float *cloth1,

@@ -310,6 +310,9 @@ def main():
                     help="also keep OUT/best.pt: the weights with the lowest validation MVE so far (use a "
                          "long --eval-frames: short rollouts do not show which weights stay stable)")
     ap.add_argument("--resume", action="store_true")
+    ap.add_argument("--eval-first", action="store_true",
+                    help="validate before the first step (the starting point of a resumed run: with --keep-best "
+                         "the weights it starts from are the bar)")
     ap.add_argument("--init-from", default=None,
                     help="start from this checkpoint's weights and config (fine-tuning: fresh optimiser, "
                          "step 0, new schedule); ignored when --resume finds OUT/ckpt.pt")
@@ -445,6 +448,15 @@ def main():
     best_path = os.path.join(a.out, "best.pt")
     if a.keep_best and os.path.exists(best_path):   # resumed: the best so far stays the bar
         best_val = torch.load(best_path, map_location="cpu").get("val_mve_cm", best_val)
+    if rank == 0 and a.eval_first and val:
+        v = evaluate(net, val, mc, device, a.eval_frames, a.pins, pool)
+        print(f"start val MVE {v:.4f} cm at step {step}", file=sys.stderr, flush=True)
+        if log:
+            log.writerow([step, "", "", "", "", "", "", f"{elapsed_before:.1f}", f"{v:.4f}", ""])
+        if a.keep_best and v < best_val:
+            best_val = v
+            save_ckpt(best_path, {"model": net.state_dict(), "config": cfg, "step": step, "elapsed": elapsed_before,
+                                  "val_mve_cm": v})
     while step < a.steps:
         if a.budget_minutes > 0:
             progress = (elapsed_before + time.time() - t_start) / (60.0 * a.budget_minutes)
@@ -558,6 +570,16 @@ def main():
                 if a.keep_best and v < best_val:
                     save_ckpt(best_path, {"model": net.state_dict(), "config": cfg, "step": step,
                                           "elapsed": elapsed_before + time.time() - t_start, "val_mve_cm": v})
+        elif a.max_minutes > 0 and a.eval_every > 0 and val and step % a.eval_every != 0:
+            v = evaluate(net, val, mc, device, a.eval_frames, a.pins, pool)  # where --max-minutes stopped it
+            print(f"\nfinal val MVE {v:.4f} cm", file=sys.stderr)
+            if log:
+                log.writerow([step, "", "", "", "", "", "", f"{elapsed_before + time.time() - t_start:.1f}", f"{v:.4f}", ""])
+            if a.keep_best and v < best_val:
+                save_ckpt(best_path, {"model": net.state_dict(), "config": cfg, "step": step,
+                                      "elapsed": elapsed_before + time.time() - t_start, "val_mve_cm": v})
+        if logf:
+            logf.flush()
         print(f"\ndone: step {step}, checkpoint {ckpt_path}", file=sys.stderr)
     if ddp:
         dist.destroy_process_group()

@@ -37,6 +37,7 @@ class _CollisionDef(ctypes.Structure):
         ("triangle_parts", ctypes.c_void_p),
         ("part_margin", ctypes.c_float),
         ("cut_distance", ctypes.c_float),
+        ("part_neighbours", ctypes.c_bool),
     ]
 
 

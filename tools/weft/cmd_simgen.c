@@ -24,6 +24,11 @@ typedef struct plan_item {
     const char *tier; /* the --all tier's tag ("1k", ...); NULL for --scenario items */
     char name[64];
     uint64_t seed;    /* --like: the sequence seed itself (0: hashed from the name) */
+    /* --mocap: the clip file, the window's start and length, and its split (the library's) */
+    char motion[240];
+    double start_s;
+    uint32_t frames;  /* 0: the run's --frames */
+    const char *split;
 } plan_item;
 
 /* The full dataset: small sheets first so training can start early, then larger ones. */
@@ -49,7 +54,7 @@ static bool plan_wanted(const plan_filter *f, const plan_item *items, uint32_t i
     if (f->only >= 0 && (int)items[i].scenario != f->only) {
         return false;
     }
-    if (f->split && strcmp(weft_sim_split_of(items[i].name), f->split) != 0) {
+    if (f->split && strcmp(items[i].split ? items[i].split : weft_sim_split_of(items[i].name), f->split) != 0) {
         return false;
     }
     return !f->tier || (items[i].tier && strcmp(items[i].tier, f->tier) == 0);
@@ -256,7 +261,12 @@ static int write_manifest(const char *out, const plan_item *plan, uint32_t n_pla
         cJSON_AddNumberToObject(e, "substeps", cJSON_GetNumberValue(cJSON_GetObjectItem(meta, "substeps")));
         cJSON_AddNumberToObject(e, "frames", cJSON_GetNumberValue(cJSON_GetObjectItem(meta, "frames")));
         cJSON_AddBoolToObject(e, "accepted", accepted);
-        const char *split = accepted ? weft_sim_split_of(items[i].name) : "rejected";
+        const cJSON *ms = cJSON_GetObjectItemCaseSensitive(meta, "split"); /* mocap: the library's split */
+        const char *own = cJSON_IsString(ms) && (!strcmp(ms->valuestring, "train") || !strcmp(ms->valuestring, "val") ||
+                                                 !strcmp(ms->valuestring, "test"))
+                              ? ms->valuestring
+                              : weft_sim_split_of(items[i].name);
+        const char *split = accepted ? own : "rejected";
         cJSON_AddStringToObject(e, "split", split);
         cJSON_AddItemToArray(seqs, e);
         int k = accepted ? (strcmp(split, "train") == 0 ? 0 : (strcmp(split, "val") == 0 ? 1 : 2)) : 3;
@@ -301,6 +311,136 @@ static int write_manifest(const char *out, const plan_item *plan, uint32_t n_pla
     return 0;
 }
 
+/* --mocap: windows of the library's clips (DIR/clips.csv: file,split,...,duration at column 12),
+ * window k of every clip before window k + 1 of any, so a partial run covers every clip. Each
+ * window starts frames/60 s after the last and plays up to `frames` frames, fewer at a clip's end
+ * (at least one second). Train clips give "train" or, by the name's hash, "val" windows; test
+ * clips "test". Returns the number of items added to *plan (grown), or -1 after printing why. */
+#define MOCAP_MAX_CLIPS 512
+typedef struct mocap_clip {
+    char name[64], file[200];
+    bool test;
+    double duration;
+} mocap_clip;
+
+static bool clip_listed(const char *list, const char *name)
+{
+    const size_t n = strlen(name);
+    for (const char *p = list; p && *p;) {
+        const size_t k = strcspn(p, ",");
+        if (k == n && strncmp(p, name, n) == 0) {
+            return true;
+        }
+        p += k + (p[k] == ',');
+    }
+    return false;
+}
+
+static int mocap_plan(const char *dir, const char *which, const char *clips, uint32_t frames, uint32_t vertices,
+                      plan_item **plan, uint32_t *n, uint32_t *cap)
+{
+    char path[1024];
+    snprintf(path, sizeof path, "%s/clips.csv", dir);
+    FILE *f = fopen(path, "r");
+    if (!f) {
+        fprintf(stderr, "simgen: cannot read %s (--mocap-dir, or WEFT_MOCAP_DIR)\n", path);
+        return -1;
+    }
+    mocap_clip *list = calloc(MOCAP_MAX_CLIPS, sizeof *list);
+    if (!list) {
+        fclose(f);
+        return -1;
+    }
+    char line[4096];
+    uint32_t nc = 0, line_no = 0;
+    while (fgets(line, sizeof line, f) && nc < MOCAP_MAX_CLIPS) {
+        if (line_no++ == 0) {
+            continue; /* header */
+        }
+        /* fields split at commas outside quotes */
+        char *field[16] = {0};
+        int nf = 0;
+        bool quoted = false;
+        field[nf++] = line;
+        for (char *c = line; *c && nf < 16; ++c) {
+            if (*c == '"') {
+                quoted = !quoted;
+            } else if (*c == ',' && !quoted) {
+                *c = '\0';
+                field[nf++] = c + 1;
+            }
+        }
+        if (nf < 12) {
+            continue;
+        }
+        const char *base = strrchr(field[0], '/');
+        base = base ? base + 1 : field[0];
+        const size_t k = strcspn(base, ".");
+        char *end = NULL;
+        const double duration = strtod(field[11], &end);
+        if (k == 0 || k >= sizeof list[0].name || end == field[11] || !(duration > 0.0 && duration < 1e5)) {
+            fprintf(stderr, "simgen: %s line %u is not file,split,...,duration\n", path, line_no);
+            free(list);
+            fclose(f);
+            return -1;
+        }
+        mocap_clip *c = &list[nc];
+        memcpy(c->name, base, k);
+        c->name[k] = '\0';
+        c->test = strcmp(field[1], "test") == 0;
+        c->duration = duration;
+        snprintf(c->file, sizeof c->file, "%.199s", field[0]);
+        const bool split_ok = !strcmp(which, "all") || (c->test ? !strcmp(which, "test") : !strcmp(which, "train"));
+        nc += clips ? clip_listed(clips, c->name) : split_ok;
+    }
+    fclose(f);
+    if (nc == 0) {
+        fprintf(stderr, "simgen: no clip of %s matches --mocap %s%s%s\n", path, which, clips ? " --clips " : "",
+                clips ? clips : "");
+        free(list);
+        return -1;
+    }
+    const double step = frames / 60.0;
+    uint32_t added = 0;
+    for (uint32_t w = 0;; ++w) {
+        uint32_t here = 0;
+        for (uint32_t c = 0; c < nc; ++c) {
+            const double start = w * step, left = list[c].duration - start;
+            if (left < 1.0) {
+                continue;
+            }
+            if (*n == *cap) {
+                const uint32_t grown = *cap ? 2 * *cap : 256;
+                plan_item *p = realloc(*plan, grown * sizeof *p);
+                if (!p) {
+                    free(list);
+                    return -1;
+                }
+                memset(p + *cap, 0, (grown - *cap) * sizeof *p);
+                *plan = p;
+                *cap = grown;
+            }
+            plan_item *p = &(*plan)[(*n)++];
+            p->scenario = WEFT_SIM_SCENARIO_GARMENT;
+            p->vertices = vertices;
+            p->index = w;
+            p->start_s = start;
+            const uint32_t fit = (uint32_t)(left * 60.0);
+            p->frames = fit < frames ? fit : frames;
+            snprintf(p->motion, sizeof p->motion, "%s/%s", dir, list[c].file);
+            snprintf(p->name, sizeof p->name, "mocap_%s_v%u_%05u", list[c].name, vertices, w * frames);
+            p->split = list[c].test ? "test" : (strcmp(weft_sim_split_of(p->name), "val") == 0 ? "val" : "train");
+            ++here;
+            ++added;
+        }
+        if (here == 0) {
+            break;
+        }
+    }
+    free(list);
+    return (int)added;
+}
+
 static void usage(FILE *f)
 {
     fprintf(f,
@@ -310,7 +450,19 @@ static void usage(FILE *f)
             "                   [--no-garments] [--speed X] [--resolution-series] [--tier 1k|4k|16k]\n"
             "                   [--split train|val|test] [--only drop|gripper|garment] [--arm-spread-retry R]\n"
             "                   [--ease-in-retry S] [--amplitude-retry A] [--no-garment-retry] [--redo-rejected]\n"
-            "                   [--fast-collider F] [--arm-spread R]\n"
+            "                   [--fast-collider F] [--arm-spread R]\n");
+    fprintf(f,
+            "       weft simgen --out DIR --mocap train|test|all [--clips A,B,...] [--mocap-dir DIR] [--vertices V]\n"
+            "                   [--frames T] [--split train|val|test] [--shard I/N] [...]\n"
+            "  --mocap S        garments on the mocap library's clips of split S (samples/mocap/clips.csv):\n"
+            "                   windows of --frames every --frames/60 s of each clip (fewer frames at a\n"
+            "                   clip's end), named mocap_<clip>_v<V>_<first frame>, the avatar and garment\n"
+            "                   drawn from the name; no arm spread, body parts in the reference and the\n"
+            "                   validator (docs/REFSIM.md, Real motion). Test clips give test sequences,\n"
+            "                   train clips train and (by the name's hash, 1 in 10) val sequences\n"
+            "  --clips A,B      only these clips (names as in clips.csv)\n"
+            "  --mocap-dir DIR  the library (default $WEFT_MOCAP_DIR, else samples/mocap)\n");
+    fprintf(f,
             "  --all            the whole planned set: per scenario (drop, gripper, garment) 150 x 1k,\n"
             "                   30 x 4k and 2 x 16k vertices, smallest first\n"
             "  --tier T         generate only that tier of --all (e.g. the 16k cross-resolution\n"
@@ -397,6 +549,10 @@ static int garment_option(const char *arg)
 int weft_cmd_simgen(int argc, char **argv)
 {
     const char *out = NULL, *scenario = NULL, *tier = NULL, *split = NULL, *only = NULL, *like = NULL;
+    const char *mocap = NULL, *mocap_clips = NULL, *mocap_dir = getenv("WEFT_MOCAP_DIR");
+    if (!mocap_dir || !mocap_dir[0]) {
+        mocap_dir = "samples/mocap";
+    }
     bool frames_given = false;
     float arm_spread_retry = weft_sim_default_sequence_def().garment_retry_arm_spread;
     float arm_spread = weft_sim_default_sequence_def().garment_arm_spread;
@@ -420,6 +576,16 @@ int weft_cmd_simgen(int argc, char **argv)
             return 0;
         } else if (strcmp(a, "--all") == 0) {
             all = true;
+        } else if (v && strcmp(a, "--mocap") == 0) {
+            if (strcmp(v, "train") && strcmp(v, "test") && strcmp(v, "all")) {
+                fprintf(stderr, "simgen: --mocap wants train, test or all, got '%s'\n", v);
+                return 2;
+            }
+            mocap = argv[++i];
+        } else if (v && strcmp(a, "--clips") == 0) {
+            mocap_clips = argv[++i];
+        } else if (v && strcmp(a, "--mocap-dir") == 0) {
+            mocap_dir = argv[++i];
         } else if (strcmp(a, "--no-garments") == 0) {
             garments = false;
         } else if (v && strcmp(a, "--speed") == 0) {
@@ -554,11 +720,15 @@ int weft_cmd_simgen(int argc, char **argv)
         fprintf(stderr, "simgen: --only wants drop, gripper or garment, got '%s'\n", only);
         return 2;
     }
-    if (like && (all || scenario)) {
-        fprintf(stderr, "simgen: --like makes one sequence; leave out --all and --scenario\n");
+    if (like && (all || scenario || mocap)) {
+        fprintf(stderr, "simgen: --like makes one sequence; leave out --all, --scenario and --mocap\n");
         return 2;
     }
-    if (!out || (!all && !scenario && !manifest_only && !like)) {
+    if (mocap_clips && !mocap) {
+        fprintf(stderr, "simgen: --clips selects clips of --mocap; add --mocap\n");
+        return 2;
+    }
+    if (!out || (!all && !scenario && !manifest_only && !like && !mocap)) {
         usage(stderr);
         return 2;
     }
@@ -624,6 +794,10 @@ int weft_cmd_simgen(int argc, char **argv)
             p->index = k;
             snprintf(p->name, sizeof p->name, "%s_v%u_%04u", scenario, vertices, k);
         }
+    }
+    if (mocap && mocap_plan(mocap_dir, mocap, mocap_clips, frames, vertices, &plan, &n, &cap) < 0) {
+        free(plan);
+        return 1;
     }
     if (like) {
         /* One twin: the other sequence's scenario and seed at this run's vertex count. */
@@ -706,7 +880,10 @@ int weft_cmd_simgen(int argc, char **argv)
             char scene[96];
             snprintf(scene, sizeof scene, "%s_%04u", weft_sim_scenario_name(plan[i].scenario), plan[i].index);
             def.seed = plan[i].seed ? plan[i].seed : seq_seed(seed0, resolution_series ? scene : plan[i].name);
-            def.frames = frames;
+            def.frames = plan[i].frames ? plan[i].frames : frames;
+            def.motion_path = plan[i].motion[0] ? plan[i].motion : NULL;
+            def.motion_start_s = plan[i].start_s;
+            def.split = plan[i].split;
             def.substeps = substeps;
             def.max_substeps = max_substeps;
             def.fast_collider_factor = fast_collider;

@@ -50,6 +50,14 @@ WEFT_API weft_result weft_sim_validator_create(weft_context *context, const uint
                                                const uint32_t *collider_triangles, uint32_t collider_triangle_count,
                                                uint32_t collider_vertex_count, weft_sim_validator **out_validator);
 WEFT_API void weft_sim_validator_destroy(weft_sim_validator *validator);
+/* Body parts (weft.h, collision.triangle_parts): cloth_masks holds one 32-bit part mask per cloth
+ * vertex and collider_triangle_bits one bit (1 << part) per collider triangle, as the garment made
+ * them (weft_sim_generate takes them from its reference garment). Kept, not copied; both NULL
+ * clears. From then on a cloth-collider pair counts only where the cloth side has the collider
+ * triangle's part, in the sweeps and in the exact triangle tests: cloth between two overlapping
+ * parts of a self-intersecting body is certified against the parts it belongs to. */
+WEFT_API weft_result weft_sim_validator_set_parts(weft_sim_validator *validator, const uint32_t *cloth_masks,
+                                                  const uint32_t *collider_triangle_bits);
 /* Checks the motion from frame t (cloth0, collider0) to t+1 (cloth1, collider1). Collider
  * arrays may be NULL when there is no collider. Allocates nothing. */
 WEFT_API weft_result weft_sim_validator_check(weft_sim_validator *validator, const float *cloth0, const float *cloth1,
@@ -118,6 +126,20 @@ typedef struct weft_sim_sequence_def {
      * checkpoints. A checkpoint of another def, a truncated or corrupt file is ignored (the run
      * starts over) and replaced. The file is removed when the sequence is finished. */
     uint32_t checkpoint_frames;
+    /* Garment scenario on motion capture: a BVH file (plain or gzip, weft_bvh_load_file) retargeted
+     * to the drawn avatar and played from motion_start_s seconds of the clip once the drape is done,
+     * at motion_speed, its first pose moved over the origin (horizontally). The avatar and the
+     * garment stay the seed's draws; garment_arm_spread and the gentle retry do not apply (the
+     * motion is the clip's as captured). The reference garment and the validator then use body
+     * parts (weft_body_triangle_parts, collision.triangle_parts in weft.h): where the body overlaps
+     * itself, cloth collides with, and is certified against, the parts it lies against at the
+     * start (docs/REFSIM.md, Real motion). Past the clip's end the last pose holds. NULL
+     * (default): a procedural motion drawn from the seed. */
+    const char *motion_path;
+    double motion_start_s;        /* seconds into the clip, >= 0 and before its end (default 0) */
+    /* "train", "val" or "test" written into meta.json (the mocap library's split of the clip);
+     * NULL (default): none, the split is the name's hash (weft_sim_split_of). */
+    const char *split;
     /* With checkpoint_frames: return at the first checkpoint after this many seconds of this call,
      * with out_result->finished false and nothing written but the checkpoint (0: no limit, default;
      * for job arrays with a wall-time limit). */
