@@ -11,6 +11,9 @@
 #   SET=skin tools/train/gpu_runs.sh collect    print each run's progress and validation rows, and
 #                                               pack each run folder as RUN.tgz into $OUT (or DEST)
 #
+# The runs start from checkpoints of earlier models (tools/train/models/NAME.ckpt.pt), which left the
+# tree when the models folder kept only shipped weights: `git show 5c87946:tools/train/models/NAME.ckpt.pt
+# > tools/train/models/NAME.ckpt.pt` brings one back. The worn-garment model trains with gpu_window.sh.
 # Runs go to data/gpu/runs/NAME. Sets (docs/MODEL.md, "Training"):
 #   shipped  the four runs the shipped models came from (data: the packed set under data/pack)
 #   skin     the skinned prior on the grown set, against the same models fine-tuned with their
