@@ -199,6 +199,7 @@ static void mocap_windows_of_library_clips(void)
     snprintf(dir, sizeof dir, "%s/mocap", g_out);
     snprintf(meta, sizeof meta, "%s/mocap_walk_cmu07_01_v256_00000/meta.json", dir);
     snprintf(err, sizeof err, "%s/mocap.err", g_out);
+    mkdir(g_out, 0777); /* this case may run alone */
     unlink(meta);
     const char *argv[] = {g_exe, "simgen", "--out", dir, "--mocap", "test", "--clips", "walk_cmu07_01", "--vertices",
                           "256", "--frames", "4", "--limit", "1", "--no-validate", NULL};
