@@ -9,9 +9,10 @@
 # What it does, all inside WINDOW_MIN minutes of wall time (default 9, for a 10-minute call):
 #   1. data on the machine's cores (all but two) for GEN_MIN minutes (default 3): garment
 #      sequences of the mocap library's train clips (`weft simgen --mocap train`: real motion,
-#      body parts, no arm spread; val windows by the name's hash) beside procedural garments
-#      (`weft simgen --all --only garment --tier 1k`), one simgen per core, each shard of the
-#      plan on its own core; then the S tracks of the skinned prior (LBS rollouts);
+#      body parts, no arm spread), the validation windows (the same in every window) on one
+#      process, the training windows beside procedural garments (`weft simgen --all --only
+#      garment --tier 1k --split train`), one simgen per core, a new slice of the plans in each
+#      window (ROTATE); then the S tracks of the skinned prior (LBS rollouts);
 #   2. training continues from the committed resumable checkpoint (RESUME, default
 #      tools/train/resume/garment.pt: weights, and optimiser state and step when a window wrote
 #      it) on the GPU (CPU when there is none), validating first and every EVAL_EVERY steps,
@@ -23,7 +24,8 @@
 # It also runs on two CPU cores (slower, same files): WINDOW_MIN=20 GEN_MIN=8 tools/train/gpu_window.sh
 # Env: WINDOW_MIN, GEN_MIN, MARGIN_S (default 40), EVAL_EVERY (default 200), EVAL_FRAMES (default
 # 120), BATCH (default 64 on a GPU, 32 on CPU), LR (default 2e-4), ROLLOUT (default 10), JOBS (default: cores - 2),
-# DATA (default data/window), BUNDLE (default .dev; none: build/bin/weft), RESUME.
+# DATA (default data/window), BUNDLE (default .dev; none: build/bin/weft), RESUME, ROTATE (default
+# 8), WINDOW_INDEX (default: the checkpoint's step / 500).
 set -u
 cd "$(dirname "$0")/../.." || exit 1
 T0=$(date +%s)
@@ -51,18 +53,35 @@ T_END=$(awk "BEGIN{print int($T0 + ${WINDOW_MIN} * 60)}")
 left_s() { echo $((T_END - $(date +%s))); }
 log() { echo "[$(( $(date +%s) - T0 )) s] $*" | tee -a "$DEST/window.log"; }
 
-# 1. data: one simgen per core, mocap and procedural shards side by side
+# 1. data: one simgen per core, mocap and procedural shards side by side. A window makes only
+# a few dozen sequences and a machine starts bare, so each window takes another slice of the plans:
+# the plans are cut into ROTATE times as many shards as processes, and window k (the checkpoint's
+# step / 500, or WINDOW_INDEX) takes slice k mod ROTATE.
 n=${JOBS:-$(( $(nproc) > 3 ? $(nproc) - 2 : 1 ))}
 gen_s=$(awk "BEGIN{print int(${GEN_MIN} * 60)}")
-nm=$(( n * 2 / 3 > 0 ? n * 2 / 3 : 1 )); np=$(( n - nm ))
-log "gen: $nm mocap + $np procedural simgen for $gen_s s ($(nproc) cores)"
+nm=$(( n * 2 / 3 > 1 ? n * 2 / 3 - 1 : 1 )); np=$(( n - nm - 1 > 0 ? n - nm - 1 : 1 ))
+R=${ROTATE:-8}
+ckpt_step() {  # the training step a checkpoint holds (-1 when there is none)
+    [ -f "$1" ] || { echo -1; return; }
+    "$PY" -c "import sys, torch
+try: c = torch.load(sys.argv[1], map_location='cpu', weights_only=False)
+except TypeError: c = torch.load(sys.argv[1], map_location='cpu')
+print(int(c.get('step', 0)))" "$1" 2>/dev/null || echo 0
+}
+resume_step=$(ckpt_step "$RESUME")
+k=${WINDOW_INDEX:-$(( resume_step / 500 ))}
+slice=$(( k % R ))
+log "gen: 1 mocap val + $nm mocap + $np procedural simgen for $gen_s s ($(nproc) cores), plan slice $slice of $R"
+# the validation windows are the same in every window (one process, the plan's first val names),
+# so the start and end figures of different windows compare
+timeout -s INT "$gen_s" "$W" simgen --out "$DATA/seq" --mocap train --split val > "$DATA/gen_val.log" 2>&1 < /dev/null &
 for i in $(seq 0 $((nm - 1))); do
-    timeout -s INT "$gen_s" "$W" simgen --out "$DATA/seq" --mocap train --shard "$i/$nm" \
-        > "$DATA/gen_m$i.log" 2>&1 < /dev/null &
+    timeout -s INT "$gen_s" "$W" simgen --out "$DATA/seq" --mocap train --split train \
+        --shard "$((slice * nm + i))/$((R * nm))" > "$DATA/gen_m$i.log" 2>&1 < /dev/null &
 done
 for i in $(seq 0 $((np - 1))); do
     timeout -s INT "$gen_s" "$W" simgen --out "$DATA/seq" --all --only garment --tier 1k --split train \
-        --shard "$i/$np" > "$DATA/gen_p$i.log" 2>&1 < /dev/null &
+        --shard "$((slice * np + i))/$((R * np))" > "$DATA/gen_p$i.log" 2>&1 < /dev/null &
 done
 wait
 # procedural validation sequences are few and short: make sure a handful exist
@@ -82,7 +101,9 @@ wait
 log "skin: $(ls "$DATA/skin" 2>/dev/null | wc -l) S tracks"
 
 # 3. training from the resumable checkpoint until the margin
-[ -f "$RUN/ckpt.pt" ] || cp "$RESUME" "$RUN/ckpt.pt"
+# a run folder left by an earlier call on this machine continues unless RESUME is further along
+[ "$(ckpt_step "$RUN/ckpt.pt")" -ge "$resume_step" ] || cp "$RESUME" "$RUN/ckpt.pt"
+rows0=$(cat "$RUN/log.csv" 2>/dev/null | wc -l)
 train_s=$(( $(left_s) - MARGIN_S ))
 [ "$train_s" -gt 30 ] || { log "train: only $train_s s left; stopping"; exit 1; }
 dev=--cuda batch=${BATCH:-64}
@@ -104,10 +125,12 @@ util=$(awk -F'[ ,%]+' '{s += $1; n++} END {if (n) printf "%.0f %%", s / n}' "$DE
 cp "$RUN/ckpt.pt" "$DEST/ckpt.pt" 2>/dev/null
 cp "$RUN/best.pt" "$DEST/best.pt" 2>/dev/null
 cp "$RUN/log.csv" "$DEST/log.csv" 2>/dev/null
-first=$(awk -F, 'NR > 1 && $9 != "" {print $9; exit}' "$RUN/log.csv" 2>/dev/null)
-best=$(awk -F, 'NR > 1 && $9 != "" {print $9}' "$RUN/log.csv" 2>/dev/null | sort -g | head -1)
-s0=$(awk -F, 'NR > 1 && $9 != "" {print $1; exit}' "$RUN/log.csv" 2>/dev/null)
-s1=$(awk -F, 'NR > 1 {s = $1} END {print s}' "$RUN/log.csv" 2>/dev/null)
+# this call's rows of the run's log (an earlier call on the machine wrote the ones before)
+new_rows() { tail -n +$(( rows0 > 0 ? rows0 + 1 : 2 )) "$RUN/log.csv" 2>/dev/null; }
+first=$(new_rows | awk -F, '$9 != "" {print $9; exit}')
+best=$(new_rows | awk -F, '$9 != "" {print $9}' | sort -g | head -1)
+s0=$(new_rows | awk -F, '{print $1; exit}')
+s1=$(new_rows | awk -F, '{s = $1} END {print s}')
 gpu=$(command -v nvidia-smi > /dev/null && nvidia-smi --query-gpu=name --format=csv,noheader | head -1)
 mins=$(awk "BEGIN{printf \"%.1f\", ($(date +%s) - $T0) / 60}")
 echo "| $(date -u +%Y-%m-%d) | ${gpu:-$(nproc)-core CPU} | $mins | $s0 -> $s1 | $acc ($mval mocap val) | ${first:-?} -> ${best:-?} |" \
