@@ -22,7 +22,80 @@
 /* ---------------------------------------------------------------------------------------- */
 /* glTF                                                                                       */
 
-/* Every skin must name inverseBindMatrices: a float MAT4 accessor with a matrix per joint. */
+/* Whether item is a whole number in [0, count): an index into an array of `count`. */
+static bool gltf_index(const cJSON *item, int count)
+{
+    return cJSON_IsNumber(item) && item->valuedouble >= 0 && item->valuedouble < count &&
+           item->valuedouble == floor(item->valuedouble);
+}
+
+/* The references assimp 5.2 follows without checking: every mesh primitive has an `attributes`
+ * object with POSITION, each attribute and `indices` an accessor that exists (a primitive without
+ * attributes made its glTF reader read address 0); every animation channel names a sampler and a
+ * node that exist, every sampler input and output accessor exists. Returns NULL, or what is
+ * wrong. */
+static const char *gltf_references(const cJSON *doc, char *why, size_t size)
+{
+    const int accessors = cJSON_GetArraySize(cJSON_GetObjectItemCaseSensitive(doc, "accessors"));
+    const int nodes = cJSON_GetArraySize(cJSON_GetObjectItemCaseSensitive(doc, "nodes"));
+    const cJSON *mesh, *prim, *attr;
+    int m = 0;
+    cJSON_ArrayForEach(mesh, cJSON_GetObjectItemCaseSensitive(doc, "meshes"))
+    {
+        int k = 0;
+        cJSON_ArrayForEach(prim, cJSON_GetObjectItemCaseSensitive(mesh, "primitives"))
+        {
+            const cJSON *attrs = cJSON_GetObjectItemCaseSensitive(prim, "attributes");
+            const cJSON *indices = cJSON_GetObjectItemCaseSensitive(prim, "indices");
+            if (!cJSON_IsObject(attrs) || !gltf_index(cJSON_GetObjectItemCaseSensitive(attrs, "POSITION"), accessors)) {
+                snprintf(why, size, "mesh %d primitive %d has no attributes with a POSITION accessor", m, k);
+                return why;
+            }
+            cJSON_ArrayForEach(attr, attrs)
+            {
+                if (!gltf_index(attr, accessors)) {
+                    snprintf(why, size, "mesh %d primitive %d: attribute %.32s names no accessor", m, k,
+                             attr->string ? attr->string : "?");
+                    return why;
+                }
+            }
+            if (indices && !gltf_index(indices, accessors)) {
+                snprintf(why, size, "mesh %d primitive %d: indices name no accessor", m, k);
+                return why;
+            }
+            ++k;
+        }
+        ++m;
+    }
+    const cJSON *anim, *item;
+    int a = 0;
+    cJSON_ArrayForEach(anim, cJSON_GetObjectItemCaseSensitive(doc, "animations"))
+    {
+        const int samplers = cJSON_GetArraySize(cJSON_GetObjectItemCaseSensitive(anim, "samplers"));
+        cJSON_ArrayForEach(item, cJSON_GetObjectItemCaseSensitive(anim, "samplers"))
+        {
+            if (!gltf_index(cJSON_GetObjectItemCaseSensitive(item, "input"), accessors) ||
+                !gltf_index(cJSON_GetObjectItemCaseSensitive(item, "output"), accessors)) {
+                snprintf(why, size, "animation %d: a sampler's input or output names no accessor", a);
+                return why;
+            }
+        }
+        cJSON_ArrayForEach(item, cJSON_GetObjectItemCaseSensitive(anim, "channels"))
+        {
+            const cJSON *target = cJSON_GetObjectItemCaseSensitive(item, "target");
+            if (!gltf_index(cJSON_GetObjectItemCaseSensitive(item, "sampler"), samplers) ||
+                !gltf_index(cJSON_GetObjectItemCaseSensitive(target, "node"), nodes)) {
+                snprintf(why, size, "animation %d: a channel names no sampler or no target node", a);
+                return why;
+            }
+        }
+        ++a;
+    }
+    return NULL;
+}
+
+/* The references above, and every skin must name inverseBindMatrices: a float MAT4 accessor with
+ * a matrix per joint. */
 static weft_result check_gltf_json(const char *path, const char *text, size_t len)
 {
     cJSON *doc = cJSON_ParseWithLength(text, len);
@@ -30,6 +103,11 @@ static weft_result check_gltf_json(const char *path, const char *text, size_t le
         return weft__fail(WEFT_ERROR_FORMAT, "skinned mesh: '%s' is not valid glTF JSON", path);
     }
     weft_result res = WEFT_OK;
+    char why[160];
+    if (gltf_references(doc, why, sizeof why)) {
+        res = weft__fail(WEFT_ERROR_FORMAT, "skinned mesh: '%s': %s (assimp 5.2 reads address 0 on such files)", path,
+                         why);
+    }
     const cJSON *skins = cJSON_GetObjectItemCaseSensitive(doc, "skins");
     const cJSON *accessors = cJSON_GetObjectItemCaseSensitive(doc, "accessors");
     const int accessor_count = cJSON_IsArray(accessors) ? cJSON_GetArraySize(accessors) : 0;
@@ -310,13 +388,17 @@ static bool ascii_id(const char *s, const char *e, uint64_t *out)
 
 /* Returns false when the walk had to stop (a token assimp refuses); depth and connections seen
  * so far are in *max_depth and *l. */
-static bool walk_fbx_ascii(const char *text, size_t size, uint32_t *max_depth, links *l)
+static bool walk_fbx_ascii(const char *text, size_t size, uint32_t *max_depth, links *l, bool *empty_key)
 {
     const char *nul = memchr(text, '\0', size);
     ascii_lexer x = {text, nul ? nul : text + size, NULL, NULL};
     uint32_t depth = 0;
-    tok_type t = lex(&x);
+    tok_type t = lex(&x), last = TOK_END;
     while (t != TOK_END && t != TOK_ERROR) {
+        /* a key followed by another key, a '}' or the end has no value: assimp 5.2 frees twice on
+         * such an element ("Version: 1000Properties70: {", a line break lost) */
+        *empty_key = *empty_key || (last == TOK_KEY && (t == TOK_KEY || t == TOK_CLOSE));
+        last = t;
         if (t == TOK_OPEN) {
             depth++;
             *max_depth = depth > *max_depth ? depth : *max_depth;
@@ -336,6 +418,7 @@ static bool walk_fbx_ascii(const char *text, size_t size, uint32_t *max_depth, l
                 tok[n][1] = x.text_end;
                 n++;
             }
+            last = t;
         }
         uint64_t src, dst;
         bool pp = n >= 1 && tok[0][1] - tok[0][0] == 4 && memcmp(tok[0][0], "\"PP\"", 4) == 0;
@@ -344,6 +427,7 @@ static bool walk_fbx_ascii(const char *text, size_t size, uint32_t *max_depth, l
             return false;
         }
     }
+    *empty_key = *empty_key || (last == TOK_KEY && t == TOK_END);
     return t == TOK_END;
 }
 
@@ -572,7 +656,15 @@ static weft_result check_fbx(const char *path, const uint8_t *data, size_t size)
         walk_fbx_binary(&b);
         depth = b.max_depth;
     } else if (mentions_fbx(path, data, size)) {
-        walk_fbx_ascii((const char *)data, size, &depth, &l);
+        bool empty_key = false;
+        walk_fbx_ascii((const char *)data, size, &depth, &l, &empty_key);
+        if (empty_key) {
+            free(l.edge);
+            return weft__fail(WEFT_ERROR_FORMAT,
+                              "skinned mesh: '%s': an FBX element has a key and no value (assimp 5.2 would free memory "
+                              "twice)",
+                              path);
+        }
         if (!fbx_ascii_indices_ok((const char *)data)) {
             free(l.edge);
             return weft__fail(WEFT_ERROR_FORMAT,

@@ -208,6 +208,7 @@ int main(int argc, char **argv)
 
     long runs = 0;
     int status = count ? 0 : 1;
+    const char *trace = getenv("WEFT_REPLAY_TRACE");
     for (size_t i = 0; i < count; ++i) {
         char path[4096];
         snprintf(path, sizeof path, "%s/%s", argv[1], names[i]);
@@ -237,6 +238,16 @@ int main(int argc, char **argv)
             rng r = {0x9E3779B97F4A7C15ull ^ (uint64_t)(i + 1) * 0xBF58476D1CE4E5B9ull};
             for (long k = 0; k < mutations; ++k) {
                 size_t len = make_mutant(&r, src, size, dst, 2 * size + 256);
+                if (trace) { /* WEFT_REPLAY_TRACE=DIR: each mutant written before it runs */
+                    char out[4200];
+                    snprintf(out, sizeof out, "%s/last_input", trace);
+                    FILE *t = fopen(out, "wb");
+                    if (t) {
+                        fwrite(dst, 1, len, t);
+                        fclose(t);
+                    }
+                    fprintf(stderr, "%s mutant %ld\n", names[i], k);
+                }
                 LLVMFuzzerTestOneInput(dst, len);
                 runs++;
             }
