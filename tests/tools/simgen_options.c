@@ -217,6 +217,22 @@ static void mocap_windows_of_library_clips(void)
     CHECK_MSG(strstr(text, "no clip of") && strstr(text, "moonwalk_cmu99"), "%s", text);
     const char *alone[] = {g_exe, "simgen", "--out", dir, "--scenario", "drop", "--clips", "walk_cmu07_01", NULL};
     CHECK_EQ_INT(tool_run(alone, NULL), 2);
+    /* --bvh: a file of the user's, the same windows, train or val by name */
+    const char *lib = getenv("WEFT_MOCAP_DIR");
+    char bvh[1200], own[1200];
+    snprintf(bvh, sizeof bvh, "%s/clips/walk_cmu07_01.bvh.gz", lib ? lib : "samples/mocap");
+    snprintf(own, sizeof own, "%s/mocap_walk_cmu07_01_v300_00000/meta.json", dir);
+    unlink(own);
+    const char *file[] = {g_exe, "simgen", "--out", dir, "--bvh", bvh, "--vertices", "300", "--frames", "4",
+                          "--limit", "1", "--no-validate", NULL};
+    CHECK_EQ_INT(tool_run_err(file, NULL, err), 0);
+    tool_slurp(own, text, sizeof text);
+    CHECK_MSG(strstr(text, "mocap walk_cmu07_01 from 0.00 s") != NULL, "--bvh window: %.300s", text);
+    CHECK(strstr(text, "\"split\":\t\"train\"") || strstr(text, "\"split\":\t\"val\""));
+    const char *missing[] = {g_exe, "simgen", "--out", dir, "--bvh", "/nonexistent/clip.bvh", NULL};
+    CHECK_EQ_INT(tool_run_err(missing, NULL, err), 1);
+    tool_slurp(err, text, sizeof text);
+    CHECK_MSG(strstr(text, "--bvh /nonexistent/clip.bvh") != NULL, "%s", text);
 }
 
 static void bad_plan_options_fail(void)

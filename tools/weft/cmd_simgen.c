@@ -4,6 +4,7 @@
 #include "support_cli.h"
 #include "support_bench.h"
 #include "weft/sim.h"
+#include "bvh.h"
 
 #include <cjson/cJSON.h>
 #include <dirent.h>
@@ -318,7 +319,7 @@ static int write_manifest(const char *out, const plan_item *plan, uint32_t n_pla
  * clips "test". Returns the number of items added to *plan (grown), or -1 after printing why. */
 #define MOCAP_MAX_CLIPS 512
 typedef struct mocap_clip {
-    char name[64], file[200];
+    char name[64], file[240];
     bool test;
     double duration;
 } mocap_clip;
@@ -334,6 +335,46 @@ static bool clip_listed(const char *list, const char *name)
         p += k + (p[k] == ',');
     }
     return false;
+}
+
+static int plan_windows(const mocap_clip *list, uint32_t nc, uint32_t frames, uint32_t vertices, plan_item **plan,
+                        uint32_t *n, uint32_t *cap);
+
+/* --bvh PATH: one clip of the user's, windowed like a library train clip; its length from the
+ * file itself. */
+static int bvh_plan(const char *path, uint32_t frames, uint32_t vertices, plan_item **plan, uint32_t *n,
+                    uint32_t *cap)
+{
+    mocap_clip c = {0};
+    const char *base = strrchr(path, '/');
+    base = base ? base + 1 : path;
+    const size_t k = strcspn(base, ".");
+    if (k == 0 || k > 40 || strlen(path) >= sizeof c.file) {
+        fprintf(stderr, "simgen: --bvh '%s': the file name must be 1..40 characters before its extension and the "
+                        "path under %zu\n", path, sizeof c.file);
+        return -1;
+    }
+    memcpy(c.name, base, k);
+    snprintf(c.file, sizeof c.file, "%s", path);
+    weft_context_def cd = weft_default_context_def();
+    weft_context *ctx = NULL;
+    weft_clip *clip = NULL;
+    weft_bvh_def bd = weft_default_bvh_def();
+    weft_result r = weft_context_create(&cd, &ctx);
+    r = r != WEFT_OK ? r : weft_bvh_load_file(ctx, path, &bd, &clip);
+    if (r != WEFT_OK) {
+        fprintf(stderr, "simgen: --bvh %s: %s\n", path, weft_last_error());
+        weft_context_destroy(ctx);
+        return -1;
+    }
+    c.duration = clip->frame_count > 1 ? (clip->frame_count - 1) / (double)clip->fps : 0.0;
+    weft_clip_destroy(clip);
+    weft_context_destroy(ctx);
+    if (c.duration < 1.0) {
+        fprintf(stderr, "simgen: --bvh %s: %.2f s of motion, shorter than the 1 s a window needs\n", path, c.duration);
+        return -1;
+    }
+    return plan_windows(&c, 1, frames, vertices, plan, n, cap);
 }
 
 static int mocap_plan(const char *dir, const char *which, const char *clips, uint32_t frames, uint32_t vertices,
@@ -378,7 +419,7 @@ static int mocap_plan(const char *dir, const char *which, const char *clips, uin
         const size_t k = strcspn(base, ".");
         char *end = NULL;
         const double duration = strtod(field[11], &end);
-        if (k == 0 || k >= sizeof list[0].name || end == field[11] || !(duration > 0.0 && duration < 1e5)) {
+        if (k == 0 || k > 40 || end == field[11] || !(duration > 0.0 && duration < 1e5)) {
             fprintf(stderr, "simgen: %s line %u is not file,split,...,duration\n", path, line_no);
             free(list);
             fclose(f);
@@ -389,7 +430,7 @@ static int mocap_plan(const char *dir, const char *which, const char *clips, uin
         c->name[k] = '\0';
         c->test = strcmp(field[1], "test") == 0;
         c->duration = duration;
-        snprintf(c->file, sizeof c->file, "%.199s", field[0]);
+        snprintf(c->file, sizeof c->file, "%.150s/%.80s", dir, field[0]);
         const bool split_ok = !strcmp(which, "all") || (c->test ? !strcmp(which, "test") : !strcmp(which, "train"));
         nc += clips ? clip_listed(clips, c->name) : split_ok;
     }
@@ -400,6 +441,14 @@ static int mocap_plan(const char *dir, const char *which, const char *clips, uin
         free(list);
         return -1;
     }
+    const int added = plan_windows(list, nc, frames, vertices, plan, n, cap);
+    free(list);
+    return added;
+}
+
+static int plan_windows(const mocap_clip *list, uint32_t nc, uint32_t frames, uint32_t vertices, plan_item **plan,
+                        uint32_t *n, uint32_t *cap)
+{
     const double step = frames / 60.0;
     uint32_t added = 0;
     for (uint32_t w = 0;; ++w) {
@@ -413,7 +462,6 @@ static int mocap_plan(const char *dir, const char *which, const char *clips, uin
                 const uint32_t grown = *cap ? 2 * *cap : 256;
                 plan_item *p = realloc(*plan, grown * sizeof *p);
                 if (!p) {
-                    free(list);
                     return -1;
                 }
                 memset(p + *cap, 0, (grown - *cap) * sizeof *p);
@@ -427,8 +475,8 @@ static int mocap_plan(const char *dir, const char *which, const char *clips, uin
             p->start_s = start;
             const uint32_t fit = (uint32_t)(left * 60.0);
             p->frames = fit < frames ? fit : frames;
-            snprintf(p->motion, sizeof p->motion, "%s/%s", dir, list[c].file);
-            snprintf(p->name, sizeof p->name, "mocap_%s_v%u_%05u", list[c].name, vertices, w * frames);
+            snprintf(p->motion, sizeof p->motion, "%.239s", list[c].file);
+            snprintf(p->name, sizeof p->name, "mocap_%.40s_v%u_%05u", list[c].name, vertices, w * frames);
             p->split = list[c].test ? "test" : (strcmp(weft_sim_split_of(p->name), "val") == 0 ? "val" : "train");
             ++here;
             ++added;
@@ -437,7 +485,6 @@ static int mocap_plan(const char *dir, const char *which, const char *clips, uin
             break;
         }
     }
-    free(list);
     return (int)added;
 }
 
@@ -452,7 +499,8 @@ static void usage(FILE *f)
             "                   [--ease-in-retry S] [--amplitude-retry A] [--no-garment-retry] [--redo-rejected]\n"
             "                   [--fast-collider F] [--arm-spread R]\n");
     fprintf(f,
-            "       weft simgen --out DIR --mocap train|test|all [--clips A,B,...] [--mocap-dir DIR] [--vertices V]\n"
+            "       weft simgen --out DIR (--mocap train|test|all [--clips A,B,...] [--mocap-dir DIR] | --bvh PATH)\n"
+            "                   [--vertices V]\n"
             "                   [--frames T] [--split train|val|test] [--shard I/N] [...]\n"
             "  --mocap S        garments on the mocap library's clips of split S (samples/mocap/clips.csv):\n"
             "                   windows of --frames every --frames/60 s of each clip (fewer frames at a\n"
@@ -461,6 +509,8 @@ static void usage(FILE *f)
             "                   validator (docs/REFSIM.md, Real motion). Test clips give test sequences,\n"
             "                   train clips train and (by the name's hash, 1 in 10) val sequences\n"
             "  --clips A,B      only these clips (names as in clips.csv)\n"
+            "  --bvh PATH       the same windows of one BVH file of yours (plain or .gz, any skeleton\n"
+            "                   weft_bvh_load_file maps), named mocap_<file stem>_..., train or val by name\n"
             "  --mocap-dir DIR  the library (default $WEFT_MOCAP_DIR, else samples/mocap)\n");
     fprintf(f,
             "  --all            the whole planned set: per scenario (drop, gripper, garment) 150 x 1k,\n"
@@ -549,7 +599,7 @@ static int garment_option(const char *arg)
 int weft_cmd_simgen(int argc, char **argv)
 {
     const char *out = NULL, *scenario = NULL, *tier = NULL, *split = NULL, *only = NULL, *like = NULL;
-    const char *mocap = NULL, *mocap_clips = NULL, *mocap_dir = getenv("WEFT_MOCAP_DIR");
+    const char *mocap = NULL, *mocap_clips = NULL, *bvh = NULL, *mocap_dir = getenv("WEFT_MOCAP_DIR");
     if (!mocap_dir || !mocap_dir[0]) {
         mocap_dir = "samples/mocap";
     }
@@ -582,6 +632,8 @@ int weft_cmd_simgen(int argc, char **argv)
                 return 2;
             }
             mocap = argv[++i];
+        } else if (v && strcmp(a, "--bvh") == 0) {
+            bvh = argv[++i];
         } else if (v && strcmp(a, "--clips") == 0) {
             mocap_clips = argv[++i];
         } else if (v && strcmp(a, "--mocap-dir") == 0) {
@@ -720,15 +772,15 @@ int weft_cmd_simgen(int argc, char **argv)
         fprintf(stderr, "simgen: --only wants drop, gripper or garment, got '%s'\n", only);
         return 2;
     }
-    if (like && (all || scenario || mocap)) {
-        fprintf(stderr, "simgen: --like makes one sequence; leave out --all, --scenario and --mocap\n");
+    if (like && (all || scenario || mocap || bvh)) {
+        fprintf(stderr, "simgen: --like makes one sequence; leave out --all, --scenario, --mocap and --bvh\n");
         return 2;
     }
     if (mocap_clips && !mocap) {
         fprintf(stderr, "simgen: --clips selects clips of --mocap; add --mocap\n");
         return 2;
     }
-    if (!out || (!all && !scenario && !manifest_only && !like && !mocap)) {
+    if (!out || (!all && !scenario && !manifest_only && !like && !mocap && !bvh)) {
         usage(stderr);
         return 2;
     }
@@ -795,7 +847,8 @@ int weft_cmd_simgen(int argc, char **argv)
             snprintf(p->name, sizeof p->name, "%s_v%u_%04u", scenario, vertices, k);
         }
     }
-    if (mocap && mocap_plan(mocap_dir, mocap, mocap_clips, frames, vertices, &plan, &n, &cap) < 0) {
+    if ((mocap && mocap_plan(mocap_dir, mocap, mocap_clips, frames, vertices, &plan, &n, &cap) < 0) ||
+        (bvh && bvh_plan(bvh, frames, vertices, &plan, &n, &cap) < 0)) {
         free(plan);
         return 1;
     }
