@@ -8,6 +8,7 @@
 #include "core/core.h"
 
 #include <cjson/cJSON.h>
+#include <zlib.h>
 
 #include <errno.h>
 #include <math.h>
@@ -186,12 +187,12 @@ static const char *gltf_json(const uint8_t *data, size_t size, size_t *len, cons
 /* FBX connections                                                                            */
 
 typedef struct links {
-    uint64_t (*edge)[2]; /* source, destination */
+    uint64_t (*edge)[3]; /* source, destination, 1 for an object-object ("OO") connection */
     size_t count, cap;
     bool too_many, out_of_memory;
 } links;
 
-static bool links_add(links *l, uint64_t src, uint64_t dst)
+static bool links_add(links *l, uint64_t src, uint64_t dst, bool oo)
 {
     if (l->count == l->cap) {
         if (l->cap >= CHECK_MAX_CONNECTIONS) {
@@ -209,8 +210,42 @@ static bool links_add(links *l, uint64_t src, uint64_t dst)
     }
     l->edge[l->count][0] = src;
     l->edge[l->count][1] = dst;
+    l->edge[l->count][2] = oo;
     l->count++;
     return true;
+}
+
+static int cmp_pair(const void *a, const void *b)
+{
+    const uint64_t *x = a, *y = b;
+    return x[0] != y[0] ? (x[0] < y[0] ? -1 : 1) : (x[1] < y[1] ? -1 : x[1] > y[1]);
+}
+
+/* 1 when an object-object connection is listed twice (assimp 5.2 then adds a skin cluster to its
+ * skin twice and frees it twice; it takes every type but "OP" and "PP" as object to object), 0
+ * when none is, -1 out of memory. Object-property connections repeat legitimately (one per
+ * property). */
+static int links_duplicate(const links *l)
+{
+    uint64_t (*pairs)[2] = malloc((l->count ? l->count : 1) * sizeof *pairs);
+    if (!pairs) {
+        return -1;
+    }
+    size_t n = 0;
+    for (size_t i = 0; i < l->count; ++i) {
+        if (l->edge[i][2]) {
+            pairs[n][0] = l->edge[i][0];
+            pairs[n][1] = l->edge[i][1];
+            n++;
+        }
+    }
+    qsort(pairs, n, sizeof *pairs, cmp_pair);
+    int dup = 0;
+    for (size_t i = 1; i < n && !dup; ++i) {
+        dup = pairs[i][0] == pairs[i - 1][0] && pairs[i][1] == pairs[i - 1][1];
+    }
+    free(pairs);
+    return dup;
 }
 
 static int cmp_u64(const void *a, const void *b)
@@ -422,8 +457,10 @@ static bool walk_fbx_ascii(const char *text, size_t size, uint32_t *max_depth, l
         }
         uint64_t src, dst;
         bool pp = n >= 1 && tok[0][1] - tok[0][0] == 4 && memcmp(tok[0][0], "\"PP\"", 4) == 0;
+        /* assimp takes every connection but "PP" and "OP" as object to object ("OO", "OOx", ...) */
+        bool oo = !(n >= 1 && tok[0][1] - tok[0][0] == 4 && memcmp(tok[0][0], "\"OP\"", 4) == 0);
         if (n == 3 && !pp && ascii_id(tok[1][0], tok[1][1], &src) && ascii_id(tok[2][0], tok[2][1], &dst) &&
-            !links_add(l, src, dst)) {
+            !links_add(l, src, dst, oo)) {
             return false;
         }
     }
@@ -441,6 +478,9 @@ typedef struct fbx_bin {
     bool wide; /* version >= 7500: 64-bit record header fields */
     uint32_t max_depth;
     links *links;
+    int64_t control_points; /* the most of any Vertices array (xyz triplets) */
+    int64_t max_index;      /* the largest skin cluster index (Indexes arrays); -1: none */
+    bool bad_index;         /* a negative index, or an Indexes array that does not decode */
 } fbx_bin;
 
 static bool read_uint(const fbx_bin *b, size_t *at, size_t limit, int bytes, uint64_t *out)
@@ -455,6 +495,41 @@ static bool read_uint(const fbx_bin *b, size_t *at, size_t limit, int bytes, uin
     *at += (size_t)bytes;
     *out = v;
     return true;
+}
+
+/* The values of an 'i' array property at data[p..] (type code, length, encoding, byte count,
+ * payload; skip_property checked its bounds): the largest into b->max_index, a negative value or
+ * a payload that does not inflate to length x 4 bytes sets b->bad_index. */
+static void scan_index_array(fbx_bin *b, size_t p)
+{
+    size_t q = p + 1;
+    uint64_t len = 0, enc = 0, comp = 0;
+    read_uint(b, &q, b->size, 4, &len);
+    read_uint(b, &q, b->size, 4, &enc);
+    read_uint(b, &q, b->size, 4, &comp);
+    if (len > (64u << 20)) { /* 64 M indices: more than any skin weft loads */
+        b->bad_index = true;
+        return;
+    }
+    const uint8_t *v = b->data + q;
+    uint8_t *inflated = NULL;
+    if (enc == 1) {
+        uLongf out = (uLongf)(len * 4);
+        inflated = malloc(len ? (size_t)len * 4 : 1);
+        if (!inflated || uncompress(inflated, &out, v, (uLong)comp) != Z_OK || out != len * 4) {
+            free(inflated);
+            b->bad_index = true;
+            return;
+        }
+        v = inflated;
+    }
+    for (uint64_t i = 0; i < len; ++i) {
+        const int32_t x = (int32_t)((uint32_t)v[4 * i] | (uint32_t)v[4 * i + 1] << 8 | (uint32_t)v[4 * i + 2] << 16 |
+                                    (uint32_t)v[4 * i + 3] << 24);
+        b->bad_index = b->bad_index || x < 0;
+        b->max_index = x > b->max_index ? x : b->max_index;
+    }
+    free(inflated);
 }
 
 /* Skips one property at *at (type code included) within [.., limit); false when assimp's
@@ -531,15 +606,26 @@ static bool walk_record(fbx_bin *b, size_t *at, size_t limit, uint32_t depth, bo
     }
     const size_t prop_start = *at, prop_end = *at + (size_t)prop_len;
     const bool connection = name_len == 1 && name[0] == 'C';
+    const bool vertices = name_len == 8 && memcmp(name, "Vertices", 8) == 0;
+    const bool indexes = name_len == 7 && memcmp(name, "Indexes", 7) == 0;
     uint64_t id[2] = {0, 0};
-    bool ids = connection && props >= 3, pp = false;
+    bool ids = connection && props >= 3, pp = false, oo = false;
     for (uint64_t i = 0; i < props; ++i) {
         size_t p = *at;
         if (!skip_property(b, at, prop_end)) {
             return false;
         }
+        if (i == 0 && vertices && b->data[p] == 'd') { /* skin clusters index these control points */
+            size_t q = p + 1;
+            uint64_t len = 0;
+            read_uint(b, &q, *at, 4, &len);
+            b->control_points = (int64_t)(len / 3) > b->control_points ? (int64_t)(len / 3) : b->control_points;
+        } else if (i == 0 && indexes && b->data[p] == 'i') {
+            scan_index_array(b, p);
+        }
         if (ids && i == 0) {
             pp = *at - p == 7 && b->data[p] == 'S' && memcmp(b->data + p + 5, "PP", 2) == 0;
+            oo = !(*at - p == 7 && b->data[p] == 'S' && memcmp(b->data + p + 5, "OP", 2) == 0);
             ids = b->data[p] == 'S';
         } else if (ids && (i == 1 || i == 2)) {
             ids = b->data[p] == 'L' && *at - p == 9;
@@ -552,7 +638,7 @@ static bool walk_record(fbx_bin *b, size_t *at, size_t limit, uint32_t depth, bo
     if (*at - prop_start != prop_len) {
         return false;
     }
-    if (ids && !pp && !links_add(b->links, id[0], id[1])) {
+    if (ids && !pp && !links_add(b->links, id[0], id[1], oo)) {
         return false;
     }
     const size_t sentinel = b->wide ? 25 : 13;
@@ -652,9 +738,17 @@ static weft_result check_fbx(const char *path, const uint8_t *data, size_t size)
     links l = {NULL, 0, 0, false, false};
     uint32_t depth = 0;
     if (size >= 18 && memcmp(data, "Kaydara FBX Binary", 18) == 0) {
-        fbx_bin b = {data, size, false, 0, &l};
+        fbx_bin b = {data, size, false, 0, &l, 0, -1, false};
+        b.max_index = -1;
         walk_fbx_binary(&b);
         depth = b.max_depth;
+        if (b.bad_index || b.max_index >= b.control_points) {
+            free(l.edge);
+            return weft__fail(WEFT_ERROR_FORMAT,
+                              "skinned mesh: '%s': an FBX skin cluster names a vertex beyond the meshes' control "
+                              "points, or its index array does not decode (assimp 5.2 would abort)",
+                              path);
+        }
     } else if (mentions_fbx(path, data, size)) {
         bool empty_key = false;
         walk_fbx_ascii((const char *)data, size, &depth, &l, &empty_key);
@@ -682,12 +776,19 @@ static weft_result check_fbx(const char *path, const uint8_t *data, size_t size)
                          CHECK_MAX_CONNECTIONS);
     } else {
         int cycle = l.out_of_memory ? -1 : links_cycle(&l);
+        const int dup = cycle < 0 ? 0 : links_duplicate(&l);
+        cycle = dup < 0 ? -1 : cycle;
         if (cycle < 0) {
             res = weft__fail(WEFT_ERROR_OUT_OF_MEMORY, "skinned mesh: out of memory checking '%s'", path);
         } else if (cycle) {
             res = weft__fail(WEFT_ERROR_FORMAT,
                              "skinned mesh: '%s': the FBX object connections form a cycle (assimp 5.2 would "
                              "recurse until the stack overflows)",
+                             path);
+        } else if (dup) {
+            res = weft__fail(WEFT_ERROR_FORMAT,
+                             "skinned mesh: '%s': an FBX object connection is listed twice (assimp 5.2 would free "
+                             "memory twice)",
                              path);
         }
     }
