@@ -664,18 +664,24 @@ static bool walk_record(fbx_bin *b, size_t *at, size_t limit, uint32_t depth, bo
     return *at == end_offset;
 }
 
-static void walk_fbx_binary(fbx_bin *b)
+/* Whether the records walk to their closing NUL record (or exactly to the end of the file):
+ * assimp's own tokenizer refuses what stops earlier, or asserts and aborts on some of it (a
+ * mangled header whose version made 64-bit records of 32-bit ones ran its cursor past the end). */
+static bool walk_fbx_binary(fbx_bin *b)
 {
     if (b->size < 27) {
-        return;
+        return false;
     }
     const uint32_t version = (uint32_t)b->data[23] | (uint32_t)b->data[24] << 8 | (uint32_t)b->data[25] << 16 |
                              (uint32_t)b->data[26] << 24;
     b->wide = version >= 7500;
     size_t at = 27;
     bool done = false;
-    while (at < b->size && !done && walk_record(b, &at, b->size, 0, &done)) {
+    bool ok = true;
+    while (ok && at < b->size && !done) {
+        ok = walk_record(b, &at, b->size, 0, &done);
     }
+    return ok && (done || at == b->size);
 }
 
 /* ---------------------------------------------------------------------------------------- */
@@ -740,8 +746,15 @@ static weft_result check_fbx(const char *path, const uint8_t *data, size_t size)
     if (size >= 18 && memcmp(data, "Kaydara FBX Binary", 18) == 0) {
         fbx_bin b = {data, size, false, 0, &l, 0, -1, false};
         b.max_index = -1;
-        walk_fbx_binary(&b);
+        const bool walked = walk_fbx_binary(&b);
         depth = b.max_depth;
+        if (!walked) {
+            free(l.edge);
+            return weft__fail(WEFT_ERROR_FORMAT,
+                              "skinned mesh: '%s': the binary FBX records do not nest and end as the format says "
+                              "(assimp 5.2 can abort on such files)",
+                              path);
+        }
         if (b.bad_index || b.max_index >= b.control_points) {
             free(l.edge);
             return weft__fail(WEFT_ERROR_FORMAT,
