@@ -103,8 +103,9 @@ typedef struct weft_sim_sequence_def {
     /* Radians the avatar's upper arms are held further from the torso than the motion has them, in
      * every garment sequence on a procedural motion (weft_motion_def.arm_spread; default 0.3; not
      * with motion_path). As drawn, the skinned avatar intersects itself at the armpits in nearly
-     * every frame of idle, walk and run for the default and broader shapes (`weft bench body --self-contact`), and cloth caught in that fold cannot
-     * be made penetration-free. 0 reproduces sequences made before this setting. */
+     * every frame of idle, walk and run for the default and broader shapes (`weft bench body
+     * --self-contact`), and cloth caught in that fold cannot be made penetration-free. 0
+     * reproduces sequences made before this setting. */
     float garment_arm_spread;
     /* A garment sequence still rejected at max_substeps is tried once more, from `substeps`, as
      * a gentler take of the same scene: the avatar's arms held garment_retry_arm_spread radians
