@@ -705,38 +705,93 @@ static bool mentions_fbx(const char *path, const uint8_t *data, size_t size)
  * largest skin-cluster vertex index ("Indexes: *N { a: i, j, ... }"); false when a cluster names a
  * vertex beyond every geometry, or a negative one: assimp 5.2's converter asserts on it
  * (FBXConverter.cpp, out_idx != nullptr) and aborts the process. Binary FBX is not checked. */
-static bool fbx_ascii_indices_ok(const char *text)
+/* The values of the `a:` array of the element whose key is at p, up to its closing '}', read as
+ * assimp's tokenizer reads them: ';' comments to the end of the line, values between ',' and
+ * blanks, each the leading integer of its token (0 when it has none, as assimp's strtol10).
+ * Returns the count, or calls fn(value, user) for each while fn returns true. */
+typedef bool ascii_value_fn(long long value, void *user);
+static size_t ascii_array(const char *p, ascii_value_fn *fn, void *user)
 {
-    long long control_points = 0;
-    for (const char *p = text; (p = strstr(p, "Vertices:")) != NULL; ++p) {
-        const char *q = p + 9;
-        while (*q == ' ' || *q == '\t') {
-            ++q;
-        }
-        if (*q == '*') {
-            const long long n = strtoll(q + 1, NULL, 10);
-            control_points = n / 3 > control_points ? n / 3 : control_points;
-        }
+    const char *a = strstr(p, "a:"), *end = strchr(p, '}');
+    size_t n = 0;
+    if (!a || !end || a > end) {
+        return 0;
     }
-    for (const char *p = text; (p = strstr(p, "Indexes:")) != NULL; ++p) {
-        const char *a = strstr(p, "a:"), *end = strchr(p, '}');
-        if (!a || !end || a > end) {
+    for (const char *q = a + 2; q < end;) {
+        if (*q == ';') {
+            while (q < end && *q != '\n' && *q != '\r') {
+                ++q;
+            }
             continue;
         }
-        for (const char *q = a + 2; q < end;) {
-            char *next = NULL;
-            const long long v = strtoll(q, &next, 10);
-            if (next == q) {
-                ++q;
-                continue;
-            }
-            if (v < 0 || v >= control_points) {
-                return false;
-            }
-            q = next;
+        if (*q == ',' || fbx_space(*q)) {
+            ++q;
+            continue;
+        }
+        const char *t = q;
+        while (q < end && *q != ',' && *q != ';' && !fbx_space(*q)) {
+            ++q;
+        }
+        char *next = NULL;
+        long long v = strtoll(t, &next, 10);
+        v = next == t ? 0 : v;
+        ++n;
+        if (fn && !fn(v, user)) {
+            break;
         }
     }
+    return n;
+}
+
+typedef struct ascii_skin {
+    size_t control_points;
+    uint8_t *used; /* control point referenced by a polygon */
+    bool bad;
+} ascii_skin;
+
+static bool mark_polygon_vertex(long long v, void *user)
+{
+    ascii_skin *k = user;
+    const long long i = v < 0 ? -v - 1 : v; /* a polygon's last index is stored as ~index */
+    if (i < 0 || (size_t)i >= k->control_points) {
+        k->bad = true;
+        return false;
+    }
+    k->used[i] = 1;
     return true;
+}
+
+static bool check_cluster_index(long long v, void *user)
+{
+    ascii_skin *k = user;
+    k->bad = v < 0 || (size_t)v >= k->control_points || !k->used[v];
+    return !k->bad;
+}
+
+/* Skin cluster indices of an ASCII FBX: each must name a control point that a polygon uses, as
+ * assimp's converter maps clusters through the polygons' vertices and asserts (aborting the
+ * process) on one that maps to none; polygon indices must name control points. Arrays are read as
+ * assimp reads them (ascii_array), so a ';' that comments out the end of a polygon list counts.
+ * Control points: the most of any mesh's Vertices values / 3. false: refuse. */
+static bool fbx_ascii_indices_ok(const char *text)
+{
+    ascii_skin k = {0, NULL, false};
+    for (const char *p = text; (p = strstr(p, "Vertices:")) != NULL; ++p) {
+        const size_t n = ascii_array(p, NULL, NULL) / 3;
+        k.control_points = n > k.control_points ? n : k.control_points;
+    }
+    k.used = calloc(k.control_points ? k.control_points : 1, 1);
+    if (!k.used) {
+        return false;
+    }
+    for (const char *p = text; !k.bad && (p = strstr(p, "PolygonVertexIndex:")) != NULL; ++p) {
+        ascii_array(p, mark_polygon_vertex, &k);
+    }
+    for (const char *p = text; !k.bad && (p = strstr(p, "Indexes:")) != NULL; ++p) {
+        ascii_array(p, check_cluster_index, &k);
+    }
+    free(k.used);
+    return !k.bad;
 }
 
 static weft_result check_fbx(const char *path, const uint8_t *data, size_t size)
@@ -775,8 +830,8 @@ static weft_result check_fbx(const char *path, const uint8_t *data, size_t size)
         if (!fbx_ascii_indices_ok((const char *)data)) {
             free(l.edge);
             return weft__fail(WEFT_ERROR_FORMAT,
-                              "skinned mesh: '%s': an FBX skin cluster names a vertex beyond the meshes' control "
-                              "points (assimp 5.2 would abort)",
+                              "skinned mesh: '%s': an FBX skin cluster names a vertex no polygon uses, or a polygon "
+                              "a vertex beyond the meshes' control points (assimp 5.2 would abort)",
                               path);
         }
     }

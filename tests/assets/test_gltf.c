@@ -301,7 +301,7 @@ static void test_assimp_guards(void)
                                           "crash_fbx_cluster_index.fbx", "crash_q3d_huge_allocation.bin",
                                           "crash_glb_no_attributes.glb", "crash_fbx_empty_key.fbx",
                                           "bad_fbx_binary_cluster_index.fbx", "crash_fbx_duplicate_connection.fbx",
-                                          "crash_fbx_binary_header.fbx"};
+                                          "crash_fbx_binary_header.fbx", "crash_fbx_cluster_unused_vertex.fbx"};
     char path[1024];
     for (size_t i = 0; i < sizeof refused / sizeof refused[0]; ++i) {
         snprintf(path, sizeof path, "%s/tests/fuzz/corpus/gltf/%s", WEFT_SOURCE_DIR, refused[i]);
