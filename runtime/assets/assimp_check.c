@@ -752,7 +752,7 @@ typedef struct ascii_skin {
 static bool mark_polygon_vertex(long long v, void *user)
 {
     ascii_skin *k = user;
-    const long long i = v < 0 ? -v - 1 : v; /* a polygon's last index is stored as ~index */
+    const long long i = v < 0 ? -(v + 1) : v; /* a polygon's last index is stored as ~index */
     if (i < 0 || (size_t)i >= k->control_points) {
         k->bad = true;
         return false;
