@@ -628,9 +628,8 @@ static weft_result build_gripper(xscene *sc, const weft_sim_sequence_def *def, x
     return WEFT_OK;
 }
 
-/* Body pose at frame f: blend from the bind pose to the motion's first pose over the first
- * half of the pre-roll, hold it to settle, then play the motion. */
-/* Unit quaternions (w, x, y, z) for the clip's heading. */
+/* Unit quaternions (w, x, y, z) for the clip's heading (the body module's own are static to
+ * motion.c). */
 static void quat_from_aa(const float *aa, double q[4])
 {
     const double a = sqrt((double)aa[0] * aa[0] + (double)aa[1] * aa[1] + (double)aa[2] * aa[2]);
@@ -687,6 +686,8 @@ static void clip_pose_at(const xscene *sc, double t, weft_pose *pose)
     clip_normalise(sc, pose);
 }
 
+/* Body pose at frame f: blend from the bind pose to the motion's first pose over the first
+ * half of the pre-roll, hold it to settle, then play the motion. */
 static void garment_pose_at(const xscene *sc, uint32_t f, weft_pose *pose)
 {
     if (sc->clip) {
@@ -899,8 +900,9 @@ static weft_result garment_intersects(weft_context *ctx, const weft_cloth_mesh *
     return res;
 }
 
-/* The motion-capture clip of def->motion_path retargeted to sc->body, its start pose moved
- * horizontally over the origin, and the body parts of the reference garment and the validator. */
+/* The motion-capture clip of def->motion_path retargeted to sc->body, its window turned and moved
+ * to start where the bind pose stands, facing as it does, and the body parts of the reference
+ * garment and the validator. */
 static weft_result load_clip(weft_context *ctx, xscene *sc, const weft_sim_sequence_def *def)
 {
     weft_bvh_def bd = weft_default_bvh_def();

@@ -129,9 +129,9 @@ typedef struct weft_sim_sequence_def {
     uint32_t checkpoint_frames;
     /* Garment scenario on motion capture: a BVH file (plain or gzip, weft_bvh_load_file) retargeted
      * to the drawn avatar and played from motion_start_s seconds of the clip once the drape is done,
-     * at motion_speed, its first pose moved over the origin (horizontally). The avatar and the
-     * garment stay the seed's draws; garment_arm_spread and the gentle retry do not apply (the
-     * motion is the clip's as captured). The reference garment and the validator then use body
+     * at motion_speed, turned and moved so that it starts where the bind pose stands, facing as it
+     * does. The avatar and the garment stay the seed's draws; garment_arm_spread and the gentle
+     * retry do not apply (the motion is the clip's as captured). The reference garment and the validator then use body
      * parts (weft_body_triangle_parts, collision.triangle_parts in weft.h): where the body overlaps
      * itself, cloth collides with, and is certified against, the parts it lies against at the
      * start (docs/REFSIM.md, Real motion). Past the clip's end the last pose holds. NULL
