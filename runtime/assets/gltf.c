@@ -3,6 +3,7 @@
 
 #include "gltf.h"
 #include "assimp_check.h"
+#include "isolate.h"
 #include "core/core.h"
 
 #include <assimp/cimport.h>
@@ -497,19 +498,9 @@ static weft_result import_scene(const struct aiScene *scene, float fps, skin_nod
     return res;
 }
 
-weft_result weft_skinned_load_file(weft_context *context, const char *path, float fps, weft_skinned_asset **out_asset)
+/* Reads the file with assimp and converts it, in this process. */
+static weft_result import_in_process(weft_context *context, const char *path, float fps, weft_skinned_asset **out_asset)
 {
-    if (!context || !path || !out_asset) {
-        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_skinned_load_file: context, path and out_asset are required");
-    }
-    if (!(fps >= 1.0f && fps <= 1000.0f)) {
-        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_skinned_load_file: fps must be in 1..1000");
-    }
-    /* opens the file (IO errors) and refuses inputs assimp 5.2 crashes on */
-    weft_result checked = weft__assimp_check_file(path);
-    if (checked != WEFT_OK) {
-        return checked;
-    }
     /* Triangulate splits polygons (FBX quads) without reordering vertices */
     const struct aiScene *scene = aiImportFile(path, aiProcess_ValidateDataStructure | aiProcess_Triangulate);
     if (!scene) {
@@ -533,6 +524,267 @@ weft_result weft_skinned_load_file(weft_context *context, const char *path, floa
     }
     *out_asset = a;
     return WEFT_OK;
+}
+
+/* ---------------------------------------------------------------------------------------- */
+/* The import in a child process (isolate.h). The child writes one record:                     */
+/*   'A'                      assimp returned (anything after this is weft's own code)        */
+/*   'E' i32 code u32 n msg   refused, with weft's message                                    */
+/*   'K' u32 V T J F f32 fps  then the asset's arrays in struct order (names as J * 64 bytes)  */
+/*   'Z'                      end                                                              */
+/* The parent decodes it as untrusted input and checks the asset again.                        */
+
+static struct {
+    double seconds;
+    uint64_t address_space_bytes;
+    bool strict;
+} g_import_limits = {300.0, 16ull << 30, false};
+
+void weft__skinned_import_limits(double seconds, bool strict)
+{
+    g_import_limits.seconds = seconds > 0 ? seconds : 300.0;
+    g_import_limits.strict = strict;
+}
+
+typedef struct import_job {
+    weft_context *context;
+    const char *path;
+    float fps;
+} import_job;
+
+static bool put(int fd, const void *p, size_t n)
+{
+    return weft__write_all(fd, p, n);
+}
+
+static void import_child(void *arg, int fd)
+{
+    const import_job *job = arg;
+    const struct aiScene *scene = aiImportFile(job->path, aiProcess_ValidateDataStructure | aiProcess_Triangulate);
+    if (!put(fd, "A", 1)) {
+        return;
+    }
+    weft_skinned_asset *a = NULL;
+    weft_result res;
+    if (!scene) {
+        res = weft__fail(WEFT_ERROR_FORMAT, "skinned mesh: assimp could not read '%s': %s", job->path, aiGetErrorString());
+    } else {
+        a = calloc(1, sizeof *a);
+        skin_node *nodes = malloc(SKIN_MAX_NODES * sizeof *nodes);
+        res = a && nodes ? import_scene(scene, job->fps, nodes, a)
+                         : weft__fail(WEFT_ERROR_OUT_OF_MEMORY, "skinned mesh: out of memory");
+        /* the child exits next: nothing is released */
+    }
+    if (res != WEFT_OK) {
+        const char *msg = weft_last_error();
+        int32_t code = (int32_t)res;
+        uint32_t n = (uint32_t)strlen(msg);
+        (void)(put(fd, "E", 1) && put(fd, &code, 4) && put(fd, &n, 4) && put(fd, msg, n) && put(fd, "Z", 1));
+        return;
+    }
+    const uint32_t head[4] = {a->vertex_count, a->triangle_count, a->joint_count, a->frame_count};
+    const size_t v = a->vertex_count, t = a->triangle_count, j = a->joint_count, fj = (size_t)a->frame_count * j;
+    (void)(put(fd, "K", 1) && put(fd, head, sizeof head) && put(fd, &a->fps, 4) &&
+           put(fd, a->positions, v * 3 * 4) && put(fd, a->triangles, t * 3 * 4) && put(fd, a->joint_indices, v * 4 * 4) &&
+           put(fd, a->joint_weights, v * 4 * 4) && put(fd, a->joint_names, j * WEFT_SKIN_NAME) &&
+           put(fd, a->parents, j * 4) && put(fd, a->skin_matrices, fj * 16 * 4) && put(fd, a->local_rotations, fj * 4 * 4) &&
+           put(fd, a->local_translations, fj * 3 * 4) && put(fd, a->rest_rotations, j * 4 * 4) &&
+           put(fd, a->rest_translations, j * 3 * 4) && put(fd, "Z", 1));
+}
+
+typedef struct reader {
+    const uint8_t *p, *end;
+} reader;
+
+static bool take(reader *r, void *dst, size_t n)
+{
+    if ((size_t)(r->end - r->p) < n) {
+        return false;
+    }
+    memcpy(dst, r->p, n);
+    r->p += n;
+    return true;
+}
+
+/* Allocates an array of n elements of `size` bytes and fills it from the record. */
+static bool take_array(reader *r, void **dst, size_t n, size_t size)
+{
+    if (n > (size_t)(r->end - r->p) / size) {
+        return false;
+    }
+    *dst = malloc(n * size > 0 ? n * size : 1);
+    return *dst && take(r, *dst, n * size);
+}
+
+/* The asset's invariants (gltf.h), checked on what the child sent. */
+static weft_result check_decoded(const weft_skinned_asset *a, const char *path)
+{
+    const size_t nv = a->vertex_count, nj = a->joint_count, fj = (size_t)a->frame_count * nj;
+    if (weft__first_outside(a->positions, nv * 3) != SIZE_MAX) {
+        return weft__fail(WEFT_ERROR_NOT_FINITE, "skinned mesh '%s': a bind-pose position is not finite or beyond %g m",
+                          path, (double)WEFT_MAX_COORDINATE);
+    }
+    for (size_t i = 0; i < (size_t)a->triangle_count * 3; ++i) {
+        if (a->triangles[i] >= a->vertex_count) {
+            return weft__fail(WEFT_ERROR_FORMAT, "skinned mesh '%s': triangle %zu names vertex %u of %u", path, i / 3,
+                              a->triangles[i], a->vertex_count);
+        }
+    }
+    for (size_t v = 0; v < nv; ++v) {
+        double sum = 0.0;
+        for (size_t k = 0; k < 4; ++k) {
+            const float w = a->joint_weights[4 * v + k];
+            if (!(w >= 0.0f && w <= 1.0f) || a->joint_indices[4 * v + k] >= nj) {
+                return weft__fail(WEFT_ERROR_FORMAT, "skinned mesh '%s': vertex %zu has a bad joint weight or index", path, v);
+            }
+            sum += w;
+        }
+        if (!(fabs(sum - 1.0) < 1e-4)) {
+            return weft__fail(WEFT_ERROR_FORMAT, "skinned mesh '%s': the weights of vertex %zu sum to %g", path, v, sum);
+        }
+    }
+    for (uint32_t j = 0; j < nj; ++j) {
+        if (memchr(a->joint_names[j], '\0', WEFT_SKIN_NAME) == NULL || a->parents[j] < -1 ||
+            a->parents[j] >= (int32_t)nj || a->parents[j] == (int32_t)j) {
+            return weft__fail(WEFT_ERROR_FORMAT, "skinned mesh '%s': joint %u has a bad name or parent", path, j);
+        }
+    }
+    if (!weft__all_finite(a->rest_rotations, nj * 4) || !weft__all_finite(a->rest_translations, nj * 3) ||
+        !weft__all_finite(a->local_rotations, fj * 4) || !weft__all_finite(a->local_translations, fj * 3)) {
+        return weft__fail(WEFT_ERROR_NOT_FINITE, "skinned mesh '%s': a joint transform is not finite", path);
+    }
+    for (size_t i = 0; i < fj * 16; ++i) {
+        if (!(fabsf(a->skin_matrices[i]) <= SKIN_MAX_ENTRY)) {
+            return weft__fail(WEFT_ERROR_FORMAT, "skinned mesh '%s': a skinning matrix entry is %g (beyond %g)", path,
+                              (double)a->skin_matrices[i], (double)SKIN_MAX_ENTRY);
+        }
+    }
+    return WEFT_OK;
+}
+
+static weft_result decode(weft_context *context, const char *path, float fps, const uint8_t *bytes, size_t size,
+                          weft_skinned_asset **out_asset)
+{
+    reader r = {bytes + 1, bytes + size}; /* after 'A' */
+    uint8_t tag = 0;
+    if (!take(&r, &tag, 1) || (tag != 'E' && tag != 'K')) {
+        return weft__fail(WEFT_ERROR_FORMAT, "skinned mesh '%s': the importer's output is malformed", path);
+    }
+    if (tag == 'E') {
+        int32_t code = 0;
+        uint32_t n = 0;
+        char msg[512];
+        if (!take(&r, &code, 4) || !take(&r, &n, 4) || n >= sizeof msg || !take(&r, msg, n) || !take(&r, &tag, 1) ||
+            tag != 'Z' || r.p != r.end || code <= (int32_t)WEFT_OK || code >= 64) {
+            return weft__fail(WEFT_ERROR_FORMAT, "skinned mesh '%s': the importer's output is malformed", path);
+        }
+        msg[n] = '\0';
+        return weft__fail((weft_result)code, "%s", msg);
+    }
+    uint32_t head[4];
+    float got_fps = 0.0f;
+    if (!take(&r, head, sizeof head) || !take(&r, &got_fps, 4)) {
+        return weft__fail(WEFT_ERROR_FORMAT, "skinned mesh '%s': the importer's output is malformed", path);
+    }
+    if (head[0] == 0 || head[0] > SKIN_MAX_VERTICES || head[1] == 0 || head[1] > 4u * SKIN_MAX_VERTICES ||
+        head[2] == 0 || head[2] > WEFT_SKIN_MAX_JOINTS || head[3] == 0 || head[3] > SKIN_MAX_FRAMES || got_fps != fps) {
+        return weft__fail(WEFT_ERROR_FORMAT, "skinned mesh '%s': the importer's output has impossible sizes", path);
+    }
+    weft_skinned_asset *a = calloc(1, sizeof *a);
+    if (!a) {
+        return weft__fail(WEFT_ERROR_OUT_OF_MEMORY, "skinned mesh: out of memory");
+    }
+    a->context = context;
+    a->vertex_count = head[0], a->triangle_count = head[1], a->joint_count = head[2], a->frame_count = head[3];
+    a->fps = fps;
+    const size_t v = head[0], t = head[1], j = head[2], fj = (size_t)head[3] * j;
+    void *names = NULL;
+    bool ok = take_array(&r, (void **)&a->positions, v * 3, 4) && take_array(&r, (void **)&a->triangles, t * 3, 4) &&
+              take_array(&r, (void **)&a->joint_indices, v * 4, 4) && take_array(&r, (void **)&a->joint_weights, v * 4, 4) &&
+              take_array(&r, &names, j, WEFT_SKIN_NAME);
+    if (ok) {
+        /* names are kept at the importer's full capacity, as import_scene allocates them */
+        a->joint_names = calloc(WEFT_SKIN_MAX_JOINTS, sizeof *a->joint_names);
+        ok = a->joint_names != NULL;
+        if (ok) {
+            memcpy(a->joint_names, names, j * WEFT_SKIN_NAME);
+        }
+    }
+    free(names);
+    ok = ok && take_array(&r, (void **)&a->parents, j, 4) && take_array(&r, (void **)&a->skin_matrices, fj * 16, 4) &&
+         take_array(&r, (void **)&a->local_rotations, fj * 4, 4) &&
+         take_array(&r, (void **)&a->local_translations, fj * 3, 4) && take_array(&r, (void **)&a->rest_rotations, j * 4, 4) &&
+         take_array(&r, (void **)&a->rest_translations, j * 3, 4) && take(&r, &tag, 1) && tag == 'Z' && r.p == r.end;
+    weft_result res = ok ? check_decoded(a, path)
+                         : weft__fail(WEFT_ERROR_FORMAT, "skinned mesh '%s': the importer's output is malformed", path);
+    if (res != WEFT_OK) {
+        weft_skinned_asset_destroy(a);
+        return res;
+    }
+    *out_asset = a;
+    return WEFT_OK;
+}
+
+static weft_result import_isolated(weft_context *context, const char *path, float fps, weft_skinned_asset **out_asset)
+{
+    import_job job = {context, path, fps};
+    const weft__isolated_limits limits = {g_import_limits.seconds, g_import_limits.address_space_bytes, (size_t)4 << 30};
+    weft__isolated_run run;
+    weft__run_isolated(import_child, &job, &limits, &run);
+    const bool assimp_returned = run.size >= 1 && run.bytes[0] == 'A';
+    const bool complete = run.size >= 2 && run.bytes[run.size - 1] == 'Z';
+    weft_result res;
+    if (run.end == WEFT__ISOLATED_NO_CHILD) {
+        res = weft__fail(WEFT_ERROR_OUT_OF_MEMORY, "skinned mesh: could not start the importer's process: %s",
+                         strerror(run.code));
+    } else if (run.end == WEFT__ISOLATED_TIMED_OUT) {
+        res = weft__fail(WEFT_ERROR_FORMAT, "skinned mesh: reading '%s' took longer than %g s; the file is refused", path,
+                         g_import_limits.seconds);
+    } else if (run.end == WEFT__ISOLATED_TOO_LARGE) {
+        res = weft__fail(WEFT_ERROR_FORMAT, "skinned mesh: '%s' imports to more than 4 GiB; the file is refused", path);
+    } else if (run.end == WEFT__ISOLATED_EXITED && assimp_returned && complete) {
+        res = decode(context, path, fps, run.bytes, run.size, out_asset);
+    } else {
+        /* the importer's process ended without a whole answer */
+        char how[64];
+        if (run.end == WEFT__ISOLATED_SIGNALLED) {
+            snprintf(how, sizeof how, "signal %d%s", run.code,
+                     run.code == 9 ? ", possibly out of memory" : run.code == 11 ? ", a bad memory access" :
+                                                                 run.code == 6 ? ", an abort" : "");
+        } else {
+            snprintf(how, sizeof how, "exit status %d", run.code);
+        }
+        if (assimp_returned && g_import_limits.strict) {
+            fprintf(stderr, "weft: converting '%s' after assimp read it ended the importer's process (%s)\n", path, how);
+            abort(); /* weft's own code failed: a defect the fuzzer must see */
+        }
+        res = assimp_returned
+                  ? weft__fail(WEFT_ERROR_FORMAT, "skinned mesh: converting '%s' failed in its process (%s); the file is refused",
+                               path, how)
+                  : weft__fail(WEFT_ERROR_FORMAT, "skinned mesh: assimp failed reading '%s' (%s); the file is refused", path,
+                               how);
+    }
+    free(run.bytes);
+    return res;
+}
+
+weft_result weft_skinned_load_file(weft_context *context, const char *path, float fps, weft_skinned_asset **out_asset)
+{
+    if (!context || !path || !out_asset) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_skinned_load_file: context, path and out_asset are required");
+    }
+    if (!(fps >= 1.0f && fps <= 1000.0f)) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_skinned_load_file: fps must be in 1..1000");
+    }
+    /* opens the file (IO errors) and refuses inputs assimp 5.2 is known to crash on */
+    weft_result checked = weft__assimp_check_file(path);
+    if (checked != WEFT_OK) {
+        return checked;
+    }
+    /* assimp reads the file in a child process: its crashes, hangs and runaway allocations on
+     * malformed files end the child, not the caller */
+    return weft__isolation_available() ? import_isolated(context, path, fps, out_asset)
+                                       : import_in_process(context, path, fps, out_asset);
 }
 
 weft_result weft_skinned_pose(const weft_skinned_asset *a, uint32_t frame, float *out)

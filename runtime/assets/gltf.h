@@ -50,8 +50,17 @@ typedef struct weft_skinned_asset {
 } weft_skinned_asset;
 
 /* Imports the first skinned mesh set and animation of a file assimp reads (glTF, FBX, ...),
- * sampling the animation at fps (1..1000). */
+ * sampling the animation at fps (1..1000). On POSIX systems assimp reads the file in a child
+ * process (fork) whose answer is checked again here, so a file that crashes assimp, hangs it
+ * (300 s) or makes it allocate without bound (16 GiB of address space) is refused with
+ * WEFT_ERROR_FORMAT instead of taking the caller down. Call it where forking is acceptable (a
+ * loading screen, a tool; not from a thread holding locks the child would need). */
 weft_result weft_skinned_load_file(weft_context *context, const char *path, float fps, weft_skinned_asset **out_asset);
+
+/* Tests and fuzzers: the child's wall-clock limit (seconds > 0; default 300), and strict mode,
+ * in which a child that fails after assimp returned (in weft's own conversion code) aborts the
+ * caller, so a fuzzer reports it as the defect it is. */
+void weft__skinned_import_limits(double seconds, bool strict);
 void weft_skinned_asset_destroy(weft_skinned_asset *asset);
 
 /* Skinned positions at frame (0..frame_count-1), vertex_count * 3. Allocates nothing. */

@@ -3,6 +3,10 @@
  * written to a per-process file whose extension follows the content: "glTF" magic -> .glb, an
  * FBX header -> .fbx, anything else -> .gltf (assimp picks its reader by extension first).
  *
+ * assimp reads each input in a child process (runtime/assets/isolate.h), so the target checks
+ * weft's side: the checks before assimp, the child's answer decoded and re-validated, and the
+ * conversion (strict mode: a child dying after assimp returned aborts this process).
+ *
  * A rejected input must leave *out_asset NULL and explain itself in weft_last_error(). An
  * accepted one must be consistent (counts, indices in range, weights that sum to one, each
  * parent another joint or -1, a finite bind pose), pose to finite positions at its
@@ -123,6 +127,10 @@ int LLVMFuzzerTestOneInput(const uint8_t *data, size_t size)
     if (!ctx) {
         weft_context_def def = weft_default_context_def();
         REQUIRE(weft_context_create(&def, &ctx) == WEFT_OK);
+        /* assimp runs in a child process: its faults refuse the input; a child that fails in
+         * weft's own conversion after assimp returned aborts here, a defect to report. A hang
+         * is refused after 20 s, below libFuzzer's -timeout. */
+        weft__skinned_import_limits(20.0, true);
         const char *dir = getenv("TMPDIR");
         for (int i = 0; i < KINDS; ++i) {
             snprintf(path[i], sizeof path[i], "%.64s/weft_fuzz_gltf_%ld.%s", dir && *dir ? dir : "/tmp",
