@@ -9,6 +9,7 @@
 #include "weft_scenes.h"
 #include "wear.h"
 #include "pc2.h"
+#include "character.h"
 #include "core/core.h"
 
 #include <errno.h>
@@ -62,7 +63,11 @@ void weft_avatar_sample_usage(FILE *out, const char *program)
             "                          idle walk run jump dance arm_raise flip, a clip of the CMU library by\n"
             "                          name (samples/mocap/clips.csv, e.g. mocap:walk_cmu07_01), a BVH file\n"
             "                          (plain or .gz), or a skinned glTF/FBX with SMPL joint names (default walk)\n"
-            "  --garment KIND          tshirt | skirt | dress | none (default tshirt)\n"
+            "  --avatar gltf:PATH      your own skinned character (glTF/FBX, any joint names, metres, Y up) as the\n"
+            "                          collider, played by its own animation (--start, --frames); garments then come\n"
+            "                          from --garment obj:PATH (docs/RENDER.md, Your own character)\n"
+            "  --garment KIND          tshirt | skirt | dress | none | obj:PATH, an OBJ garment fitted to the\n"
+            "                          avatar's bind pose (default tshirt; with --avatar, none)\n"
             "  --resolution RES        garment mesh 1k | 4k | 16k | 40k (default 4k)\n"
             "  --sim-resolution RES    simulate this mesh of the garment and draw --resolution from it\n"
             "                          (a mesh map; e.g. 1k for a 4k garment; default: the drawn mesh)\n"
@@ -187,7 +192,7 @@ int weft_avatar_sample_parse(int argc, char **argv, int first, weft_avatar_sampl
             }
             ok = weft_avatar_sample_crowd_option(a, v, o);
         } else if (!v) {
-            static const char *const valued[] = {"--motion", "--garment", "--resolution", "--method", "--model",
+            static const char *const valued[] = {"--motion", "--avatar", "--garment", "--resolution", "--method", "--model",
                                                  "--sim-resolution",
                                                  "--precision", "--tether-cm", "--strain-limit", "--push-cm",
                                                  "--body-parts", "--ccd", "--export",
@@ -202,8 +207,13 @@ int weft_avatar_sample_parse(int argc, char **argv, int first, weft_avatar_sampl
             return 2;
         } else if (strcmp(a, "--motion") == 0) {
             o->motion = v;
+            o->motion_given = true;
+        } else if (strcmp(a, "--avatar") == 0) {
+            o->avatar = v;
+            ok = strncmp(v, "gltf:", 5) == 0 && v[5] != '\0';
         } else if (strcmp(a, "--garment") == 0) {
             o->garment = v;
+            o->garment_given = true;
         } else if (strcmp(a, "--resolution") == 0) {
             o->resolution = v;
         } else if (strcmp(a, "--sim-resolution") == 0) {
@@ -323,6 +333,11 @@ typedef struct sample_state {
     weft_pc2_writer pc2_cloth, pc2_body;
     uint8_t *tiles;
     weft_sample_cape *cape;
+    weft_sample_character *character;   /* --avatar gltf:PATH */
+    float *obj_positions;               /* --garment obj:PATH */
+    uint32_t *obj_triangles;
+    uint32_t obj_vertices, obj_triangle_count;
+    float *obj_weights;                 /* the OBJ garment's 24 skinning weights on weft's avatar */
     uint32_t cape_mesh;
     double cape_ms;
     uint64_t cape_pushed;       /* cape vertices its body collision moved, all steps */
@@ -332,6 +347,10 @@ typedef struct sample_state {
 static void sample_free(sample_state *s)
 {
     weft_sample_cape_destroy(s->cape);
+    weft_sample_character_destroy(s->character);
+    free(s->obj_positions);
+    free(s->obj_triangles);
+    free(s->obj_weights);
     weft_garment_destroy(s->garment);
     weft_model_destroy(s->model);
     weft_cloth_destroy(s->cloth);
@@ -543,23 +562,40 @@ weft_garment_def weft_sample_body_garment_def(const weft_body *body, weft_method
     return d;
 }
 
-weft_result weft_sample_worn_def(const weft_body *body, const weft_cloth_mesh *cloth, weft_method method, uint8_t *parts,
-                                 weft_garment_def *out)
+/* The worn-garment recipe on any collider (weft_sample_worn_def's fields). */
+static weft_garment_def worn_def_on(const weft_sample_collider *col, const float *positions, uint32_t vertex_count,
+                                    const uint32_t *triangles, uint32_t triangle_count, weft_method method)
 {
-    weft_garment_def d = weft_sample_body_garment_def(body, method, cloth->positions, cloth->vertex_count,
-                                                      cloth->triangles, cloth->triangle_count);
-    if (parts) {
-        weft_result r = weft_body_triangle_parts(body, parts, d.collider_triangle_count);
-        if (r != WEFT_OK) {
-            return r;
-        }
-        d.collision.triangle_parts = parts;
-    }
+    weft_garment_def d = weft_default_garment_def();
+    d.method = method;
+    d.rest_positions = positions;
+    d.vertex_count = vertex_count;
+    d.triangles = triangles;
+    d.triangle_count = triangle_count;
+    d.collider_rest_positions = col->rest_positions;
+    d.collider_vertex_count = col->vertex_count;
+    d.collider_triangles = col->triangles;
+    d.collider_triangle_count = col->triangle_count;
+    d.collision.triangle_parts = col->triangle_parts;
     d.ccd.enabled = false;
     d.tethers.distance = WEFT_WORN_TETHER_CM / 100.0f;
     d.collision.push = WEFT_WORN_PUSH_CM / 100.0f;
     d.strain.limit = method == WEFT_METHOD_MODEL ? WEFT_WORN_STRAIN_PCT / 100.0f : 0.0f;
-    *out = d;
+    return d;
+}
+
+weft_result weft_sample_worn_def(const weft_body *body, const weft_cloth_mesh *cloth, weft_method method, uint8_t *parts,
+                                 weft_garment_def *out)
+{
+    if (parts) {
+        weft_result r = weft_body_triangle_parts(body, parts, weft_body_triangle_count(body));
+        if (r != WEFT_OK) {
+            return r;
+        }
+    }
+    const weft_sample_collider col = {weft_body_rest_vertices(body), weft_body_vertex_count(body),
+                                      weft_body_triangles(body), weft_body_triangle_count(body), parts};
+    *out = worn_def_on(&col, cloth->positions, cloth->vertex_count, cloth->triangles, cloth->triangle_count, method);
     return WEFT_OK;
 }
 
@@ -567,6 +603,32 @@ weft_result weft_avatar_sample_garment_create(const weft_avatar_sample_options *
                                               const weft_body *body, const weft_cloth_mesh *cloth,
                                               weft_model **out_model, weft_garment **out_garment, char *label,
                                               size_t label_cap)
+{
+    uint8_t *parts = o->body_parts ? malloc(weft_body_triangle_count(body)) : NULL;
+    if (o->body_parts && !parts) {
+        *out_model = NULL;
+        *out_garment = NULL;
+        return WEFT_ERROR_OUT_OF_MEMORY;
+    }
+    weft_result r = parts ? weft_body_triangle_parts(body, parts, weft_body_triangle_count(body)) : WEFT_OK;
+    const weft_sample_collider col = {weft_body_rest_vertices(body), weft_body_vertex_count(body),
+                                      weft_body_triangles(body), weft_body_triangle_count(body), parts};
+    if (r == WEFT_OK) {
+        r = weft_avatar_sample_garment_create_on(o, ctx, &col, cloth->positions, cloth->vertex_count, cloth->triangles,
+                                                 cloth->triangle_count, out_model, out_garment, label, label_cap);
+    } else {
+        *out_model = NULL;
+        *out_garment = NULL;
+    }
+    free(parts); /* the garment copied them */
+    return r;
+}
+
+weft_result weft_avatar_sample_garment_create_on(const weft_avatar_sample_options *o, weft_context *ctx,
+                                                 const weft_sample_collider *collider, const float *positions,
+                                                 uint32_t vertex_count, const uint32_t *triangles,
+                                                 uint32_t triangle_count, weft_model **out_model,
+                                                 weft_garment **out_garment, char *label, size_t label_cap)
 {
     *out_model = NULL;
     *out_garment = NULL;
@@ -609,14 +671,9 @@ weft_result weft_avatar_sample_garment_create(const weft_avatar_sample_options *
         if (want_auto ? (order[m].method == WEFT_METHOD_MODEL && !*out_model) : strcmp(base, order[m].name) != 0) {
             continue;
         }
-        uint8_t *parts = o->body_parts ? malloc(weft_body_triangle_count(body)) : NULL;
-        weft_garment_def gdef;
-        weft_result pr = o->body_parts && !parts ? WEFT_ERROR_OUT_OF_MEMORY
-                                                 : weft_sample_worn_def(body, cloth, order[m].method, parts, &gdef);
-        if (pr != WEFT_OK) {
-            free(parts);
-            return pr;
-        }
+        weft_sample_collider col = *collider;
+        col.triangle_parts = o->body_parts ? collider->triangle_parts : NULL;
+        weft_garment_def gdef = worn_def_on(&col, positions, vertex_count, triangles, triangle_count, order[m].method);
         gdef.model = *out_model;
         gdef.precision = o->precision;
         gdef.substeps = substeps ? substeps : gdef.substeps;
@@ -629,7 +686,6 @@ weft_result weft_avatar_sample_garment_create(const weft_avatar_sample_options *
         gdef.collision.push = o->push_cm / 100.0f;
         gdef.ccd.enabled = o->ccd;
         weft_result r = weft_garment_create(ctx, &gdef, out_garment);
-        free(parts);
         if (r != WEFT_OK) {
             fprintf(stderr, "avatar_render: method %s unavailable: %s\n", order[m].name, weft_last_error());
             continue;
@@ -671,6 +727,68 @@ void weft_avatar_sample_settle_pose(const weft_pose *bind, const weft_pose *firs
     }
 }
 
+/* An OBJ garment on weft's avatar: each vertex takes the skinning weights of the nearest body
+ * vertex (24 per vertex, as weft_body_skin_points reads them). Refuses a garment whose median
+ * distance to the avatar is over 10 cm (not fitted to it). */
+static weft_result bind_obj_to_avatar(const weft_body *body, const float *garment, uint32_t n, float **out_weights)
+{
+    const uint32_t nb = weft_body_vertex_count(body);
+    const float *rest = weft_body_rest_vertices(body), *bw = weft_body_weights(body);
+    float *w = malloc((size_t)n * WEFT_BODY_JOINTS * sizeof(float));
+    uint32_t far = 0;
+    if (!w) {
+        return weft__fail(WEFT_ERROR_OUT_OF_MEMORY, "garment: out of memory");
+    }
+    for (uint32_t i = 0; i < n; ++i) {
+        const float *p = garment + 3 * (size_t)i;
+        double best = INFINITY;
+        uint32_t nearest = 0;
+        for (uint32_t v = 0; v < nb; ++v) {
+            const float *q = rest + 3 * (size_t)v;
+            const double dx = (double)p[0] - q[0], dy = (double)p[1] - q[1], dz = (double)p[2] - q[2];
+            const double d = dx * dx + dy * dy + dz * dz;
+            if (d < best) {
+                best = d, nearest = v;
+            }
+        }
+        far += best > 0.01; /* 10 cm */
+        memcpy(w + (size_t)i * WEFT_BODY_JOINTS, bw + (size_t)nearest * WEFT_BODY_JOINTS, WEFT_BODY_JOINTS * sizeof(float));
+    }
+    if (far > n / 2) {
+        free(w);
+        return weft__fail(WEFT_ERROR_FORMAT, "garment: %u of its %u vertices are over 10 cm from the avatar: it is not "
+                          "fitted to the avatar's bind pose", far, n);
+    }
+    *out_weights = w;
+    return WEFT_OK;
+}
+
+/* The drawn garment carried by the skin: the wardrobe garment's weights, the OBJ's nearest-vertex
+ * weights on weft's avatar, or the character's binding. */
+static weft_result skin_garment(const sample_state *s, const weft_pose *pose, const float *rest, uint32_t n, float *out)
+{
+    if (s->character) {
+        return weft_sample_character_skin_garment(s->character, out);
+    }
+    return weft_body_skin_points(s->body, pose, rest, s->obj_weights ? s->obj_weights : s->cloth->weights, n, out);
+}
+
+/* The camera box for a character: its bind-pose bounds moved with the centroid over the floor. */
+static void camera_box_points(const float *rest, const float *posed, uint32_t n, float lo[3], float hi[3])
+{
+    double a[3] = {INFINITY, INFINITY, INFINITY}, b[3] = {-INFINITY, -INFINITY, -INFINITY}, shift[3] = {0, 0, 0};
+    for (uint32_t i = 0; i < n; ++i) {
+        for (int k = 0; k < 3; ++k) {
+            a[k] = fmin(a[k], rest[3 * (size_t)i + (size_t)k]);
+            b[k] = fmax(b[k], rest[3 * (size_t)i + (size_t)k]);
+            shift[k] += (double)posed[3 * (size_t)i + (size_t)k] - rest[3 * (size_t)i + (size_t)k];
+        }
+    }
+    lo[0] = (float)(a[0] + shift[0] / n), hi[0] = (float)(b[0] + shift[0] / n);
+    lo[1] = 0.0f, hi[1] = (float)b[1] + 0.1f;
+    lo[2] = (float)(a[2] + shift[2] / n), hi[2] = (float)(b[2] + shift[2] / n);
+}
+
 int weft_avatar_sample_run(const weft_avatar_sample_options *o)
 {
     if (o->crowd > 0) {
@@ -686,22 +804,100 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
     if (weft_avatar_create(s.ctx, &adef, &s.body) != WEFT_OK) {
         return fail_msg(&s, "weft_avatar_create");
     }
-    if (weft_sample_motion_load(s.ctx, s.body, o->motion, o->speed, true, &s.motion) != WEFT_OK) {
+    if (o->avatar) {
+        if (o->motion_given || o->cape || o->sim_resolution || o->crowd) {
+            fprintf(stderr, "avatar_render: with --avatar the character plays its own animation, without --motion, "
+                            "--cape, --sim-resolution or --crowd\n");
+            sample_free(&s);
+            return 2;
+        }
+        if (weft_sample_character_load(s.ctx, o->avatar + 5, &s.character) != WEFT_OK) {
+            fprintf(stderr, "avatar_render: --avatar %s: %s\n", o->avatar, weft_last_error());
+            sample_free(&s);
+            return 2;
+        }
+        uint32_t parts = 0;
+        weft_sample_character_parts(s.character, &parts);
+        printf("character %s: %u vertices, %u joints, %u body parts, %u frames of animation (%.2f s)\n", o->avatar + 5,
+               weft_sample_character_vertex_count(s.character), weft_sample_character_joint_count(s.character), parts,
+               weft_sample_character_frame_count(s.character), weft_sample_character_duration(s.character));
+    } else if (weft_sample_motion_load(s.ctx, s.body, o->motion, o->speed, true, &s.motion) != WEFT_OK) {
         fprintf(stderr, "avatar_render: motion '%s': %s\n", o->motion, weft_last_error());
         sample_free(&s);
         return 2;
     }
-    uint32_t nv = weft_body_vertex_count(s.body);
+    /* the collider: weft's avatar, or the user's character */
+    const uint32_t nv = s.character ? weft_sample_character_vertex_count(s.character) : weft_body_vertex_count(s.body);
+    const float *body_rest = s.character ? weft_sample_character_bind_vertices(s.character) : weft_body_rest_vertices(s.body);
+    const uint32_t *body_tris = s.character ? weft_sample_character_triangles(s.character) : weft_body_triangles(s.body);
+    const uint32_t body_ntri =
+        s.character ? weft_sample_character_triangle_count(s.character) : weft_body_triangle_count(s.body);
     s.body_verts = malloc((size_t)nv * 3 * sizeof(float));
     if (!s.body_verts) {
         return fail_msg(&s, "out of memory");
     }
 
-    bool dressed = strcmp(o->garment, "none") != 0;
+    /* a character wears nothing unless given an OBJ: weft's garments fit weft's avatar */
+    bool dressed = strcmp(o->garment, "none") != 0 && (!s.character || o->garment_given);
+    const bool obj_garment = strncmp(o->garment, "obj:", 4) == 0;
     const char *method_used = "none";
     char method_label[32];
     bool simulated = false;
-    if (dressed) {
+    /* the drawn garment mesh: a wardrobe garment, or the user's OBJ */
+    const float *gm_rest = NULL;
+    const uint32_t *gm_tris = NULL;
+    uint32_t gm_nv = 0, gm_nt = 0;
+    if (s.character && dressed && !obj_garment) {
+        fprintf(stderr, "avatar_render: weft's garments are fitted to weft's avatar; dress your character with "
+                        "--garment obj:PATH (a garment fitted to its bind pose) or none\n");
+        sample_free(&s);
+        return 2;
+    }
+    if (obj_garment) {
+        if (o->sim_resolution) {
+            fprintf(stderr, "avatar_render: --sim-resolution needs one of weft's garments, not an OBJ\n");
+            sample_free(&s);
+            return 2;
+        }
+        weft_result r = weft_obj_read(o->garment + 4, &s.obj_positions, &s.obj_vertices, &s.obj_triangles,
+                                      &s.obj_triangle_count);
+        if (r == WEFT_OK && s.character) {
+            r = weft_sample_character_bind(s.character, s.obj_positions, s.obj_vertices);
+        } else if (r == WEFT_OK) {
+            r = bind_obj_to_avatar(s.body, s.obj_positions, s.obj_vertices, &s.obj_weights);
+        }
+        if (r != WEFT_OK) {
+            fprintf(stderr, "avatar_render: --garment %s: %s\n", o->garment, weft_last_error());
+            sample_free(&s);
+            return 2;
+        }
+        gm_rest = s.obj_positions, gm_tris = s.obj_triangles, gm_nv = s.obj_vertices, gm_nt = s.obj_triangle_count;
+        s.cloth_verts = malloc((size_t)gm_nv * 3 * sizeof(float));
+        if (!s.cloth_verts) {
+            return fail_msg(&s, "out of memory");
+        }
+        const weft_sample_collider col = {body_rest, nv, body_tris, body_ntri, NULL};
+        weft_sample_collider with_parts = col;
+        uint8_t *avatar_parts = NULL;
+        if (s.character) {
+            with_parts.triangle_parts = weft_sample_character_parts(s.character, NULL);
+        } else if ((avatar_parts = malloc(body_ntri)) == NULL ||
+                   weft_body_triangle_parts(s.body, avatar_parts, body_ntri) != WEFT_OK) {
+            free(avatar_parts);
+            return fail_msg(&s, "body parts");
+        } else {
+            with_parts.triangle_parts = avatar_parts;
+        }
+        weft_result gr = weft_avatar_sample_garment_create_on(o, s.ctx, &with_parts, gm_rest, gm_nv, gm_tris, gm_nt,
+                                                              &s.model, &s.garment, method_label, sizeof method_label);
+        free(avatar_parts);
+        if (gr != WEFT_OK) {
+            sample_free(&s);
+            return 1;
+        }
+        simulated = s.garment != NULL;
+        method_used = simulated ? method_label : "skin";
+    } else if (dressed) {
         weft_cloth_kind kind;
         weft_cloth_resolution res;
         if (weft_cloth_kind_from_name(o->garment, &kind) != WEFT_OK || kind >= WEFT_CLOTH_SHEET) {
@@ -761,9 +957,13 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
         }
         if (!simulated) {
             method_used = "skin";
-            printf("NOTE: the garment is skinned rigidly with the body (linear blend skinning of its rest mesh); "
-                   "no cloth is simulated in this run.\n");
         }
+        gm_rest = s.cloth->positions, gm_tris = s.cloth->triangles;
+        gm_nv = s.cloth->vertex_count, gm_nt = s.cloth->triangle_count;
+    }
+    if (dressed && !simulated) {
+        printf("NOTE: the garment is skinned rigidly with the body (linear blend skinning of its rest mesh); "
+               "no cloth is simulated in this run.\n");
     }
 
     weft_render_def rdef = weft_default_render_def();
@@ -774,12 +974,11 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
         return fail_msg(&s, "weft_renderer_create");
     }
     uint32_t body_mesh = 0, cloth_mesh = 0;
-    if (weft_renderer_add_mesh(s.renderer, weft_body_rest_vertices(s.body), nv, weft_body_triangles(s.body),
-                               weft_body_triangle_count(s.body), WEFT_RENDER_SKIN, &body_mesh) != WEFT_OK) {
+    if (weft_renderer_add_mesh(s.renderer, body_rest, nv, body_tris, body_ntri, WEFT_RENDER_SKIN, &body_mesh) != WEFT_OK) {
         return fail_msg(&s, "adding the body mesh");
     }
-    if (dressed && weft_renderer_add_mesh(s.renderer, s.cloth->positions, s.cloth->vertex_count, s.cloth->triangles,
-                                          s.cloth->triangle_count, WEFT_RENDER_CLOTH, &cloth_mesh) != WEFT_OK) {
+    if (dressed && weft_renderer_add_mesh(s.renderer, gm_rest, gm_nv, gm_tris, gm_nt, WEFT_RENDER_CLOTH, &cloth_mesh) !=
+                       WEFT_OK) {
         return fail_msg(&s, "adding the garment mesh");
     }
     weft_renderer_set_ground(s.renderer, true, 0.0f);
@@ -797,9 +996,8 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
         return fail_msg(&s, "out of memory for the frame times");
     }
     if (dressed && simulated) {
-        s.skinned_verts = malloc((size_t)s.cloth->vertex_count * 3 * sizeof(float));
-        if (!s.skinned_verts || weft_wear_create(weft_body_triangles(s.body), weft_body_triangle_count(s.body), nv,
-                                                 s.cloth->vertex_count, &s.wear) != WEFT_OK) {
+        s.skinned_verts = malloc((size_t)gm_nv * 3 * sizeof(float));
+        if (!s.skinned_verts || weft_wear_create(body_tris, body_ntri, nv, gm_nv, &s.wear) != WEFT_OK) {
             return fail_msg(&s, "setting up the wear measures");
         }
     }
@@ -811,15 +1009,14 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
             return 1;
         }
         snprintf(p, sizeof p, "%s/body.obj", o->export_dir);
-        weft_result er = weft_obj_write(p, weft_body_rest_vertices(s.body), nv, weft_body_triangles(s.body),
-                                        weft_body_triangle_count(s.body));
+        weft_result er = weft_obj_write(p, body_rest, nv, body_tris, body_ntri);
         snprintf(p, sizeof p, "%s/body.pc2", o->export_dir);
         er = er != WEFT_OK ? er : weft_pc2_open(&s.pc2_body, p, nv, 0.0f);
         if (er == WEFT_OK && dressed) {
             snprintf(p, sizeof p, "%s/garment.obj", o->export_dir);
-            er = weft_obj_write(p, s.cloth->positions, s.cloth->vertex_count, s.cloth->triangles, s.cloth->triangle_count);
+            er = weft_obj_write(p, gm_rest, gm_nv, gm_tris, gm_nt);
             snprintf(p, sizeof p, "%s/garment.pc2", o->export_dir);
-            er = er != WEFT_OK ? er : weft_pc2_open(&s.pc2_cloth, p, s.cloth->vertex_count, 0.0f);
+            er = er != WEFT_OK ? er : weft_pc2_open(&s.pc2_cloth, p, gm_nv, 0.0f);
         }
         if (er != WEFT_OK) {
             return fail_msg(&s, "export");
@@ -835,16 +1032,17 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
         return fail_msg(&s, "out of memory for the contact sheet");
     }
 
+    const char *motion_name = s.character ? "its own animation" : o->motion;
     printf("avatar %u vertices; garment %s (%u vertices); motion %s; cloth method %s; %u frames at 60 Hz, %ux%u\n", nv,
-           dressed ? o->garment : "none", dressed ? s.cloth->vertex_count : 0, o->motion, method_used, o->frames, o->width,
-           o->height);
+           dressed ? o->garment : "none", gm_nv, motion_name, method_used, o->frames, o->width, o->height);
     if (s.sim_map && simulated) {
         printf("simulated at %s (%u vertices), drawn at %s through a mesh map\n", o->sim_resolution,
                s.sim_cloth->vertex_count, o->resolution);
     }
     weft_pose bind, first, pose;
     weft_body_bind_pose(s.body, &bind);
-    if (weft_sample_motion_pose(&s.motion, o->start, &first) != WEFT_OK) {
+    pose = bind;
+    if (!s.character && weft_sample_motion_pose(&s.motion, o->start, &first) != WEFT_OK) {
         return fail_msg(&s, "sampling the motion");
     }
     uint32_t settle = simulated || o->cape ? o->settle_frames : 0;
@@ -854,13 +1052,22 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
     char labels[64][48];
     for (uint32_t k = 0; k < settle + o->frames; ++k) {
         double t0 = weft__now_ms();
-        if (k < settle) {
-            weft_avatar_sample_settle_pose(&bind, &first, k, settle, &pose);
-        } else if (weft_sample_motion_pose(&s.motion, o->start + (double)(k - settle) / 60.0, &pose) != WEFT_OK) {
-            return fail_msg(&s, "sampling the motion");
-        }
-        if (weft_body_pose(s.body, &pose, s.body_verts, NULL) != WEFT_OK) {
-            return fail_msg(&s, "posing the body");
+        if (s.character) {
+            /* the character's own animation, blended from its bind pose while settling */
+            const double u = k < settle ? (double)(k + 1) / (double)settle : 1.0;
+            const double t = o->start + (k < settle ? 0.0 : (double)(k - settle) / 60.0);
+            if (weft_sample_character_pose(s.character, t, u * u * (3.0 - 2.0 * u), s.body_verts) != WEFT_OK) {
+                return fail_msg(&s, "posing the character");
+            }
+        } else {
+            if (k < settle) {
+                weft_avatar_sample_settle_pose(&bind, &first, k, settle, &pose);
+            } else if (weft_sample_motion_pose(&s.motion, o->start + (double)(k - settle) / 60.0, &pose) != WEFT_OK) {
+                return fail_msg(&s, "sampling the motion");
+            }
+            if (weft_body_pose(s.body, &pose, s.body_verts, NULL) != WEFT_OK) {
+                return fail_msg(&s, "posing the body");
+            }
         }
         double t1 = weft__now_ms();
         const float *cloth = NULL;
@@ -878,8 +1085,7 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
                 cloth = s.cloth_verts;
             }
         } else if (dressed) {
-            if (weft_body_skin_points(s.body, &pose, s.cloth->positions, s.cloth->weights, s.cloth->vertex_count,
-                                      s.cloth_verts) != WEFT_OK) {
+            if (skin_garment(&s, &pose, gm_rest, gm_nv, s.cloth_verts) != WEFT_OK) {
                 return fail_msg(&s, "skinning the garment");
             }
             cloth = s.cloth_verts;
@@ -901,7 +1107,11 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
             return fail_msg(&s, "updating the cape mesh");
         }
         float lo[3], hi[3];
-        camera_box(s.body, &pose, lo, hi);
+        if (s.character) {
+            camera_box_points(body_rest, s.body_verts, nv, lo, hi);
+        } else {
+            camera_box(s.body, &pose, lo, hi);
+        }
         if (weft_renderer_frame_box(s.renderer, lo, hi, o->yaw, o->pitch) != WEFT_OK ||
             weft_renderer_render(s.renderer) != WEFT_OK) {
             return fail_msg(&s, "rendering");
@@ -917,9 +1127,11 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
         /* tiles evenly spaced over the clip, first and last frames included */
         if (tile_next < tiles && (tiles == 1 ? frame == 0 : frame == (uint64_t)tile_next * (o->frames - 1) / (tiles - 1))) {
             memcpy(s.tiles + image_bytes * tile_next, weft_renderer_pixels(s.renderer), image_bytes);
-            const char *motion_label = strchr(o->motion, ':') ? strrchr(o->motion, '/') : NULL;
-            snprintf(labels[tile_next], sizeof labels[tile_next], "%s %s t=%.2fs", motion_label ? motion_label + 1 : o->motion,
-                     method_used, o->start + frame / 60.0);
+            const char *spec = s.character ? o->avatar : o->motion;
+            const char *motion_label = strchr(spec, ':') ? strrchr(spec, '/') : NULL;
+            snprintf(labels[tile_next], sizeof labels[tile_next], "%s %s t=%.2fs",
+                     motion_label ? motion_label + 1 : strchr(spec, ':') ? strchr(spec, ':') + 1 : spec, method_used,
+                     o->start + frame / 60.0);
             tile_next++;
         }
         sums[0] += t1 - t0;
@@ -933,8 +1145,7 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
         s.cloth_ms[frame] = t2 - t1;
         weft_wear_frame wf = {0};
         if (s.wear) {
-            if (weft_body_skin_points(s.body, &pose, s.cloth->positions, s.cloth->weights, s.cloth->vertex_count,
-                                      s.skinned_verts) != WEFT_OK ||
+            if (skin_garment(&s, &pose, gm_rest, gm_nv, s.skinned_verts) != WEFT_OK ||
                 weft_wear_measure(s.wear, s.body_verts, cloth, s.skinned_verts, off_distance, &wf) != WEFT_OK) {
                 return fail_msg(&s, "measuring the wear");
             }

@@ -34,4 +34,14 @@ weft_result weft_pc2_read(const char *path, float **out_positions, uint32_t *out
 weft_result weft_obj_write(const char *path, const float *positions, uint32_t vertex_count, const uint32_t *triangles,
                            uint32_t triangle_count);
 
+/* Reads an OBJ's vertices ("v x y z") and faces ("f a b c ...", with optional /vt/vn parts and
+ * negative, relative indices; polygons become triangle fans); other statements are ignored.
+ * *out_positions (vertex_count * 3) and *out_triangles (triangle_count * 3) are malloc'd; the
+ * caller frees them. Fails naming the file and line: WEFT_ERROR_IO (cannot open or read),
+ * WEFT_ERROR_FORMAT (a bad number, an index naming no earlier vertex, a face of fewer than 3
+ * corners, no vertices or faces, NUL bytes, lines over 4 KB, over 1 GiB, 2^24 vertices or 2^26
+ * triangles), WEFT_ERROR_NOT_FINITE (a coordinate beyond +-WEFT_MAX_COORDINATE). Nothing is
+ * returned on failure. */
+weft_result weft_obj_read(const char *path, float **out_positions, uint32_t *out_vertex_count, uint32_t **out_triangles,
+                          uint32_t *out_triangle_count);
 #endif

@@ -13,7 +13,12 @@ extern "C" {
 /* Options of the avatar sample; weft_avatar_sample_parse fills them from argv. */
 typedef struct weft_avatar_sample_options {
     const char *motion;         /* procedural motion name or "bvh:PATH" (default "walk") */
-    const char *garment;        /* tshirt | skirt | dress | none (default "tshirt") */
+    bool motion_given;          /* --motion was on the command line */
+    const char *avatar;         /* "gltf:PATH": the user's skinned character (character.h), played by its
+                                   own animation; NULL (default): weft's avatar */
+    const char *garment;        /* tshirt | skirt | dress | none | obj:PATH (a garment fitted to the
+                                   avatar's bind pose) (default "tshirt"; with `avatar`, "none") */
+    bool garment_given;         /* --garment was on the command line */
     const char *resolution;     /* garment resolution 1k | 4k | 16k | 40k (default "4k") */
     const char *sim_resolution; /* simulate this resolution of the garment and draw `resolution` from it
                                    through a weft_mesh_map; NULL (default): simulate what is drawn */
@@ -91,6 +96,22 @@ weft_result weft_sample_motion_load(weft_context *ctx, const weft_body *body, co
                                    bool verbose, weft_sample_motion *out);
 weft_result weft_sample_motion_pose(const weft_sample_motion *m, double t, weft_pose *out);
 void weft_sample_motion_free(weft_sample_motion *m);
+
+/* The collider a worn garment is made on: rest positions (the bind pose), triangles, and body
+ * parts (triangle_count ids, NULL: one part). */
+typedef struct weft_sample_collider {
+    const float *rest_positions;
+    uint32_t vertex_count;
+    const uint32_t *triangles;
+    uint32_t triangle_count;
+    const uint8_t *triangle_parts;
+} weft_sample_collider;
+/* weft_avatar_sample_garment_create on any collider and garment mesh (a user's character and OBJ). */
+weft_result weft_avatar_sample_garment_create_on(const weft_avatar_sample_options *o, weft_context *ctx,
+                                                 const weft_sample_collider *collider, const float *positions,
+                                                 uint32_t vertex_count, const uint32_t *triangles,
+                                                 uint32_t triangle_count, weft_model **out_model,
+                                                 weft_garment **out_garment, char *label, size_t label_cap);
 
 /* weft_default_garment_def() with `method`, the given cloth mesh as rest shape and the body (bind
  * pose) as collider. */
