@@ -48,6 +48,7 @@ max_len() {
         gltf) echo 16384 ;;
         npz) echo 16384 ;;
         pc2) echo 1024 ;;
+        obj) echo 4096 ;;
         *) echo 4096 ;;
     esac
 }
