@@ -457,12 +457,45 @@ static uint32_t find_node(const bvh_skel *s, const char *name)
     return BVH_NONE;
 }
 
-/* Chooses the naming family with the most matches (ties to the earlier family) and fills s->map;
- * fills the report when given. */
-static weft_result map_joints(bvh_skel *s, weft_bvh_report *report)
+/* The user's joint map: every name given must be a joint of the file. */
+static weft_result map_joints_from(bvh_skel *s, const char *const *joint_map, uint32_t *out_mapped)
+{
+    uint32_t mapped = 0;
+    for (uint32_t j = 0; j < WEFT_BODY_JOINTS; ++j) {
+        const char *name = joint_map[j];
+        if (!name || !name[0]) {
+            s->map[j] = BVH_NONE;
+            continue;
+        }
+        s->map[j] = find_node(s, bare_name(name));
+        if (s->map[j] == BVH_NONE) {
+            return weft__fail(WEFT_ERROR_FORMAT, "BVH: the joint map names '%s' for SMPL %s, but the file has no such joint",
+                              name, weft_joint_name(j));
+        }
+        mapped++;
+    }
+    if (mapped < BVH_MIN_MAPPED) {
+        char missing[512] = "";
+        size_t len = 0;
+        for (uint32_t j = 0; j < WEFT_BODY_JOINTS && len < sizeof missing; ++j) {
+            if (s->map[j] == BVH_NONE) {
+                int n = snprintf(missing + len, sizeof missing - len, "%s%s", len ? ", " : "", weft_joint_name(j));
+                len += n > 0 ? (size_t)n : 0;
+            }
+        }
+        return weft__fail(WEFT_ERROR_FORMAT, "BVH: the joint map drives %u of 24 SMPL joints (at least %u needed); "
+                          "unmapped: %s", mapped, BVH_MIN_MAPPED, missing);
+    }
+    *out_mapped = mapped;
+    return WEFT_OK;
+}
+
+/* Chooses the naming family with the most matches (ties to the earlier family), or takes the
+ * user's joint map, and fills s->map; fills the report when given. */
+static weft_result map_joints(bvh_skel *s, const char *const *joint_map, weft_bvh_report *report)
 {
     uint32_t best = 0, best_hits = 0;
-    for (uint32_t f = 0; f < BVH_FAMILIES; ++f) {
+    for (uint32_t f = 0; f < BVH_FAMILIES && !joint_map; ++f) {
         uint32_t hits = 0;
         for (uint32_t j = 0; j < WEFT_BODY_JOINTS; ++j) {
             hits += k_names[f][j] && find_node(s, k_names[f][j]) != BVH_NONE;
@@ -473,7 +506,13 @@ static weft_result map_joints(bvh_skel *s, weft_bvh_report *report)
         }
     }
     uint32_t mapped = 0;
-    for (uint32_t j = 0; j < WEFT_BODY_JOINTS; ++j) {
+    if (joint_map) {
+        weft_result r = map_joints_from(s, joint_map, &mapped);
+        if (r != WEFT_OK) {
+            return r;
+        }
+    }
+    for (uint32_t j = 0; j < WEFT_BODY_JOINTS && !joint_map; ++j) {
         s->map[j] = k_names[best][j] ? find_node(s, k_names[best][j]) : BVH_NONE;
         mapped += s->map[j] != BVH_NONE;
     }
@@ -495,7 +534,7 @@ static weft_result map_joints(bvh_skel *s, weft_bvh_report *report)
     }
     if (report) {
         memset(report, 0, sizeof *report);
-        report->naming = k_family_names[best];
+        report->naming = joint_map ? "joint map" : k_family_names[best];
         report->mapped = mapped;
         for (uint32_t j = 0; j < WEFT_BODY_JOINTS; ++j) {
             if (s->map[j] != BVH_NONE) {
@@ -510,9 +549,10 @@ static weft_result map_joints(bvh_skel *s, weft_bvh_report *report)
     for (size_t i = 0; i < sizeof required / sizeof required[0]; ++i) {
         if (s->map[required[i]] == BVH_NONE) {
             return weft__fail(WEFT_ERROR_FORMAT,
-                              "BVH: skeleton not recognised: no joint for SMPL '%s' (known namings: CMU/MotionBuilder, "
-                              "Hips/Ab/Chest/LeftCollar, SMPL)",
-                              weft_joint_name((uint32_t)required[i]));
+                              "BVH: skeleton not recognised: no joint for SMPL '%s' (%s)", weft_joint_name((uint32_t)required[i]),
+                              joint_map ? "the joint map must name one"
+                                        : "known namings: CMU/MotionBuilder, CMU/3ds Max, Hips/Ab/Chest/LeftCollar, Mixamo, "
+                                          "SMPL; or pass a joint map");
         }
     }
     /* Every mapped joint must descend from the mapped pelvis, or world deltas mean nothing. */
@@ -566,7 +606,7 @@ static weft_result retarget(weft_context *ctx, const struct aiScene *scene, cons
     if (res != WEFT_OK) {
         return res;
     }
-    res = map_joints(s, def->report);
+    res = map_joints(s, def->joint_map, def->report);
     if (res != WEFT_OK) {
         return res;
     }
@@ -888,5 +928,58 @@ weft_result weft_bvh_load_file(weft_context *context, const char *path, const we
     memcpy(clip->name, base, n);
     clip->name[n] = '\0';
     *out_clip = clip;
+    return WEFT_OK;
+}
+
+weft_result weft_bvh_read_joint_map(const char *path, weft_bvh_joint_map *out)
+{
+    if (!path || !out) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_bvh_read_joint_map: path and out are required");
+    }
+    FILE *f = fopen(path, "r");
+    if (!f) {
+        return weft__fail(WEFT_ERROR_IO, "joint map: cannot open '%s': %s", path, strerror(errno));
+    }
+    weft_bvh_joint_map map;
+    memset(&map, 0, sizeof map);
+    char line[512];
+    weft_result r = WEFT_OK;
+    for (size_t number = 1; r == WEFT_OK && fgets(line, sizeof line, f); ++number) {
+        line[strcspn(line, "#\r\n")] = '\0';
+        char smpl[128], source[128], extra[2];
+        int fields = sscanf(line, "%127s %127s %1s", smpl, source, extra);
+        if (fields <= 0) {
+            continue; /* blank or comment */
+        }
+        if (fields != 2) {
+            r = weft__fail(WEFT_ERROR_FORMAT, "joint map '%s' line %zu: expected 'smpl_joint source_joint'", path, number);
+            break;
+        }
+        uint32_t j = 0;
+        while (j < WEFT_BODY_JOINTS && strcmp(weft_joint_name(j), smpl) != 0) {
+            j++;
+        }
+        if (j == WEFT_BODY_JOINTS) {
+            r = weft__fail(WEFT_ERROR_FORMAT, "joint map '%s' line %zu: '%s' is not an SMPL joint (pelvis, left_hip, ..., "
+                           "right_hand)", path, number, smpl);
+        } else if (map.names[j][0]) {
+            r = weft__fail(WEFT_ERROR_FORMAT, "joint map '%s' line %zu: SMPL joint %s is mapped twice", path, number, smpl);
+        } else if (strlen(source) >= sizeof map.names[j]) {
+            r = weft__fail(WEFT_ERROR_FORMAT, "joint map '%s' line %zu: joint name longer than 63 characters", path, number);
+        } else {
+            snprintf(map.names[j], sizeof map.names[j], "%s", source);
+        }
+    }
+    if (r == WEFT_OK && ferror(f)) {
+        r = weft__fail(WEFT_ERROR_IO, "joint map: reading '%s' failed (is it a folder?)", path);
+    }
+    fclose(f);
+    if (r != WEFT_OK) {
+        return r;
+    }
+    memcpy(out->names, map.names, sizeof map.names);
+    for (uint32_t j = 0; j < WEFT_BODY_JOINTS; ++j) {
+        out->entries[j] = out->names[j];
+    }
     return WEFT_OK;
 }

@@ -15,7 +15,8 @@
  * many mocap exports (Hips, Ab, Chest, LeftCollar, LeftShoulder = upper arm, LeftElbow,
  * LeftWrist, LeftHip, LeftKnee, LeftAnkle, LeftToes), Mixamo (mixamorig:Hips, LeftUpLeg, Spine,
  * Spine1, Spine2, ...; a namespace prefix before ':' is ignored), and SMPL's own names (pelvis,
- * left_hip, ... or Pelvis, L_Hip, ...). The naming with the most joints found is used; a
+ * left_hip, ... or Pelvis, L_Hip, ...), or any skeleton through a joint map (def.joint_map,
+ * weft_bvh_read_joint_map). The naming with the most joints found is used; a
  * skeleton where it finds fewer than 21 of the 24 SMPL joints is refused with the missing joints
  * named (a partial match never passes silently), and def.report says what drove what. Source joints with no SMPL counterpart (CMU's LHipJoint, Neck1,
  * fingers) fold into their parents; SMPL joints with no source joint keep a zero local rotation.
@@ -62,10 +63,28 @@ typedef struct weft_bvh_def {
     uint32_t max_frames;        /* at most this many source frames; 0 = all */
     bool keep_horizontal_origin;/* keep the source's X/Z position instead of starting at 0 */
     weft_bvh_report *report;    /* optional output: the joint mapping of a successful load */
+    /* A joint map instead of the naming tables: the source joint driving each SMPL joint, 24
+     * entries in SMPL order (NULL or "" = none), e.g. from weft_bvh_read_joint_map. Each name
+     * must be a joint of the file (matched like the tables: a namespace prefix before ':' is
+     * ignored), or the load fails naming it; the same 21-of-24 and required-joint rules apply.
+     * NULL (default): the naming tables. */
+    const char *const *joint_map;
     uint32_t internal_cookie;
 } weft_bvh_def;
 
 weft_bvh_def weft_default_bvh_def(void);
+
+/* A joint-name map file: one "smpl_joint source_joint" pair a line (SMPL names as
+ * weft_joint_name gives them, e.g. "left_elbow LowerArm.L"; '#' starts a comment). Fills
+ * out->names (SMPL order, "" when the file maps nothing to that joint) and out->entries (for
+ * weft_bvh_def.joint_map). Fails with WEFT_ERROR_IO (unreadable) or WEFT_ERROR_FORMAT naming
+ * the line: an unknown SMPL joint, one mapped twice, a missing or extra field, a name over 63
+ * characters; out is untouched on failure. */
+typedef struct weft_bvh_joint_map {
+    char names[WEFT_BODY_JOINTS][64];
+    const char *entries[WEFT_BODY_JOINTS];
+} weft_bvh_joint_map;
+weft_result weft_bvh_read_joint_map(const char *path, weft_bvh_joint_map *out);
 
 /* Reads and retargets a BVH file, plain or gzip-compressed (at most 256 MiB either way). */
 weft_result weft_bvh_load_file(weft_context *context, const char *path, const weft_bvh_def *def, weft_clip **out_clip);

@@ -63,6 +63,8 @@ void weft_avatar_sample_usage(FILE *out, const char *program)
             "                          idle walk run jump dance arm_raise flip, a clip of the CMU library by\n"
             "                          name (samples/mocap/clips.csv, e.g. mocap:walk_cmu07_01), a BVH file\n"
             "                          (plain or .gz), or a skinned glTF/FBX with SMPL joint names (default walk)\n"
+            "  --joint-map FILE        with bvh:PATH, the file's joint for each SMPL joint, one 'smpl_joint\n"
+            "                          source_joint' a line, for skeletons no naming table knows (docs/RENDER.md)\n"
             "  --avatar gltf:PATH      your own skinned character (glTF/FBX, any joint names, metres, Y up) as the\n"
             "                          collider, played by its own animation (--start, --frames); garments then come\n"
             "                          from --garment obj:PATH (docs/RENDER.md, Your own character)\n"
@@ -192,7 +194,7 @@ int weft_avatar_sample_parse(int argc, char **argv, int first, weft_avatar_sampl
             }
             ok = weft_avatar_sample_crowd_option(a, v, o);
         } else if (!v) {
-            static const char *const valued[] = {"--motion", "--avatar", "--garment", "--resolution", "--method", "--model",
+            static const char *const valued[] = {"--motion", "--joint-map", "--avatar", "--garment", "--resolution", "--method", "--model",
                                                  "--sim-resolution",
                                                  "--precision", "--tether-cm", "--strain-limit", "--push-cm",
                                                  "--body-parts", "--ccd", "--export",
@@ -208,6 +210,8 @@ int weft_avatar_sample_parse(int argc, char **argv, int first, weft_avatar_sampl
         } else if (strcmp(a, "--motion") == 0) {
             o->motion = v;
             o->motion_given = true;
+        } else if (strcmp(a, "--joint-map") == 0) {
+            o->joint_map = v;
         } else if (strcmp(a, "--avatar") == 0) {
             o->avatar = v;
             ok = strncmp(v, "gltf:", 5) == 0 && v[5] != '\0';
@@ -423,7 +427,16 @@ weft_result weft_sample_motion_path(const char *spec, char *out_path, size_t siz
 weft_result weft_sample_motion_load(weft_context *ctx, const weft_body *body, const char *spec, float speed,
                                    bool verbose, weft_sample_motion *out)
 {
+    return weft_sample_motion_load_mapped(ctx, body, spec, NULL, speed, verbose, out);
+}
+
+weft_result weft_sample_motion_load_mapped(weft_context *ctx, const weft_body *body, const char *spec,
+                                          const char *joint_map, float speed, bool verbose, weft_sample_motion *out)
+{
     memset(out, 0, sizeof *out);
+    if (joint_map && strncmp(spec, "bvh:", 4) != 0) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "a joint map goes with a bvh:PATH motion, not '%s'", spec);
+    }
     if (strncmp(spec, "bvh:", 4) == 0 || strncmp(spec, "mocap:", 6) == 0) {
 #if WEFT_RENDER_HAVE_ASSETS
         weft_bvh_def def = weft_default_bvh_def();
@@ -431,7 +444,10 @@ weft_result weft_sample_motion_load(weft_context *ctx, const weft_body *body, co
         char path[1024];
         weft_bvh_report rep;
         def.report = &rep;
-        weft_result r = weft_sample_motion_path(spec, path, sizeof path);
+        weft_bvh_joint_map map;
+        weft_result r = joint_map ? weft_bvh_read_joint_map(joint_map, &map) : WEFT_OK;
+        def.joint_map = joint_map ? map.entries : NULL;
+        r = r != WEFT_OK ? r : weft_sample_motion_path(spec, path, sizeof path);
         r = r != WEFT_OK ? r : weft_bvh_load_file(ctx, path, &def, &out->clip);
         if (r == WEFT_OK && verbose) {
             printf("motion %s: %s joint names, %u of 24 SMPL joints driven by the clip\n", spec, rep.naming, rep.mapped);
@@ -821,7 +837,8 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
         printf("character %s: %u vertices, %u joints, %u body parts, %u frames of animation (%.2f s)\n", o->avatar + 5,
                weft_sample_character_vertex_count(s.character), weft_sample_character_joint_count(s.character), parts,
                weft_sample_character_frame_count(s.character), weft_sample_character_duration(s.character));
-    } else if (weft_sample_motion_load(s.ctx, s.body, o->motion, o->speed, true, &s.motion) != WEFT_OK) {
+    } else if (weft_sample_motion_load_mapped(s.ctx, s.body, o->motion, o->joint_map, o->speed, true, &s.motion) !=
+               WEFT_OK) {
         fprintf(stderr, "avatar_render: motion '%s': %s\n", o->motion, weft_last_error());
         sample_free(&s);
         return 2;

@@ -14,6 +14,8 @@ extern "C" {
 typedef struct weft_avatar_sample_options {
     const char *motion;         /* procedural motion name or "bvh:PATH" (default "walk") */
     bool motion_given;          /* --motion was on the command line */
+    const char *joint_map;      /* with a bvh:PATH motion: a joint map file (weft_bvh_read_joint_map);
+                                   NULL (default): the naming tables */
     const char *avatar;         /* "gltf:PATH": the user's skinned character (character.h), played by its
                                    own animation; NULL (default): weft's avatar */
     const char *garment;        /* tshirt | skirt | dress | none | obj:PATH (a garment fitted to the
@@ -94,6 +96,9 @@ typedef struct weft_sample_motion {
 } weft_sample_motion;
 weft_result weft_sample_motion_load(weft_context *ctx, const weft_body *body, const char *spec, float speed,
                                    bool verbose, weft_sample_motion *out);
+/* The same with a joint map file for a bvh:PATH motion (NULL: the naming tables). */
+weft_result weft_sample_motion_load_mapped(weft_context *ctx, const weft_body *body, const char *spec,
+                                          const char *joint_map, float speed, bool verbose, weft_sample_motion *out);
 weft_result weft_sample_motion_pose(const weft_sample_motion *m, double t, weft_pose *out);
 void weft_sample_motion_free(weft_sample_motion *m);
 

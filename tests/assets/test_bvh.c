@@ -1085,6 +1085,95 @@ static void test_unknown_skeleton_names_the_missing(void)
     free(text);
 }
 
+/* A skeleton no naming table knows (every joint renamed to a rig's own names) retargets through
+ * a joint map file exactly as its MotionBuilder original does through the tables; map files
+ * with mistakes are refused naming the line or the joint. */
+static void test_joint_map_file(void)
+{
+    static const char *const rig[][2] = {
+        {"Hips", "root_jnt"},         {"LeftUpLeg", "thigh.L"},       {"RightUpLeg", "thigh.R"},
+        {"LowerBack", "spine_01"},    {"LeftLeg", "shin.L"},          {"RightLeg", "shin.R"},
+        {"Spine", "spine_02"},        {"LeftFoot", "foot.L"},         {"RightFoot", "foot.R"},
+        {"Spine1", "spine_03"},       {"LeftToeBase", "toe.L"},       {"RightToeBase", "toe.R"},
+        {"Neck", "neck_01"},          {"LeftShoulder", "clavicle.L"}, {"RightShoulder", "clavicle.R"},
+        {"Head", "head_jnt"},         {"LeftArm", "upper_arm.L"},     {"RightArm", "upper_arm.R"},
+        {"LeftForeArm", "forearm.L"}, {"RightForeArm", "forearm.R"},  {"LeftHand", "hand.L"},
+        {"RightHand", "hand.R"},      {"LeftFingerBase", "palm.L"},   {"RightFingerBase", "palm.R"}};
+    const char *path = MOCAP_DIR "gesture_cmu02_10_b.bvh.gz";
+    weft_bvh_def def = weft_default_bvh_def();
+    weft_clip *ref = NULL;
+    CHECK_RESULT(weft_bvh_load_file(g_ctx, path, &def, &ref), WEFT_OK);
+    size_t len = 0;
+    char *text = renamed_clip(path, rig, sizeof rig / sizeof rig[0], "", &len);
+    CHECK(text != NULL);
+    /* the tables alone do not know it */
+    weft_clip *clip = NULL;
+    CHECK_RESULT(weft_bvh_load_memory(g_ctx, text, len, &def, &clip), WEFT_ERROR_FORMAT);
+    CHECK(strstr(weft_last_error(), "or pass a joint map") != NULL || strstr(weft_last_error(), "of 24") != NULL);
+    const char *map_path = WEFT_BINARY_DIR "/tests/rig_joint_map.txt";
+    FILE *f = fopen(map_path, "w");
+    CHECK(f != NULL);
+    if (f) {
+        fprintf(f, "# SMPL joint   rig joint\n\n");
+        for (uint32_t j = 0; j < WEFT_BODY_JOINTS; ++j) {
+            fprintf(f, "%s\t%s   # %u\n", weft_joint_name(j), rig[j][1], j);
+        }
+        fclose(f);
+    }
+    weft_bvh_joint_map map;
+    CHECK_RESULT(weft_bvh_read_joint_map(map_path, &map), WEFT_OK);
+    CHECK(strcmp(map.entries[WEFT_JOINT_LEFT_ELBOW], "forearm.L") == 0);
+    weft_bvh_report rep;
+    def.report = &rep;
+    def.joint_map = map.entries;
+    CHECK_RESULT(weft_bvh_load_memory(g_ctx, text, len, &def, &clip), WEFT_OK);
+    if (clip && ref) {
+        CHECK(strcmp(rep.naming, "joint map") == 0 && rep.mapped == 24);
+        CHECK(strcmp(rep.source[WEFT_JOINT_SPINE1], "spine_01") == 0);
+        CHECK_EQ_INT(clip->frame_count, ref->frame_count);
+        double worst = 0.0;
+        for (size_t k = 0; clip->frame_count == ref->frame_count && k < (size_t)ref->frame_count * 72; ++k) {
+            worst = fmax(worst, fabs((double)clip->rotations[k] - ref->rotations[k]));
+        }
+        CHECK_MSG(worst < 1e-6, "joint map: rotations differ by %g rad", worst);
+        CHECK(memcmp(clip->translations, ref->translations, (size_t)ref->frame_count * 3 * sizeof(float)) == 0);
+    }
+    weft_clip_destroy(clip);
+    clip = (weft_clip *)(uintptr_t)1;
+    /* a map naming a joint the file lacks */
+    map.entries[WEFT_JOINT_LEFT_KNEE] = "knee_left";
+    CHECK_RESULT(weft_bvh_load_memory(g_ctx, text, len, &def, &clip), WEFT_ERROR_FORMAT);
+    CHECK(clip == (weft_clip *)(uintptr_t)1);
+    CHECK_MSG(strstr(weft_last_error(), "'knee_left'") && strstr(weft_last_error(), "left_knee"), "%s", weft_last_error());
+    /* too few joints: the legs left out */
+    map.entries[WEFT_JOINT_LEFT_KNEE] = "";
+    map.entries[WEFT_JOINT_RIGHT_KNEE] = NULL;
+    map.entries[WEFT_JOINT_LEFT_ANKLE] = "";
+    map.entries[WEFT_JOINT_RIGHT_ANKLE] = "";
+    CHECK_RESULT(weft_bvh_load_memory(g_ctx, text, len, &def, &clip), WEFT_ERROR_FORMAT);
+    CHECK_MSG(strstr(weft_last_error(), "20 of 24") && strstr(weft_last_error(), "right_knee"), "%s", weft_last_error());
+    /* map files with mistakes */
+    static const char *const bad[][2] = {{"left_hip thigh.L\nleft_elbo forearm.L\n", "line 2"},
+                                         {"left_hip thigh.L\nleft_hip thigh.R\n", "mapped twice"},
+                                         {"left_hip\n", "line 1"},
+                                         {"left_hip thigh.L extra\n", "line 1"}};
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; ++i) {
+        f = fopen(map_path, "w");
+        if (f) {
+            fputs(bad[i][0], f);
+            fclose(f);
+        }
+        weft_bvh_joint_map untouched;
+        memset(&untouched, 0x5a, sizeof untouched);
+        CHECK_RESULT(weft_bvh_read_joint_map(map_path, &untouched), WEFT_ERROR_FORMAT);
+        CHECK_MSG(strstr(weft_last_error(), bad[i][1]) != NULL, "case %zu: %s", i, weft_last_error());
+        CHECK(((unsigned char *)&untouched)[0] == 0x5a);
+    }
+    CHECK_RESULT(weft_bvh_read_joint_map(WEFT_BINARY_DIR "/tests/no_such_map.txt", &map), WEFT_ERROR_IO);
+    free(text);
+    weft_clip_destroy(ref);
+}
+
 /* A directory is refused by name, not reported as a huge file. */
 static void test_bvh_path_is_a_directory(void)
 {
@@ -1107,6 +1196,6 @@ static void teardown(void) { weft_context_destroy(g_ctx); }
 TEST_MAIN(TEST_CASE(setup), TEST_CASE(test_synthetic_exact), TEST_CASE(test_rest_correction), TEST_CASE(test_translation_scale), TEST_CASE(test_cmu_01_01),
           TEST_CASE(test_cmu_01_03), TEST_CASE(test_boxing_toes), TEST_CASE(test_cmu_on_avatar), TEST_CASE(test_bad_input), TEST_CASE(test_fuzz_synthetic),
           TEST_CASE(test_fuzz_cmu), TEST_CASE(test_mocap_gz_equals_plain), TEST_CASE(test_mocap_test_split_loads),
-          TEST_CASE(test_bvh_path_is_a_directory), TEST_CASE(test_namings_retarget_identically),
+          TEST_CASE(test_bvh_path_is_a_directory), TEST_CASE(test_namings_retarget_identically), TEST_CASE(test_joint_map_file),
           TEST_CASE(test_unknown_skeleton_names_the_missing), TEST_CASE(test_joint_angles_match_the_file),
           TEST_CASE(teardown))

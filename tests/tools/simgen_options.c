@@ -233,6 +233,24 @@ static void mocap_windows_of_library_clips(void)
     CHECK_EQ_INT(tool_run_err(missing, NULL, err), 1);
     tool_slurp(err, text, sizeof text);
     CHECK_MSG(strstr(text, "--bvh /nonexistent/clip.bvh") != NULL, "%s", text);
+    /* --joint-map: the clip through a map file; a map naming a joint the file lacks fails naming
+     * it; a map without --bvh is a usage error */
+    char map[1200], bad_map[1200];
+    snprintf(map, sizeof map, "%s/samples/data/joint_map_cmu.txt", WEFT_SOURCE_DIR);
+    snprintf(bad_map, sizeof bad_map, "%s/bad_joint_map.txt", g_out);
+    FILE *f = fopen(bad_map, "w");
+    if (f) {
+        fputs("pelvis Hips\nleft_knee NoSuchKnee\n", f);
+        fclose(f);
+    }
+    const char *mapped[] = {g_exe, "simgen", "--out", dir, "--bvh", bvh, "--joint-map", map, "--manifest-only", NULL};
+    CHECK_EQ_INT(tool_run_err(mapped, NULL, err), 0);
+    const char *bad_mapped[] = {g_exe, "simgen", "--out", dir, "--bvh", bvh, "--joint-map", bad_map, "--manifest-only", NULL};
+    CHECK_EQ_INT(tool_run_err(bad_mapped, NULL, err), 1);
+    tool_slurp(err, text, sizeof text);
+    CHECK_MSG(strstr(text, "'NoSuchKnee'") != NULL && strstr(text, "left_knee") != NULL, "%s", text);
+    const char *no_bvh[] = {g_exe, "simgen", "--out", dir, "--mocap", "test", "--joint-map", map, NULL};
+    CHECK_EQ_INT(tool_run(no_bvh, NULL), 2);
 }
 
 static void bad_plan_options_fail(void)

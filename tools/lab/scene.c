@@ -907,6 +907,7 @@ static weft_result load_clip(weft_context *ctx, xscene *sc, const weft_sim_seque
 {
     weft_bvh_def bd = weft_default_bvh_def();
     bd.rest_joints = weft_body_rest_joints(sc->body);
+    bd.joint_map = def->motion_joint_map;
     weft_result res = weft_bvh_load_file(ctx, def->motion_path, &bd, &sc->clip);
     if (res != WEFT_OK) {
         return res;

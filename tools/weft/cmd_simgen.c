@@ -342,8 +342,8 @@ static int plan_windows(const mocap_clip *list, uint32_t nc, uint32_t frames, ui
 
 /* --bvh PATH: one clip of the user's, windowed like a library train clip; its length from the
  * file itself. */
-static int bvh_plan(const char *path, uint32_t frames, uint32_t vertices, plan_item **plan, uint32_t *n,
-                    uint32_t *cap)
+static int bvh_plan(const char *path, const char *const *joint_map, uint32_t frames, uint32_t vertices, plan_item **plan,
+                    uint32_t *n, uint32_t *cap)
 {
     mocap_clip c = {0};
     const char *base = strrchr(path, '/');
@@ -360,6 +360,7 @@ static int bvh_plan(const char *path, uint32_t frames, uint32_t vertices, plan_i
     weft_context *ctx = NULL;
     weft_clip *clip = NULL;
     weft_bvh_def bd = weft_default_bvh_def();
+    bd.joint_map = joint_map;
     weft_result r = weft_context_create(&cd, &ctx);
     r = r != WEFT_OK ? r : weft_bvh_load_file(ctx, path, &bd, &clip);
     if (r != WEFT_OK) {
@@ -511,6 +512,8 @@ static void usage(FILE *f)
             "  --clips A,B      only these clips (names as in clips.csv)\n"
             "  --bvh PATH       the same windows of one BVH file of yours (plain or .gz, any skeleton\n"
             "                   weft_bvh_load_file maps), named mocap_<file stem>_..., train or val by name\n"
+            "  --joint-map FILE with --bvh: the file's joint for each SMPL joint, one 'smpl_joint source_joint'\n"
+            "                   a line (a skeleton no naming table knows; docs/RENDER.md, BVH import)\n"
             "  --mocap-dir DIR  the library (default $WEFT_MOCAP_DIR, else samples/mocap)\n");
     fprintf(f,
             "  --all            the whole planned set: per scenario (drop, gripper, garment) 150 x 1k,\n"
@@ -600,6 +603,8 @@ int weft_cmd_simgen(int argc, char **argv)
 {
     const char *out = NULL, *scenario = NULL, *tier = NULL, *split = NULL, *only = NULL, *like = NULL;
     const char *mocap = NULL, *mocap_clips = NULL, *bvh = NULL, *mocap_dir = getenv("WEFT_MOCAP_DIR");
+    weft_bvh_joint_map joint_map;
+    bool joint_map_given = false;
     if (!mocap_dir || !mocap_dir[0]) {
         mocap_dir = "samples/mocap";
     }
@@ -634,6 +639,13 @@ int weft_cmd_simgen(int argc, char **argv)
             mocap = argv[++i];
         } else if (v && strcmp(a, "--bvh") == 0) {
             bvh = argv[++i];
+        } else if (v && strcmp(a, "--joint-map") == 0) {
+            if (weft_bvh_read_joint_map(v, &joint_map) != WEFT_OK) {
+                fprintf(stderr, "simgen: --joint-map: %s\n", weft_last_error());
+                return 2;
+            }
+            joint_map_given = true;
+            ++i;
         } else if (v && strcmp(a, "--clips") == 0) {
             mocap_clips = argv[++i];
         } else if (v && strcmp(a, "--mocap-dir") == 0) {
@@ -772,6 +784,10 @@ int weft_cmd_simgen(int argc, char **argv)
         fprintf(stderr, "simgen: --only wants drop, gripper or garment, got '%s'\n", only);
         return 2;
     }
+    if (joint_map_given && !bvh) {
+        fprintf(stderr, "simgen: --joint-map goes with --bvh (the library's clips use CMU names)\n");
+        return 2;
+    }
     if (like && (all || scenario || mocap || bvh)) {
         fprintf(stderr, "simgen: --like makes one sequence; leave out --all, --scenario, --mocap and --bvh\n");
         return 2;
@@ -848,7 +864,7 @@ int weft_cmd_simgen(int argc, char **argv)
         }
     }
     if ((mocap && mocap_plan(mocap_dir, mocap, mocap_clips, frames, vertices, &plan, &n, &cap) < 0) ||
-        (bvh && bvh_plan(bvh, frames, vertices, &plan, &n, &cap) < 0)) {
+        (bvh && bvh_plan(bvh, joint_map_given ? joint_map.entries : NULL, frames, vertices, &plan, &n, &cap) < 0)) {
         free(plan);
         return 1;
     }
@@ -935,6 +951,7 @@ int weft_cmd_simgen(int argc, char **argv)
             def.seed = plan[i].seed ? plan[i].seed : seq_seed(seed0, resolution_series ? scene : plan[i].name);
             def.frames = plan[i].frames ? plan[i].frames : frames;
             def.motion_path = plan[i].motion[0] ? plan[i].motion : NULL;
+            def.motion_joint_map = bvh && joint_map_given ? joint_map.entries : NULL;
             def.motion_start_s = plan[i].start_s;
             def.split = plan[i].split;
             def.substeps = substeps;

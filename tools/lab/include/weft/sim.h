@@ -137,6 +137,9 @@ typedef struct weft_sim_sequence_def {
      * start (docs/REFSIM.md, Real motion). Past the clip's end the last pose holds. NULL
      * (default): a procedural motion drawn from the seed. */
     const char *motion_path;
+    /* With motion_path: its joint for each SMPL joint (weft_bvh_def.joint_map; 24 entries); NULL
+     * (default): the naming tables. */
+    const char *const *motion_joint_map;
     double motion_start_s;        /* seconds into the clip, >= 0 and before its end (default 0) */
     /* "train", "val" or "test" written into meta.json (the mocap library's split of the clip);
      * NULL (default): none, the split is the name's hash (weft_sim_split_of). */
