@@ -8,6 +8,11 @@ install(TARGETS weft_static weft_shared EXPORT weftTargets
         LIBRARY DESTINATION ${CMAKE_INSTALL_LIBDIR}
         RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR}
         INCLUDES DESTINATION ${CMAKE_INSTALL_INCLUDEDIR})
+# weft_assets (include/weft/motion.h): motion and character import, with its own pkg-config
+# file, since it brings assimp, minizip and zlib along.
+if(TARGET weft_assets)
+  install(TARGETS weft_assets EXPORT weftTargets ARCHIVE DESTINATION ${CMAKE_INSTALL_LIBDIR})
+endif()
 if(TARGET weft_cli)
   install(TARGETS weft_cli RUNTIME DESTINATION ${CMAKE_INSTALL_BINDIR})
 endif()
@@ -24,3 +29,7 @@ install(FILES ${CMAKE_BINARY_DIR}/weftConfig.cmake ${CMAKE_BINARY_DIR}/weftConfi
 file(RELATIVE_PATH WEFT_PC_TO_PREFIX "/prefix/${CMAKE_INSTALL_LIBDIR}/pkgconfig" "/prefix")
 configure_file(${PROJECT_SOURCE_DIR}/cmake/weft.pc.in ${CMAKE_BINARY_DIR}/weft.pc @ONLY)
 install(FILES ${CMAKE_BINARY_DIR}/weft.pc DESTINATION ${CMAKE_INSTALL_LIBDIR}/pkgconfig)
+if(TARGET weft_assets)
+  configure_file(${PROJECT_SOURCE_DIR}/cmake/weft-assets.pc.in ${CMAKE_BINARY_DIR}/weft-assets.pc @ONLY)
+  install(FILES ${CMAKE_BINARY_DIR}/weft-assets.pc DESTINATION ${CMAKE_INSTALL_LIBDIR}/pkgconfig)
+endif()

@@ -6,6 +6,7 @@
 
 #include "weft.h"
 #include "weft/body.h"
+#include "weft/motion.h"
 
 #define WEFT_NPY_MAX_DIMS 8
 
@@ -56,12 +57,7 @@ weft_result weft_npy_to_f32(const weft_npy_array *array, float *out, uint64_t co
 /* Integer (or integral float) array to int64 in C order. */
 weft_result weft_npy_to_i64(const weft_npy_array *array, int64_t *out, uint64_t count);
 
-/* Loads an SMPL-format model: v_template (V,3), f (F,3), weights (V,24), J_regressor dense
- * (24,V) or sparse (J_regressor_data / _indices / _indptr / _shape, CSR or CSC as scipy
- * stores them), kintree_table (2,24), optional shapedirs (V,3,B) and posedirs (V,3,207).
- * Any dtype weft_npy_dtype lists, either storage order. */
-weft_result weft_smpl_load_npz_file(weft_context *context, const char *path, weft_body **out_body);
-weft_result weft_smpl_load_npz_memory(weft_context *context, const void *bytes, size_t size, weft_body **out_body);
+/* weft_smpl_load_npz_file / _memory: include/weft/motion.h. */
 /* Same, from an archive already read. */
 weft_result weft_smpl_body_from_npz(weft_context *context, const weft_npz *npz, weft_body **out_body);
 
