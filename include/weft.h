@@ -271,6 +271,8 @@ typedef struct weft_strain_limit_def {
  *   nearest collider point, and the parts meeting those at a collider vertex): where a skinned
  *   body overlaps itself the cloth between is claimed by one part, not trapped. The push, the
  *   contact-aware strain limit, both XPBD methods and CCD all skip the other parts.
+ * ground: the plane y = ground_height as a floor, so that a garment that falls off (or a sheet
+ *   dropped without a collider) comes to rest on it.
  * cut_distance: a collider vertex that moved farther than this since the last frame (a teleport,
  *   a respawn, a cut in the animation) makes the step a cut: the garment is reset to its skinned
  *   positions on the collider of t+1, at rest, pins at their targets, the method's history
@@ -289,6 +291,11 @@ typedef struct weft_collision_def {
                                          * joint meets the next part); false: only the parts within
                                          * part_margin (the reference on real motion: torso cloth
                                          * under an arm that sinks into the chest is not squeezed) */
+    bool ground;                        /* a floor (default false): vertices below y = ground_height at
+                                         * t+1 go onto it and keep their x, z of t (no sliding); it
+                                         * needs no collider and has the last word before CCD */
+    float ground_height;                /* metres; default 0 (weft's avatar stands on y = 0);
+                                         * within +-WEFT_MAX_COORDINATE */
 } weft_collision_def;
 
 /* The CCD post-process (the seed's safety net): the cloth's motion x(t) -> x(t+1) against the
@@ -380,6 +387,7 @@ typedef struct weft_step_stats {
                                          * the result of the stages before CCD, not certified
                                          * (docs/CCD.md, *Work bound*) */
     bool collider_cut;                  /* the last step was a cut (collision.cut_distance) */
+    uint32_t ground_vertices;           /* vertices the floor (collision.ground) held in the last step */
 } weft_step_stats;
 
 WEFT_API weft_garment_def weft_default_garment_def(void);
@@ -409,6 +417,49 @@ WEFT_API weft_result weft_garment_set_collider_current(weft_garment *garment, co
  * first and then set the pinned vertices to their targets. count 0 clears the pins. */
 WEFT_API weft_result weft_garment_set_pins(weft_garment *garment, const uint32_t *vertex_indices,
                                            const float *target_positions, uint32_t count);
+
+/* Surface pins: garment vertices carried by the collider's surface, e.g. a skirt's or dress's
+ * waistband on the hips, so that a method that holds nothing up (XPBD) keeps the garment on.
+ * Each point is bound at creation to its nearest collider triangle at rest (the barycentric foot
+ * point and the offset in the triangle's edge/bitangent/normal frame); each frame
+ * weft_surface_pins_targets gives it on the posed collider, for weft_garment_set_pins:
+ *
+ *   uint32_t idx[512];
+ *   uint32_t n = weft_mesh_top_ring(skirt_rest, skirt_vertices, 0.012f, idx, 512);
+ *   ... def.rest_points = the rest positions of those vertices, def.vertex_indices = idx ...
+ *   weft_surface_pins_create(ctx, &def, &band);
+ *   each frame: weft_surface_pins_targets(band, body_next, targets);
+ *               weft_garment_set_pins(garment, weft_surface_pins_indices(band), targets, n);
+ *
+ * Creation costs count x collider triangles closest-point tests; targets allocate nothing. */
+typedef struct weft_surface_pins weft_surface_pins;
+typedef struct weft_surface_pins_def {
+    const float *collider_rest_positions;   /* collider_vertex_count * 3, the pose the points are placed in */
+    uint32_t collider_vertex_count;
+    const uint32_t *collider_triangles;     /* collider_triangle_count * 3 */
+    uint32_t collider_triangle_count;
+    const float *rest_points;               /* count * 3: the pinned vertices at rest */
+    const uint32_t *vertex_indices;         /* count: which garment vertices they are (copied) */
+    uint32_t count;
+    uint32_t internal_cookie;
+} weft_surface_pins_def;
+
+WEFT_API weft_surface_pins_def weft_default_surface_pins_def(void);
+/* Fails naming the problem (missing arrays, a triangle naming a missing vertex, a non-finite
+ * point or collider, only degenerate triangles); nothing is made then. */
+WEFT_API weft_result weft_surface_pins_create(weft_context *context, const weft_surface_pins_def *def,
+                                              weft_surface_pins **out_pins);
+WEFT_API void weft_surface_pins_destroy(weft_surface_pins *pins);
+/* The targets on the collider posed at `collider_positions` (collider_vertex_count * 3), count * 3. */
+WEFT_API weft_result weft_surface_pins_targets(const weft_surface_pins *pins, const float *collider_positions,
+                                               float *out_targets);
+WEFT_API uint32_t weft_surface_pins_count(const weft_surface_pins *pins);
+WEFT_API const uint32_t *weft_surface_pins_indices(const weft_surface_pins *pins);
+/* A garment's top ring: the vertices whose rest height (y) is within `band` metres of its highest
+ * vertex (a skirt's or dress's waistband; 0.012 for weft's wardrobe garments). Writes up to
+ * `capacity` indices (out_indices may be NULL to count) and returns how many there are. */
+WEFT_API uint32_t weft_mesh_top_ring(const float *positions, uint32_t vertex_count, float band, uint32_t *out_indices,
+                                     uint32_t capacity);
 
 /* Advances one frame. Needs set_collider() for this frame when the garment has a collider.
  * On failure the state is unchanged. */

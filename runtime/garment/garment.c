@@ -222,6 +222,11 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
                           "weft_garment_create: collision.push_depth %g is not in [0, 0.5] metres",
                           (double)def->collision.push_depth);
     }
+    if (def->collision.ground && !(fabsf(def->collision.ground_height) <= WEFT_MAX_COORDINATE)) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
+                          "weft_garment_create: collision.ground_height %g is not finite or beyond %g m",
+                          (double)def->collision.ground_height, (double)WEFT_MAX_COORDINATE);
+    }
     if (def->collision.push > 0.0f && def->collider_vertex_count == 0) {
         return weft__fail(WEFT_ERROR_NO_COLLIDER,
                           "weft_garment_create: collision.push pushes cloth out of the collider, and the garment has none");
@@ -304,6 +309,8 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
     g->strain_iterations = def->strain.iterations;
     g->strain_contact = def->strain.limit > 0.0f ? def->strain.contact : 0.0f;
     g->push_thickness = def->collision.push;
+    g->ground = def->collision.ground;
+    g->ground_height = def->collision.ground_height;
     g->push_depth = def->collision.push_depth;
     g->vertex_count = def->vertex_count;
     g->triangle_count = def->triangle_count;
@@ -508,6 +515,26 @@ static uint32_t clamp_tethers(weft_garment *g)
     return clamped;
 }
 
+/* The floor: vertices below it go onto it at their x, z of t (static friction); pinned vertices
+ * go back to their targets. Linear in the vertices and pins. */
+static uint32_t hold_on_ground(weft_garment *g)
+{
+    uint32_t held = 0;
+    const float h = g->ground_height;
+    for (uint32_t i = 0; i < g->vertex_count; ++i) {
+        float *x = g->x_next + 3 * (size_t)i;
+        if (x[1] < h) {
+            const float *was = g->x + 3 * (size_t)i;
+            x[0] = was[0], x[1] = h, x[2] = was[2];
+            held++;
+        }
+    }
+    for (uint32_t k = 0; held > 0 && k < g->pin_count; ++k) {
+        memcpy(g->x_next + 3 * (size_t)g->pin_indices[k], g->pin_targets + 3 * (size_t)k, 3 * sizeof(float));
+    }
+    return held;
+}
+
 /* The tethers' skinned positions at t+1, then the clamp. */
 static weft_result apply_tethers(weft_garment *g)
 {
@@ -563,6 +590,7 @@ weft_result weft__garment_finish_step(weft_garment *g)
          * is what keeps a garment on its wearer, so it has the last word before CCD. */
         g->stats.tether_vertices_clamped += clamp_tethers(g);
     }
+    g->stats.ground_vertices = g->ground ? hold_on_ground(g) : 0;
     const double t1 = weft__now_ms();
     weft__ccd_postprocess_garment(g); /* sweeps x -> x_next against the collider and itself */
     g->stats.constraints_ms = t1 - t0;

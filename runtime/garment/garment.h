@@ -45,6 +45,8 @@ struct weft_garment {
     float *strain_normal;               /* vertex_count * 3: away from the collider, where bit 4 is set */
 
     float push_thickness;               /* collider push (near.c): metres kept in front; 0: off */
+    bool ground;                        /* collision.ground: the floor y = ground_height */
+    float ground_height;
     float push_depth;                   /* deepest penetration pushed out, metres */
 
     /* Collider proximity (near.c), made when the contact-aware limit, the push or the fast XPBD

@@ -593,6 +593,7 @@ static weft_garment_def worn_def_on(const weft_sample_collider *col, const float
     d.collider_triangles = col->triangles;
     d.collider_triangle_count = col->triangle_count;
     d.collision.triangle_parts = col->triangle_parts;
+    d.collision.ground = true; /* the floor the sample draws, y = 0 */
     d.ccd.enabled = false;
     d.tethers.distance = WEFT_WORN_TETHER_CM / 100.0f;
     d.collision.push = WEFT_WORN_PUSH_CM / 100.0f;

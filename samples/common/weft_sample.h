@@ -124,7 +124,8 @@ weft_garment_def weft_sample_body_garment_def(const weft_body *body, weft_method
                                               uint32_t vertex_count, const uint32_t *triangles, uint32_t triangle_count);
 /* The worn-garment recipe (docs/WEAR.md) for `method`: the cloth mesh on the body as collider,
  * body parts from weft_body_triangle_parts written into `parts` (weft_body_triangle_count(body)
- * bytes, kept by the caller until the garment is created; NULL: no parts), no CCD, an 8 cm max
+ * bytes, kept by the caller until the garment is created; NULL: no parts), the floor y = 0
+ * (collision.ground), no CCD, an 8 cm max
  * distance, a 0.5 cm push, and a 10 % strain limit for the learned model. Callers override fields
  * after it (the sample's options). Fails only when the parts cannot be made. */
 #define WEFT_WORN_TETHER_CM 8.0f

@@ -38,6 +38,8 @@ class _CollisionDef(ctypes.Structure):
         ("part_margin", ctypes.c_float),
         ("cut_distance", ctypes.c_float),
         ("part_neighbours", ctypes.c_bool),
+        ("ground", ctypes.c_bool),
+        ("ground_height", ctypes.c_float),
     ]
 
 
