@@ -421,7 +421,8 @@ WEFT_API weft_result weft_garment_set_pins(weft_garment *garment, const uint32_t
 /* Surface pins: garment vertices carried by the collider's surface, e.g. a skirt's or dress's
  * waistband on the hips, so that a method that holds nothing up (XPBD) keeps the garment on.
  * Each point is bound at creation to its nearest collider triangle at rest (the barycentric foot
- * point and the offset in the triangle's edge/bitangent/normal frame); each frame
+ * point and the offset in the triangle's frame, blended over its nearest triangles: the binding
+ * LBS and the tethers use); each frame
  * weft_surface_pins_targets gives it on the posed collider, for weft_garment_set_pins:
  *
  *   uint32_t idx[512];
@@ -431,7 +432,7 @@ WEFT_API weft_result weft_garment_set_pins(weft_garment *garment, const uint32_t
  *   each frame: weft_surface_pins_targets(band, body_next, targets);
  *               weft_garment_set_pins(garment, weft_surface_pins_indices(band), targets, n);
  *
- * Creation costs count x collider triangles closest-point tests; targets allocate nothing. */
+ * Creation builds a BVH over the collider once; targets allocate nothing. */
 typedef struct weft_surface_pins weft_surface_pins;
 typedef struct weft_surface_pins_def {
     const float *collider_rest_positions;   /* collider_vertex_count * 3, the pose the points are placed in */
