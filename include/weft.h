@@ -503,6 +503,12 @@ WEFT_API const float *weft_garment_positions(const weft_garment *garment);
 WEFT_API uint32_t weft_garment_vertex_count(const weft_garment *garment);
 /* Vertices pinned by the last weft_garment_set_pins (0 for NULL). */
 WEFT_API uint32_t weft_garment_pin_count(const weft_garment *garment);
+/* The garment carried by the skin at the current frame: the initial state as bound to the
+ * collider at creation (the binding LBS, the tethers and cuts use), on the collider of the
+ * current frame; vertex_count * 3. What a game draws for a character too far away to simulate,
+ * and the reference the wear measures call "skinned". WEFT_ERROR_UNSUPPORTED when the garment
+ * has no binding (no collider, or neither tethers nor a cut distance). Allocates nothing. */
+WEFT_API weft_result weft_garment_skinned_positions(const weft_garment *garment, float *out_positions);
 WEFT_API weft_step_stats weft_garment_stats(const weft_garment *garment);
 
 #ifdef __cplusplus

@@ -738,3 +738,15 @@ weft_step_stats weft_garment_stats(const weft_garment *g)
     }
     return s;
 }
+
+weft_result weft_garment_skinned_positions(const weft_garment *g, float *out)
+{
+    if (!g || !out) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_garment_skinned_positions: garment and out are required");
+    }
+    if (!g->skin) {
+        return weft__fail(WEFT_ERROR_UNSUPPORTED, "weft_garment_skinned_positions: the garment has no skin binding (no "
+                          "collider, or neither tethers nor collision.cut_distance)");
+    }
+    return xskin_eval(g->skin, g->collider_triangles, g->collider_prev, "weft_garment_skinned_positions", out);
+}

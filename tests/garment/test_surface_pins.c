@@ -164,6 +164,56 @@ static void test_waistband_holds_a_skirt(void)
     CHECK_MSG(free_drop > pinned_drop + 0.05, "unpinned %.3f m vs pinned %.3f m", free_drop, pinned_drop);
 }
 
+/* weft_garment_skinned_positions: under LBS it is the garment itself, frame after frame; a garment
+ * without a collider has none. */
+static void test_skinned_positions(void)
+{
+    weft_garment_def d = weft_default_garment_def();
+    d.method = WEFT_METHOD_LBS;
+    d.rest_positions = g_skirt->positions;
+    d.vertex_count = g_skirt->vertex_count;
+    d.triangles = g_skirt->triangles;
+    d.triangle_count = g_skirt->triangle_count;
+    d.collider_rest_positions = weft_body_rest_vertices(g_body);
+    d.collider_vertex_count = weft_body_vertex_count(g_body);
+    d.collider_triangles = weft_body_triangles(g_body);
+    d.collider_triangle_count = weft_body_triangle_count(g_body);
+    d.ccd.enabled = false;
+    weft_garment *g = NULL;
+    CHECK_RESULT(weft_garment_create(g_ctx, &d, &g), WEFT_OK);
+    const uint32_t nb = weft_body_vertex_count(g_body), nv = g_skirt->vertex_count;
+    float *body = malloc((size_t)nb * 3 * sizeof *body), *skinned = malloc((size_t)nv * 3 * sizeof *skinned);
+    weft_motion_def md = weft_default_motion_def(WEFT_MOTION_WALK);
+    double worst = 0.0;
+    for (uint32_t k = 0; g && k < 30; ++k) {
+        weft_pose pose;
+        weft_motion_sample(&md, k / 60.0, &pose);
+        CHECK_RESULT(weft_body_pose(g_body, &pose, body, NULL), WEFT_OK);
+        CHECK_RESULT(weft_garment_set_collider(g, body), WEFT_OK);
+        CHECK_RESULT(weft_garment_step(g), WEFT_OK);
+        CHECK_RESULT(weft_garment_skinned_positions(g, skinned), WEFT_OK);
+        const float *x = weft_garment_positions(g);
+        for (uint32_t i = 0; i < nv * 3; ++i) {
+            worst = fmax(worst, fabs((double)x[i] - skinned[i]));
+        }
+    }
+    CHECK_MSG(worst < 1e-6, "LBS vs skinned positions: %.2e m", worst);
+    weft_garment_destroy(g);
+    /* no collider: no binding */
+    weft_garment_def e = weft_default_garment_def();
+    e.method = WEFT_METHOD_XPBD;
+    e.rest_positions = g_skirt->positions;
+    e.vertex_count = nv;
+    e.triangles = g_skirt->triangles;
+    e.triangle_count = g_skirt->triangle_count;
+    CHECK_RESULT(weft_garment_create(g_ctx, &e, &g), WEFT_OK);
+    CHECK_RESULT(weft_garment_skinned_positions(g, skinned), WEFT_ERROR_UNSUPPORTED);
+    CHECK_RESULT(weft_garment_skinned_positions(NULL, skinned), WEFT_ERROR_INVALID_ARGUMENT);
+    weft_garment_destroy(g);
+    free(body);
+    free(skinned);
+}
+
 static void test_bad_input(void)
 {
     const float tri[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
@@ -214,5 +264,5 @@ static void teardown(void)
     weft_context_destroy(g_ctx);
 }
 
-TEST_MAIN(TEST_CASE(setup), TEST_CASE(test_rest_and_rigid_motion), TEST_CASE(test_waistband_holds_a_skirt),
+TEST_MAIN(TEST_CASE(setup), TEST_CASE(test_rest_and_rigid_motion), TEST_CASE(test_waistband_holds_a_skirt), TEST_CASE(test_skinned_positions),
           TEST_CASE(test_bad_input), TEST_CASE(teardown))

@@ -1,7 +1,8 @@
 /* `weft eval` options on the committed sample sequence: --sim-mesh with the sequence's own mesh
  * (an identity map) scores exactly as without it, pins included (a copy of the sample with a
  * pinned corner), --tether-cm and --strain-limit run, a tiny
- * --time-limit stops the rollout early and says so, --write-pos writes the rollout, and bad values fail with an error exit. argv: weft binary, data folder, output folder. Exits 77 (skipped) without
+ * --time-limit stops the rollout early and says so, --write-pos writes the rollout, a worn garment
+ * reports the wear measures, and bad values fail with an error exit. argv: weft binary, data folder, output folder. Exits 77 (skipped) without
  * a sample sequence. */
 #define _POSIX_C_SOURCE 200809L /* posix_spawn, stat */
 #include "test.h"
@@ -16,8 +17,8 @@
 
 static const char *g_exe, *g_seq, *g_out;
 
-/* The JSON line eval printed, with its "ms_per_frame" value replaced by '#' (wall time differs per
- * run, in value and in length). */
+/* The JSON line eval printed, with its timings (ms_per_frame, ms_p50, ms_p99, ms_max) replaced by
+ * '#' (wall time differs per run, in value and in length). */
 static bool json_line(const char *path, char *out, size_t cap)
 {
     FILE *f = fopen(path, "r");
@@ -33,9 +34,10 @@ static bool json_line(const char *path, char *out, size_t cap)
         }
     }
     fclose(f);
-    char *ms = found ? strstr(out, "\"ms_per_frame\": ") : NULL;
-    if (ms) {
-        char *value = ms + 16, *end = strchr(value, ',');
+    static const char *const timed[] = {"\"ms_per_frame\": ", "\"ms_p50\": ", "\"ms_p99\": ", "\"ms_max\": "};
+    for (size_t k = 0; found && k < sizeof timed / sizeof timed[0]; ++k) {
+        char *ms = strstr(out, timed[k]);
+        char *value = ms ? ms + strlen(timed[k]) : NULL, *end = value ? strchr(value, ',') : NULL;
         if (end) {
             *value = '#';
             memmove(value + 1, end, strlen(end) + 1);
@@ -292,6 +294,38 @@ static void failed_rollout_is_not_scored(void)
     CHECK_MSG(strstr(text, "architecture 'fnopt', not 'clothtransformer'") != NULL, "%s", text);
 }
 
+/* Wear measures: a worn garment made here by simgen on a library clip (the T-shirt, 12 frames)
+ * reports them, with step-time percentiles; the drop sample reports "wear": null. */
+static void wear_measures(void)
+{
+    char dir[1100], o[1100], e[1100], j[4096], clip[1100], seq[1300];
+    snprintf(dir, sizeof dir, "%s/worn", g_out);
+    snprintf(o, sizeof o, "%s/eval_wear.txt", g_out);
+    snprintf(e, sizeof e, "%s/eval_wear.err", g_out);
+    snprintf(clip, sizeof clip, "%s/samples/mocap/clips/walk_cmu07_01.bvh.gz", WEFT_SOURCE_DIR);
+    const char *gen[] = {g_exe, "simgen", "--out", dir, "--bvh", clip, "--vertices", "300", "--frames", "12",
+                         "--limit", "1", "--no-validate", NULL};
+    CHECK_EQ_INT(tool_run_err(gen, o, e), 0);
+    snprintf(seq, sizeof seq, "%s/mocap_walk_cmu07_01_v300_00000", dir);
+    const char *lbs[] = {g_exe, "eval", "--seq", seq, "--method", "lbs", "--json", NULL};
+    CHECK_EQ_INT(tool_run_err(lbs, o, e), 0);
+    tool_slurp(o, j, sizeof j); /* the raw line: its timings are read below */
+    CHECK_MSG(strstr(j, "\"wear\": {\"sequences\": 1, \"garments_lost\": 0") != NULL, "%s", j);
+    const double inside = json_number(j, "inside_body_mean"), p50 = json_number(j, "ms_p50"),
+                 p99 = json_number(j, "ms_p99"), mx = json_number(j, "ms_max");
+    CHECK_MSG(inside >= 0.0 && inside <= 1.0, "%s", j);
+    CHECK_MSG(p50 > 0.0 && p50 <= p99 && p99 <= mx, "%s", j);
+    const char *text_run[] = {g_exe, "eval", "--seq", seq, "--method", "lbs", NULL};
+    CHECK_EQ_INT(tool_run_err(text_run, o, e), 0);
+    char text[8192];
+    tool_slurp(o, text, sizeof text);
+    CHECK_MSG(strstr(text, "garment kept") && strstr(text, "worn: 0 of 1 garments lost"), "%s", text);
+    const char *drop[] = {g_exe, "eval", "--seq", g_seq, "--method", "lbs", "--frames", "5", "--json", NULL};
+    CHECK_EQ_INT(tool_run_err(drop, o, e), 0);
+    CHECK(json_line(o, j, sizeof j));
+    CHECK_MSG(strstr(j, "\"wear\": null") != NULL, "%s", j);
+}
+
 int main(int argc, char **argv)
 {
     if (argc < 4) {
@@ -314,6 +348,6 @@ int main(int argc, char **argv)
     static const test_case_ cases[] = {TEST_CASE(sim_mesh_identity), TEST_CASE(sim_mesh_keeps_pins),
                                        TEST_CASE(tethers_and_bad_values),
                                        TEST_CASE(strain_and_time_limits), TEST_CASE(write_pos),
-                                       TEST_CASE(failed_rollout_is_not_scored)};
+                                       TEST_CASE(failed_rollout_is_not_scored), TEST_CASE(wear_measures)};
     return test_run_(cases, sizeof cases / sizeof cases[0], 1, argv);
 }

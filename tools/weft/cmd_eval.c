@@ -14,7 +14,14 @@
  *                        overstretches many
  *   gt_max_edge_strain   the ground truth's own max edge strain over the same frames (context for
  *                        the two above: the reference stretches too, at pins and tight contacts)
- *   time_limited         --time-limit stopped the rollout before its last frame */
+ *   time_limited         --time-limit stopped the rollout before its last frame
+ *   ms_p50/p99/max       percentiles of the step's wall time over the scored frames
+ *   wear                 worn garments (meta.json scenario "garment"), samples/common/wear.h, against
+ *                        the garment carried by the skin (weft_garment_skinned_positions): frames
+ *                        with off_body over 1 % (a sequence with any has lost the garment; off_body
+ *                        is the share farther than 10 cm, 25 cm for skirts and dresses), the worst
+ *                        off_body, inside_body mean / max, body_self_overlap mean / max; not with
+ *                        --sim-mesh */
 #define _POSIX_C_SOURCE 200809L /* opendir, stat */
 #include "weft.h"
 #include "weft/ccd.h"
@@ -25,6 +32,10 @@
 #include "support_bench.h"
 #include "support_cli.h"
 
+#include <cjson/cJSON.h>
+#if WEFT_HAVE_RENDER
+#include "wear.h"
+#endif
 #include <dirent.h>
 #include <math.h>
 #include <stdio.h>
@@ -76,7 +87,69 @@ typedef struct eval_acc {
     uint32_t sequences;
     bool metrics_ok;
     bool time_limited;
+#if WEFT_HAVE_RENDER
+    weft_wear_summary wear;             /* worn garments only */
+#endif
+    uint32_t worn_sequences, lost_sequences;
+    double *frame_ms;                   /* per scored frame (percentiles) */
+    uint32_t frame_ms_cap;
 } eval_acc;
+
+static void push_frame_ms(eval_acc *a, double ms)
+{
+    if (a->frames >= a->frame_ms_cap) {
+        uint32_t cap = a->frame_ms_cap ? 2 * a->frame_ms_cap : 256;
+        double *grown = realloc(a->frame_ms, cap * sizeof *grown);
+        if (!grown) {
+            return;
+        }
+        a->frame_ms = grown;
+        a->frame_ms_cap = cap;
+    }
+    a->frame_ms[a->frames] = ms;
+}
+
+static int cmp_double(const void *x, const void *y)
+{
+    const double a = *(const double *)x, b = *(const double *)y;
+    return (a > b) - (a < b);
+}
+
+/* p-th percentile (nearest rank) of the first n entries, sorted in place. */
+static double percentile(double *v, uint32_t n, double p)
+{
+    if (n == 0 || !v) {
+        return 0.0;
+    }
+    qsort(v, n, sizeof *v, cmp_double);
+    uint32_t k = (uint32_t)ceil(p / 100.0 * n);
+    return v[k == 0 ? 0 : k - 1];
+}
+
+/* A worn garment (meta.json scenario "garment"): its off-body distance, 25 cm for skirts and
+ * dresses (the description names the garment), else 10 cm. False for other scenarios. */
+static bool worn_garment(const char *dir, float *off_distance)
+{
+    char path[1200];
+    snprintf(path, sizeof path, "%s/meta.json", dir);
+    FILE *f = fopen(path, "rb");
+    if (!f) {
+        return false;
+    }
+    char buf[65536];
+    size_t n = fread(buf, 1, sizeof buf - 1, f);
+    fclose(f);
+    buf[n] = '\0';
+    cJSON *meta = cJSON_Parse(buf);
+    const cJSON *scenario = cJSON_GetObjectItemCaseSensitive(meta, "scenario");
+    const cJSON *desc = cJSON_GetObjectItemCaseSensitive(meta, "description");
+    const bool worn = cJSON_IsString(scenario) && strcmp(scenario->valuestring, "garment") == 0;
+    const bool long_garment =
+        cJSON_IsString(desc) && (strstr(desc->valuestring, "skirt") || strstr(desc->valuestring, "dress"));
+    *off_distance = long_garment ? 0.25f : 0.10f;
+    cJSON_Delete(meta);
+    return worn;
+}
 
 #define EVAL_OVERSTRETCH 0.25
 
@@ -515,6 +588,21 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
     if (!metrics) {
         fprintf(stderr, "weft eval: %s: collision metrics unavailable: %s\n", dir, weft_last_error());
     }
+#if WEFT_HAVE_RENDER
+    /* wear measures for a worn garment, against the garment the skin carries */
+    float off_distance = 0.10f;
+    weft_wear *wear = NULL;
+    float *skinned = NULL;
+    if (!up && s.cpos && worn_garment(dir, &off_distance)) {
+        skinned = malloc(nv * sizeof(float));
+        if (!skinned || weft_wear_create(s.cfaces, s.Fc, s.Vc, s.V, &wear) != WEFT_OK ||
+            weft_garment_skinned_positions(g, skinned) != WEFT_OK) {
+            fprintf(stderr, "weft eval: %s: wear measures unavailable: %s\n", dir, weft_last_error());
+            weft_wear_destroy(wear);
+            wear = NULL;
+        }
+    }
+#endif
     uint32_t ne = 0;
     uint32_t *edges = edges_of(&s, &ne);
     float *prev = malloc(nv * sizeof(float));
@@ -579,7 +667,8 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
         r = weft_garment_step(g);
         /* A garment simulated on a coarser mesh is drawn through its map: part of the frame's cost. */
         const weft_result mr = r == WEFT_OK && up ? weft_mesh_map_apply(up, weft_garment_positions(g), mapped) : WEFT_OK;
-        a.ms_sum += now_ms() - t0;
+        const double step_ms = now_ms() - t0;
+        a.ms_sum += step_ms;
         a.tokens_sum += weft_garment_stats(g).collider_tokens;
         a.ccd_passes_sum += weft_garment_stats(g).ccd_iterations;
         a.pushed_sum += weft_garment_stats(g).pushed_vertices;
@@ -609,7 +698,22 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
             a.err_sum += sqrt(dx * dx + dy * dy + dz * dz);
         }
         a.vert_frames += s.V;
+        push_frame_ms(&a, step_ms);
+        push_frame_ms(total, step_ms);
+        total->frames++; /* counts the total's frame_ms entries; set again from the sum below */
         a.frames++;
+#if WEFT_HAVE_RENDER
+        if (wear) {
+            weft_wear_frame wf;
+            if (weft_garment_skinned_positions(g, skinned) != WEFT_OK ||
+                weft_wear_measure(wear, s.cpos + (size_t)(t + 1) * nc, x, skinned, off_distance, &wf) != WEFT_OK) {
+                fprintf(stderr, "weft eval: %s: frame %u: wear: %s\n", dir, t + 1, weft_last_error());
+                r = WEFT_ERROR_INVALID_ARGUMENT;
+                break;
+            }
+            weft_wear_summary_add(&a.wear, &wf);
+        }
+#endif
         uint32_t over = 0;
         a.max_strain = fmax(a.max_strain, max_strain(x, s.rest, edges, ne, &over));
         a.overstretched_pct = fmax(a.overstretched_pct, ne ? 100.0 * over / ne : 0.0);
@@ -625,6 +729,7 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
             }
         }
     }
+    total->frames -= a.frames; /* added back with the sequence's totals below */
     /* A rollout that went non-finite or scored no frame failed: it has no MVE, and eval exits 1. */
     int rc = r == WEFT_OK && !a.nan && a.frames > 0 ? 0 : 1;
     if (a.nan) {
@@ -636,15 +741,44 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
         rc = 1;
     }
     free(rollout);
+    const double p50 = percentile(a.frame_ms, a.frames, 50.0), pmax = percentile(a.frame_ms, a.frames, 100.0);
     if (print && rc != 0) {
         printf("%-40s frames %4u  FAILED%s\n", dir, a.frames, a.nan ? " (NaN)" : "");
     } else if (print) {
-        printf("%-40s frames %4u  MVE %8.3f cm  coll %6.2f%%  self %6.2f%%  %8.3f ms/frame  strain %.3f  tokens %.0f%s\n",
+        printf("%-40s frames %4u  MVE %8.3f cm  coll %6.2f%%  self %6.2f%%  %8.3f ms/frame (p50 %.3f, max %.3f)  strain "
+               "%.3f  tokens %.0f%s",
                dir, a.frames, a.vert_frames > 0 ? a.err_sum / a.vert_frames * 100.0 : 0.0,
                a.metric_frames ? a.coll_sum / a.metric_frames : 0.0,
-               a.metric_frames ? a.self_sum / a.metric_frames : 0.0, a.frames ? a.ms_sum / a.frames : 0.0,
+               a.metric_frames ? a.self_sum / a.metric_frames : 0.0, a.frames ? a.ms_sum / a.frames : 0.0, p50, pmax,
                a.max_strain, a.frames ? a.tokens_sum / a.frames : 0.0, a.nan ? "  NaN" : "");
+#if WEFT_HAVE_RENDER
+        if (wear) {
+            printf("  garment %s (off_body max %.1f%%), inside %.1f%% mean %.1f%% max, body overlap %.1f%%",
+                   a.wear.frames_off ? "LOST" : "kept", 100.0 * a.wear.off_body_max, 100.0 * a.wear.inside_mean,
+                   100.0 * a.wear.inside_max, 100.0 * a.wear.overlap_mean);
+        }
+#endif
+        printf("\n");
     }
+#if WEFT_HAVE_RENDER
+    if (wear && a.wear.frames > 0) {
+        /* the total's wear: frame-weighted means, maxima, lost sequences */
+        weft_wear_summary *w = &total->wear;
+        const double n0 = w->frames, n1 = a.wear.frames;
+        w->inside_mean = (w->inside_mean * n0 + a.wear.inside_mean * n1) / (n0 + n1);
+        w->overlap_mean = (w->overlap_mean * n0 + a.wear.overlap_mean * n1) / (n0 + n1);
+        w->inside_max = fmax(w->inside_max, a.wear.inside_max);
+        w->overlap_max = fmax(w->overlap_max, a.wear.overlap_max);
+        w->off_body_max = fmax(w->off_body_max, a.wear.off_body_max);
+        w->frames_off += a.wear.frames_off;
+        w->frames += a.wear.frames;
+        total->worn_sequences++;
+        total->lost_sequences += a.wear.frames_off > 0;
+    }
+    weft_wear_destroy(wear);
+    free(skinned);
+#endif
+    free(a.frame_ms);
     total->err_sum += a.err_sum;
     total->vert_frames += a.vert_frames;
     total->coll_sum += a.coll_sum;
@@ -953,9 +1087,29 @@ int weft_cmd_eval(int argc, char **argv)
      * leaves the error metrics null and the exit status 1. */
     const bool failed = rc != 0 || total.nan || total.frames == 0;
     rc = failed ? 1 : 0;
+    const double ms_p50 = percentile(total.frame_ms, total.frames, 50.0);
+    const double ms_p99 = percentile(total.frame_ms, total.frames, 99.0);
+    const double ms_max = percentile(total.frame_ms, total.frames, 100.0);
+    char wear_json[512] = "null", wear_text[256] = "";
+#if WEFT_HAVE_RENDER
+    if (total.worn_sequences > 0) {
+        const weft_wear_summary *w = &total.wear;
+        snprintf(wear_json, sizeof wear_json,
+                 "{\"sequences\": %u, \"garments_lost\": %u, \"frames_off_body\": %u, \"off_body_max\": %.6g, "
+                 "\"inside_body_mean\": %.6g, \"inside_body_max\": %.6g, \"body_self_overlap_mean\": %.6g, "
+                 "\"body_self_overlap_max\": %.6g}",
+                 total.worn_sequences, total.lost_sequences, w->frames_off, w->off_body_max, w->inside_mean,
+                 w->inside_max, w->overlap_mean, w->overlap_max);
+        snprintf(wear_text, sizeof wear_text,
+                 "; worn: %u of %u garments lost, inside_body mean %.1f%% max %.1f%%, body_self_overlap mean %.1f%%",
+                 total.lost_sequences, total.worn_sequences, 100.0 * w->inside_mean, 100.0 * w->inside_max,
+                 100.0 * w->overlap_mean);
+    }
+#endif
     if (o.json && failed) {
         printf("{\"mve_cm\": null, \"collision_rate\": null, \"self_collision_rate\": null, \"ms_per_frame\": %.6g, "
-               "\"frames\": %u, \"nan\": %s, \"max_edge_strain\": null, \"failed\": true, \"time_limited\": %s}\n",
+               "\"frames\": %u, \"nan\": %s, \"max_edge_strain\": null, \"failed\": true, \"time_limited\": %s, "
+               "\"wear\": null}\n",
                ms, total.frames, total.nan ? "true" : "false", total.time_limited ? "true" : "false");
     } else if (failed) {
         printf("total: %u sequences, %u frames: FAILED%s (no MVE for a failed run)\n", total.sequences, total.frames,
@@ -964,16 +1118,20 @@ int weft_cmd_eval(int argc, char **argv)
         printf("{\"mve_cm\": %.6g, \"collision_rate\": %.6g, \"self_collision_rate\": %.6g, \"ms_per_frame\": %.6g, "
                "\"frames\": %u, \"nan\": %s, \"max_edge_strain\": %.6g, \"collider_tokens\": %.6g, "
                "\"ccd_passes\": %.6g, \"overstretched_pct\": %.6g, \"gt_max_edge_strain\": %.6g, "
-               "\"pushed_vertices\": %.6g, \"push_from_far_side\": %.6g, \"ccd_let_out\": %.6g, \"time_limited\": %s}\n",
+               "\"pushed_vertices\": %.6g, \"push_from_far_side\": %.6g, \"ccd_let_out\": %.6g, \"time_limited\": %s, "
+               "\"ms_p50\": %.6g, \"ms_p99\": %.6g, \"ms_max\": %.6g, \"wear\": %s}\n",
                mve, coll, self, ms, total.frames, total.nan ? "true" : "false", total.max_strain, tokens, passes,
-               total.overstretched_pct, total.gt_max_strain, pushed, push_far, let_out, total.time_limited ? "true" : "false");
+               total.overstretched_pct, total.gt_max_strain, pushed, push_far, let_out, total.time_limited ? "true" : "false",
+               ms_p50, ms_p99, ms_max, wear_json);
     } else if (total.sequences > 0) {
-        printf("total: %u sequences, %u frames, MVE %.3f cm, collision %.2f%%, self-collision %.2f%%, %.3f ms/frame, "
-               "max edge strain %.3f (%.2f%% of edges over %.0f%%, reference %.3f), nan %s, collider tokens %.0f/frame%s\n",
-               total.sequences, total.frames, mve, coll, self, ms, total.max_strain, total.overstretched_pct,
-               EVAL_OVERSTRETCH * 100, total.gt_max_strain, total.nan ? "yes" : "no", tokens,
-               total.time_limited ? ", stopped by --time-limit" : "");
+        printf("total: %u sequences, %u frames, MVE %.3f cm, collision %.2f%%, self-collision %.2f%%, %.3f ms/frame "
+               "(p50 %.3f, p99 %.3f, max %.3f), max edge strain %.3f (%.2f%% of edges over %.0f%%, reference %.3f), nan %s, "
+               "collider tokens %.0f/frame%s%s\n",
+               total.sequences, total.frames, mve, coll, self, ms, ms_p50, ms_p99, ms_max, total.max_strain,
+               total.overstretched_pct, EVAL_OVERSTRETCH * 100, total.gt_max_strain, total.nan ? "yes" : "no", tokens,
+               total.time_limited ? ", stopped by --time-limit" : "", wear_text);
     }
+    free(total.frame_ms);
     weft_model_destroy(model);
     weft_context_destroy(ctx);
     return rc;
