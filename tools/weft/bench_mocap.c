@@ -33,7 +33,7 @@ const char weft_bench_mocap_help[] = "garments on the mocap library's clips: gar
 #define MC_SETTLE 30
 
 typedef struct mc_options {
-    const char *split, *clips, *garments, *methods, *model, *md, *resolution;
+    const char *split, *clips, *garments, *methods, *model, *md, *block, *resolution;
     uint32_t frames;
     bool ccd, parts;
     float tether_cm, push_cm, strain_pct;
@@ -51,12 +51,13 @@ static void usage(FILE *f)
             "usage: weft bench mocap [--split test|train|all] [--clips A,B,...] [--garments tshirt,dress,skirt]\n"
             "                        [--methods lbs,model,xpbd-fast:5,xpbd-fast:10,xpbd:S] [--frames N]\n"
             "                        [--resolution 1k|4k] [--model FILE] [--ccd on|off] [--body-parts on|off]\n"
-            "                        [--tether-cm X] [--push-cm X] [--strain-limit PCT] [--md FILE]\n"
+            "                        [--tether-cm X] [--push-cm X] [--strain-limit PCT] [--md FILE [--block NAME]]\n"
             "  Defaults: the test split, all three garments, lbs,model,xpbd-fast:5,xpbd-fast:10, 300 frames\n"
             "  (0: every frame of each clip), 1k, the shipped int8 garment model, and the worn-garment recipe\n"
             "  of the render sample: body parts on, CCD off, an 8 cm max distance, a 0.5 cm push, a 10 %%\n"
             "  strain limit for the learned model. --md writes the table into FILE between\n"
-            "  <!-- mocap-table --> markers (docs/STABILITY.md).\n");
+            "  <!-- mocap-table --> markers (docs/STABILITY.md), or <!-- NAME --> with --block (another\n"
+            "  variant's table on the same page: letters, digits and '-').\n");
 }
 
 static bool parse_method(const char *s, size_t n, mc_method *m)
@@ -291,7 +292,7 @@ int weft_bench_mocap(int argc, char **argv)
     mc_options o = {.split = "test", .garments = "tshirt,dress,skirt", .methods = "lbs,model,xpbd-fast:5,xpbd-fast:10",
                     .model = "tools/train/models/garment.int8.safetensors", .resolution = "1k", .frames = 300,
                     .ccd = false, .parts = true, .tether_cm = WEFT_WORN_TETHER_CM, .push_cm = WEFT_WORN_PUSH_CM,
-                    .strain_pct = WEFT_WORN_STRAIN_PCT};
+                    .strain_pct = WEFT_WORN_STRAIN_PCT, .block = "mocap-table"};
     for (int i = 1; i < argc; i += 2) { /* every option takes a value (--help ends the loop) */
         const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
         if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
@@ -317,6 +318,9 @@ int weft_bench_mocap(int argc, char **argv)
             o.model = v;
         } else if (!strcmp(a, "--md")) {
             o.md = v;
+        } else if (!strcmp(a, "--block")) {
+            o.block = v;
+            ok = strncmp(v, "mocap-table", 11) == 0 && strlen(v) < 64 && strspn(v, "abcdefghijklmnopqrstuvwxyz0123456789-") == strlen(v);
         } else if (!strcmp(a, "--resolution")) {
             o.resolution = v;
         } else if (!strcmp(a, "--frames")) {
@@ -476,7 +480,7 @@ int weft_bench_mocap(int argc, char **argv)
     if (rc == 0 && o.md) {
         size_t dsize = 0;
         char *doc = bench_slurp(o.md, &dsize);
-        doc = bench_replace_block(doc, "mocap-table", table, "# Stability");
+        doc = bench_replace_block(doc, o.block, table, "# Stability");
         rc = bench_write_doc("mocap", o.md, doc) ? 0 : 1;
     }
     free(table);
