@@ -99,11 +99,11 @@ static void test_rest_and_rigid_motion(void)
     weft_surface_pins_destroy(p);
 }
 
-/* Mean height of the skirt below its skinned self after `frames` of the walk under fast XPBD. */
-static double skirt_drop(bool pinned, uint32_t frames)
+/* The skirt on the avatar (bind pose), no tethers, no CCD. */
+static weft_garment_def skirt_on_body(weft_method method)
 {
     weft_garment_def d = weft_default_garment_def();
-    d.method = WEFT_METHOD_XPBD_FAST;
+    d.method = method;
     d.rest_positions = g_skirt->positions;
     d.vertex_count = g_skirt->vertex_count;
     d.triangles = g_skirt->triangles;
@@ -113,6 +113,13 @@ static double skirt_drop(bool pinned, uint32_t frames)
     d.collider_triangles = weft_body_triangles(g_body);
     d.collider_triangle_count = weft_body_triangle_count(g_body);
     d.ccd.enabled = false;
+    return d;
+}
+
+/* Mean height of the skirt below its skinned self after `frames` of the walk under fast XPBD. */
+static double skirt_drop(bool pinned, uint32_t frames)
+{
+    const weft_garment_def d = skirt_on_body(WEFT_METHOD_XPBD_FAST);
     weft_garment *g = NULL;
     CHECK_RESULT(weft_garment_create(g_ctx, &d, &g), WEFT_OK);
     uint32_t n = 0;
@@ -168,17 +175,7 @@ static void test_waistband_holds_a_skirt(void)
  * without a collider has none. */
 static void test_skinned_positions(void)
 {
-    weft_garment_def d = weft_default_garment_def();
-    d.method = WEFT_METHOD_LBS;
-    d.rest_positions = g_skirt->positions;
-    d.vertex_count = g_skirt->vertex_count;
-    d.triangles = g_skirt->triangles;
-    d.triangle_count = g_skirt->triangle_count;
-    d.collider_rest_positions = weft_body_rest_vertices(g_body);
-    d.collider_vertex_count = weft_body_vertex_count(g_body);
-    d.collider_triangles = weft_body_triangles(g_body);
-    d.collider_triangle_count = weft_body_triangle_count(g_body);
-    d.ccd.enabled = false;
+    const weft_garment_def d = skirt_on_body(WEFT_METHOD_LBS);
     weft_garment *g = NULL;
     CHECK_RESULT(weft_garment_create(g_ctx, &d, &g), WEFT_OK);
     const uint32_t nb = weft_body_vertex_count(g_body), nv = g_skirt->vertex_count;
