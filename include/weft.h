@@ -229,8 +229,8 @@ typedef enum weft_collider_crop {
 
 /* ---- The constraint stage ------------------------------------------------------------------
  * After the method's step, every garment runs one stage of constraints, in this order: tethers,
- * strain limit, collision (the push out of the collider), tethers again, then the optional CCD
- * pass. Each constraint has its own small def inside weft_garment_def, off unless set (CCD: on).
+ * strain limit, collision (the push out of the collider), tethers again, the floor
+ * (collision.ground), then the optional CCD pass. Each constraint has its own small def inside weft_garment_def, off unless set (CCD: on).
  * Cuts (collision.cut_distance) replace the whole step. Body parts (collision.triangle_parts)
  * also filter the collider contacts of both XPBD methods. docs/WEAR.md, docs/CCD.md. */
 
