@@ -189,6 +189,7 @@ WEFT_API weft_result weft_model_load_memory(weft_context *context, const void *b
 WEFT_API void weft_model_destroy(weft_model *model);
 WEFT_API weft_model_info weft_model_get_info(const weft_model *model);
 
+
 /* ---------------------------------------------------------------------------------------- */
 /* Garments: one simulated piece of cloth and the collider it responds to.                     */
 
@@ -230,7 +231,8 @@ typedef enum weft_collider_crop {
 /* ---- The constraint stage ------------------------------------------------------------------
  * After the method's step, every garment runs one stage of constraints, in this order: tethers,
  * strain limit, collision (the push out of the collider), tethers again, the floor
- * (collision.ground), then the optional CCD pass. Each constraint has its own small def inside weft_garment_def, off unless set (CCD: on).
+ * (collision.ground), then the optional CCD pass. Each constraint has its own small def inside
+ * weft_garment_def, off unless set (CCD: on).
  * Cuts (collision.cut_distance) replace the whole step. Body parts (collision.triangle_parts)
  * also filter the collider contacts of both XPBD methods. docs/WEAR.md, docs/CCD.md. */
 
@@ -391,6 +393,12 @@ typedef struct weft_step_stats {
 } weft_step_stats;
 
 WEFT_API weft_garment_def weft_default_garment_def(void);
+/* weft_default_garment_def() for this model: method WEFT_METHOD_MODEL, the model, its file's
+ * precision, and the settings it was deployed with when its file says so (metadata "deploy", a
+ * JSON object with any of "strain_limit", "tether_distance", "push" (metres) and "ccd"; a value
+ * outside what weft_garment_def accepts fails the load with WEFT_ERROR_BAD_METADATA). The host
+ * still sets the meshes, and the body parts (collision.triangle_parts) when it has them. */
+WEFT_API weft_garment_def weft_model_garment_def(const weft_model *model);
 
 /* Validates the meshes (indices in range, no zero-area triangles, finite positions) and sizes
  * every buffer the method needs. */

@@ -2,6 +2,7 @@
 #include "weft/ccd.h"
 #include "ccd/ccd_internal.h"
 #include "xpbd/xpbd.h"
+#include "model/model.h"
 
 #include <math.h>
 #include <string.h>
@@ -749,4 +750,21 @@ weft_result weft_garment_skinned_positions(const weft_garment *g, float *out)
                           "collider, or neither tethers nor collision.cut_distance)");
     }
     return xskin_eval(g->skin, g->collider_triangles, g->collider_prev, "weft_garment_skinned_positions", out);
+}
+
+weft_garment_def weft_model_garment_def(const weft_model *model)
+{
+    weft_garment_def d = weft_default_garment_def();
+    if (!model) {
+        return d;
+    }
+    d.method = WEFT_METHOD_MODEL;
+    d.model = model;
+    d.precision = model->info.precision;
+    d.strain.limit = model->deploy_set & WEFT__DEPLOY_STRAIN_LIMIT ? model->deploy_strain_limit : d.strain.limit;
+    d.tethers.distance = model->deploy_set & WEFT__DEPLOY_TETHER_DISTANCE ? model->deploy_tether_distance
+                                                                          : d.tethers.distance;
+    d.collision.push = model->deploy_set & WEFT__DEPLOY_PUSH ? model->deploy_push : d.collision.push;
+    d.ccd.enabled = model->deploy_set & WEFT__DEPLOY_CCD ? model->deploy_ccd : d.ccd.enabled;
+    return d;
 }

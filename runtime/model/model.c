@@ -418,6 +418,61 @@ static weft_result config_parse(weft_model *m)
     return r;
 }
 
+/* Parses metadata "deploy", when present: {"strain_limit": f, "tether_distance": m, "push": m,
+ * "ccd": bool}, each optional, each in the range weft_garment_def accepts
+ * (weft_model_garment_def in runtime/garment applies them). */
+static weft_result deploy_parse(weft_model *m)
+{
+    const char *text = weft__model_metadata(m, "deploy");
+    if (!text) {
+        return WEFT_OK;
+    }
+    cJSON *root = cJSON_ParseWithOpts(text, NULL, 1);
+    weft_result r = WEFT_OK;
+    if (!cJSON_IsObject(root)) {
+        r = weft__fail(WEFT_ERROR_BAD_METADATA, "model: metadata 'deploy' is not a JSON object");
+    }
+    static const struct {
+        const char *key;
+        double lo, hi;
+        uint32_t bit;
+    } numbers[] = {{"strain_limit", 0.0, 10.0, WEFT__DEPLOY_STRAIN_LIMIT},
+                   {"tether_distance", 0.0, WEFT_MAX_COORDINATE, WEFT__DEPLOY_TETHER_DISTANCE},
+                   {"push", 0.0, 0.1, WEFT__DEPLOY_PUSH}};
+    float *dst[] = {&m->deploy_strain_limit, &m->deploy_tether_distance, &m->deploy_push};
+    for (size_t i = 0; r == WEFT_OK && i < sizeof numbers / sizeof numbers[0]; ++i) {
+        const cJSON *v = cJSON_GetObjectItemCaseSensitive(root, numbers[i].key);
+        if (!v) {
+            continue;
+        }
+        if (!cJSON_IsNumber(v) || !(v->valuedouble >= numbers[i].lo && v->valuedouble <= numbers[i].hi)) {
+            r = weft__fail(WEFT_ERROR_BAD_METADATA, "model: metadata 'deploy': %s must be a number in [%g, %g]",
+                           numbers[i].key, numbers[i].lo, numbers[i].hi);
+        } else {
+            *dst[i] = (float)v->valuedouble;
+            m->deploy_set |= numbers[i].bit;
+        }
+    }
+    const cJSON *ccd = r == WEFT_OK ? cJSON_GetObjectItemCaseSensitive(root, "ccd") : NULL;
+    if (ccd && !cJSON_IsBool(ccd)) {
+        r = weft__fail(WEFT_ERROR_BAD_METADATA, "model: metadata 'deploy': ccd must be true or false");
+    } else if (ccd) {
+        m->deploy_ccd = cJSON_IsTrue(ccd);
+        m->deploy_set |= WEFT__DEPLOY_CCD;
+    }
+    const cJSON *item = NULL;
+    cJSON_ArrayForEach(item, root)
+    {
+        if (r == WEFT_OK && strcmp(item->string, "strain_limit") && strcmp(item->string, "tether_distance") &&
+            strcmp(item->string, "push") && strcmp(item->string, "ccd")) {
+            r = weft__fail(WEFT_ERROR_BAD_METADATA, "model: metadata 'deploy': unknown key '%.64s' (strain_limit, "
+                           "tether_distance, push, ccd)", item->string);
+        }
+    }
+    cJSON_Delete(root);
+    return r;
+}
+
 /* ---------------------------------------------------------------------------------------- */
 /* Content checks                                                                             */
 
@@ -608,6 +663,7 @@ static weft_result model_build(weft_context *ctx, weft_st_header *header, model_
     }
 
     r = config_parse(m);
+    r = r != WEFT_OK ? r : deploy_parse(m);
     if (r != WEFT_OK) {
         goto fail;
     }

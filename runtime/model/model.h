@@ -52,6 +52,13 @@ typedef struct weft__architecture {
     weft__arch_validate_fn *validate;   /* tensor/config checks; NULL: none beyond the file rules */
 } weft__architecture;
 
+enum {
+    WEFT__DEPLOY_STRAIN_LIMIT = 1,
+    WEFT__DEPLOY_TETHER_DISTANCE = 2,
+    WEFT__DEPLOY_PUSH = 4,
+    WEFT__DEPLOY_CCD = 8,
+};
+
 struct weft_model {
     weft_context *ctx;
     weft_tensor *tensors;               /* sorted by name */
@@ -70,6 +77,10 @@ struct weft_model {
     size_t data_bytes;
     const weft__architecture *arch;     /* NULL: generic weights file */
     weft_model_info info;
+    /* metadata "deploy": the settings the model is meant to run with (weft_model_garment_def) */
+    uint32_t deploy_set;                /* WEFT__DEPLOY_* bits: the keys the file gives */
+    float deploy_strain_limit, deploy_tether_distance, deploy_push;
+    bool deploy_ccd;
 };
 
 /* Known architectures (the table in model.c); NULL for an unknown name. */

@@ -693,6 +693,11 @@ weft_result weft_avatar_sample_garment_create_on(const weft_avatar_sample_option
         weft_garment_def gdef = worn_def_on(&col, positions, vertex_count, triangles, triangle_count, order[m].method);
         gdef.model = *out_model;
         gdef.precision = o->precision;
+        if (*out_model && order[m].method == WEFT_METHOD_MODEL) {
+            /* the strain limit the model file was deployed with (metadata "deploy"), else the recipe's */
+            const float deployed = weft_model_garment_def(*out_model).strain.limit;
+            gdef.strain.limit = deployed != weft_default_garment_def().strain.limit ? deployed : gdef.strain.limit;
+        }
         gdef.substeps = substeps ? substeps : gdef.substeps;
         /* The options override the worn-garment recipe: --tether-cm (8, 0 turns it off),
          * --strain-limit (10 % for the learned model), --push-cm, --ccd. */

@@ -269,6 +269,58 @@ static void test_load_as_reads_the_header_only(void)
     remove(path);
 }
 
+/* Metadata "deploy": the settings a model runs with, in weft_model_garment_def; the shipped
+ * garment model carries the worn-garment recipe; bad values fail the load by name. */
+static void test_deployed_settings(void)
+{
+    weft_st_meta meta[] = {{"architecture", "lookup-test"},
+                           {"deploy", "{\"strain_limit\": 0.1, \"tether_distance\": 0.08, \"push\": 0.005, \"ccd\": false}"}};
+    weft_model *m = load(g_tensors, 1, meta, 2, WEFT_OK);
+    if (m) {
+        const weft_garment_def d = weft_model_garment_def(m);
+        CHECK(d.method == WEFT_METHOD_MODEL && d.model == m && d.precision == weft_model_get_info(m).precision);
+        CHECK(d.strain.limit == 0.1f && d.tethers.distance == 0.08f && d.collision.push == 0.005f && !d.ccd.enabled);
+        weft_model_destroy(m);
+    }
+    /* only some keys: the rest stay weft_default_garment_def's */
+    weft_st_meta some[] = {{"deploy", "{\"push\": 0.01}"}};
+    m = load(g_tensors, 1, some, 1, WEFT_OK);
+    if (m) {
+        const weft_garment_def d = weft_model_garment_def(m), base = weft_default_garment_def();
+        CHECK(d.collision.push == 0.01f && d.strain.limit == base.strain.limit && d.ccd.enabled == base.ccd.enabled);
+        weft_model_destroy(m);
+    }
+    static const struct {
+        const char *deploy, *needle;
+    } bad[] = {{"{\"strain_limit\": 11}", "strain_limit"}, {"{\"push\": -1}", "push"},
+               {"{\"ccd\": 1}", "ccd"},                     {"{\"tethers\": 0.1}", "unknown key 'tethers'"},
+               {"[1]", "not a JSON object"},                  {"{\"push\": \"0.1\"}", "push"}};
+    for (size_t i = 0; i < sizeof bad / sizeof bad[0]; ++i) {
+        weft_st_meta b[] = {{"deploy", bad[i].deploy}};
+        m = load(g_tensors, 1, b, 1, WEFT_ERROR_BAD_METADATA);
+        CHECK_MSG(m == NULL && strstr(weft_last_error(), bad[i].needle) != NULL, "deploy %zu: %s", i, weft_last_error());
+        weft_model_destroy(m);
+    }
+    const weft_garment_def none = weft_model_garment_def(NULL), base = weft_default_garment_def();
+    CHECK(none.method == base.method && none.model == NULL);
+    /* the shipped worn-garment model, each precision */
+    static const char *const files[] = {"garment.safetensors", "garment.fp16.safetensors", "garment.int8.safetensors"};
+    for (size_t i = 0; i < 3; ++i) {
+        char path[1024];
+        snprintf(path, sizeof path, "%s/tools/train/models/%s", WEFT_SOURCE_DIR, files[i]);
+        weft_model *g = NULL;
+        CHECK_RESULT(weft_model_load_file(g_ctx, path, &g), WEFT_OK);
+        if (g) {
+            const weft_garment_def d = weft_model_garment_def(g);
+            CHECK_MSG(d.strain.limit == 0.1f && d.tethers.distance == 0.08f && d.collision.push == 0.005f &&
+                          !d.ccd.enabled && d.precision == (weft_precision)i,
+                      "%s: strain %g tethers %g push %g ccd %d precision %d", files[i], (double)d.strain.limit,
+                      (double)d.tethers.distance, (double)d.collision.push, d.ccd.enabled, (int)d.precision);
+            weft_model_destroy(g);
+        }
+    }
+}
+
 TEST_MAIN(TEST_CASE(setup), TEST_CASE(test_find_and_require), TEST_CASE(test_config_and_metadata),
           TEST_CASE(test_config_rejects), TEST_CASE(test_info_and_architectures),
-          TEST_CASE(test_load_as_reads_the_header_only), TEST_CASE(teardown))
+          TEST_CASE(test_load_as_reads_the_header_only), TEST_CASE(test_deployed_settings), TEST_CASE(teardown))
