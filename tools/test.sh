@@ -39,7 +39,9 @@ if [ "${WEFT_TEST_QUICK:-0}" != "1" ]; then
     fast_targets=()
     for exe in build-asan/tests/fuzz_*; do
         name="$(basename "$exe" | sed 's/^fuzz_//')"
-        [ "$name" != gltf ] && fast_targets+=("$name")
+        if [ "$name" != gltf ]; then
+            fast_targets+=("$name")
+        fi
     done
     WEFT_FUZZ_OUT=build-asan/fuzz-runs/test-sh \
         WEFT_FUZZ_ARGS="-seed=${WEFT_FUZZ_SEED:-1} -runs=${WEFT_FUZZ_RUNS:-60000} ${WEFT_FUZZ_ARGS:-}" \
