@@ -92,38 +92,36 @@ typedef struct eval_acc {
 #endif
     uint32_t worn_sequences, lost_sequences;
     double *frame_ms;                   /* per scored frame (percentiles) */
-    uint32_t frame_ms_cap;
+    uint32_t frame_ms_count, frame_ms_cap;
 } eval_acc;
 
 static void push_frame_ms(eval_acc *a, double ms)
 {
-    if (a->frames >= a->frame_ms_cap) {
+    if (a->frame_ms_count == a->frame_ms_cap) {
         uint32_t cap = a->frame_ms_cap ? 2 * a->frame_ms_cap : 256;
         double *grown = realloc(a->frame_ms, cap * sizeof *grown);
         if (!grown) {
-            return;
+            return; /* the percentiles then cover the frames kept */
         }
         a->frame_ms = grown;
         a->frame_ms_cap = cap;
     }
-    a->frame_ms[a->frames] = ms;
+    a->frame_ms[a->frame_ms_count++] = ms;
 }
 
-static int cmp_double(const void *x, const void *y)
+/* The p-th percentile of the step times as JSON ("null" without the wear measures' library,
+ * whose weft_wear_percentile computes it, or without frames). Sorts the times in place. */
+static const char *ms_percentile(eval_acc *a, double p, char *out, size_t cap)
 {
-    const double a = *(const double *)x, b = *(const double *)y;
-    return (a > b) - (a < b);
-}
-
-/* p-th percentile (nearest rank) of the first n entries, sorted in place. */
-static double percentile(double *v, uint32_t n, double p)
-{
-    if (n == 0 || !v) {
-        return 0.0;
+    snprintf(out, cap, "null");
+#if WEFT_HAVE_RENDER
+    if (a->frame_ms_count > 0) {
+        snprintf(out, cap, "%.6g", weft_wear_percentile(a->frame_ms, a->frame_ms_count, p));
     }
-    qsort(v, n, sizeof *v, cmp_double);
-    uint32_t k = (uint32_t)ceil(p / 100.0 * n);
-    return v[k == 0 ? 0 : k - 1];
+#else
+    (void)a, (void)p;
+#endif
+    return out;
 }
 
 /* A worn garment (meta.json scenario "garment"): its off-body distance, 25 cm for skirts and
@@ -700,7 +698,6 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
         a.vert_frames += s.V;
         push_frame_ms(&a, step_ms);
         push_frame_ms(total, step_ms);
-        total->frames++; /* counts the total's frame_ms entries; set again from the sum below */
         a.frames++;
 #if WEFT_HAVE_RENDER
         if (wear) {
@@ -729,7 +726,6 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
             }
         }
     }
-    total->frames -= a.frames; /* added back with the sequence's totals below */
     /* A rollout that went non-finite or scored no frame failed: it has no MVE, and eval exits 1. */
     int rc = r == WEFT_OK && !a.nan && a.frames > 0 ? 0 : 1;
     if (a.nan) {
@@ -741,11 +737,13 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
         rc = 1;
     }
     free(rollout);
-    const double p50 = percentile(a.frame_ms, a.frames, 50.0), pmax = percentile(a.frame_ms, a.frames, 100.0);
+    char p50[32], pmax[32];
+    ms_percentile(&a, 50.0, p50, sizeof p50);
+    ms_percentile(&a, 100.0, pmax, sizeof pmax);
     if (print && rc != 0) {
         printf("%-40s frames %4u  FAILED%s\n", dir, a.frames, a.nan ? " (NaN)" : "");
     } else if (print) {
-        printf("%-40s frames %4u  MVE %8.3f cm  coll %6.2f%%  self %6.2f%%  %8.3f ms/frame (p50 %.3f, max %.3f)  strain "
+        printf("%-40s frames %4u  MVE %8.3f cm  coll %6.2f%%  self %6.2f%%  %8.3f ms/frame (p50 %s, max %s)  strain "
                "%.3f  tokens %.0f%s",
                dir, a.frames, a.vert_frames > 0 ? a.err_sum / a.vert_frames * 100.0 : 0.0,
                a.metric_frames ? a.coll_sum / a.metric_frames : 0.0,
@@ -1087,9 +1085,10 @@ int weft_cmd_eval(int argc, char **argv)
      * leaves the error metrics null and the exit status 1. */
     const bool failed = rc != 0 || total.nan || total.frames == 0;
     rc = failed ? 1 : 0;
-    const double ms_p50 = percentile(total.frame_ms, total.frames, 50.0);
-    const double ms_p99 = percentile(total.frame_ms, total.frames, 99.0);
-    const double ms_max = percentile(total.frame_ms, total.frames, 100.0);
+    char ms_p50[32], ms_p99[32], ms_max[32];
+    ms_percentile(&total, 50.0, ms_p50, sizeof ms_p50);
+    ms_percentile(&total, 99.0, ms_p99, sizeof ms_p99);
+    ms_percentile(&total, 100.0, ms_max, sizeof ms_max);
     char wear_json[512] = "null", wear_text[256] = "";
 #if WEFT_HAVE_RENDER
     if (total.worn_sequences > 0) {
@@ -1119,13 +1118,13 @@ int weft_cmd_eval(int argc, char **argv)
                "\"frames\": %u, \"nan\": %s, \"max_edge_strain\": %.6g, \"collider_tokens\": %.6g, "
                "\"ccd_passes\": %.6g, \"overstretched_pct\": %.6g, \"gt_max_edge_strain\": %.6g, "
                "\"pushed_vertices\": %.6g, \"push_from_far_side\": %.6g, \"ccd_let_out\": %.6g, \"time_limited\": %s, "
-               "\"ms_p50\": %.6g, \"ms_p99\": %.6g, \"ms_max\": %.6g, \"wear\": %s}\n",
+               "\"ms_p50\": %s, \"ms_p99\": %s, \"ms_max\": %s, \"wear\": %s}\n",
                mve, coll, self, ms, total.frames, total.nan ? "true" : "false", total.max_strain, tokens, passes,
                total.overstretched_pct, total.gt_max_strain, pushed, push_far, let_out, total.time_limited ? "true" : "false",
                ms_p50, ms_p99, ms_max, wear_json);
     } else if (total.sequences > 0) {
         printf("total: %u sequences, %u frames, MVE %.3f cm, collision %.2f%%, self-collision %.2f%%, %.3f ms/frame "
-               "(p50 %.3f, p99 %.3f, max %.3f), max edge strain %.3f (%.2f%% of edges over %.0f%%, reference %.3f), nan %s, "
+               "(p50 %s, p99 %s, max %s), max edge strain %.3f (%.2f%% of edges over %.0f%%, reference %.3f), nan %s, "
                "collider tokens %.0f/frame%s%s\n",
                total.sequences, total.frames, mve, coll, self, ms, ms_p50, ms_p99, ms_max, total.max_strain,
                total.overstretched_pct, EVAL_OVERSTRETCH * 100, total.gt_max_strain, total.nan ? "yes" : "no", tokens,
