@@ -764,15 +764,7 @@ static weft_result bind_obj_to_avatar(const weft_body *body, const float *garmen
     for (uint32_t i = 0; i < n; ++i) {
         const float *p = garment + 3 * (size_t)i;
         double best = INFINITY;
-        uint32_t nearest = 0;
-        for (uint32_t v = 0; v < nb; ++v) {
-            const float *q = rest + 3 * (size_t)v;
-            const double dx = (double)p[0] - q[0], dy = (double)p[1] - q[1], dz = (double)p[2] - q[2];
-            const double d = dx * dx + dy * dy + dz * dz;
-            if (d < best) {
-                best = d, nearest = v;
-            }
-        }
+        const uint32_t nearest = weft_sample_nearest_point(rest, nb, p, &best);
         far += best > 0.01; /* 10 cm */
         memcpy(w + (size_t)i * WEFT_BODY_JOINTS, bw + (size_t)nearest * WEFT_BODY_JOINTS, WEFT_BODY_JOINTS * sizeof(float));
     }

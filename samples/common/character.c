@@ -28,6 +28,22 @@ struct weft_sample_character {
     const float *garment_rest;  /* the caller's, kept while bound */
 };
 
+uint32_t weft_sample_nearest_point(const float *points, uint32_t count, const float p[3], double *out_d2)
+{
+    double best = INFINITY;
+    uint32_t nearest = 0;
+    for (uint32_t v = 0; v < count; ++v) {
+        const float *q = points + 3 * (size_t)v;
+        const double dx = (double)p[0] - q[0], dy = (double)p[1] - q[1], dz = (double)p[2] - q[2];
+        const double d = dx * dx + dy * dy + dz * dz;
+        if (d < best) {
+            best = d, nearest = v;
+        }
+    }
+    *out_d2 = best;
+    return nearest;
+}
+
 #if WEFT_RENDER_HAVE_ASSETS
 
 /* Each triangle's dominant joint, joints merged into their parents until at most MAX_PARTS are
@@ -332,15 +348,7 @@ weft_result weft_sample_character_bind(weft_sample_character *c, const float *ga
     for (uint32_t i = 0; r == WEFT_OK && i < n; ++i) {
         const float *p = garment + 3 * (size_t)i;
         double best = INFINITY;
-        uint32_t nearest = 0;
-        for (uint32_t v = 0; v < a->vertex_count; ++v) {
-            const float *q = a->positions + 3 * (size_t)v;
-            const double dx = (double)p[0] - q[0], dy = (double)p[1] - q[1], dz = (double)p[2] - q[2];
-            const double d = dx * dx + dy * dy + dz * dz;
-            if (d < best) {
-                best = d, nearest = v;
-            }
-        }
+        const uint32_t nearest = weft_sample_nearest_point(a->positions, a->vertex_count, p, &best);
         memcpy(joints + 4 * (size_t)i, a->joint_indices + 4 * (size_t)nearest, 4 * sizeof *joints);
         memcpy(weights + 4 * (size_t)i, a->joint_weights + 4 * (size_t)nearest, 4 * sizeof *weights);
         dist[i] = sqrt(best);

@@ -14,6 +14,10 @@
 
 typedef struct weft_sample_character weft_sample_character;
 
+/* The index of the point of `points` (count * 3) nearest to p, and its squared distance; a linear
+ * scan, for binding garments at load time (both the character and weft's avatar use it). */
+uint32_t weft_sample_nearest_point(const float *points, uint32_t count, const float p[3], double *out_d2);
+
 /* Loads and checks a character (WEFT_ERROR_FORMAT naming the problem: not skinned, a height
  * outside 0.3..3 m, ...). */
 weft_result weft_sample_character_load(weft_context *context, const char *path, weft_sample_character **out);
