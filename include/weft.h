@@ -231,14 +231,16 @@ typedef enum weft_collider_crop {
 /* ---- The constraint stage ------------------------------------------------------------------
  * After the method's step, every garment runs one stage of constraints, in this order: tethers,
  * strain limit, collision (the push out of the collider), tethers again, the floor
- * (collision.ground), then the optional CCD pass. Each constraint has its own small def inside
- * weft_garment_def, off unless set (CCD: on).
+ * (collision.ground), then the optional CCD pass and the tethers' last clamp after it. Each
+ * constraint has its own small def inside weft_garment_def, off unless set (CCD: on).
  * Cuts (collision.cut_distance) replace the whole step. Body parts (collision.triangle_parts)
  * also filter the collider contacts of both XPBD methods. docs/WEAR.md, docs/CCD.md. */
 
 /* Tethers (every method; game cloth's "max distance"). Each vertex farther than its radius from
- * its skinned position is moved back onto that sphere, after the method's step and once more
- * after the strain limit and the push: without CCD no output vertex is farther than its radius.
+ * its skinned position is moved back onto that sphere, after the method's step, once more after
+ * the strain limit and the push, and after CCD: no output vertex is farther than its radius. A
+ * vertex CCD held beyond its radius (cloth caught where the body overlaps itself) is released onto
+ * it uncertified (stats.ccd_released), and the push lets it out of the body the next step.
  * The skinned position is the initial state bound to the collider at creation (the binding
  * WEFT_METHOD_LBS uses) and carried by the collider of t+1; set_state does not rebind. Radius 0
  * glues a vertex (a waistband for a method without pins). Pinned vertices keep their targets.
@@ -390,6 +392,8 @@ typedef struct weft_step_stats {
                                          * (docs/CCD.md, *Work bound*) */
     bool collider_cut;                  /* the last step was a cut (collision.cut_distance) */
     uint32_t ground_vertices;           /* vertices the floor (collision.ground) held in the last step */
+    uint32_t ccd_released;              /* with tethers and CCD: vertices CCD held farther than their
+                                         * radius, released onto it after CCD (not certified) */
 } weft_step_stats;
 
 WEFT_API weft_garment_def weft_default_garment_def(void);

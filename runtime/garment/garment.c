@@ -594,6 +594,13 @@ weft_result weft__garment_finish_step(weft_garment *g)
     g->stats.ground_vertices = g->ground ? hold_on_ground(g) : 0;
     const double t1 = weft__now_ms();
     weft__ccd_postprocess_garment(g); /* sweeps x -> x_next against the collider and itself */
+    if (g->tether_radius && g->ccd_state) {
+        /* The max distance outranks CCD: a vertex CCD held back farther than its radius (cloth
+         * caught where the body overlaps itself, which the body then drags off) is released onto
+         * its sphere, uncertified for this step; the next step lets it out of the body (the push)
+         * instead of holding it there. docs/CCD.md, *Tethers over CCD*. */
+        g->stats.ccd_released = clamp_tethers(g);
+    }
     g->stats.constraints_ms = t1 - t0;
     g->stats.ccd_ms = weft__now_ms() - t1;
     /* Rotate: t-1 <- t, t <- t+1 (pointer swaps, no copies). */

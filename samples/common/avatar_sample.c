@@ -74,8 +74,9 @@ void weft_avatar_sample_usage(FILE *out, const char *program)
             "  --sim-resolution RES    simulate this mesh of the garment and draw --resolution from it\n"
             "                          (a mesh map; e.g. 1k for a 4k garment; default: the drawn mesh)\n"
             "  --method M              auto | model | xpbd[:S] | xpbd-fast[:S] | lbs | skin (default auto: the learned\n"
-            "                          model, else xpbd, lbs); S substeps, 1..1000 (default 10); xpbd-fast is XPBD as\n"
-            "                          a game runs it (docs/REFSIM.md)\n"
+            "                          model, else xpbd, lbs); S substeps, 1..1000 (default 10); xpbd is the reference\n"
+            "                          as weft simgen runs it (frames of a fast body get up to 8 S substeps), xpbd-fast\n"
+            "                          XPBD as a game runs it, fixed S (docs/REFSIM.md)\n"
             "  --model FILE            safetensors model for the model method (default: the shipped garment model\n"
             "                          for --precision, tools/train/models/garment[.fp16|.int8].safetensors)\n"
             "  --precision P           fp32 | fp16 | int8: the model's arithmetic (default int8)\n"
@@ -598,7 +599,14 @@ static weft_garment_def worn_def_on(const weft_sample_collider *col, const float
     d.tethers.distance = WEFT_WORN_TETHER_CM / 100.0f;
     d.collision.push = WEFT_WORN_PUSH_CM / 100.0f;
     d.strain.limit = method == WEFT_METHOD_MODEL ? WEFT_WORN_STRAIN_PCT / 100.0f : 0.0f;
+    weft_sample_set_substeps(&d, 0);
     return d;
+}
+
+void weft_sample_set_substeps(weft_garment_def *def, uint32_t substeps)
+{
+    def->substeps = substeps ? substeps : def->substeps;
+    def->substeps_max = def->method == WEFT_METHOD_XPBD ? WEFT_REFERENCE_SUBSTEP_FACTOR * def->substeps : 0;
 }
 
 weft_result weft_sample_worn_def(const weft_body *body, const weft_cloth_mesh *cloth, weft_method method, uint8_t *parts,
@@ -698,7 +706,7 @@ weft_result weft_avatar_sample_garment_create_on(const weft_avatar_sample_option
             const float deployed = weft_model_garment_def(*out_model).strain.limit;
             gdef.strain.limit = deployed != weft_default_garment_def().strain.limit ? deployed : gdef.strain.limit;
         }
-        gdef.substeps = substeps ? substeps : gdef.substeps;
+        weft_sample_set_substeps(&gdef, substeps);
         /* The options override the worn-garment recipe: --tether-cm (8, 0 turns it off),
          * --strain-limit (10 % for the learned model), --push-cm, --ccd. */
         float tether_cm = o->tether_cm >= 0.0f ? o->tether_cm : WEFT_WORN_TETHER_CM;

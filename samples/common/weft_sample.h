@@ -133,6 +133,12 @@ weft_garment_def weft_sample_body_garment_def(const weft_body *body, weft_method
 #define WEFT_WORN_STRAIN_PCT 10.0f
 weft_result weft_sample_worn_def(const weft_body *body, const weft_cloth_mesh *cloth, weft_method method, uint8_t *parts,
                                  weft_garment_def *out);
+/* Sets def->substeps to `substeps` (0 keeps the def's). The reference XPBD runs as `weft simgen`
+ * runs it: frames whose body moves fast near the cloth get up to WEFT_REFERENCE_SUBSTEP_FACTOR
+ * times the substeps (substeps_max; docs/REFSIM.md, Fast colliders), or a walking body outruns its
+ * contacts and passes through the cloth. Every other method keeps fixed substeps. */
+#define WEFT_REFERENCE_SUBSTEP_FACTOR 8u
+void weft_sample_set_substeps(weft_garment_def *def, uint32_t substeps);
 /* The sample's settle pose for simulated frame k of `settle` (k < settle): the bind pose blended
  * into the motion's first pose by a smoothstep of (k + 1) / settle, per-joint slerp. */
 void weft_avatar_sample_settle_pose(const weft_pose *bind, const weft_pose *first, uint32_t k, uint32_t settle,

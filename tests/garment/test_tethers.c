@@ -1,5 +1,6 @@
 /* Tethers (weft_garment_def.tethers.distance / tethers.distances): after the method's step every
- * vertex lies within its radius of the garment skinned to the collider, pins keep their targets,
+ * vertex lies within its radius of the garment skinned to the collider, with CCD on too (the last
+ * clamp releases what CCD held), pins keep their targets,
  * radius 0 glues a vertex, and bad radii or a failing binding leave everything untouched. */
 #include "../xpbd/scene.h"
 #include "test.h"
@@ -215,5 +216,63 @@ static void test_tethers_bad_input(void)
     scene_free(&s);
 }
 
+/* A body that passes through itself: a sheet rides on box A (LBS), A slides under a static wall
+ * B that reaches below A's top. CCD stops the sheet at B's face while A moves on: without the
+ * tethers' last clamp CCD would hold it there and the sheet would be dragged off. With tethers
+ * every output vertex stays within its radius, CCD or not, and the release is counted. */
+static void test_tethers_outrank_ccd(void)
+{
+    weft_context_def cd = weft_default_context_def();
+    weft_context *ctx = NULL;
+    CHECK_RESULT(weft_context_create(&cd, &ctx), WEFT_OK);
+    test_mesh sheet = test_sheet(8, 8, 0.2f, 0.2f, 0.0f, 0.21f, 0.0f);
+    const float alo[3] = {-0.15f, 0.0f, -0.15f}, ahi[3] = {0.15f, 0.2f, 0.15f};
+    const float blo[3] = {0.3f, 0.15f, -0.5f}, bhi[3] = {0.4f, 0.5f, 0.5f};
+    test_mesh a = test_box(alo, ahi), b = test_box(blo, bhi);
+    test_mesh body = test_mesh_join(&a, &b);
+    CHECK(body.pos != NULL);
+    float *moved = malloc(sizeof(float) * 3 * body.nv);
+    weft_garment_def gd = test_garment_def(WEFT_METHOD_LBS, &sheet, &body, 1);
+    gd.ccd.enabled = true;
+    weft_garment *held = NULL, *tied = NULL;
+    CHECK_RESULT(weft_garment_create(ctx, &gd, &held), WEFT_OK);
+    gd.tethers.distance = 0.02f;
+    CHECK_RESULT(weft_garment_create(ctx, &gd, &tied), WEFT_OK);
+    double held_gap = 0.0, tied_gap = 0.0;
+    uint32_t released = 0;
+    for (int f = 1; f <= 20; ++f) {
+        const float dx = 0.03f * (float)f; /* A moves, B stays */
+        memcpy(moved, body.pos, sizeof(float) * 3 * body.nv);
+        for (uint32_t i = 0; i < a.nv; ++i) {
+            moved[3 * i] += dx;
+        }
+        CHECK_RESULT(weft_garment_set_collider(held, moved), WEFT_OK);
+        CHECK_RESULT(weft_garment_set_collider(tied, moved), WEFT_OK);
+        CHECK_RESULT(weft_garment_step(held), WEFT_OK);
+        CHECK_RESULT(weft_garment_step(tied), WEFT_OK);
+        released += weft_garment_stats(tied).ccd_released;
+        for (uint32_t i = 0; i < sheet.nv; ++i) {
+            const float *xh = weft_garment_positions(held) + 3 * i, *xt = weft_garment_positions(tied) + 3 * i;
+            const float *r = sheet.pos + 3 * i;
+            held_gap = fmax(held_gap, sqrt(pow(xh[0] - (r[0] + dx), 2) + pow(xh[1] - r[1], 2) + pow(xh[2] - r[2], 2)));
+            tied_gap = fmax(tied_gap, sqrt(pow(xt[0] - (r[0] + dx), 2) + pow(xt[1] - r[1], 2) + pow(xt[2] - r[2], 2)));
+        }
+    }
+    CHECK_MSG(held_gap > 0.2, "CCD held the untethered sheet only %g m from its skinned position: the scene tests "
+              "nothing", held_gap);
+    CHECK_MSG(tied_gap <= 0.02 + 1e-6, "tethered sheet %g m from its skinned position with CCD (radius 0.02 m)",
+              tied_gap);
+    CHECK_MSG(released > 0, "the tethers released no vertex CCD held");
+    CHECK_EQ_INT(weft_garment_stats(held).ccd_released, 0);
+    weft_garment_destroy(held);
+    weft_garment_destroy(tied);
+    free(moved);
+    test_mesh_free(&body);
+    test_mesh_free(&b);
+    test_mesh_free(&a);
+    test_mesh_free(&sheet);
+    weft_context_destroy(ctx);
+}
+
 TEST_MAIN(TEST_CASE(test_tethers_bound_the_drift), TEST_CASE(test_tethers_keep_pins_and_glue),
-          TEST_CASE(test_tethers_bad_input))
+          TEST_CASE(test_tethers_bad_input), TEST_CASE(test_tethers_outrank_ccd))

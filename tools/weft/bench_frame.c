@@ -135,7 +135,7 @@ static int run_cell(weft_context *ctx, weft_body *body, const weft_sample_motion
     if (rc == 0) {
         d.model = model;
         d.precision = m->precision;
-        d.substeps = m->substeps ? m->substeps : d.substeps;
+        weft_sample_set_substeps(&d, m->substeps);
         if (weft_garment_create(ctx, &d, &g) != WEFT_OK) {
             rc = 1;
         }

@@ -170,6 +170,7 @@ typedef struct mc_cell {
     weft_wear_summary wear;
     double p50, p99, max;
     uint32_t cuts, ccd_over_budget; /* frames that were cuts, or where CCD ran out of its bound */
+    uint32_t ccd_released;          /* frames where the tethers released vertices CCD held */
 } mc_cell;
 
 /* One (clip, garment, method) run. Returns non-zero only for setup failures. */
@@ -212,7 +213,7 @@ static int run_cell(const mc_options *o, weft_context *ctx, const weft_body *bod
         }
         d.model = m->method == WEFT_METHOD_MODEL ? model : NULL;
         d.precision = WEFT_PRECISION_INT8;
-        d.substeps = m->substeps ? m->substeps : d.substeps;
+        weft_sample_set_substeps(&d, m->substeps);
         d.ccd.enabled = o->ccd;
         d.tethers.distance = o->tether_cm / 100.0f;
         d.collision.push = o->push_cm / 100.0f;
@@ -257,6 +258,7 @@ static int run_cell(const mc_options *o, weft_context *ctx, const weft_body *bod
         const weft_step_stats st = weft_garment_stats(g);
         cell->cuts += st.collider_cut;
         cell->ccd_over_budget += st.ccd_over_budget;
+        cell->ccd_released += st.ccd_released > 0;
         weft_wear_frame wf;
         if (weft_body_skin_points(body, &pose, cloth->positions, cloth->weights, cloth->vertex_count, skinned) != WEFT_OK ||
             weft_wear_measure(wear, bverts, weft_garment_positions(g), skinned, off_distance, &wf) != WEFT_OK) {
@@ -283,7 +285,7 @@ static int run_cell(const mc_options *o, weft_context *ctx, const weft_body *bod
 }
 
 typedef struct mc_total {
-    uint32_t cells, lost, failed, cuts, ccd_over_budget;
+    uint32_t cells, lost, failed, cuts, ccd_over_budget, ccd_released;
     double inside_mean_sum, inside_max, ratio_max, p50_sum;
 } mc_total;
 
@@ -436,6 +438,7 @@ int weft_bench_mocap(int argc, char **argv)
                     t->p50_sum += cell.p50;
                     t->cuts += cell.cuts;
                     t->ccd_over_budget += cell.ccd_over_budget;
+                    t->ccd_released += cell.ccd_released;
                     snprintf(line, sizeof line,
                              "| %.63s | %s | %.31s | %s | %.1f | %.1f / %.1f | %.1f / %.1f | %.2f / %.2f / %.2f | %.1f |\n",
                              clip_names[c], kind_names[gk], methods[k].label, w->frames_off ? "**lost**" : "no",
@@ -453,15 +456,15 @@ int weft_bench_mocap(int argc, char **argv)
     if (rc == 0) {
         table = bench_append(table, &len, &cap,
                              "\n| method | cells | garments lost | failed | inside_body mean of means / worst frame % | "
-                             "worst max / p50 | mean p50 ms | cut frames | CCD over budget |\n"
-                             "|---|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+                             "worst max / p50 | mean p50 ms | cut frames | CCD over budget | CCD released |\n"
+                             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
         for (uint32_t k = 0; table && k < nm; ++k) {
             const mc_total *t = &totals[k];
             const uint32_t ok_cells = t->cells - t->failed;
-            snprintf(line, sizeof line, "| %s | %u | %u | %u | %.1f / %.1f | %.1f | %.2f | %u | %u |\n",
+            snprintf(line, sizeof line, "| %s | %u | %u | %u | %.1f / %.1f | %.1f | %.2f | %u | %u | %u |\n",
                      methods[k].label, t->cells, t->lost, t->failed,
                      ok_cells ? 100.0 * t->inside_mean_sum / ok_cells : 0.0, 100.0 * t->inside_max, t->ratio_max,
-                     ok_cells ? t->p50_sum / ok_cells : 0.0, t->cuts, t->ccd_over_budget);
+                     ok_cells ? t->p50_sum / ok_cells : 0.0, t->cuts, t->ccd_over_budget, t->ccd_released);
             fputs(line, stdout);
             table = bench_append(table, &len, &cap, line);
         }
