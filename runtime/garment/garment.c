@@ -1,7 +1,7 @@
 #include "garment/garment.h"
 #include "weft/ccd.h"
 #include "ccd/ccd_internal.h"
-#include "xpbd/xpbd.h"
+#include "geometry/geometry.h"
 #include "model/model.h"
 
 #include <math.h>
@@ -61,10 +61,10 @@ weft_result weft__check_cloth_topology(const weft_context *ctx, const char *what
         return weft__fail(WEFT_ERROR_DEGENERATE_MESH, "%s: vertex %u belongs to no triangle", what, unused);
     }
     /* Non-manifold edges and duplicate triangles, as the XPBD solver's topology sees them. */
-    xtopo topo;
-    weft_result r = xtopo_create(ctx, &topo, triangles, triangle_count, vertex_count, what);
+    geo_topo topo;
+    weft_result r = geo_topo_create(ctx, &topo, triangles, triangle_count, vertex_count, what);
     if (r == WEFT_OK) {
-        xtopo_destroy(ctx, &topo);
+        geo_topo_destroy(ctx, &topo);
     }
     return r;
 }
@@ -118,7 +118,7 @@ static void free_buffers(weft_garment *g)
     weft__free(ctx, g->x_next, nv3);
     weft__free(ctx, g->pin_indices, (size_t)g->vertex_count * sizeof(uint32_t));
     weft__free(ctx, g->pin_targets, nv3);
-    xskin_destroy(ctx, g->skin);
+    geo_skin_destroy(ctx, g->skin);
     weft__free(ctx, g->tether_radius, (size_t)g->vertex_count * sizeof(float));
     weft__free(ctx, g->tether_target, nv3);
     weft__strain_destroy(g);
@@ -363,7 +363,7 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
     }
     g->cut_distance = def->collider_vertex_count > 0 ? def->collision.cut_distance : 0.0f;
     if (tethers || g->cut_distance > 0.0f) {
-        r = xskin_create(g, tethers ? "weft_garment_create: tethers" : "weft_garment_create: cut binding", &g->skin);
+        r = weft__garment_skin_create(g, tethers ? "weft_garment_create: tethers" : "weft_garment_create: cut binding", &g->skin);
         if (r != WEFT_OK) {
             free_buffers(g);
             return r;
@@ -539,13 +539,22 @@ static uint32_t hold_on_ground(weft_garment *g)
 /* The tethers' skinned positions at t+1, then the clamp. */
 static weft_result apply_tethers(weft_garment *g)
 {
-    weft_result r = xskin_eval(g->skin, g->collider_triangles, g->collider_next, "weft_garment_step: tethers",
+    weft_result r = geo_skin_eval(g->skin, g->collider_triangles, g->collider_next, "weft_garment_step: tethers",
                                g->tether_target);
     if (r != WEFT_OK) {
         return r;
     }
     g->stats.tether_vertices_clamped = clamp_tethers(g);
     return WEFT_OK;
+}
+
+weft_result weft__garment_skin_create(const weft_garment *g, const char *who, geo_skin **out)
+{
+    if (g->collider_vertex_count == 0) {
+        return weft__fail(WEFT_ERROR_NO_COLLIDER, "%s: needs a collider to bind the garment to", who);
+    }
+    return geo_skin_create_points(g->ctx, g->x, g->vertex_count, g->collider_rest, g->collider_vertex_count,
+                                  g->collider_triangles, g->collider_triangle_count, who, out);
 }
 
 weft_result weft__garment_finish_step(weft_garment *g)
@@ -634,7 +643,7 @@ bool weft__garment_cut(weft_garment *g, weft_result *r)
     if (!jumped) {
         return false;
     }
-    *r = xskin_eval(g->skin, g->collider_triangles, c1, "weft_garment_step: cut", g->x_next);
+    *r = geo_skin_eval(g->skin, g->collider_triangles, c1, "weft_garment_step: cut", g->x_next);
     if (*r != WEFT_OK) {
         return true;
     }
@@ -756,7 +765,7 @@ weft_result weft_garment_skinned_positions(const weft_garment *g, float *out)
         return weft__fail(WEFT_ERROR_UNSUPPORTED, "weft_garment_skinned_positions: the garment has no skin binding (no "
                           "collider, or neither tethers nor collision.cut_distance)");
     }
-    return xskin_eval(g->skin, g->collider_triangles, g->collider_prev, "weft_garment_skinned_positions", out);
+    return geo_skin_eval(g->skin, g->collider_triangles, g->collider_prev, "weft_garment_skinned_positions", out);
 }
 
 weft_garment_def weft_model_garment_def(const weft_model *model)

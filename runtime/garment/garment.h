@@ -26,9 +26,9 @@ struct weft_garment {
     float *ccd_input;                   /* vertex_count * 3: x_next as CCD got it, restored when CCD
                                          * runs out of its work bound */
 
-    /* The garment bound to the collider (runtime/xpbd/lbs.c binding), made at creation when the
+    /* The garment bound to the collider (runtime/geometry/skin.c binding), made at creation when the
      * garment has tethers or a cut distance; NULL otherwise. */
-    struct xskin *skin;
+    struct geo_skin *skin;
     float *tether_radius;               /* vertex_count radii (uniform ones expanded); NULL: no tethers */
     float *tether_target;               /* vertex_count * 3 scratch: skinned positions at t+1 */
     float cut_distance;                 /* collider jump that resets the cloth (metres); 0: off */
@@ -52,7 +52,7 @@ struct weft_garment {
     /* Collider proximity (near.c), made when the contact-aware limit, the push or the fast XPBD
      * method needs it. */
     double *near_cpos;                  /* collider_vertex_count * 3: the collider at t+1, for the tree */
-    struct xbvh *near_tree;             /* collider triangles (runtime/xpbd/xpbd_bvh.c); NULL: off */
+    struct geo_bvh *near_tree;          /* collider triangles (runtime/geometry/bvh.c); NULL: off */
     uint32_t *near_across;              /* push: per triangle edge (k, k+1), the triangle across or UINT32_MAX */
     uint32_t *near_vt_start, *near_vt;  /* push: triangles around each collider vertex (CSR) */
     uint8_t *near_skip;                 /* push: vertex_count, 1 glued, | 2 pinned this step */
@@ -110,6 +110,9 @@ weft_result weft__garment_finish_step(weft_garment *g);
  * (stats.collider_cut; the caller sets step_ms); *r gets a failure of the skinning. */
 bool weft__garment_cut(weft_garment *g, weft_result *r);
 
+/* The skin binding (geometry.h) of the garment's current positions g->x to its collider's rest
+ * shape: LBS, the tethers, cuts and the skinned prior carry the garment with it. */
+weft_result weft__garment_skin_create(const weft_garment *g, const char *who, struct geo_skin **out);
 /* Positions (count xyz triplets) finite and within +-WEFT_MAX_COORDINATE; `what` names them. */
 weft_result weft__check_positions(const char *what, const float *positions, size_t count);
 /* Every vertex in a triangle, no edge of more than two triangles, no duplicate triangles. */

@@ -12,7 +12,7 @@
  * the body thus ends outside it, and CCD's back-off, which can only hold cloth back along its own
  * path, starts from a frame the body does not cut. docs/CCD.md, *Collider push*. */
 #include "garment/garment.h"
-#include "xpbd/xpbd.h"
+#include "geometry/geometry.h"
 
 #include <math.h>
 #include <stdlib.h>
@@ -90,7 +90,7 @@ weft_result weft__near_create(weft_garment *g)
         return WEFT_ERROR_OUT_OF_MEMORY;
     }
     memset(g->near_tree, 0, sizeof *g->near_tree);
-    weft_result r = xbvh_create(g->ctx, g->near_tree, g->collider_triangles, g->collider_triangle_count, 3);
+    weft_result r = geo_bvh_create(g->ctx, g->near_tree, g->collider_triangles, g->collider_triangle_count, 3);
     if (r != WEFT_OK) {
         weft__free(g->ctx, g->near_tree, sizeof *g->near_tree);
         g->near_tree = NULL;
@@ -101,7 +101,7 @@ weft_result weft__near_create(weft_garment *g)
     for (size_t i = 0; i < nc3; ++i) {
         g->near_cpos[i] = g->collider_rest[i];
     }
-    xbvh_build(g->near_tree, g->near_cpos);
+    geo_bvh_build(g->near_tree, g->near_cpos);
     if (fast && g->push_thickness <= 0.0f && (r = make_adjacency(g)) != WEFT_OK) { /* the pseudonormals */
         weft__near_destroy(g);
         return r;
@@ -133,7 +133,7 @@ void weft__near_destroy(weft_garment *g)
 {
     const size_t nt3 = (size_t)g->collider_triangle_count * 3;
     if (g->near_tree) {
-        xbvh_destroy(g->ctx, g->near_tree);
+        geo_bvh_destroy(g->ctx, g->near_tree);
         weft__free(g->ctx, g->near_tree, sizeof *g->near_tree);
     }
     weft__free(g->ctx, g->near_cpos, (size_t)g->collider_vertex_count * 3 * sizeof(double));
@@ -159,7 +159,7 @@ static void refit_to(weft_garment *g, const float *c)
     for (size_t i = 0; i < nc3; ++i) {
         g->near_cpos[i] = c[i];
     }
-    xbvh_refit(g->near_tree, g->near_cpos, NULL, 0.0);
+    geo_bvh_refit(g->near_tree, g->near_cpos, NULL, 0.0);
 }
 
 void weft__near_refit(weft_garment *g)
@@ -185,7 +185,7 @@ static bool visit_near(uint32_t t, void *user)
     const uint32_t *tri = q->g->collider_triangles + 3 * (size_t)t;
     const double *c = q->g->near_cpos;
     double bary[3];
-    double d2 = xg_point_triangle_sq(q->p, c + 3 * (size_t)tri[0], c + 3 * (size_t)tri[1], c + 3 * (size_t)tri[2], bary);
+    double d2 = geo_point_triangle_sq(q->p, c + 3 * (size_t)tri[0], c + 3 * (size_t)tri[1], c + 3 * (size_t)tri[2], bary);
     if (d2 < q->hit->d2) {
         q->hit->d2 = d2;
         q->hit->tri = t;
@@ -217,7 +217,7 @@ bool weft__near_nearest_in(const weft_garment *g, const double p[3], double radi
         lo[k] = p[k] - radius;
         hi[k] = p[k] + radius;
     }
-    xbvh_query(g->near_tree, lo, hi, visit_near, &q);
+    geo_bvh_query(g->near_tree, lo, hi, visit_near, &q);
     if (hit->tri == UINT32_MAX) {
         return false;
     }
@@ -293,7 +293,7 @@ static void feature_normal(const weft_garment *g, const weft_near_hit *hit, doub
 void weft__near_move_to(weft_garment *g, const double *c)
 {
     memcpy(g->near_cpos, c, (size_t)g->collider_vertex_count * 3 * sizeof(double));
-    xbvh_refit(g->near_tree, g->near_cpos, NULL, 0.0);
+    geo_bvh_refit(g->near_tree, g->near_cpos, NULL, 0.0);
 }
 
 /* Which side of the surface p is on: (p - nearest point) . pseudonormal, negative inside; n gets

@@ -16,7 +16,7 @@
  * CCD post-process) then skips the pairs of a vertex and a triangle of a part outside its mask.
  * Work is made once here; the per-frame cost is one AND per candidate pair. */
 #include "garment/garment.h"
-#include "xpbd/xpbd.h"
+#include "geometry/geometry.h"
 
 #include <math.h>
 #include <string.h>
@@ -34,7 +34,7 @@ static double tri_d2(const part_query *q, uint32_t t)
 {
     const uint32_t *tri = q->g->collider_triangles + 3 * (size_t)t;
     double bary[3];
-    return xg_point_triangle_sq(q->p, q->pos + 3 * (size_t)tri[0], q->pos + 3 * (size_t)tri[1],
+    return geo_point_triangle_sq(q->p, q->pos + 3 * (size_t)tri[0], q->pos + 3 * (size_t)tri[1],
                                 q->pos + 3 * (size_t)tri[2], bary);
 }
 
@@ -66,11 +66,11 @@ weft_result weft__parts_create(weft_garment *g, const uint8_t *parts, float marg
     g->cvert_bits = weft__alloc(ctx, (size_t)nc * sizeof(uint32_t));
     g->part_mask = weft__alloc(ctx, (size_t)nv * sizeof(uint32_t));
     double *pos = weft__alloc(ctx, (size_t)nc * 3 * sizeof(double));
-    xbvh tree;
+    geo_bvh tree;
     memset(&tree, 0, sizeof tree);
     weft_result r = g->ctri_bits && g->cvert_bits && g->part_mask && pos ? WEFT_OK : WEFT_ERROR_OUT_OF_MEMORY;
     if (r == WEFT_OK) {
-        r = xbvh_create(ctx, &tree, g->collider_triangles, nt, 3);
+        r = geo_bvh_create(ctx, &tree, g->collider_triangles, nt, 3);
     }
     if (r != WEFT_OK) {
         weft__free(ctx, pos, (size_t)nc * 3 * sizeof(double));
@@ -93,9 +93,9 @@ weft_result weft__parts_create(weft_garment *g, const uint8_t *parts, float marg
     for (size_t i = 0; i < (size_t)nc * 3; ++i) {
         pos[i] = g->collider_rest[i];
     }
-    xbvh_build(&tree, pos);
-    xbvh_refit(&tree, pos, NULL, 0.0); /* build orders the primitives; refit makes the boxes */
-    const xbvh_node *root = &tree.nodes[0];
+    geo_bvh_build(&tree, pos);
+    geo_bvh_refit(&tree, pos, NULL, 0.0); /* build orders the primitives; refit makes the boxes */
+    const geo_bvh_node *root = &tree.nodes[0];
     double diag2 = 0.0;
     for (int k = 0; k < 3; ++k) {
         diag2 += (root->hi[k] - root->lo[k]) * (root->hi[k] - root->lo[k]);
@@ -117,7 +117,7 @@ weft_result weft__parts_create(weft_garment *g, const uint8_t *parts, float marg
                 const double o = p[k] < root->lo[k] ? root->lo[k] - p[k] : (p[k] > root->hi[k] ? p[k] - root->hi[k] : 0.0);
                 out2 += o * o;
             }
-            xbvh_query(&tree, lo, hi, visit_nearest, &q);
+            geo_bvh_query(&tree, lo, hi, visit_nearest, &q);
             if (q.best <= reach * reach || reach * reach > 4.0 * (diag2 + out2)) {
                 dist = sqrt(q.best);
                 break;
@@ -135,14 +135,14 @@ weft_result weft__parts_create(weft_garment *g, const uint8_t *parts, float marg
             lo[k] = p[k] - within;
             hi[k] = p[k] + within;
         }
-        xbvh_query(&tree, lo, hi, visit_within, &q);
+        geo_bvh_query(&tree, lo, hi, visit_within, &q);
         uint32_t mask = q.mask;
         for (uint32_t bits = neighbours ? q.mask : 0u; bits; bits &= bits - 1) {
             mask |= adjacent[__builtin_ctz(bits)];
         }
         g->part_mask[v] = mask;
     }
-    xbvh_destroy(ctx, &tree);
+    geo_bvh_destroy(ctx, &tree);
     weft__free(ctx, pos, (size_t)nc * 3 * sizeof(double));
     return WEFT_OK;
 }

@@ -1,9 +1,9 @@
 /* Surface pins: points bound to a collider's surface, carried by it (weft.h). The binding is the
- * one the LBS method and the tethers use (runtime/xpbd/lbs.c, xskin): each point on its nearest
+ * one the LBS method and the tethers use (runtime/geometry/skin.c, geo_skin): each point on its nearest
  * collider triangles at rest, as barycentric foot points and offsets in the triangles' frames;
  * each frame it is evaluated on the posed collider. Nothing is allocated after creation. */
 #include "core/core.h"
-#include "xpbd/xpbd.h"
+#include "geometry/geometry.h"
 
 #include <math.h>
 #include <string.h>
@@ -14,7 +14,7 @@ struct weft_surface_pins {
     uint32_t collider_vertex_count, collider_triangle_count;
     uint32_t *indices;      /* the garment vertices */
     uint32_t *triangles;    /* the collider's, copied */
-    xskin *skin;
+    geo_skin *skin;
 };
 
 weft_surface_pins_def weft_default_surface_pins_def(void)
@@ -32,7 +32,7 @@ void weft_surface_pins_destroy(weft_surface_pins *p)
     }
     weft_context *ctx = p->ctx;
     if (p->skin) {
-        xskin_destroy(ctx, p->skin);
+        geo_skin_destroy(ctx, p->skin);
     }
     weft__free(ctx, p->indices, (size_t)p->count * sizeof(uint32_t));
     weft__free(ctx, p->triangles, (size_t)p->collider_triangle_count * 3 * sizeof(uint32_t));
@@ -100,7 +100,7 @@ weft_result weft_surface_pins_create(weft_context *ctx, const weft_surface_pins_
     }
     memcpy(p->indices, def->vertex_indices, (size_t)p->count * sizeof(uint32_t));
     memcpy(p->triangles, def->collider_triangles, (size_t)p->collider_triangle_count * 3 * sizeof(uint32_t));
-    weft_result r = xskin_create_points(ctx, def->rest_points, def->count, def->collider_rest_positions,
+    weft_result r = geo_skin_create_points(ctx, def->rest_points, def->count, def->collider_rest_positions,
                                         def->collider_vertex_count, p->triangles, p->collider_triangle_count,
                                         "weft_surface_pins_create", &p->skin);
     if (r != WEFT_OK) {
@@ -121,7 +121,7 @@ weft_result weft_surface_pins_targets(const weft_surface_pins *p, const float *c
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_surface_pins_targets: pins, collider positions and "
                           "out_targets are required");
     }
-    weft_result r = xskin_eval(p->skin, p->triangles, collider_positions, "weft_surface_pins_targets", out_targets);
+    weft_result r = geo_skin_eval(p->skin, p->triangles, collider_positions, "weft_surface_pins_targets", out_targets);
     if (r != WEFT_OK) {
         return r;
     }

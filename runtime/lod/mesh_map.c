@@ -1,15 +1,15 @@
 /* Mesh maps (weft/lod.h): the points of one mesh bound to the triangles of another in rest space
- * with the skinning binding of runtime/xpbd/lbs.c, so a fine garment follows a coarse simulated
+ * with the skin binding of runtime/geometry/skin.c, so a fine garment follows a coarse simulated
  * one (or a coarse mesh samples a fine state). */
 #include "weft/lod.h"
 #include "garment/garment.h"
-#include "xpbd/xpbd.h"
+#include "geometry/geometry.h"
 
 #include <string.h>
 
 struct weft_mesh_map {
     weft_context *ctx;
-    xskin *skin;
+    geo_skin *skin;
     uint32_t from_vertex_count, from_triangle_count, to_vertex_count;
     uint32_t *from_triangles;   /* from_triangle_count * 3 */
     float *scratch;             /* to_vertex_count * 3: the result before it is known to be whole */
@@ -27,7 +27,7 @@ void weft_mesh_map_destroy(weft_mesh_map *m)
     if (!m) {
         return;
     }
-    xskin_destroy(m->ctx, m->skin);
+    geo_skin_destroy(m->ctx, m->skin);
     weft__free(m->ctx, m->from_triangles, (size_t)m->from_triangle_count * 3 * sizeof(uint32_t));
     weft__free(m->ctx, m->scratch, (size_t)m->to_vertex_count * 3 * sizeof(float));
     weft__free(m->ctx, m, sizeof *m);
@@ -73,7 +73,7 @@ weft_result weft_mesh_map_create(weft_context *context, const weft_mesh_map_def 
         return WEFT_ERROR_OUT_OF_MEMORY;
     }
     memcpy(m->from_triangles, def->from_triangles, (size_t)def->from_triangle_count * 3 * sizeof(uint32_t));
-    r = xskin_create_points(context, def->to_rest_positions, def->to_vertex_count, def->from_rest_positions,
+    r = geo_skin_create_points(context, def->to_rest_positions, def->to_vertex_count, def->from_rest_positions,
                             def->from_vertex_count, m->from_triangles, m->from_triangle_count,
                             "weft_mesh_map_create", &m->skin);
     if (r != WEFT_OK) {
@@ -93,7 +93,7 @@ weft_result weft_mesh_map_apply(weft_mesh_map *m, const float *from_positions, f
     if (!weft__all_finite(from_positions, (size_t)m->from_vertex_count * 3)) {
         return weft__fail(WEFT_ERROR_NOT_FINITE, "weft_mesh_map_apply: from_positions contain NaN or infinity");
     }
-    weft_result r = xskin_eval(m->skin, m->from_triangles, from_positions, "weft_mesh_map_apply", m->scratch);
+    weft_result r = geo_skin_eval(m->skin, m->from_triangles, from_positions, "weft_mesh_map_apply", m->scratch);
     if (r != WEFT_OK) {
         return r;
     }

@@ -4,7 +4,8 @@
  * Mirrors tools/train/model.py operation for operation; see docs/MODEL.md. */
 #include "model/transformer.h"
 #include "model/crop.h"
-#include "xpbd/xpbd.h"
+#include "garment/garment.h"
+#include "geometry/geometry.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -454,7 +455,7 @@ typedef struct ct_state {
     /* The skinned prior: the LBS method's binding, made from the garment at creation exactly as
      * lbs_create makes it (the S track of the training data is `weft eval --method lbs`), and
      * S_t, S_{t+1} (N x 3). NULL for the other priors. */
-    xskin *skin;
+    geo_skin *skin;
     float *skin_cur, *skin_next;
     /* The xpbd prior: an XPBD garment on the same meshes (no CCD), restarted from this garment's
      * state every step, and its result Y (N x 3). NULL for the other priors. */
@@ -797,7 +798,7 @@ static void ct_destroy(weft_garment *g)
         return;
     }
     batch_free(g->ctx, s->batch);
-    xskin_destroy(g->ctx, s->skin);
+    geo_skin_destroy(g->ctx, s->skin);
     weft_garment_destroy(s->prior_sim);
     for (uint32_t i = 0; i < s->buf_count; ++i) {
         weft__free(g->ctx, *s->bufs[i].ptr, s->bufs[i].floats * sizeof(float));
@@ -1155,7 +1156,7 @@ static weft_result ct_create(weft_garment *g)
         return r;
     }
     /* g->x is still the initial state here, as in lbs_create. */
-    if (skinned && (r = xskin_create(g, "method 'model' (skinned prior)", &s->skin)) != WEFT_OK) {
+    if (skinned && (r = weft__garment_skin_create(g, "method 'model' (skinned prior)", &s->skin)) != WEFT_OK) {
         ct_destroy(g);
         return r;
     }
@@ -1399,10 +1400,10 @@ static void ct_temporal(const ct_state *first, ct_state *const *members, uint32_
  * need no care. */
 static weft_result skin_eval(const weft_garment *g, ct_state *s)
 {
-    weft_result r = xskin_eval(s->skin, g->collider_triangles, g->collider_prev,
+    weft_result r = geo_skin_eval(s->skin, g->collider_triangles, g->collider_prev,
                                "method 'model': skinned prior, collider at t", s->skin_cur);
     if (r == WEFT_OK) {
-        r = xskin_eval(s->skin, g->collider_triangles, g->collider_next,
+        r = geo_skin_eval(s->skin, g->collider_triangles, g->collider_next,
                        "method 'model': skinned prior, collider at t+1", s->skin_next);
     }
     return r;

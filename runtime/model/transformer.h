@@ -21,7 +21,7 @@ typedef enum weft_ct_prior {
     WEFT_CT_PRIOR_INERTIAL,             /* "inertial": 2 X_t - X_{t-1} */
     WEFT_CT_PRIOR_PREVIOUS,             /* "previous": X_t */
     WEFT_CT_PRIOR_SKINNED,              /* "skinned": X_t + S_{t+1} - S_t, S the LBS method's
-                                           binding (runtime/xpbd/lbs.c) on the collider; with
+                                           binding (runtime/geometry/skin.c) on the collider; with
                                            prior_decay a < 1, S_{t+1} + a (X_t - S_t) */
     WEFT_CT_PRIOR_BALLISTIC,            /* "ballistic": X_t + prior_beta (X_t - X_{t-1}) - gravity_step Y:
                                            free fall is in the prior, the network adds contact */

@@ -49,8 +49,8 @@ typedef struct xpair {
 typedef struct xpbd_state {
     xpbd_params p;
     uint32_t n, nc, ntri, nctri;
-    xtopo topo;          /* cloth */
-    xtopo ctopo;         /* collider (edges only) */
+    geo_topo topo;          /* cloth */
+    geo_topo ctopo;         /* collider (edges only) */
 
     double *xd, *vd;     /* committed state at t */
     double *xd_back, *vd_back; /* state before the last step (for a chord-safe retry) */
@@ -82,7 +82,7 @@ typedef struct xpbd_state {
     double *tri_area;
     double *hinge_rest, *hinge_len;
 
-    xbvh bvh_tri, bvh_edge, bvh_ctri, bvh_cedge;
+    geo_bvh bvh_tri, bvh_edge, bvh_ctri, bvh_cedge;
     bool cloth_bvh_built, collider_bvh_built;
     /* Boxes of every primitive at the snapshot (lo xyz, hi xyz), made once per proximity
      * pass: the candidate filters test them instead of gathering vertices per pair. */
@@ -151,20 +151,20 @@ bool xpbd_membrane_coefficients(const double *r0, const double *r1, const double
 {
     /* Rest frame: u along edge 0-1, v in the triangle plane (GIPC's per-triangle frame). */
     double e1[3], e2[3], nrm[3], u[3], vv[3];
-    xv_sub(e1, r1, r0);
-    xv_sub(e2, r2, r0);
-    xv_cross(nrm, e1, e2);
-    double l1 = xv_len(e1), ln = xv_len(nrm);
-    if (!(l1 > 0.0) || !(ln > 1e-14 * xv_dot(e1, e1))) {
+    geo_sub(e1, r1, r0);
+    geo_sub(e2, r2, r0);
+    geo_cross(nrm, e1, e2);
+    double l1 = geo_len(e1), ln = geo_len(nrm);
+    if (!(l1 > 0.0) || !(ln > 1e-14 * geo_dot(e1, e1))) {
         return false;
     }
     for (int k = 0; k < 3; ++k) {
         u[k] = e1[k] / l1;
         nrm[k] /= ln;
     }
-    xv_cross(vv, nrm, u);
+    geo_cross(vv, nrm, u);
     /* Dm = [[|e1|, e2.u], [0, e2.v]]; F = [x1-x0, x2-x0] Dm^-1. */
-    double d00 = l1, d01 = xv_dot(e2, u), d11 = xv_dot(e2, vv);
+    double d00 = l1, d01 = geo_dot(e2, u), d11 = geo_dot(e2, vv);
     double det = d00 * d11;
     double i00 = d11 / det, i01 = -d01 / det, i11 = d00 / det; /* i10 = 0 */
     coef[1] = i00;
@@ -183,8 +183,8 @@ double xpbd_membrane_eval(const double *x0, const double *x1, const double *x2, 
     const double *xs[3] = {x0, x1, x2};
     double fu[3] = {0, 0, 0}, fv[3] = {0, 0, 0};
     for (int i = 0; i < 3; ++i) {
-        xv_axpy(fu, coef[i], xs[i]);
-        xv_axpy(fv, coef[3 + i], xs[i]);
+        geo_axpy(fu, coef[i], xs[i]);
+        geo_axpy(fv, coef[3 + i], xs[i]);
     }
     if (which == 2) {
         for (int i = 0; i < 3; ++i) {
@@ -192,11 +192,11 @@ double xpbd_membrane_eval(const double *x0, const double *x1, const double *x2, 
                 grad[3 * i + k] = coef[i] * fv[k] + coef[3 + i] * fu[k];
             }
         }
-        return xv_dot(fu, fv);
+        return geo_dot(fu, fv);
     }
     const double *f = which == 0 ? fu : fv;
     const double *a = which == 0 ? coef : coef + 3;
-    double l = xv_len(f);
+    double l = geo_len(f);
     double inv = l > 1e-12 ? 1.0 / l : 0.0;
     for (int i = 0; i < 3; ++i) {
         for (int k = 0; k < 3; ++k) {
@@ -211,24 +211,24 @@ bool xpbd_dihedral_eval(const double *x0, const double *x1, const double *x2, co
 {
     double e[3], a[3], b[3], na[3], nb[3];
     memset(grad, 0, 12 * sizeof(double));
-    xv_sub(e, x1, x0);
-    xv_sub(a, x2, x0);
-    xv_sub(b, x3, x0);
-    xv_cross(na, e, a);
-    xv_cross(nb, b, e);
-    double le2 = xv_dot(e, e), la2 = xv_dot(na, na), lb2 = xv_dot(nb, nb);
+    geo_sub(e, x1, x0);
+    geo_sub(a, x2, x0);
+    geo_sub(b, x3, x0);
+    geo_cross(na, e, a);
+    geo_cross(nb, b, e);
+    double le2 = geo_dot(e, e), la2 = geo_dot(na, na), lb2 = geo_dot(nb, nb);
     if (!(le2 > 0.0) || !(la2 > 1e-24 * le2 * le2) || !(lb2 > 1e-24 * le2 * le2)) {
         *theta = 0.0;
         return false;
     }
     double le = sqrt(le2);
     double c[3];
-    xv_cross(c, na, nb);
-    double sin_t = xv_dot(c, e) / le, cos_t = xv_dot(na, nb);
+    geo_cross(c, na, nb);
+    double sin_t = geo_dot(c, e) / le, cos_t = geo_dot(na, nb);
     *theta = atan2(sin_t, cos_t);
     /* Wing gradients are along the wing normals (Bridson et al. 2003); the edge vertices take
      * the negated wing gradients split by where each wing projects onto the edge. */
-    double t2 = xv_dot(a, e) / le2, t3 = xv_dot(b, e) / le2;
+    double t2 = geo_dot(a, e) / le2, t3 = geo_dot(b, e) / le2;
     double g2[3], g3[3];
     for (int k = 0; k < 3; ++k) {
         g2[k] = -le * na[k] / la2;
@@ -296,12 +296,12 @@ static void state_free(const weft_context *ctx, xpbd_state *s)
     FREE_ARR(s->near_seed, n);
     FREE_ARR(s->vert_owner, n);
     FREE_ARR(s->tri_edge, 3 * s->ntri);
-    xbvh_destroy(ctx, &s->bvh_tri);
-    xbvh_destroy(ctx, &s->bvh_edge);
-    xbvh_destroy(ctx, &s->bvh_ctri);
-    xbvh_destroy(ctx, &s->bvh_cedge);
-    xtopo_destroy(ctx, &s->topo);
-    xtopo_destroy(ctx, &s->ctopo);
+    geo_bvh_destroy(ctx, &s->bvh_tri);
+    geo_bvh_destroy(ctx, &s->bvh_edge);
+    geo_bvh_destroy(ctx, &s->bvh_ctri);
+    geo_bvh_destroy(ctx, &s->bvh_cedge);
+    geo_topo_destroy(ctx, &s->topo);
+    geo_topo_destroy(ctx, &s->ctopo);
     weft__free(ctx, s, sizeof *s);
 }
 
@@ -352,8 +352,8 @@ static weft_result setup_rest(weft_garment *g, xpbd_state *s)
         xpbd_dihedral_eval(p[0], p[1], p[2], p[3], &th, grad);
         s->hinge_rest[h] = th;
         double e[3];
-        xv_sub(e, p[1], p[0]);
-        s->hinge_len[h] = xv_len(e);
+        geo_sub(e, p[1], p[0]);
+        s->hinge_len[h] = geo_len(e);
     }
     return WEFT_OK;
 }
@@ -387,13 +387,13 @@ static weft_result create_state(weft_garment *g, bool fast)
     s->cvert_bits = g->cvert_bits;
     s->ntri = g->triangle_count;
     s->nctri = g->collider_triangle_count;
-    weft_result r = xtopo_create(ctx, &s->topo, g->triangles, s->ntri, s->n, fast ? "xpbd-fast garment" : "xpbd garment");
+    weft_result r = geo_topo_create(ctx, &s->topo, g->triangles, s->ntri, s->n, fast ? "xpbd-fast garment" : "xpbd garment");
     if (r != WEFT_OK) {
         weft__free(ctx, s, sizeof *s);
         return r;
     }
     if (s->nc > 0 && !fast) {
-        r = xtopo_create(ctx, &s->ctopo, g->collider_triangles, s->nctri, s->nc, NULL);
+        r = geo_topo_create(ctx, &s->ctopo, g->collider_triangles, s->nctri, s->nc, NULL);
         if (r != WEFT_OK) {
             state_free(ctx, s);
             return r;
@@ -441,11 +441,11 @@ static weft_result create_state(weft_garment *g, bool fast)
         state_free(ctx, s);
         return WEFT_ERROR_OUT_OF_MEMORY;
     }
-    ok = xbvh_create(ctx, &s->bvh_tri, g->triangles, s->ntri, 3) == WEFT_OK &&
-         (fast || xbvh_create(ctx, &s->bvh_edge, s->topo.edges, s->topo.edge_count, 2) == WEFT_OK);
+    ok = geo_bvh_create(ctx, &s->bvh_tri, g->triangles, s->ntri, 3) == WEFT_OK &&
+         (fast || geo_bvh_create(ctx, &s->bvh_edge, s->topo.edges, s->topo.edge_count, 2) == WEFT_OK);
     if (ok && nc > 0 && !fast) {
-        ok = xbvh_create(ctx, &s->bvh_ctri, g->collider_triangles, s->nctri, 3) == WEFT_OK &&
-             xbvh_create(ctx, &s->bvh_cedge, s->ctopo.edges, s->ctopo.edge_count, 2) == WEFT_OK;
+        ok = geo_bvh_create(ctx, &s->bvh_ctri, g->collider_triangles, s->nctri, 3) == WEFT_OK &&
+             geo_bvh_create(ctx, &s->bvh_cedge, s->ctopo.edges, s->ctopo.edge_count, 2) == WEFT_OK;
     }
     if (!ok) {
         state_free(ctx, s);
@@ -737,7 +737,7 @@ static bool visit_self_vt(uint32_t t, void *user)
     }
     const double *x = s->xs;
     double b[3];
-    double d = sqrt(xg_point_triangle_sq(x + 3 * (size_t)v, x + 3 * (size_t)tri[0], x + 3 * (size_t)tri[1],
+    double d = sqrt(geo_point_triangle_sq(x + 3 * (size_t)v, x + 3 * (size_t)tri[0], x + 3 * (size_t)tri[1],
                                          x + 3 * (size_t)tri[2], b));
     if (d >= s->rq) {
         return true;
@@ -780,7 +780,7 @@ static bool visit_self_ee(uint32_t e2, void *user)
     }
     const double *x = s->xs;
     double sa, tb;
-    double d = sqrt(xg_segment_segment_sq(x + 3 * (size_t)a[0], x + 3 * (size_t)a[1], x + 3 * (size_t)b[0],
+    double d = sqrt(geo_segment_segment_sq(x + 3 * (size_t)a[0], x + 3 * (size_t)a[1], x + 3 * (size_t)b[0],
                                           x + 3 * (size_t)b[1], &sa, &tb));
     if (d >= s->rq) {
         return true;
@@ -817,7 +817,7 @@ static bool visit_vt_collider(uint32_t t, void *user)
     const uint32_t *tri = dc->ctris + 3 * (size_t)t;
     const double *x = s->xs, *c = s->csnap;
     double b[3];
-    double d = sqrt(xg_point_triangle_sq(x + 3 * (size_t)v, c + 3 * (size_t)tri[0], c + 3 * (size_t)tri[1],
+    double d = sqrt(geo_point_triangle_sq(x + 3 * (size_t)v, c + 3 * (size_t)tri[0], c + 3 * (size_t)tri[1],
                                          c + 3 * (size_t)tri[2], b));
     if (d >= s->rq) {
         return true;
@@ -854,7 +854,7 @@ static bool visit_tv_collider(uint32_t t, void *user)
     }
     const double *x = s->xs, *c = s->csnap;
     double b[3];
-    double d = sqrt(xg_point_triangle_sq(c + 3 * (size_t)u, x + 3 * (size_t)tri[0], x + 3 * (size_t)tri[1],
+    double d = sqrt(geo_point_triangle_sq(c + 3 * (size_t)u, x + 3 * (size_t)tri[0], x + 3 * (size_t)tri[1],
                                          x + 3 * (size_t)tri[2], b));
     if (d >= s->rq) {
         return true;
@@ -889,7 +889,7 @@ static bool visit_ee_collider(uint32_t ce, void *user)
     }
     const double *x = s->xs, *c = s->csnap;
     double sa, tb;
-    double d = sqrt(xg_segment_segment_sq(x + 3 * (size_t)a[0], x + 3 * (size_t)a[1], c + 3 * (size_t)b[0],
+    double d = sqrt(geo_segment_segment_sq(x + 3 * (size_t)a[0], x + 3 * (size_t)a[1], c + 3 * (size_t)b[0],
                                           c + 3 * (size_t)b[1], &sa, &tb));
     if (d >= s->rq) {
         return true;
@@ -968,7 +968,7 @@ static bool collect_self_ee(uint32_t e2, void *user)
 static bool collect_any(uint32_t prim, void *user) { return !box_hits(user, prim) || collect(user, prim); }
 
 typedef struct pass_fns {
-    xbvh_visit_fn *self_vt, *self_ee, *vt_collider, *tv_collider, *ee_collider;
+    geo_bvh_visit_fn *self_vt, *self_ee, *vt_collider, *tv_collider, *ee_collider;
 } pass_fns;
 
 /* The five tree traversals of a proximity pass with query radius r: each query primitive's
@@ -982,7 +982,7 @@ static bool traverse(weft_garment *g, xpbd_state *s, double r, const pass_fns *f
         for (uint32_t v = 0; v < s->n && !dc->overflow; ++v) {
             dc->query = v;
             box_around(s->xs + 3 * (size_t)v, r, dc->lo, dc->hi);
-            xbvh_query(&s->bvh_tri, dc->lo, dc->hi, fns->self_vt, dc);
+            geo_bvh_query(&s->bvh_tri, dc->lo, dc->hi, fns->self_vt, dc);
         }
         dc->list = PL_SELF_EE;
         dc->prim_box = list_boxes(s, PL_SELF_EE);
@@ -990,18 +990,18 @@ static bool traverse(weft_garment *g, xpbd_state *s, double r, const pass_fns *f
             const uint32_t *ed = s->topo.edges + 2 * (size_t)e;
             dc->query = e;
             box_edge(s->xs + 3 * (size_t)ed[0], s->xs + 3 * (size_t)ed[1], r, dc->lo, dc->hi);
-            xbvh_query_above(&s->bvh_edge, dc->lo, dc->hi, e, fns->self_ee, dc);
+            geo_bvh_query_above(&s->bvh_edge, dc->lo, dc->hi, e, fns->self_ee, dc);
         }
     }
     if (s->nc > 0) {
         (void)g;
-        const xbvh_node *root = &s->bvh_tri.nodes[0];
+        const geo_bvh_node *root = &s->bvh_tri.nodes[0];
         dc->list = PL_VT_COLLIDER;
         dc->prim_box = list_boxes(s, PL_VT_COLLIDER);
         for (uint32_t v = 0; v < s->n && !dc->overflow; ++v) {
             dc->query = v;
             box_around(s->xs + 3 * (size_t)v, r, dc->lo, dc->hi);
-            xbvh_query(&s->bvh_ctri, dc->lo, dc->hi, fns->vt_collider, dc);
+            geo_bvh_query(&s->bvh_ctri, dc->lo, dc->hi, fns->vt_collider, dc);
         }
         dc->list = PL_TV_COLLIDER;
         dc->prim_box = list_boxes(s, PL_TV_COLLIDER);
@@ -1014,7 +1014,7 @@ static bool traverse(weft_garment *g, xpbd_state *s, double r, const pass_fns *f
             }
             dc->query = u;
             box_around(p, r, dc->lo, dc->hi);
-            xbvh_query(&s->bvh_tri, dc->lo, dc->hi, fns->tv_collider, dc);
+            geo_bvh_query(&s->bvh_tri, dc->lo, dc->hi, fns->tv_collider, dc);
         }
         dc->list = PL_EE_COLLIDER;
         dc->prim_box = list_boxes(s, PL_EE_COLLIDER);
@@ -1022,7 +1022,7 @@ static bool traverse(weft_garment *g, xpbd_state *s, double r, const pass_fns *f
             const uint32_t *ed = s->topo.edges + 2 * (size_t)e;
             dc->query = e;
             box_edge(s->xs + 3 * (size_t)ed[0], s->xs + 3 * (size_t)ed[1], r, dc->lo, dc->hi);
-            xbvh_query(&s->bvh_cedge, dc->lo, dc->hi, fns->ee_collider, dc);
+            geo_bvh_query(&s->bvh_cedge, dc->lo, dc->hi, fns->ee_collider, dc);
         }
     }
     return !dc->overflow;
@@ -1034,8 +1034,8 @@ static double max_motion(const double *a, const double *b, uint32_t n)
     double m2 = 0.0;
     for (uint32_t i = 0; i < n; ++i) {
         double d[3];
-        xv_sub(d, a + 3 * (size_t)i, b + 3 * (size_t)i);
-        double l2 = xv_dot(d, d);
+        geo_sub(d, a + 3 * (size_t)i, b + 3 * (size_t)i);
+        double l2 = geo_dot(d, d);
         m2 = l2 > m2 ? l2 : m2;
     }
     return sqrt(m2);
@@ -1058,20 +1058,20 @@ static bool pairs_fresh(const xpbd_state *s)
 static void refit_trees(xpbd_state *s)
 {
     if (!s->cloth_bvh_built) {
-        xbvh_build(&s->bvh_tri, s->xs);
-        xbvh_build(&s->bvh_edge, s->xs);
+        geo_bvh_build(&s->bvh_tri, s->xs);
+        geo_bvh_build(&s->bvh_edge, s->xs);
         s->cloth_bvh_built = true;
     }
     if (!s->collider_bvh_built && s->nc > 0) {
-        xbvh_build(&s->bvh_ctri, s->csnap);
-        xbvh_build(&s->bvh_cedge, s->csnap);
+        geo_bvh_build(&s->bvh_ctri, s->csnap);
+        geo_bvh_build(&s->bvh_cedge, s->csnap);
         s->collider_bvh_built = true;
     }
-    xbvh_refit(&s->bvh_tri, s->xs, NULL, 0.0);
-    xbvh_refit(&s->bvh_edge, s->xs, NULL, 0.0);
+    geo_bvh_refit(&s->bvh_tri, s->xs, NULL, 0.0);
+    geo_bvh_refit(&s->bvh_edge, s->xs, NULL, 0.0);
     if (s->nc > 0) {
-        xbvh_refit(&s->bvh_ctri, s->csnap, NULL, 0.0);
-        xbvh_refit(&s->bvh_cedge, s->csnap, NULL, 0.0);
+        geo_bvh_refit(&s->bvh_ctri, s->csnap, NULL, 0.0);
+        geo_bvh_refit(&s->bvh_cedge, s->csnap, NULL, 0.0);
     }
 }
 
@@ -1113,7 +1113,7 @@ static void query_box(const xpbd_state *s, int list, uint32_t q, detect_ctx *dc)
  * from the trees. */
 static void sweep(weft_garment *g, xpbd_state *s, detect_ctx *dc, bool use_lists)
 {
-    static xbvh_visit_fn *const visitors[PL_COUNT] = {visit_self_vt, visit_self_ee, visit_vt_collider,
+    static geo_bvh_visit_fn *const visitors[PL_COUNT] = {visit_self_vt, visit_self_ee, visit_vt_collider,
                                                       visit_tv_collider, visit_ee_collider};
     if (use_lists) {
         const xpair *pr = s->pairs;
@@ -1224,20 +1224,20 @@ static double contact_refresh(xpbd_state *s, const xcontact *ct, double c[4], do
     }
     double b[3], sa, tb;
     if (ct->type == XC_VT) {
-        xg_point_triangle_sq(y[0], y[1], y[2], y[3], b);
+        geo_point_triangle_sq(y[0], y[1], y[2], y[3], b);
         c[0] = 1.0, c[1] = -b[0], c[2] = -b[1], c[3] = -b[2];
     } else if (ct->type == XC_TV) {
-        xg_point_triangle_sq(y[3], y[0], y[1], y[2], b);
+        geo_point_triangle_sq(y[3], y[0], y[1], y[2], b);
         c[0] = b[0], c[1] = b[1], c[2] = b[2], c[3] = -1.0;
     } else {
-        xg_segment_segment_sq(y[0], y[1], y[2], y[3], &sa, &tb);
+        geo_segment_segment_sq(y[0], y[1], y[2], y[3], &sa, &tb);
         c[0] = 1.0 - sa, c[1] = sa, c[2] = -(1.0 - tb), c[3] = -tb;
     }
     double d[3] = {0, 0, 0};
     for (int i = 0; i < 4; ++i) {
-        xv_axpy(d, c[i], y[i]);
+        geo_axpy(d, c[i], y[i]);
     }
-    double len = xv_len(d);
+    double len = geo_len(d);
     if (len > 1e-12) {
         for (int k = 0; k < 3; ++k) {
             n[k] = d[k] / len;
@@ -1247,7 +1247,7 @@ static double contact_refresh(xpbd_state *s, const xcontact *ct, double c[4], do
             n[k] = ct->n[k];
         }
     }
-    return xv_dot(d, n);
+    return geo_dot(d, n);
 }
 
 static uint32_t solve_contacts(xpbd_state *s)
@@ -1275,7 +1275,7 @@ static uint32_t solve_contacts(xpbd_state *s)
         double dl = -C / W;
         for (int i = 0; i < 4; ++i) {
             if (wi[i] > 0.0) {
-                xv_axpy(pos_of(s, ct->v[i], 0), wi[i] * cc[i] * dl, n);
+                geo_axpy(pos_of(s, ct->v[i], 0), wi[i] * cc[i] * dl, n);
             }
         }
         if (mu <= 0.0) {
@@ -1290,9 +1290,9 @@ static uint32_t solve_contacts(xpbd_state *s)
                 u[a] += cc[i] * (y[a] - y0[a]);
             }
         }
-        double un = xv_dot(u, n);
-        xv_axpy(u, -un, n);
-        double ut = xv_len(u);
+        double un = geo_dot(u, n);
+        geo_axpy(u, -un, n);
+        double ut = geo_len(u);
         if (!(ut > 0.0)) {
             continue;
         }
@@ -1300,7 +1300,7 @@ static uint32_t solve_contacts(xpbd_state *s)
         double scale = ut <= limit ? 1.0 : limit / ut;
         for (int i = 0; i < 4; ++i) {
             if (wi[i] > 0.0) {
-                xv_axpy(pos_of(s, ct->v[i], 0), -wi[i] * cc[i] * scale / W, u);
+                geo_axpy(pos_of(s, ct->v[i], 0), -wi[i] * cc[i] * scale / W, u);
             }
         }
     }
@@ -1333,11 +1333,11 @@ static void solve_elastic(weft_garment *g, xpbd_state *s, double h)
                 continue;
             }
             double alpha = inv_h2 / k;
-            double W = w0 * xv_dot(grad, grad) + w1 * xv_dot(grad + 3, grad + 3) + w2 * xv_dot(grad + 6, grad + 6);
+            double W = w0 * geo_dot(grad, grad) + w1 * geo_dot(grad + 3, grad + 3) + w2 * geo_dot(grad + 6, grad + 6);
             double dl = -C / (W + alpha);
-            xv_axpy(x0, w0 * dl, grad);
-            xv_axpy(x1, w1 * dl, grad + 3);
-            xv_axpy(x2, w2 * dl, grad + 6);
+            geo_axpy(x0, w0 * dl, grad);
+            geo_axpy(x1, w1 * dl, grad + 3);
+            geo_axpy(x2, w2 * dl, grad + 6);
         }
     }
     const double nu = s->p.poisson_ratio;
@@ -1362,11 +1362,11 @@ static void solve_elastic(weft_garment *g, xpbd_state *s, double h)
         double alpha = inv_h2 / (2.0 * kb * s->hinge_len[hi]);
         double W = 0.0;
         for (int i = 0; i < 4; ++i) {
-            W += wv[i] * xv_dot(grad + 3 * i, grad + 3 * i);
+            W += wv[i] * geo_dot(grad + 3 * i, grad + 3 * i);
         }
         double dl = -C / (W + alpha);
         for (int i = 0; i < 4; ++i) {
-            xv_axpy(p[i], wv[i] * dl, grad + 3 * i);
+            geo_axpy(p[i], wv[i] * dl, grad + 3 * i);
         }
     }
 }
@@ -1541,7 +1541,7 @@ static void predict(xpbd_state *s, double h, double a1)
             continue;
         }
         vi[1] -= s->p.gravity * h;
-        xv_axpy(xi, h, vi);
+        geo_axpy(xi, h, vi);
     }
 }
 
@@ -1622,7 +1622,7 @@ static weft_result xpbd_step(weft_garment *g)
         if (split && step == 0) {
             double vmax = 0.0;
             for (uint32_t i = 0; i < n; ++i) {
-                double sp = xv_len(s->v + 3 * (size_t)i);
+                double sp = geo_len(s->v + 3 * (size_t)i);
                 vmax = sp > vmax ? sp : vmax;
             }
             double travel = (vmax + s->p.gravity * h * S) * h * S;
@@ -1645,7 +1645,7 @@ static weft_result xpbd_step(weft_garment *g)
              * so the radius stays below RQ_MAX. */
             double vmax = 0.0;
             for (uint32_t i = 0; i < n; ++i) {
-                double sp = xv_len(s->v + 3 * (size_t)i);
+                double sp = geo_len(s->v + 3 * (size_t)i);
                 vmax = sp > vmax ? sp : vmax;
             }
             window = frame_only ? S : (S - step < s->p.detect_window ? S - step : s->p.detect_window);
@@ -1704,7 +1704,7 @@ static weft_result xpbd_step(weft_garment *g)
             while (window > 1 && !frame_only) {
                 uint32_t misfits = 0;
                 for (uint32_t i = 0; i < n && misfits <= clamp_redetect; ++i) {
-                    double need = (xv_len(s->v + 3 * (size_t)i) + s->p.gravity * h * window) * h * window;
+                    double need = (geo_len(s->v + 3 * (size_t)i) + s->p.gravity * h * window) * h * window;
                     misfits += !s->pinned[i] && need > s->bound[i];
                 }
                 if (misfits <= clamp_redetect) {
@@ -1724,8 +1724,8 @@ static weft_result xpbd_step(weft_garment *g)
             if (!s->pinned[i] && split) {
                 const double *xf = s->xs_frame + 3 * (size_t)i;
                 double d[3];
-                xv_sub(d, xi, xf);
-                double l = xv_len(d);
+                geo_sub(d, xi, xf);
+                double l = geo_len(d);
                 if (l > s->bound_frame[i]) {
                     double f = l > 0.0 ? s->bound_frame[i] / l : 0.0;
                     for (int a = 0; a < 3; ++a) {
@@ -1737,8 +1737,8 @@ static weft_result xpbd_step(weft_garment *g)
             }
             if (!s->pinned[i]) {
                 double d[3];
-                xv_sub(d, xi, x0);
-                double l = xv_len(d);
+                geo_sub(d, xi, x0);
+                double l = geo_len(d);
                 if (l > s->bound[i]) {
                     double f = l > 0.0 ? s->bound[i] / l : 0.0;
                     for (int a = 0; a < 3; ++a) {
@@ -1764,11 +1764,11 @@ static weft_result xpbd_step(weft_garment *g)
         for (uint32_t i = 0; i < n; ++i) {
             for (uint32_t t = 0; t < s->nctri; ++t) {
                 const uint32_t *tri = g->collider_triangles + 3 * (size_t)t;
-                double dnow = sqrt(xg_point_triangle_sq(s->x + 3 * (size_t)i, s->cc + 3 * (size_t)tri[0], s->cc + 3 * (size_t)tri[1], s->cc + 3 * (size_t)tri[2], NULL));
-                double dsnap = sqrt(xg_point_triangle_sq(s->xs + 3 * (size_t)i, s->csnap + 3 * (size_t)tri[0], s->csnap + 3 * (size_t)tri[1], s->csnap + 3 * (size_t)tri[2], NULL));
-                double dd[3]; xv_sub(dd, s->x + 3 * (size_t)i, s->xs + 3 * (size_t)i);
+                double dnow = sqrt(geo_point_triangle_sq(s->x + 3 * (size_t)i, s->cc + 3 * (size_t)tri[0], s->cc + 3 * (size_t)tri[1], s->cc + 3 * (size_t)tri[2], NULL));
+                double dsnap = sqrt(geo_point_triangle_sq(s->xs + 3 * (size_t)i, s->csnap + 3 * (size_t)tri[0], s->csnap + 3 * (size_t)tri[1], s->csnap + 3 * (size_t)tri[2], NULL));
+                double dd[3]; geo_sub(dd, s->x + 3 * (size_t)i, s->xs + 3 * (size_t)i);
                 if (dnow < 1e-7) {
-                    fprintf(stderr, "step %u since %u vertex %u tri %u: now %g snap %g bound %g dmin %g moved %g rq %g\n", step, since, i, t, dnow, dsnap, s->bound[i], s->dmin[i], xv_len(dd), s->rq);
+                    fprintf(stderr, "step %u since %u vertex %u tri %u: now %g snap %g bound %g dmin %g moved %g rq %g\n", step, since, i, t, dnow, dsnap, s->bound[i], s->dmin[i], geo_len(dd), s->rq);
                 }
             }
         }
@@ -1776,11 +1776,11 @@ static weft_result xpbd_step(weft_garment *g)
             const uint32_t *a = s->topo.edges + 2 * (size_t)e;
             for (uint32_t f = 0; f < s->ctopo.edge_count; ++f) {
                 const uint32_t *b = s->ctopo.edges + 2 * (size_t)f;
-                double dnow = sqrt(xg_segment_segment_sq(s->x + 3 * (size_t)a[0], s->x + 3 * (size_t)a[1], s->cc + 3 * (size_t)b[0], s->cc + 3 * (size_t)b[1], NULL, NULL));
-                double dsnap = sqrt(xg_segment_segment_sq(s->xs + 3 * (size_t)a[0], s->xs + 3 * (size_t)a[1], s->csnap + 3 * (size_t)b[0], s->csnap + 3 * (size_t)b[1], NULL, NULL));
+                double dnow = sqrt(geo_segment_segment_sq(s->x + 3 * (size_t)a[0], s->x + 3 * (size_t)a[1], s->cc + 3 * (size_t)b[0], s->cc + 3 * (size_t)b[1], NULL, NULL));
+                double dsnap = sqrt(geo_segment_segment_sq(s->xs + 3 * (size_t)a[0], s->xs + 3 * (size_t)a[1], s->csnap + 3 * (size_t)b[0], s->csnap + 3 * (size_t)b[1], NULL, NULL));
                 if (dnow < 1e-7) {
-                    double d0[3], d1[3]; xv_sub(d0, s->x + 3 * (size_t)a[0], s->xs + 3 * (size_t)a[0]); xv_sub(d1, s->x + 3 * (size_t)a[1], s->xs + 3 * (size_t)a[1]);
-                    fprintf(stderr, "EE step %u since %u edge %u-%u cedge %u-%u: now %g snap %g bounds %g %g moved %g %g rq %g\n", step, since, a[0], a[1], b[0], b[1], dnow, dsnap, s->bound[a[0]], s->bound[a[1]], xv_len(d0), xv_len(d1), s->rq);
+                    double d0[3], d1[3]; geo_sub(d0, s->x + 3 * (size_t)a[0], s->xs + 3 * (size_t)a[0]); geo_sub(d1, s->x + 3 * (size_t)a[1], s->xs + 3 * (size_t)a[1]);
+                    fprintf(stderr, "EE step %u since %u edge %u-%u cedge %u-%u: now %g snap %g bounds %g %g moved %g %g rq %g\n", step, since, a[0], a[1], b[0], b[1], dnow, dsnap, s->bound[a[0]], s->bound[a[1]], geo_len(d0), geo_len(d1), s->rq);
                 }
             }
         }
@@ -1829,7 +1829,7 @@ static uint32_t fast_collide_body(weft_garment *g, xpbd_state *s)
             continue;
         }
         const double depth = inside ? r + dist : r - dist;
-        xv_axpy(x, depth, out);
+        geo_axpy(x, depth, out);
         active++;
         if (mu <= 0.0) {
             continue;
@@ -1843,10 +1843,10 @@ static uint32_t fast_collide_body(weft_garment *g, xpbd_state *s)
             }
             u[k] = (x[k] - s->xo[3 * (size_t)i + k]) - (hit.point[k] - c0);
         }
-        xv_axpy(u, -xv_dot(u, out), out);
-        const double ut = xv_len(u), limit = mu * depth;
+        geo_axpy(u, -geo_dot(u, out), out);
+        const double ut = geo_len(u), limit = mu * depth;
         if (ut > 0.0) {
-            xv_axpy(x, -(ut <= limit ? 1.0 : limit / ut), u);
+            geo_axpy(x, -(ut <= limit ? 1.0 : limit / ut), u);
         }
     }
     return active;
@@ -1880,20 +1880,20 @@ static bool visit_fast_self(uint32_t t, void *user)
             return true;
         }
     }
-    const double d2 = xg_point_triangle_sq(p, y[0], y[1], y[2], b);
+    const double d2 = geo_point_triangle_sq(p, y[0], y[1], y[2], b);
     if (d2 >= r * r) {
         return true;
     }
     s->stats.min_self_distance = mind(s->stats.min_self_distance, sqrt(d2));
     double e1[3], e2[3], n[3], n0[3], q[3], q0[3], d[3], d0[3];
     const double *o[3] = {s->xo + 3 * (size_t)tri[0], s->xo + 3 * (size_t)tri[1], s->xo + 3 * (size_t)tri[2]};
-    xv_sub(e1, o[1], o[0]);
-    xv_sub(e2, o[2], o[0]);
-    xv_cross(n0, e1, e2);
-    xv_sub(e1, y[1], y[0]);
-    xv_sub(e2, y[2], y[0]);
-    xv_cross(n, e1, e2);
-    const double len = xv_len(n);
+    geo_sub(e1, o[1], o[0]);
+    geo_sub(e2, o[2], o[0]);
+    geo_cross(n0, e1, e2);
+    geo_sub(e1, y[1], y[0]);
+    geo_sub(e2, y[2], y[0]);
+    geo_cross(n, e1, e2);
+    const double len = geo_len(n);
     if (!(len > 1e-30)) {
         return true;
     }
@@ -1902,19 +1902,19 @@ static bool visit_fast_self(uint32_t t, void *user)
         q0[k] = b[0] * o[0][k] + b[1] * o[1][k] + b[2] * o[2][k];
         n[k] /= len;
     }
-    xv_sub(d, p, q);
-    xv_sub(d0, s->xo + 3 * (size_t)v, q0);
-    const double side0 = xv_dot(d0, n0);
-    const double sign = side0 > 0.0 ? 1.0 : side0 < 0.0 ? -1.0 : (xv_dot(d, n) >= 0.0 ? 1.0 : -1.0);
-    const double C = sign * xv_dot(d, n) - r;
+    geo_sub(d, p, q);
+    geo_sub(d0, s->xo + 3 * (size_t)v, q0);
+    const double side0 = geo_dot(d0, n0);
+    const double sign = side0 > 0.0 ? 1.0 : side0 < 0.0 ? -1.0 : (geo_dot(d, n) >= 0.0 ? 1.0 : -1.0);
+    const double C = sign * geo_dot(d, n) - r;
     const double wv = s->w[v], W = wv + s->w[tri[0]] * b[0] * b[0] + s->w[tri[1]] * b[1] * b[1] + s->w[tri[2]] * b[2] * b[2];
     if (C >= 0.0 || !(W > 0.0)) {
         return true;
     }
     const double dl = -C / W * sign;
-    xv_axpy(p, wv * dl, n);
+    geo_axpy(p, wv * dl, n);
     for (int j = 0; j < 3; ++j) {
-        xv_axpy(y[j], -s->w[tri[j]] * b[j] * dl, n);
+        geo_axpy(y[j], -s->w[tri[j]] * b[j] * dl, n);
     }
     fc->active++;
     return true;
@@ -1948,7 +1948,7 @@ static bool visit_fast_ee(uint32_t e2, void *user)
         }
     }
     double sa, tb;
-    const double d2 = xg_segment_segment_sq(y[0], y[1], y[2], y[3], &sa, &tb);
+    const double d2 = geo_segment_segment_sq(y[0], y[1], y[2], y[3], &sa, &tb);
     if (d2 >= r * r) {
         return true;
     }
@@ -1956,11 +1956,11 @@ static bool visit_fast_ee(uint32_t e2, void *user)
     const double c[4] = {1.0 - sa, sa, -(1.0 - tb), -tb};
     double d[3] = {0, 0, 0}, d0[3] = {0, 0, 0}, n[3];
     for (int j = 0; j < 4; ++j) {
-        xv_axpy(d, c[j], y[j]);
-        xv_axpy(d0, c[j], s->xo + 3 * (size_t)idx[j]);
+        geo_axpy(d, c[j], y[j]);
+        geo_axpy(d0, c[j], s->xo + 3 * (size_t)idx[j]);
     }
-    const double len = xv_len(d), len0 = xv_len(d0);
-    if (xv_dot(d, d0) > 0.0 && len > 1e-12) {
+    const double len = geo_len(d), len0 = geo_len(d0);
+    if (geo_dot(d, d0) > 0.0 && len > 1e-12) {
         for (int k = 0; k < 3; ++k) {
             n[k] = d[k] / len;
         }
@@ -1975,13 +1975,13 @@ static bool visit_fast_ee(uint32_t e2, void *user)
     for (int j = 0; j < 4; ++j) {
         W += s->w[idx[j]] * c[j] * c[j];
     }
-    const double C = xv_dot(d, n) - r;
+    const double C = geo_dot(d, n) - r;
     if (C >= 0.0 || !(W > 0.0)) {
         return true;
     }
     const double dl = -C / W;
     for (int j = 0; j < 4; ++j) {
-        xv_axpy(y[j], s->w[idx[j]] * c[j] * dl, n);
+        geo_axpy(y[j], s->w[idx[j]] * c[j] * dl, n);
     }
     fc->active++;
     return true;
@@ -2040,9 +2040,9 @@ static uint32_t fast_collide_self(weft_garment *g, xpbd_state *s)
             s->box_tri[6 * t + 3 + a] += pad;
         }
     }
-    xbvh_refit(&s->bvh_tri, s->x, NULL, pad);
+    geo_bvh_refit(&s->bvh_tri, s->x, NULL, pad);
     fast_self_ctx fc = {.s = s, .tris = g->triangles};
-    xbvh_self_pairs(&s->bvh_tri, fast_tri_pair, &fc);
+    geo_bvh_self_pairs(&s->bvh_tri, fast_tri_pair, &fc);
     return fc.active;
 }
 
@@ -2055,7 +2055,7 @@ static weft_result xpbd_fast_step(weft_garment *g)
     const double h = FRAME_DT / S;
     begin_frame(g, s, S);
     if (s->p.self_collision) {
-        xbvh_build(&s->bvh_tri, s->x);
+        geo_bvh_build(&s->bvh_tri, s->x);
     }
     for (uint32_t step = 0; step < S; ++step) {
         const double a0 = (double)step / S, a1 = (double)(step + 1) / S;

@@ -120,7 +120,7 @@ static void test_point_triangle_distance(void)
     for (int trial = 0; trial < 100; ++trial) {
         double a[3], b[3], c[3], p[3], bary[3];
         random_point(&r, a, 1), random_point(&r, b, 1), random_point(&r, c, 1), random_point(&r, p, 1.5);
-        double d2 = xg_point_triangle_sq(p, a, b, c, bary);
+        double d2 = geo_point_triangle_sq(p, a, b, c, bary);
         /* Brute force over a barycentric lattice never beats the exact minimum. */
         double best = 1e30;
         const int N = 60;
@@ -130,7 +130,7 @@ static void test_point_triangle_distance(void)
                 for (int k = 0; k < 3; ++k) {
                     q[k] = u * a[k] + v * b[k] + w * c[k] - p[k];
                 }
-                best = fmin(best, xv_dot(q, q));
+                best = fmin(best, geo_dot(q, q));
             }
         }
         CHECK(d2 <= best + 1e-12);
@@ -146,7 +146,7 @@ static void test_segment_distance(void)
     for (int trial = 0; trial < 100; ++trial) {
         double p0[3], p1[3], q0[3], q1[3], s, t;
         random_point(&r, p0, 1), random_point(&r, p1, 1), random_point(&r, q0, 1), random_point(&r, q1, 1);
-        double d2 = xg_segment_segment_sq(p0, p1, q0, q1, &s, &t);
+        double d2 = geo_segment_segment_sq(p0, p1, q0, q1, &s, &t);
         double best = 1e30;
         for (int i = 0; i <= 200; ++i) {
             for (int j = 0; j <= 200; ++j) {
@@ -154,7 +154,7 @@ static void test_segment_distance(void)
                 for (int k = 0; k < 3; ++k) {
                     d[k] = (p0[k] + a * (p1[k] - p0[k])) - (q0[k] + b * (q1[k] - q0[k]));
                 }
-                best = fmin(best, xv_dot(d, d));
+                best = fmin(best, geo_dot(d, d));
             }
         }
         CHECK(d2 <= best + 1e-12);

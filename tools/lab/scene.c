@@ -724,13 +724,13 @@ static void tri_frame(const float *a, const float *b, const float *c, double e[3
         u[k] = (double)b[k] - a[k];
         w[k] = (double)c[k] - a[k];
     }
-    xv_cross(n, u, w);
-    double ln = xv_len(n), lu = xv_len(u);
+    geo_cross(n, u, w);
+    double ln = geo_len(n), lu = geo_len(u);
     for (int k = 0; k < 3; ++k) {
         n[k] = ln > 0.0 ? n[k] / ln : 0.0;
         e[k] = lu > 0.0 ? u[k] / lu : 0.0;
     }
-    xv_cross(t, n, e);
+    geo_cross(t, n, e);
 }
 
 static void band_point(const xscene *sc, const float *body, uint32_t k, double out[3], double e[3], double t[3],
@@ -780,7 +780,7 @@ static bool bind_band(xscene *sc)
                     p[v][k] = co->pos[3 * (size_t)tri[v] + k];
                 }
             }
-            double d = xg_point_triangle_sq(x, p[0], p[1], p[2], w);
+            double d = geo_point_triangle_sq(x, p[0], p[1], p[2], w);
             if (d < best) {
                 best = d, bt = t;
                 memcpy(bary, w, sizeof bary);
@@ -794,10 +794,10 @@ static bool bind_band(xscene *sc)
         }
         double q[3], e[3], t[3], nn[3], d[3];
         band_point(sc, co->pos, k, q, e, t, nn);
-        xv_sub(d, x, q);
-        sc->band_off[3 * (size_t)k + 0] = (float)xv_dot(d, e);
-        sc->band_off[3 * (size_t)k + 1] = (float)xv_dot(d, t);
-        sc->band_off[3 * (size_t)k + 2] = (float)xv_dot(d, nn);
+        geo_sub(d, x, q);
+        sc->band_off[3 * (size_t)k + 0] = (float)geo_dot(d, e);
+        sc->band_off[3 * (size_t)k + 1] = (float)geo_dot(d, t);
+        sc->band_off[3 * (size_t)k + 2] = (float)geo_dot(d, nn);
     }
     return true;
 }
@@ -845,7 +845,7 @@ static bool release_band_near_arms(xscene *sc)
             for (uint32_t i = 0; i < na; ++i) {
                 const float *p = body + 3 * (size_t)arm[i];
                 double d[3] = {p[0] - x[0], p[1] - x[1], p[2] - x[2]};
-                closest[k] = fmin(closest[k], xv_dot(d, d));
+                closest[k] = fmin(closest[k], geo_dot(d, d));
             }
         }
     }

@@ -15,7 +15,7 @@ Data flow for one step t -> t+1 (all positions in metres, centred on the garment
             (+ the encoder's vertex tokens when dec_skip) -> 2 x GNN -> Linear -> displacement
   output:   X_{t+1} = prior + out_scale * displacement, prior = 2 X_t - X_{t-1} ("inertial"), X_t
             ("previous"), X_t + S_{t+1} - S_t ("skinned": S is the skinning baseline on the
-            collider, runtime/xpbd/lbs.c; equal to "previous" when the collider does not move;
+            collider, runtime/geometry/skin.c; equal to "previous" when the collider does not move;
             with prior_decay a < 1, S_{t+1} + a (X_t - S_t)) or
             X_t + beta (X_t - X_{t-1}) + g dt^2 ("ballistic": free fall is in the prior) or
             X_t + beta (X_t - X_{t-1}) kept within each vertex's rest distance of the pins' centroid

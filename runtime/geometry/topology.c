@@ -1,5 +1,5 @@
 /* Edges, hinges and edge-triangle incidence of a triangle mesh. */
-#include "xpbd/xpbd.h"
+#include "geometry/geometry.h"
 
 #include <stdlib.h>
 
@@ -19,18 +19,18 @@ static int cmp_half_edge(const void *pa, const void *pb)
     return a->tri < b->tri ? -1 : (a->tri > b->tri);
 }
 
-void xtopo_destroy(const weft_context *ctx, xtopo *topo)
+void geo_topo_destroy(const weft_context *ctx, geo_topo *topo)
 {
     weft__free(ctx, topo->edges, (size_t)topo->edge_count * 2 * sizeof(uint32_t));
     weft__free(ctx, topo->edge_tri, (size_t)topo->edge_count * 2 * sizeof(uint32_t));
     weft__free(ctx, topo->hinges, (size_t)topo->hinge_count * 4 * sizeof(uint32_t));
-    *topo = (xtopo){0};
+    *topo = (geo_topo){0};
 }
 
-weft_result xtopo_create(const weft_context *ctx, xtopo *topo, const uint32_t *tris, uint32_t triangle_count,
+weft_result geo_topo_create(const weft_context *ctx, geo_topo *topo, const uint32_t *tris, uint32_t triangle_count,
                          uint32_t vertex_count, const char *what)
 {
-    *topo = (xtopo){0};
+    *topo = (geo_topo){0};
     topo->tris = tris;
     topo->vertex_count = vertex_count;
     topo->triangle_count = triangle_count;
@@ -78,7 +78,7 @@ weft_result xtopo_create(const weft_context *ctx, xtopo *topo, const uint32_t *t
     topo->hinges = weft__alloc(ctx, (size_t)(hinges ? hinges : 1) * 4 * sizeof(uint32_t));
     if (!topo->edges || !topo->edge_tri || !topo->hinges) {
         weft__free(ctx, he, nh * sizeof *he);
-        xtopo_destroy(ctx, topo);
+        geo_topo_destroy(ctx, topo);
         return WEFT_ERROR_OUT_OF_MEMORY;
     }
     uint32_t e = 0, h = 0;

@@ -1,15 +1,15 @@
 /* Binary AABB tree over points, edges or triangles. Children are stored as adjacent pairs
  * after their parent, so a reverse sweep over the nodes refits bottom-up. */
-#include "xpbd/xpbd.h"
+#include "geometry/geometry.h"
 
 #include <float.h>
 
 #define XBVH_LEAF 4u
 
-weft_result xbvh_create(const weft_context *ctx, xbvh *bvh, const uint32_t *prim_verts, uint32_t prim_count,
+weft_result geo_bvh_create(const weft_context *ctx, geo_bvh *bvh, const uint32_t *prim_verts, uint32_t prim_count,
                         uint32_t arity)
 {
-    *bvh = (xbvh){0};
+    *bvh = (geo_bvh){0};
     bvh->prim_count = prim_count;
     bvh->arity = arity;
     bvh->prim_verts = prim_verts;
@@ -18,25 +18,25 @@ weft_result xbvh_create(const weft_context *ctx, xbvh *bvh, const uint32_t *prim
     }
     size_t max_nodes = 2 * (size_t)prim_count;
     bvh->order = weft__alloc(ctx, prim_count * sizeof(uint32_t));
-    bvh->nodes = weft__alloc(ctx, max_nodes * sizeof(xbvh_node));
+    bvh->nodes = weft__alloc(ctx, max_nodes * sizeof(geo_bvh_node));
     bvh->build_stack = weft__alloc(ctx, 3 * max_nodes * sizeof(uint32_t));
     if (!bvh->order || !bvh->nodes || !bvh->build_stack) {
-        xbvh_destroy(ctx, bvh);
+        geo_bvh_destroy(ctx, bvh);
         return WEFT_ERROR_OUT_OF_MEMORY;
     }
     return WEFT_OK;
 }
 
-void xbvh_destroy(const weft_context *ctx, xbvh *bvh)
+void geo_bvh_destroy(const weft_context *ctx, geo_bvh *bvh)
 {
     size_t max_nodes = 2 * (size_t)bvh->prim_count;
     weft__free(ctx, bvh->order, bvh->prim_count * sizeof(uint32_t));
-    weft__free(ctx, bvh->nodes, max_nodes * sizeof(xbvh_node));
+    weft__free(ctx, bvh->nodes, max_nodes * sizeof(geo_bvh_node));
     weft__free(ctx, bvh->build_stack, 3 * max_nodes * sizeof(uint32_t));
-    *bvh = (xbvh){0};
+    *bvh = (geo_bvh){0};
 }
 
-static double centroid(const xbvh *bvh, const double *pos, uint32_t prim, int axis)
+static double centroid(const geo_bvh *bvh, const double *pos, uint32_t prim, int axis)
 {
     double s = 0.0;
     for (uint32_t k = 0; k < bvh->arity; ++k) {
@@ -45,7 +45,7 @@ static double centroid(const xbvh *bvh, const double *pos, uint32_t prim, int ax
     return s / bvh->arity;
 }
 
-void xbvh_build(xbvh *bvh, const double *pos)
+void geo_bvh_build(geo_bvh *bvh, const double *pos)
 {
     if (bvh->prim_count == 0) {
         return;
@@ -59,7 +59,7 @@ void xbvh_build(xbvh *bvh, const double *pos)
     stack[sp++] = 0, stack[sp++] = 0, stack[sp++] = bvh->prim_count;
     while (sp > 0) {
         uint32_t end = stack[--sp], begin = stack[--sp], node = stack[--sp];
-        xbvh_node *nd = &bvh->nodes[node];
+        geo_bvh_node *nd = &bvh->nodes[node];
         uint32_t n = end - begin;
         if (n <= XBVH_LEAF) {
             nd->left = begin;
@@ -123,10 +123,10 @@ void xbvh_build(xbvh *bvh, const double *pos)
     }
 }
 
-void xbvh_refit(xbvh *bvh, const double *pos0, const double *pos1, double pad)
+void geo_bvh_refit(geo_bvh *bvh, const double *pos0, const double *pos1, double pad)
 {
     for (uint32_t ni = bvh->node_count; ni-- > 0;) {
-        xbvh_node *nd = &bvh->nodes[ni];
+        geo_bvh_node *nd = &bvh->nodes[ni];
         double lo[3] = {DBL_MAX, DBL_MAX, DBL_MAX}, hi[3] = {-DBL_MAX, -DBL_MAX, -DBL_MAX};
         uint32_t max_prim = 0;
         if (nd->count > 0) {
@@ -148,7 +148,7 @@ void xbvh_refit(xbvh *bvh, const double *pos0, const double *pos1, double pad)
                 hi[a] += pad;
             }
         } else {
-            const xbvh_node *l = &bvh->nodes[nd->left], *r = &bvh->nodes[nd->left + 1];
+            const geo_bvh_node *l = &bvh->nodes[nd->left], *r = &bvh->nodes[nd->left + 1];
             max_prim = l->max_prim > r->max_prim ? l->max_prim : r->max_prim;
             for (int a = 0; a < 3; ++a) {
                 lo[a] = l->lo[a] < r->lo[a] ? l->lo[a] : r->lo[a];
@@ -164,8 +164,8 @@ void xbvh_refit(xbvh *bvh, const double *pos0, const double *pos1, double pad)
 }
 
 /* all: visit every primitive; else only those with an index above `above`. */
-static inline bool query(const xbvh *bvh, const double lo[3], const double hi[3], bool all, uint32_t above,
-                         xbvh_visit_fn *fn, void *user)
+static inline bool query(const geo_bvh *bvh, const double lo[3], const double hi[3], bool all, uint32_t above,
+                         geo_bvh_visit_fn *fn, void *user)
 {
     if (bvh->node_count == 0) {
         return true;
@@ -174,7 +174,7 @@ static inline bool query(const xbvh *bvh, const double lo[3], const double hi[3]
     uint32_t sp = 0;
     stack[sp++] = 0;
     while (sp > 0) {
-        const xbvh_node *nd = &bvh->nodes[stack[--sp]];
+        const geo_bvh_node *nd = &bvh->nodes[stack[--sp]];
         if (nd->lo[0] > hi[0] || nd->hi[0] < lo[0] || nd->lo[1] > hi[1] || nd->hi[1] < lo[1] || nd->lo[2] > hi[2] ||
             nd->hi[2] < lo[2] || (!all && nd->max_prim <= above)) {
             continue;
@@ -193,33 +193,33 @@ static inline bool query(const xbvh *bvh, const double lo[3], const double hi[3]
     return true;
 }
 
-bool xbvh_query(const xbvh *bvh, const double lo[3], const double hi[3], xbvh_visit_fn *fn, void *user)
+bool geo_bvh_query(const geo_bvh *bvh, const double lo[3], const double hi[3], geo_bvh_visit_fn *fn, void *user)
 {
     return query(bvh, lo, hi, true, 0, fn, user);
 }
 
-bool xbvh_query_above(const xbvh *bvh, const double lo[3], const double hi[3], uint32_t above, xbvh_visit_fn *fn,
+bool geo_bvh_query_above(const geo_bvh *bvh, const double lo[3], const double hi[3], uint32_t above, geo_bvh_visit_fn *fn,
                       void *user)
 {
     return query(bvh, lo, hi, false, above, fn, user);
 }
 
-static inline bool nodes_meet(const xbvh_node *a, const xbvh_node *b)
+static inline bool nodes_meet(const geo_bvh_node *a, const geo_bvh_node *b)
 {
     return !(a->lo[0] > b->hi[0] || b->lo[0] > a->hi[0] || a->lo[1] > b->hi[1] || b->lo[1] > a->hi[1] ||
              a->lo[2] > b->hi[2] || b->lo[2] > a->hi[2]);
 }
 
-static double node_extent(const xbvh_node *n)
+static double node_extent(const geo_bvh_node *n)
 {
     return (n->hi[0] - n->lo[0]) + (n->hi[1] - n->lo[1]) + (n->hi[2] - n->lo[2]);
 }
 
 /* Nodes a and b (a == b: the pairs inside one subtree). Recursion depth is at most twice the
  * tree's, which the median split keeps at log2 of the leaf count. */
-static void self_pairs(const xbvh *bvh, uint32_t a, uint32_t b, xbvh_pair_fn *fn, void *user)
+static void self_pairs(const geo_bvh *bvh, uint32_t a, uint32_t b, geo_bvh_pair_fn *fn, void *user)
 {
-    const xbvh_node *na = &bvh->nodes[a], *nb = &bvh->nodes[b];
+    const geo_bvh_node *na = &bvh->nodes[a], *nb = &bvh->nodes[b];
     if (a == b) {
         if (na->count > 0) {
             for (uint32_t i = na->left; i < na->left + na->count; ++i) {
@@ -252,7 +252,7 @@ static void self_pairs(const xbvh *bvh, uint32_t a, uint32_t b, xbvh_pair_fn *fn
     }
 }
 
-void xbvh_self_pairs(const xbvh *bvh, xbvh_pair_fn *fn, void *user)
+void geo_bvh_self_pairs(const geo_bvh *bvh, geo_bvh_pair_fn *fn, void *user)
 {
     if (bvh->node_count > 0) {
         self_pairs(bvh, 0, 0, fn, user);

@@ -1,23 +1,23 @@
 /* Distance, intersection and conservative-advancement kernels in double precision. */
-#include "xpbd/xpbd.h"
+#include "geometry/geometry.h"
 
 #include <math.h>
 
-double xg_point_triangle_sq(const double *p, const double *a, const double *b, const double *c, double bary[3])
+double geo_point_triangle_sq(const double *p, const double *a, const double *b, const double *c, double bary[3])
 {
     /* Voronoi-region walk over the triangle's vertices, edges and face. */
     double ab[3], ac[3], ap[3], bp[3], cp[3], q[3];
-    xv_sub(ab, b, a);
-    xv_sub(ac, c, a);
-    xv_sub(ap, p, a);
-    double d1 = xv_dot(ab, ap), d2 = xv_dot(ac, ap);
+    geo_sub(ab, b, a);
+    geo_sub(ac, c, a);
+    geo_sub(ap, p, a);
+    double d1 = geo_dot(ab, ap), d2 = geo_dot(ac, ap);
     double u, v, w;
     if (d1 <= 0.0 && d2 <= 0.0) {
         u = 1.0, v = 0.0, w = 0.0;
         goto done;
     }
-    xv_sub(bp, p, b);
-    double d3 = xv_dot(ab, bp), d4 = xv_dot(ac, bp);
+    geo_sub(bp, p, b);
+    double d3 = geo_dot(ab, bp), d4 = geo_dot(ac, bp);
     if (d3 >= 0.0 && d4 <= d3) {
         u = 0.0, v = 1.0, w = 0.0;
         goto done;
@@ -28,8 +28,8 @@ double xg_point_triangle_sq(const double *p, const double *a, const double *b, c
         u = 1.0 - v, w = 0.0;
         goto done;
     }
-    xv_sub(cp, p, c);
-    double d5 = xv_dot(ab, cp), d6 = xv_dot(ac, cp);
+    geo_sub(cp, p, c);
+    double d5 = geo_dot(ab, cp), d6 = geo_dot(ac, cp);
     if (d6 >= 0.0 && d5 <= d6) {
         u = 0.0, v = 0.0, w = 1.0;
         goto done;
@@ -51,8 +51,8 @@ double xg_point_triangle_sq(const double *p, const double *a, const double *b, c
         if (!(denom > 0.0)) {
             /* Degenerate (collapsed) triangle: fall back to the nearest vertex. */
             double da[3], db[3], dc[3];
-            xv_sub(da, p, a), xv_sub(db, p, b), xv_sub(dc, p, c);
-            double la = xv_dot(da, da), lb = xv_dot(db, db), lc = xv_dot(dc, dc);
+            geo_sub(da, p, a), geo_sub(db, p, b), geo_sub(dc, p, c);
+            double la = geo_dot(da, da), lb = geo_dot(db, db), lc = geo_dot(dc, dc);
             u = (la <= lb && la <= lc), v = (!u && lb <= lc), w = (!u && !v);
             goto done;
         }
@@ -67,19 +67,19 @@ done:
     if (bary) {
         bary[0] = u, bary[1] = v, bary[2] = w;
     }
-    return xv_dot(q, q);
+    return geo_dot(q, q);
 }
 
 static double clamp01(double x) { return x < 0.0 ? 0.0 : (x > 1.0 ? 1.0 : x); }
 
-double xg_segment_segment_sq(const double *p0, const double *p1, const double *q0, const double *q1, double *s_out,
+double geo_segment_segment_sq(const double *p0, const double *p1, const double *q0, const double *q1, double *s_out,
                              double *t_out)
 {
     double d1[3], d2[3], r[3];
-    xv_sub(d1, p1, p0);
-    xv_sub(d2, q1, q0);
-    xv_sub(r, p0, q0);
-    double a = xv_dot(d1, d1), e = xv_dot(d2, d2), f = xv_dot(d2, r);
+    geo_sub(d1, p1, p0);
+    geo_sub(d2, q1, q0);
+    geo_sub(r, p0, q0);
+    double a = geo_dot(d1, d1), e = geo_dot(d2, d2), f = geo_dot(d2, r);
     double s, t;
     const double eps = 1e-30;
     if (a <= eps && e <= eps) {
@@ -88,12 +88,12 @@ double xg_segment_segment_sq(const double *p0, const double *p1, const double *q
         s = 0.0;
         t = clamp01(f / e);
     } else {
-        double c = xv_dot(d1, r);
+        double c = geo_dot(d1, r);
         if (e <= eps) {
             t = 0.0;
             s = clamp01(-c / a);
         } else {
-            double b = xv_dot(d1, d2);
+            double b = geo_dot(d1, d2);
             double denom = a * e - b * b;
             /* Near-parallel segments: any s works; 0 keeps the result continuous enough. */
             s = denom > 1e-14 * a * e ? clamp01((b * f - c * e) / denom) : 0.0;
@@ -117,5 +117,5 @@ double xg_segment_segment_sq(const double *p0, const double *p1, const double *q
     if (t_out) {
         *t_out = t;
     }
-    return xv_dot(cp, cp);
+    return geo_dot(cp, cp);
 }

@@ -1,10 +1,10 @@
-/* The solver's AABB tree: a query reports every primitive whose box meets the query box, and
- * the index-limited query (used for each unordered self pair once) reports exactly those
- * with a higher index, in the same order, so switching between them cannot change the
- * solver's contact order. The self traversal reports every pair of primitives whose boxes
- * meet exactly once. */
+/* The geometry module's AABB tree (runtime/geometry/bvh.c): a query reports every primitive
+ * whose box meets the query box, and the index-limited query (used for each unordered self pair
+ * once) reports exactly those with a higher index, in the same order, so switching between them
+ * cannot change the solver's contact order. The self traversal reports every pair of primitives
+ * whose boxes meet exactly once. */
 #include "test.h"
-#include "xpbd/xpbd.h"
+#include "geometry/geometry.h"
 
 #include <stdlib.h>
 
@@ -70,18 +70,18 @@ static void test_query_above_matches_filtered_query(void)
     static uint32_t edges[2 * NE];
     uint64_t st = 12345;
     random_edges(&st, 1.0, pos, edges);
-    xbvh bvh;
-    CHECK_RESULT(xbvh_create(ctx, &bvh, edges, NE, 2), WEFT_OK);
-    xbvh_build(&bvh, pos);
-    xbvh_refit(&bvh, pos, NULL, 0.0);
+    geo_bvh bvh;
+    CHECK_RESULT(geo_bvh_create(ctx, &bvh, edges, NE, 2), WEFT_OK);
+    geo_bvh_build(&bvh, pos);
+    geo_bvh_refit(&bvh, pos, NULL, 0.0);
     uint32_t nonempty = 0;
     for (int q = 0; q < NQ; ++q) {
         double c[3] = {rnd(&st), rnd(&st), rnd(&st)}, r = 0.02 + 0.2 * rnd(&st);
         double lo[3] = {c[0] - r, c[1] - r, c[2] - r}, hi[3] = {c[0] + r, c[1] + r, c[2] + r};
         uint32_t above = (uint32_t)(rnd(&st) * NE);
         hits all = {0}, upper = {0};
-        CHECK(xbvh_query(&bvh, lo, hi, record, &all));
-        CHECK(xbvh_query_above(&bvh, lo, hi, above, record, &upper));
+        CHECK(geo_bvh_query(&bvh, lo, hi, record, &all));
+        CHECK(geo_bvh_query_above(&bvh, lo, hi, above, record, &upper));
         CHECK(all.count <= MAX_HITS && upper.count <= all.count);
         /* Every primitive whose own box meets the query box is reported, once. */
         uint32_t truth = 0, found = 0;
@@ -109,7 +109,7 @@ static void test_query_above_matches_filtered_query(void)
         CHECK_EQ_INT(j, upper.count);
     }
     CHECK(nonempty > NQ / 2); /* the queries do exercise the tree */
-    xbvh_destroy(ctx, &bvh);
+    geo_bvh_destroy(ctx, &bvh);
     weft_context_destroy(ctx);
 }
 
@@ -135,14 +135,14 @@ static void test_self_pairs_cover_meeting_boxes(void)
     static uint32_t edges[2 * NE];
     uint64_t st = 777;
     random_edges(&st, 0.5, pos, edges); /* in a smaller cube, so that many boxes meet */
-    xbvh bvh;
-    CHECK_RESULT(xbvh_create(ctx, &bvh, edges, NE, 2), WEFT_OK);
-    xbvh_build(&bvh, pos);
+    geo_bvh bvh;
+    CHECK_RESULT(geo_bvh_create(ctx, &bvh, edges, NE, 2), WEFT_OK);
+    geo_bvh_build(&bvh, pos);
     const double pad = 0.01;
-    xbvh_refit(&bvh, pos, NULL, pad);
+    geo_bvh_refit(&bvh, pos, NULL, pad);
     uint8_t *seen = calloc((size_t)NE * NE, 1);
     CHECK(seen != NULL);
-    xbvh_self_pairs(&bvh, count_pair, seen);
+    geo_bvh_self_pairs(&bvh, count_pair, seen);
     uint32_t meeting = 0;
     for (uint32_t a = 0; a < NE; ++a) {
         for (uint32_t b = a + 1; b < NE; ++b) {
@@ -163,7 +163,7 @@ static void test_self_pairs_cover_meeting_boxes(void)
     }
     CHECK(meeting > NE); /* the traversal is exercised */
     free(seen);
-    xbvh_destroy(ctx, &bvh);
+    geo_bvh_destroy(ctx, &bvh);
     weft_context_destroy(ctx);
 }
 
