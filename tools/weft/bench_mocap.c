@@ -56,7 +56,7 @@ static void usage(FILE *f)
             "  (0: every frame of each clip), 1k, the shipped int8 garment model, and the worn-garment recipe\n"
             "  of the render sample: body parts on, CCD off, an 8 cm max distance, a 0.5 cm push, a 10 %%\n"
             "  strain limit for the learned model. --md writes the table into FILE between\n"
-            "  <!-- mocap-table --> markers (docs/STABILITY.md), or <!-- NAME --> with --block (another\n"
+            "  <!-- mocap-table --> markers (docs/STABILITY_MOCAP.md), or <!-- NAME --> with --block (another\n"
             "  variant's table on the same page: letters, digits and '-').\n");
 }
 
