@@ -41,7 +41,7 @@ void weft_avatar_sample_default_options(weft_avatar_sample_options *o)
     o->strain_pct = -1.0f;
     o->body_parts = true;
     o->ccd = false;
-    o->push_cm = WEFT_WORN_PUSH_CM;
+    o->push_cm = -1.0f;
     o->out_dir = "avatar_frames";
     o->frames = 120;
     o->settle_frames = 30;
@@ -80,12 +80,12 @@ void weft_avatar_sample_usage(FILE *out, const char *program)
             "  --model FILE            safetensors model for the model method (default: the shipped garment model\n"
             "                          for --precision, tools/train/models/garment[.fp16|.int8].safetensors)\n"
             "  --precision P           fp32 | fp16 | int8: the model's arithmetic (default int8)\n"
-            "  --tether-cm X           tether every garment vertex within X cm of its skinned position (default 8;\n"
-            "                          0: off)\n"
+            "  --tether-cm X           tether every garment vertex within X cm of its skinned position (default 8,\n"
+            "                          off for xpbd; 0: off)\n"
             "  --strain-limit PCT      shorten garment edges stretched over PCT %% after each step (0: off;\n"
             "                          default 10 for the learned model, off for xpbd)\n"
             "  --push-cm X             push garment cloth inside the body (up to 2 cm) or nearer than X cm to X cm\n"
-            "                          in front of it (default 0.5; 0: off; docs/CCD.md, Collider push)\n"
+            "                          in front of it (default 0.5, off for xpbd; 0: off; docs/CCD.md, Collider push)\n"
             "  --body-parts on|off     garment vertices collide only with the body parts they lie against at rest\n"
             "                          (each triangle's dominant bone; default on; docs/CCD.md, Body parts)\n"
             "  --ccd on|off            the CCD post-process after each step (default off: its cost is unbounded\n"
@@ -599,6 +599,15 @@ static weft_garment_def worn_def_on(const weft_sample_collider *col, const float
     d.tethers.distance = WEFT_WORN_TETHER_CM / 100.0f;
     d.collision.push = WEFT_WORN_PUSH_CM / 100.0f;
     d.strain.limit = method == WEFT_METHOD_MODEL ? WEFT_WORN_STRAIN_PCT / 100.0f : 0.0f;
+    if (method == WEFT_METHOD_XPBD) {
+        /* The reference runs as weft simgen runs it on real motion (docs/REFSIM.md, Real motion):
+         * the body parts within 1 cm of each vertex at rest, without their neighbours, and none of
+         * the fix-ups a game step needs (a post-step move breaks its penetration-free bounds). */
+        d.collision.part_neighbours = false;
+        d.collision.part_margin = 0.01f;
+        d.tethers.distance = 0.0f;
+        d.collision.push = 0.0f;
+    }
     weft_sample_set_substeps(&d, 0);
     return d;
 }
@@ -708,12 +717,14 @@ weft_result weft_avatar_sample_garment_create_on(const weft_avatar_sample_option
         }
         weft_sample_set_substeps(&gdef, substeps);
         /* The options override the worn-garment recipe: --tether-cm (8, 0 turns it off),
-         * --strain-limit (10 % for the learned model), --push-cm, --ccd. */
-        float tether_cm = o->tether_cm >= 0.0f ? o->tether_cm : WEFT_WORN_TETHER_CM;
+         * --strain-limit (10 % for the learned model), --push-cm (0.5), --ccd; the reference
+         * XPBD's recipe has none of the three. */
+        float tether_cm = o->tether_cm >= 0.0f ? o->tether_cm : gdef.tethers.distance * 100.0f;
         gdef.tethers.distance = tether_cm / 100.0f;
         float strain_pct = o->strain_pct >= 0.0f ? o->strain_pct : gdef.strain.limit * 100.0f;
         gdef.strain.limit = strain_pct / 100.0f;
-        gdef.collision.push = o->push_cm / 100.0f;
+        const float push_cm = o->push_cm >= 0.0f ? o->push_cm : gdef.collision.push * 100.0f;
+        gdef.collision.push = push_cm / 100.0f;
         gdef.ccd.enabled = o->ccd;
         weft_result r = weft_garment_create(ctx, &gdef, out_garment);
         if (r != WEFT_OK) {
@@ -731,9 +742,9 @@ weft_result weft_avatar_sample_garment_create_on(const weft_avatar_sample_option
         if (tether_cm > 0.0f) {
             printf("tethers: every garment vertex within %.1f cm of its skinned position\n", (double)tether_cm);
         }
-        if (o->push_cm > 0.0f) {
+        if (push_cm > 0.0f) {
             printf("collider push: garment cloth inside the body goes %.1f cm in front of it before CCD\n",
-                   (double)o->push_cm);
+                   (double)push_cm);
         }
         if (strain_pct > 0.0f) {
             printf("strain limit: garment edges at most %.0f %% over their rest length before CCD\n", (double)strain_pct);

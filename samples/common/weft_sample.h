@@ -29,10 +29,12 @@ typedef struct weft_avatar_sample_options {
                                    garment model for `precision`, tools/train/models/garment[.fp16|.int8].safetensors */
     weft_precision precision;   /* the model's arithmetic (default int8) */
     float tether_cm;            /* tether radius in cm (weft_garment_def.tethers.distance); < 0 (default):
-                                   8 cm, the worn-garment recipe's max distance; 0: none */
+                                   8 cm, the worn-garment recipe's max distance (none for the reference
+                                   XPBD); 0: none */
     float strain_pct;           /* strain limit in % (weft_garment_def.strain.limit); < 0 (default): 10 %
                                    for the learned model, none for XPBD; 0: none */
-    float push_cm;              /* collider push in cm (weft_garment_def.collision.push) (default 0.5); 0: off */
+    float push_cm;              /* collider push in cm (weft_garment_def.collision.push); < 0 (default):
+                                   0.5, none for the reference XPBD; 0: off */
     bool body_parts;            /* the body collision by parts (weft_garment_def.collision.triangle_parts from
                                    weft_body_triangle_parts) (default true) */
     bool ccd;                   /* the CCD post-process (weft_garment_def.ccd) (default false) */
@@ -126,8 +128,11 @@ weft_garment_def weft_sample_body_garment_def(const weft_body *body, weft_method
  * body parts from weft_body_triangle_parts written into `parts` (weft_body_triangle_count(body)
  * bytes, kept by the caller until the garment is created; NULL: no parts), the floor y = 0
  * (collision.ground), no CCD, an 8 cm max
- * distance, a 0.5 cm push, and a 10 % strain limit for the learned model. Callers override fields
- * after it (the sample's options). Fails only when the parts cannot be made. */
+ * distance, a 0.5 cm push, and a 10 % strain limit for the learned model. The reference XPBD
+ * (WEFT_METHOD_XPBD) gets simgen's recipe instead: parts within 1 cm without their neighbours, no
+ * max distance, no push, and up to WEFT_REFERENCE_SUBSTEP_FACTOR times its substeps on fast
+ * frames. Callers override fields after it (the sample's options). Fails only when the parts
+ * cannot be made. */
 #define WEFT_WORN_TETHER_CM 8.0f
 #define WEFT_WORN_PUSH_CM 0.5f
 #define WEFT_WORN_STRAIN_PCT 10.0f

@@ -55,7 +55,9 @@ static void usage(FILE *f)
             "  Defaults: the test split, all three garments, lbs,model,xpbd-fast:5,xpbd-fast:10, 300 frames\n"
             "  (0: every frame of each clip), 1k, the shipped int8 garment model, and the worn-garment recipe\n"
             "  of the render sample: body parts on, CCD off, an 8 cm max distance, a 0.5 cm push, a 10 %%\n"
-            "  strain limit for the learned model. --md writes the table into FILE between\n"
+            "  strain limit for the learned model. xpbd:S is the reference as weft simgen runs it (parts\n"
+            "  within 1 cm without neighbours, up to 8 S substeps on fast frames, none of the three fix-ups).\n"
+            "  --md writes the table into FILE between\n"
             "  <!-- mocap-table --> markers (docs/STABILITY_MOCAP.md), or <!-- NAME --> with --block (another\n"
             "  variant's table on the same page: letters, digits and '-').\n");
 }
@@ -215,9 +217,11 @@ static int run_cell(const mc_options *o, weft_context *ctx, const weft_body *bod
         d.precision = WEFT_PRECISION_INT8;
         weft_sample_set_substeps(&d, m->substeps);
         d.ccd.enabled = o->ccd;
-        d.tethers.distance = o->tether_cm / 100.0f;
-        d.collision.push = o->push_cm / 100.0f;
-        d.strain.limit = m->method == WEFT_METHOD_MODEL ? o->strain_pct / 100.0f : 0.0f;
+        if (m->method != WEFT_METHOD_XPBD) { /* the reference keeps simgen's recipe (weft_sample_worn_def) */
+            d.tethers.distance = o->tether_cm / 100.0f;
+            d.collision.push = o->push_cm / 100.0f;
+            d.strain.limit = m->method == WEFT_METHOD_MODEL ? o->strain_pct / 100.0f : 0.0f;
+        }
         if (rc == 0 && weft_garment_create(ctx, &d, &g) != WEFT_OK) {
             fprintf(stderr, "weft bench mocap: %s: %s\n", m->label, weft_last_error());
             rc = 1;
