@@ -222,14 +222,16 @@ static weft_result scene_avatar_cmu(weft_context *ctx, weft_renderer *r)
 
 
 #if WEFT_RENDER_HAVE_SAMPLE
-/* The render sample's default cloth, short: the avatar blends from its bind pose into the motion
- * at `start` seconds (20 frames) and moves `frames` frames wearing the 1k T-shirt stepped by the
- * sample's default method and recipe (the shipped int8 garment model, 10 % strain limit, body
- * parts, 8 cm max distance, 0.5 cm push, no CCD). The model is required here: a missing file
- * fails the scene instead of falling back to XPBD. The int8 forward is bit-exact on every ISA,
- * so the scene runs on this machine's best kernels (its own context) for speed and draws the
- * same pixels everywhere. clip NULL: the procedural walk. */
-static weft_result model_int8_scene(weft_renderer *r, const char *clip_path, double start, uint32_t frames, float yaw)
+/* The render sample's worn cloth, short: the avatar blends from its bind pose into the motion at
+ * `start` seconds (20 frames) and moves `frames` frames wearing the 1k T-shirt stepped by `method`
+ * (the sample's --method) with the worn-garment recipe (body parts, 8 cm max distance, 0.5 cm
+ * push, no CCD; for the model the shipped int8 garment model and a 10 % strain limit). The model
+ * is required here: a missing file fails the scene instead of falling back to XPBD. The int8
+ * forward is bit-exact on every ISA, so the scene runs on this machine's best kernels (its own
+ * context) for speed and draws the same pixels everywhere; LBS and the fast XPBD are scalar
+ * double-precision code. clip NULL: the procedural walk. */
+static weft_result worn_scene(weft_renderer *r, const char *method, const char *clip_path, double start,
+                              uint32_t frames, float yaw)
 {
     weft_context_def cd = weft_default_context_def();
     weft_context *ctx = NULL;
@@ -239,7 +241,7 @@ static weft_result model_int8_scene(weft_renderer *r, const char *clip_path, dou
     }
     weft_avatar_sample_options o;
     weft_avatar_sample_default_options(&o);
-    o.method = "model";
+    o.method = method;
     o.model_path = WEFT_RENDER_MODEL_INT8;
     avatar_parts a = {0};
     weft_model *model = NULL;
@@ -318,7 +320,7 @@ static weft_result model_int8_scene(weft_renderer *r, const char *clip_path, dou
 static weft_result scene_avatar_model_int8(weft_context *scalar_ctx, weft_renderer *r)
 {
     (void)scalar_ctx;
-    return model_int8_scene(r, NULL, 0.0, 20, 25.0f);
+    return worn_scene(r, "model", NULL, 0.0, 20, 25.0f);
 }
 
 #if WEFT_RENDER_HAVE_ASSETS
@@ -327,7 +329,20 @@ static weft_result scene_avatar_model_int8(weft_context *scalar_ctx, weft_render
 static weft_result scene_avatar_cmu_worn(weft_context *scalar_ctx, weft_renderer *r)
 {
     (void)scalar_ctx;
-    return model_int8_scene(r, WEFT_RENDER_CMU_CLIP, 1.0, 90, 25.0f);
+    return worn_scene(r, "model", WEFT_RENDER_CMU_CLIP, 1.0, 90, 25.0f);
+}
+
+/* The same crouch with LBS and with the fast XPBD at 10 substeps: every method keeps the shirt on. */
+static weft_result scene_avatar_cmu_worn_lbs(weft_context *scalar_ctx, weft_renderer *r)
+{
+    (void)scalar_ctx;
+    return worn_scene(r, "lbs", WEFT_RENDER_CMU_CLIP, 1.0, 90, 25.0f);
+}
+
+static weft_result scene_avatar_cmu_worn_xpbd_fast(weft_context *scalar_ctx, weft_renderer *r)
+{
+    (void)scalar_ctx;
+    return worn_scene(r, "xpbd-fast:10", WEFT_RENDER_CMU_CLIP, 1.0, 90, 25.0f);
 }
 #endif
 #endif
@@ -351,6 +366,9 @@ static const golden_scene k_scenes[] = {
 #if WEFT_RENDER_HAVE_ASSETS
     {"avatar_cmu_worn", "the same T-shirt through CMU 01_01's crouch (1 s to 2.5 s): the body overlaps itself, the shirt stays on",
      scene_avatar_cmu_worn},
+    {"avatar_cmu_worn_lbs", "the crouch of avatar_cmu_worn with LBS and the recipe", scene_avatar_cmu_worn_lbs},
+    {"avatar_cmu_worn_xpbd_fast", "the crouch of avatar_cmu_worn with the fast XPBD at 10 substeps and the recipe",
+     scene_avatar_cmu_worn_xpbd_fast},
 #endif
 #endif
 };

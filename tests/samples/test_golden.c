@@ -77,6 +77,8 @@ static void test_scene_avatar_tshirt(void) { check_scene_named("avatar_tshirt");
 static void test_scene_avatar_dress_posed(void) { check_scene_named("avatar_dress_posed"); }
 static void test_scene_avatar_model_int8(void) { check_scene_named("avatar_model_int8"); }
 static void test_scene_avatar_cmu_worn(void) { check_scene_named("avatar_cmu_worn"); }
+static void test_scene_avatar_cmu_worn_lbs(void) { check_scene_named("avatar_cmu_worn_lbs"); }
+static void test_scene_avatar_cmu_worn_xpbd_fast(void) { check_scene_named("avatar_cmu_worn_xpbd_fast"); }
 
 /* The same scene rendered twice in one process must be bit-identical: rendering holds no
  * state between frames that could leak into the image. */
@@ -128,4 +130,5 @@ static void test_check_detects_change(void)
 TEST_MAIN(TEST_CASE(test_check_detects_change), TEST_CASE(test_check_repeatable),
           TEST_CASE(test_scene_sheet_sphere), TEST_CASE(test_scene_avatar_rest), TEST_CASE(test_scene_avatar_posed),
           TEST_CASE(test_scene_avatar_cmu), TEST_CASE(test_scene_avatar_tshirt), TEST_CASE(test_scene_avatar_dress_posed),
-          TEST_CASE(test_scene_avatar_model_int8), TEST_CASE(test_scene_avatar_cmu_worn))
+          TEST_CASE(test_scene_avatar_model_int8), TEST_CASE(test_scene_avatar_cmu_worn),
+          TEST_CASE(test_scene_avatar_cmu_worn_lbs), TEST_CASE(test_scene_avatar_cmu_worn_xpbd_fast))
