@@ -943,9 +943,45 @@ static weft_result load_clip(weft_context *ctx, xscene *sc, const weft_sim_seque
     return weft_body_triangle_parts(sc->body, sc->parts, nt);
 }
 
+/* The garment scenario on the host's character (def->character): its meshes and parts copied, the
+ * garment at rest on the bind pose, no waistband. */
+static weft_result build_character(xscene *sc, const weft_sim_sequence_def *def)
+{
+    const weft_sim_character *c = def->character;
+    sc->character = c;
+    bool ok = reserve(&sc->cloth, c->garment_vertex_count, c->garment_triangle_count) &&
+              reserve(&sc->collider, c->vertex_count, c->triangle_count);
+    sc->cloth_init = ok ? malloc(sizeof(float) * 3 * c->garment_vertex_count) : NULL;
+    sc->parts = c->triangle_parts && sc->cloth_init ? malloc(c->triangle_count) : NULL;
+    if (!sc->cloth_init || (c->triangle_parts && !sc->parts)) {
+        return weft__fail(WEFT_ERROR_OUT_OF_MEMORY, "simgen: out of memory");
+    }
+    memcpy(sc->cloth.pos, c->garment_positions, sizeof(float) * 3 * c->garment_vertex_count);
+    memcpy(sc->cloth.tris, c->garment_triangles, sizeof(uint32_t) * 3 * c->garment_triangle_count);
+    memcpy(sc->cloth_init, c->garment_positions, sizeof(float) * 3 * c->garment_vertex_count);
+    sc->cloth.nv = c->garment_vertex_count;
+    sc->cloth.nt = c->garment_triangle_count;
+    memcpy(sc->collider.tris, c->triangles, sizeof(uint32_t) * 3 * c->triangle_count);
+    sc->collider.nv = c->vertex_count;
+    sc->collider.nt = c->triangle_count;
+    if (sc->parts) {
+        memcpy(sc->parts, c->triangle_parts, c->triangle_count);
+    }
+    sc->moving_begin = 0;
+    sc->preroll = c->preroll;
+    xscene_collider_at(sc, 0, sc->collider.pos);
+    snprintf(sc->objects, sizeof sc->objects, "character");
+    snprintf(sc->description, sizeof sc->description, "garment: %u-vertex garment on character %.64s%s",
+             c->garment_vertex_count, c->name, sc->parts ? ", body parts" : "");
+    return WEFT_OK;
+}
+
 static weft_result build_garment(weft_context *ctx, xscene *sc, const weft_sim_sequence_def *def, xrng *r,
                                  const xscene_gentle *gentle)
 {
+    if (def->character) {
+        return build_character(sc, def);
+    }
     weft_avatar_def ad = weft_default_avatar_def();
     ad.height = (float)xrng_uniform(r, 1.55, 1.9);
     ad.girth = (float)xrng_uniform(r, 0.85, 1.15);
@@ -1057,6 +1093,10 @@ static weft_result build_garment(weft_context *ctx, xscene *sc, const weft_sim_s
 
 void xscene_collider_at(const xscene *sc, uint32_t f, float *out)
 {
+    if (sc->character) {
+        sc->character->collider_at(sc->character->user, f, out);
+        return;
+    }
     if (sc->scenario == WEFT_SIM_SCENARIO_GARMENT) {
         weft_pose pose;
         garment_pose_at(sc, f, &pose);

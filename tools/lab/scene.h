@@ -65,7 +65,8 @@ typedef struct xscene {
      * turned by -clip_yaw about the vertical through the start's pelvis, which moves over the
      * bind pose's pelvis (clip_from: the start's pelvis, clip_to: the bind pose's). */
     double clip_yaw, clip_from[3], clip_to[3];
-    uint8_t *parts;              /* collider triangle parts (clip scenes), else NULL */
+    uint8_t *parts;              /* collider triangle parts (clip and character scenes), else NULL */
+    const weft_sim_character *character; /* the host's character (def.character), else NULL */
     weft_pose bind_pose, start_pose;
     uint32_t preroll;
     float ease_in_s;             /* the motion's time ramps in over this after the pre-roll (0: none) */

@@ -257,6 +257,13 @@ static uint64_t def_fingerprint(const weft_sim_sequence_def *d, uint32_t nv, uin
     if (d->garment_kind >= 0) {
         h = fnv1a(h, &d->garment_kind, sizeof d->garment_kind); /* the default draw hashes as before it existed */
     }
+    if (d->character) {
+        const weft_sim_character *c = d->character;
+        h = fnv1a(h, c->name, strlen(c->name));
+        h = fnv1a(h, &c->preroll, sizeof c->preroll);
+        h = fnv1a(h, c->rest_positions, sizeof(float) * 3 * c->vertex_count);
+        h = fnv1a(h, c->garment_positions, sizeof(float) * 3 * c->garment_vertex_count);
+    }
     return fnv1a(h, f, sizeof f);
 }
 
@@ -655,8 +662,16 @@ static bool write_meta(const char *dir, const xscene *sc, const weft_sim_sequenc
         cJSON_AddNumberToObject(mo, "turned_rad", -sc->clip_yaw);
         cJSON_AddStringToObject(mo, "body_parts",
                                 "each cloth vertex collides with, and is validated against, the body parts "
-                                "(dominant joint of each body triangle) within 3 cm of it at the start and their "
-                                "neighbours; no arm spread");
+                                "(dominant joint of each body triangle) within 1 cm of its nearest body point at the "
+                                "start, without their neighbours; no arm spread");
+    }
+    if (sc->character) {
+        cJSON *co = num_obj(m, "character");
+        cJSON_AddStringToObject(co, "name", sc->character->name);
+        cJSON_AddNumberToObject(co, "vertices", sc->character->vertex_count);
+        cJSON_AddNumberToObject(co, "triangles", sc->character->triangle_count);
+        cJSON_AddNumberToObject(co, "preroll_frames", sc->preroll);
+        cJSON_AddBoolToObject(co, "body_parts", sc->parts != NULL);
     }
     if (def->checkpoint_frames) {
         /* the solver's candidate lists restart at these frames (weft_sim_sequence_def) */
@@ -703,7 +718,7 @@ static bool write_meta(const char *dir, const xscene *sc, const weft_sim_sequenc
     cJSON_AddNumberToObject(ct, "query_radius_min", p.query_radius);
     cJSON_AddNumberToObject(ct, "bound_gamma", p.bound_gamma);
     cJSON_AddNumberToObject(ct, "detect_window", p.detect_window);
-    if (sc->scenario == WEFT_SIM_SCENARIO_GARMENT) {
+    if (sc->scenario == WEFT_SIM_SCENARIO_GARMENT && !sc->character) {
         cJSON *gm = num_obj(m, "garment");
         cJSON_AddStringToObject(gm, "motion", weft_motion_name(sc->motion.motion));
         cJSON_AddNumberToObject(gm, "motion_speed", sc->motion.speed);
@@ -860,6 +875,18 @@ static weft_result check_sequence_def(const weft_sim_sequence_def *d, const char
                  "motion_path is empty or longer than 900 characters");
     WEFT_SEQ_BAD(!(d->motion_start_s >= 0.0 && d->motion_start_s <= 1e6), "motion_start_s %g outside [0, 1e6]",
                  d->motion_start_s);
+    const weft_sim_character *ch = d->character;
+    WEFT_SEQ_BAD(ch && d->scenario != WEFT_SIM_SCENARIO_GARMENT, "character is for the garment scenario, not %s",
+                 weft_sim_scenario_name(d->scenario));
+    WEFT_SEQ_BAD(ch && d->motion_path, "character and motion_path exclude each other (the character brings its motion)");
+    WEFT_SEQ_BAD(ch && (!ch->name || !ch->name[0] || strlen(ch->name) > 64), "character.name must be 1..64 characters");
+    WEFT_SEQ_BAD(ch && (!ch->rest_positions || !ch->triangles || ch->vertex_count < 3 || ch->triangle_count == 0),
+                 "character needs its bind-pose mesh (rest_positions, triangles)");
+    WEFT_SEQ_BAD(ch && (!ch->garment_positions || !ch->garment_triangles || ch->garment_vertex_count < 3 ||
+                        ch->garment_triangle_count == 0),
+                 "character needs its garment mesh (garment_positions, garment_triangles)");
+    WEFT_SEQ_BAD(ch && !ch->collider_at, "character.collider_at is required");
+    WEFT_SEQ_BAD(ch && ch->preroll > 1000, "character.preroll %u outside [0, 1000]", ch ? ch->preroll : 0);
     WEFT_SEQ_BAD(d->split && strcmp(d->split, "train") && strcmp(d->split, "val") && strcmp(d->split, "test"),
                  "split '%.32s' is not train, val or test", d->split);
     WEFT_SEQ_BAD(d->checkpoint_frames > 100000, "checkpoint_frames %u outside [0, 100000]", d->checkpoint_frames);
@@ -922,7 +949,8 @@ weft_result weft_sim_generate(weft_context *ctx, const weft_sim_sequence_def *de
      * the first round never see the second. */
     const xscene_gentle gentle = {def->garment_retry_arm_spread, def->garment_retry_ease_in,
                                   def->garment_retry_amplitude};
-    const bool gentle_round = def->scenario == WEFT_SIM_SCENARIO_GARMENT && def->garment_retry && !def->motion_path;
+    const bool gentle_round = def->scenario == WEFT_SIM_SCENARIO_GARMENT && def->garment_retry && !def->motion_path &&
+                              !def->character;
     /* A checkpoint of this def picks the attempt (round, substeps) and the frame to go on from. */
     ckpt_header resume = {0};
     uint32_t round0 = 0, substeps0 = def->substeps;

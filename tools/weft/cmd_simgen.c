@@ -5,8 +5,16 @@
 #include "support_bench.h"
 #include "weft/sim.h"
 #include "bvh.h"
+#if WEFT_HAVE_RENDER && WEFT_RENDER_HAVE_ASSETS && WEFT_RENDER_HAVE_SAMPLE
+#include "character.h"
+#include "pc2.h"
+#define SIMGEN_HAVE_CHARACTER 1
+#else
+#define SIMGEN_HAVE_CHARACTER 0
+#endif
 
 #include <cjson/cJSON.h>
+#include <math.h>
 #include <dirent.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -500,6 +508,16 @@ static void usage(FILE *f)
             "                   [--ease-in-retry S] [--amplitude-retry A] [--no-garment-retry] [--redo-rejected]\n"
             "                   [--fast-collider F] [--arm-spread R]\n");
     fprintf(f,
+            "       weft simgen --out DIR --avatar gltf:PATH --garment obj:PATH [--frames T] [--substeps S]\n"
+            "                   [--max-substeps S] [--fast-collider F] [--preroll N] [--no-validate]\n"
+            "  --avatar gltf:PATH  your own skinned character (glTF/FBX, any joint names, metres, Y up) as\n"
+            "                   the collider, played by its own animation after a pre-roll of N frames\n"
+            "                   (--preroll, 2..1000, default 90: half blending from the bind pose, half\n"
+            "                   holding the first pose; not recorded); body parts from its joints; one\n"
+            "                   sequence, character_<avatar>_<garment>\n"
+            "  --garment obj:PATH  the garment, an OBJ fitted to the character's bind pose (refused when it\n"
+            "                   is not on the character or lies inside it; docs/RENDER.md, Your own character)\n");
+    fprintf(f,
             "       weft simgen --out DIR (--mocap train|test|all [--clips A,B,...] [--mocap-dir DIR] | --bvh PATH)\n"
             "                   [--vertices V]\n"
             "                   [--frames T] [--split train|val|test] [--shard I/N] [...]\n"
@@ -599,10 +617,126 @@ static int garment_option(const char *arg)
     return -1;
 }
 
+/* --avatar gltf:PATH --garment obj:PATH: one sequence of the user's garment on the user's
+ * character (weft_sim_character). */
+typedef struct character_run {
+#if SIMGEN_HAVE_CHARACTER
+    weft_sample_character *character;
+#endif
+    uint32_t blend, preroll;
+} character_run;
+
+#if SIMGEN_HAVE_CHARACTER
+static void character_collider_at(void *user, uint32_t f, float *out)
+{
+    character_run *run = user;
+    const double t = f >= run->preroll ? (f - run->preroll) / 60.0 : 0.0;
+    double u = f >= run->blend ? 1.0 : (f + 1.0) / run->blend;
+    u = u * u * (3.0 - 2.0 * u);
+    /* fails only on arguments checked here (a loaded character, finite t, u in [0, 1]) */
+    (void)weft_sample_character_pose(run->character, t, u, out);
+}
+
+/* The file's name without folders and extension, as [A-Za-z0-9_-] (others become '_'). */
+static void stem_of(const char *path, char *out, size_t cap)
+{
+    const char *base = strrchr(path, '/');
+    base = base ? base + 1 : path;
+    size_t n = strcspn(base, ".");
+    n = n < cap - 1 ? n : cap - 1;
+    for (size_t i = 0; i < n; ++i) {
+        const char c = base[i];
+        out[i] = (c >= 'a' && c <= 'z') || (c >= 'A' && c <= 'Z') || (c >= '0' && c <= '9') || c == '-' ? c : '_';
+    }
+    out[n] = '\0';
+}
+#endif
+
+static int character_simgen(const char *out, const char *avatar, const char *garment, uint32_t preroll,
+                            const weft_sim_sequence_def *base)
+{
+#if SIMGEN_HAVE_CHARACTER
+    if (strncmp(avatar, "gltf:", 5) != 0 || strncmp(garment, "obj:", 4) != 0) {
+        fprintf(stderr, "simgen: --avatar wants gltf:PATH and --garment obj:PATH\n");
+        return 2;
+    }
+    weft_context_def cd = weft_default_context_def();
+    weft_context *ctx = NULL;
+    character_run run = {.blend = preroll / 2 ? preroll / 2 : 1, .preroll = preroll};
+    float *gpos = NULL;
+    uint32_t *gtri = NULL, gnv = 0, gnt = 0, part_count = 0;
+    int rc = 1;
+    if (weft_context_create(&cd, &ctx) != WEFT_OK ||
+        weft_sample_character_load(ctx, avatar + 5, &run.character) != WEFT_OK) {
+        fprintf(stderr, "simgen: --avatar %s: %s\n", avatar + 5, weft_last_error());
+    } else if (weft_obj_read(garment + 4, &gpos, &gnv, &gtri, &gnt) != WEFT_OK ||
+               weft_sample_character_bind(run.character, gpos, gnv) != WEFT_OK) {
+        fprintf(stderr, "simgen: --garment %s: %s\n", garment + 4, weft_last_error());
+    } else {
+        char a_stem[28], g_stem[28], name[64], dir[1100];
+        stem_of(avatar + 5, a_stem, sizeof a_stem);
+        stem_of(garment + 4, g_stem, sizeof g_stem);
+        snprintf(name, sizeof name, "character_%s_%s", a_stem, g_stem);
+        snprintf(dir, sizeof dir, "%s/%s", out, name);
+        const weft_sim_character ch = {
+            .name = name,
+            .rest_positions = weft_sample_character_bind_vertices(run.character),
+            .vertex_count = weft_sample_character_vertex_count(run.character),
+            .triangles = weft_sample_character_triangles(run.character),
+            .triangle_count = weft_sample_character_triangle_count(run.character),
+            .triangle_parts = weft_sample_character_parts(run.character, &part_count),
+            .garment_positions = gpos,
+            .garment_vertex_count = gnv,
+            .garment_triangles = gtri,
+            .garment_triangle_count = gnt,
+            .preroll = run.preroll,
+            .collider_at = character_collider_at,
+            .user = &run,
+        };
+        weft_sim_sequence_def def = *base;
+        def.scenario = WEFT_SIM_SCENARIO_GARMENT;
+        def.character = &ch;
+        def.cloth_vertices = gnv < 16 ? 16 : gnv;
+        def.garment_retry = false;
+        printf("simgen: %s: %u-vertex garment on a %u-vertex character with %u body parts, %.2f s of animation\n",
+               name, gnv, ch.vertex_count, part_count, weft_sample_character_duration(run.character));
+        fflush(stdout);
+        progress_state ps = {.total = 1, .t0 = now_s(), .frac0 = -1.0, .name = name};
+        weft_sim_sequence_result res;
+        weft_result r = weft_sim_generate(ctx, &def, dir, on_frame, &ps, &res);
+        fprintf(stderr, "\n");
+        if (r != WEFT_OK) {
+            fprintf(stderr, "simgen: %s failed: %s (%s)\n", name, weft_result_string(r), weft_last_error());
+        } else {
+            printf("simgen: %s %s (%u frames, %u substeps, %u attempts%s)\n", dir,
+                   res.accepted ? "accepted" : "REJECTED", res.frames, res.substeps_used, res.attempts,
+                   res.accepted ? "" : "; the validator's first hit is in its meta.json");
+            rc = res.accepted ? 0 : 3;
+        }
+    }
+    free(gpos);
+    free(gtri);
+    weft_sample_character_destroy(run.character);
+    weft_context_destroy(ctx);
+    return rc;
+#else
+    (void)out;
+    (void)avatar;
+    (void)garment;
+    (void)preroll;
+    (void)base;
+    fprintf(stderr, "simgen: --avatar needs the samples' character support (weft_render with assimp); this build "
+                    "has none\n");
+    return 2;
+#endif
+}
+
 int weft_cmd_simgen(int argc, char **argv)
 {
     const char *out = NULL, *scenario = NULL, *tier = NULL, *split = NULL, *only = NULL, *like = NULL;
     const char *mocap = NULL, *mocap_clips = NULL, *bvh = NULL, *mocap_dir = getenv("WEFT_MOCAP_DIR");
+    const char *avatar = NULL, *garment = NULL;
+    uint32_t preroll = 90;
     weft_bvh_joint_map joint_map;
     bool joint_map_given = false;
     if (!mocap_dir || !mocap_dir[0]) {
@@ -639,6 +773,15 @@ int weft_cmd_simgen(int argc, char **argv)
             mocap = argv[++i];
         } else if (v && strcmp(a, "--bvh") == 0) {
             bvh = argv[++i];
+        } else if (v && strcmp(a, "--avatar") == 0) {
+            avatar = argv[++i];
+        } else if (v && strcmp(a, "--garment") == 0) {
+            garment = argv[++i];
+        } else if (v && strcmp(a, "--preroll") == 0) {
+            if (!cli_u32("simgen", a, v, 2, 1000, &preroll)) {
+                return 2;
+            }
+            ++i;
         } else if (v && strcmp(a, "--joint-map") == 0) {
             if (weft_bvh_read_joint_map(v, &joint_map) != WEFT_OK) {
                 fprintf(stderr, "simgen: --joint-map: %s\n", weft_last_error());
@@ -783,6 +926,27 @@ int weft_cmd_simgen(int argc, char **argv)
     if (only && only_scenario < 0) {
         fprintf(stderr, "simgen: --only wants drop, gripper or garment, got '%s'\n", only);
         return 2;
+    }
+    if ((avatar != NULL) != (garment != NULL)) {
+        fprintf(stderr, "simgen: --avatar and --garment go together (your character and the garment fitted to it)\n");
+        return 2;
+    }
+    if (avatar && (all || scenario || mocap || bvh || like || manifest_only)) {
+        fprintf(stderr, "simgen: --avatar makes one sequence; leave out --all, --scenario, --mocap, --bvh and --like\n");
+        return 2;
+    }
+    if (avatar) {
+        if (!out) {
+            usage(stderr);
+            return 2;
+        }
+        weft_sim_sequence_def base = weft_sim_default_sequence_def();
+        base.frames = frames;
+        base.substeps = substeps;
+        base.max_substeps = max_substeps < substeps ? substeps : max_substeps;
+        base.fast_collider_factor = fast_collider;
+        base.validate = validate;
+        return character_simgen(out, avatar, garment, preroll, &base);
     }
     if (joint_map_given && !bvh) {
         fprintf(stderr, "simgen: --joint-map goes with --bvh (the library's clips use CMU names)\n");

@@ -83,6 +83,29 @@ typedef enum weft_sim_scenario {
     WEFT_SIM_SCENARIO_COUNT
 } weft_sim_scenario;
 
+/* A host's own character as the garment scenario's collider (`weft simgen --avatar`): its bind-pose
+ * mesh, body parts, and the collider of every frame from a callback; the garment is the host's
+ * mesh fitted to the bind pose, starting at rest there. The avatar, garment and motion draws, the
+ * arm spread, the waistband and the gentle retry do not apply. Frames count from the start of
+ * the pre-roll: the first `preroll` frames are simulated and validated but not recorded (the
+ * character settling from its bind pose into its animation is the callback's business). The
+ * meshes and the callback's state must outlive weft_sim_generate. */
+typedef struct weft_sim_character {
+    const char *name;                    /* written into meta.json (1..64 characters) */
+    const float *rest_positions;         /* vertex_count * 3, the bind pose */
+    uint32_t vertex_count;
+    const uint32_t *triangles;
+    uint32_t triangle_count;
+    const uint8_t *triangle_parts;       /* triangle_count body parts (< 32), NULL: none */
+    const float *garment_positions;      /* garment_vertex_count * 3, fitted to the bind pose */
+    uint32_t garment_vertex_count;
+    const uint32_t *garment_triangles;
+    uint32_t garment_triangle_count;
+    uint32_t preroll;                    /* 0..1000 */
+    void (*collider_at)(void *user, uint32_t frame, float *out_positions);
+    void *user;
+} weft_sim_character;
+
 typedef struct weft_sim_sequence_def {
     weft_sim_scenario scenario;
     uint64_t seed;                /* every random choice of the sequence derives from it */
@@ -141,6 +164,9 @@ typedef struct weft_sim_sequence_def {
      * (default): the naming tables. */
     const char *const *motion_joint_map;
     double motion_start_s;        /* seconds into the clip, >= 0 and before its end (default 0) */
+    /* Garment scenario on a host's character instead of the drawn avatar (see weft_sim_character);
+     * NULL (default): the avatar. Excludes motion_path. */
+    const weft_sim_character *character;
     /* "train", "val" or "test" written into meta.json (the mocap library's split of the clip);
      * NULL (default): none, the split is the name's hash (weft_sim_split_of). */
     const char *split;
