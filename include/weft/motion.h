@@ -149,6 +149,8 @@ typedef struct weft_skinned_asset {
     float *local_translations;      /* frame_count * joint_count * 3, node-local */
     float *rest_rotations;          /* joint_count * 4, node-local rotation in the file's node tree */
     float *rest_translations;       /* joint_count * 3 */
+    float *bind_matrices;           /* joint_count * 16, column-major: each joint's mesh-space transform in
+                                     * the bind pose (the inverse of its inverse bind matrix) */
     weft_context *context;
 } weft_skinned_asset;
 

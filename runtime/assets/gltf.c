@@ -36,6 +36,30 @@ static void mat_mul(const double a[16], const double b[16], double out[16])
 }
 
 /* assimp matrices are row-major (a1..a4 is the first row). */
+/* The inverse of an affine column-major matrix (last row 0 0 0 1); false when singular. */
+static bool mat_affine_inverse(const double m[16], double out[16])
+{
+    const double a = m[0], b = m[4], c = m[8], d = m[1], e = m[5], f = m[9], g = m[2], h = m[6], i = m[10];
+    const double A = e * i - f * h, B = -(d * i - f * g), C = d * h - e * g;
+    const double det = a * A + b * B + c * C;
+    if (!(fabs(det) > 1e-30) || !isfinite(det)) {
+        return false;
+    }
+    const double r[9] = {A / det, -(b * i - c * h) / det, (b * f - c * e) / det,
+                         B / det, (a * i - c * g) / det,  -(a * f - c * d) / det,
+                         C / det, -(a * h - b * g) / det, (a * e - b * d) / det};
+    /* r is row-major (r[3 row + col]); out column-major */
+    for (int row = 0; row < 3; ++row) {
+        for (int col = 0; col < 3; ++col) {
+            out[4 * col + row] = r[3 * row + col];
+        }
+        out[12 + row] = -(r[3 * row] * m[12] + r[3 * row + 1] * m[13] + r[3 * row + 2] * m[14]);
+        out[4 * row + 3] = 0.0;
+    }
+    out[15] = 1.0;
+    return true;
+}
+
 static void mat_from_ai(const struct aiMatrix4x4 *t, double m[16])
 {
     const float rows[4][4] = {{t->a1, t->a2, t->a3, t->a4}, {t->b1, t->b2, t->b3, t->b4}, {t->c1, t->c2, t->c3, t->c4},
@@ -236,6 +260,7 @@ void weft_skinned_asset_destroy(weft_skinned_asset *a)
     free(a->local_translations);
     free(a->rest_rotations);
     free(a->rest_translations);
+    free(a->bind_matrices);
     free(a);
 }
 
@@ -403,6 +428,22 @@ static weft_result import_scene(const struct aiScene *scene, float fps, skin_nod
             }
             for (int k = 0; k < 3; ++k) {
                 a->rest_translations[3 * j + (uint32_t)k] = (float)n->t[k];
+            }
+        }
+    }
+    if (res == WEFT_OK) {
+        a->bind_matrices = malloc(joints * 16 * sizeof(float));
+        if (!a->bind_matrices) {
+            res = weft__fail(WEFT_ERROR_OUT_OF_MEMORY, "skinned mesh: out of memory");
+        }
+        for (uint32_t j = 0; j < joints && res == WEFT_OK; ++j) {
+            double bind[16];
+            if (!mat_affine_inverse(inverse_bind[j], bind)) {
+                res = weft__fail(WEFT_ERROR_FORMAT, "skinned mesh: bone '%s' has a singular inverse bind matrix",
+                                 a->joint_names[j]);
+            }
+            for (int k = 0; k < 16 && res == WEFT_OK; ++k) {
+                a->bind_matrices[16 * j + (uint32_t)k] = (float)bind[k];
             }
         }
     }
@@ -589,7 +630,7 @@ static void import_child(void *arg, int fd)
            put(fd, a->joint_weights, v * 4 * 4) && put(fd, a->joint_names, j * WEFT_SKIN_NAME) &&
            put(fd, a->parents, j * 4) && put(fd, a->skin_matrices, fj * 16 * 4) && put(fd, a->local_rotations, fj * 4 * 4) &&
            put(fd, a->local_translations, fj * 3 * 4) && put(fd, a->rest_rotations, j * 4 * 4) &&
-           put(fd, a->rest_translations, j * 3 * 4) && put(fd, "Z", 1));
+           put(fd, a->rest_translations, j * 3 * 4) && put(fd, a->bind_matrices, j * 16 * 4) && put(fd, "Z", 1));
 }
 
 typedef struct reader {
@@ -650,6 +691,7 @@ static weft_result check_decoded(const weft_skinned_asset *a, const char *path)
         }
     }
     if (!weft__all_finite(a->rest_rotations, nj * 4) || !weft__all_finite(a->rest_translations, nj * 3) ||
+        !weft__all_finite(a->bind_matrices, nj * 16) ||
         !weft__all_finite(a->local_rotations, fj * 4) || !weft__all_finite(a->local_translations, fj * 3)) {
         return weft__fail(WEFT_ERROR_NOT_FINITE, "skinned mesh '%s': a joint transform is not finite", path);
     }
@@ -714,7 +756,8 @@ static weft_result decode(weft_context *context, const char *path, float fps, co
     ok = ok && take_array(&r, (void **)&a->parents, j, 4) && take_array(&r, (void **)&a->skin_matrices, fj * 16, 4) &&
          take_array(&r, (void **)&a->local_rotations, fj * 4, 4) &&
          take_array(&r, (void **)&a->local_translations, fj * 3, 4) && take_array(&r, (void **)&a->rest_rotations, j * 4, 4) &&
-         take_array(&r, (void **)&a->rest_translations, j * 3, 4) && take(&r, &tag, 1) && tag == 'Z' && r.p == r.end;
+         take_array(&r, (void **)&a->rest_translations, j * 3, 4) && take_array(&r, (void **)&a->bind_matrices, j * 16, 4) &&
+         take(&r, &tag, 1) && tag == 'Z' && r.p == r.end;
     weft_result res = ok ? check_decoded(a, path)
                          : weft__fail(WEFT_ERROR_FORMAT, "skinned mesh '%s': the importer's output is malformed", path);
     if (res != WEFT_OK) {

@@ -57,8 +57,8 @@ void weft_avatar_sample_default_options(weft_avatar_sample_options *o)
 
 void weft_avatar_sample_usage(FILE *out, const char *program)
 {
+    fprintf(out, "usage: %s [options]\n", program);
     fprintf(out,
-            "usage: %s [options]\n"
             "  --motion NAME|mocap:CLIP|bvh:PATH|gltf:PATH\n"
             "                          idle walk run jump dance arm_raise flip, a clip of the CMU library by\n"
             "                          name (samples/mocap/clips.csv, e.g. mocap:walk_cmu07_01), a BVH file\n"
@@ -66,8 +66,12 @@ void weft_avatar_sample_usage(FILE *out, const char *program)
             "  --joint-map FILE        with bvh:PATH, the file's joint for each SMPL joint, one 'smpl_joint\n"
             "                          source_joint' a line, for skeletons no naming table knows (docs/RENDER.md)\n"
             "  --avatar gltf:PATH      your own skinned character (glTF/FBX, any joint names, metres, Y up) as the\n"
-            "                          collider, played by its own animation (--start, --frames); garments then come\n"
-            "                          from --garment obj:PATH (docs/RENDER.md, Your own character)\n"
+            "                          collider, played by its own animation (--start, --frames), or by a mocap:/bvh:\n"
+            "                          --motion with --avatar-joint-map; garments then come from --garment obj:PATH\n"
+            "                          (docs/RENDER.md, Your own character)\n"
+            "  --avatar-joint-map FILE with --avatar and a mocap:/bvh: --motion: the character's joint for each SMPL\n"
+            "                          joint, one 'smpl_joint character_joint' a line (the --joint-map format)\n");
+    fprintf(out,
             "  --garment KIND          tshirt | skirt | dress | none | obj:PATH, an OBJ garment fitted to the\n"
             "                          avatar's bind pose (default tshirt; with --avatar, none)\n"
             "  --resolution RES        garment mesh 1k | 4k | 16k | 40k (default 4k)\n"
@@ -104,8 +108,7 @@ void weft_avatar_sample_usage(FILE *out, const char *program)
             "  --no-frames             write only the contact sheet\n"
             "  --cape                  add a 24x40 cape stepped by FNOpt, pinned behind the shoulders (no body collision)\n"
             "  --cape-model FILE       its FNOpt weights (default tools/fnopt/models/fnopt_32.safetensors)\n"
-            "  --cape-precision P      fp32 | fp16 | int8: its FNO arithmetic (default fp32)\n",
-            program);
+            "  --cape-precision P      fp32 | fp16 | int8: its FNO arithmetic (default fp32)\n");
     weft_avatar_sample_crowd_usage(out);
 }
 
@@ -195,7 +198,7 @@ int weft_avatar_sample_parse(int argc, char **argv, int first, weft_avatar_sampl
             }
             ok = weft_avatar_sample_crowd_option(a, v, o);
         } else if (!v) {
-            static const char *const valued[] = {"--motion", "--joint-map", "--avatar", "--garment", "--resolution", "--method", "--model",
+            static const char *const valued[] = {"--motion", "--joint-map", "--avatar", "--avatar-joint-map", "--garment", "--resolution", "--method", "--model",
                                                  "--sim-resolution",
                                                  "--precision", "--tether-cm", "--strain-limit", "--push-cm",
                                                  "--body-parts", "--ccd", "--export",
@@ -213,6 +216,8 @@ int weft_avatar_sample_parse(int argc, char **argv, int first, weft_avatar_sampl
             o->motion_given = true;
         } else if (strcmp(a, "--joint-map") == 0) {
             o->joint_map = v;
+        } else if (strcmp(a, "--avatar-joint-map") == 0) {
+            o->avatar_joint_map = v;
         } else if (strcmp(a, "--avatar") == 0) {
             o->avatar = v;
             ok = strncmp(v, "gltf:", 5) == 0 && v[5] != '\0';
@@ -837,10 +842,17 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
     if (weft_avatar_create(s.ctx, &adef, &s.body) != WEFT_OK) {
         return fail_msg(&s, "weft_avatar_create");
     }
+    if (o->avatar_joint_map && !(o->avatar && o->motion_given)) {
+        fprintf(stderr, "avatar_render: --avatar-joint-map goes with --avatar and a mocap:/bvh: --motion\n");
+        sample_free(&s);
+        return 2;
+    }
     if (o->avatar) {
-        if (o->motion_given || o->cape || o->sim_resolution || o->crowd) {
-            fprintf(stderr, "avatar_render: with --avatar the character plays its own animation, without --motion, "
-                            "--cape, --sim-resolution or --crowd\n");
+        const bool clip_motion =
+            o->motion_given && (strncmp(o->motion, "mocap:", 6) == 0 || strncmp(o->motion, "bvh:", 4) == 0);
+        if ((o->motion_given && !(clip_motion && o->avatar_joint_map)) || o->cape || o->sim_resolution || o->crowd) {
+            fprintf(stderr, "avatar_render: with --avatar the character plays its own animation, or a mocap:/bvh: "
+                            "--motion with --avatar-joint-map; no --cape, --sim-resolution or --crowd\n");
             sample_free(&s);
             return 2;
         }
@@ -848,6 +860,26 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
             fprintf(stderr, "avatar_render: --avatar %s: %s\n", o->avatar, weft_last_error());
             sample_free(&s);
             return 2;
+        }
+        if (clip_motion) {
+            /* the clip retargeted onto weft's avatar (SMPL), then onto the character's skeleton */
+            weft_bvh_joint_map map;
+            weft_result r = weft_bvh_read_joint_map(o->avatar_joint_map, &map);
+            r = r != WEFT_OK ? r
+                             : weft_sample_motion_load_mapped(s.ctx, s.body, o->motion, o->joint_map, o->speed, true,
+                                                              &s.motion);
+            r = r != WEFT_OK ? r : weft_sample_character_set_clip(s.character, s.body, s.motion.clip, map.entries);
+            if (r == WEFT_OK) {
+                printf("motion %s retargeted onto the character through %s: %u frames (%.2f s)\n", o->motion,
+                       o->avatar_joint_map, weft_sample_character_frame_count(s.character),
+                       weft_sample_character_duration(s.character));
+            }
+            if (r != WEFT_OK) {
+                fprintf(stderr, "avatar_render: --motion %s on --avatar %s: %s\n", o->motion, o->avatar,
+                        weft_last_error());
+                sample_free(&s);
+                return 2;
+            }
         }
         uint32_t parts = 0;
         weft_sample_character_parts(s.character, &parts);
@@ -1066,7 +1098,7 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
         return fail_msg(&s, "out of memory for the contact sheet");
     }
 
-    const char *motion_name = s.character ? "its own animation" : o->motion;
+    const char *motion_name = s.character && !s.motion.clip ? "its own animation" : o->motion;
     printf("avatar %u vertices; garment %s (%u vertices); motion %s; cloth method %s; %u frames at 60 Hz, %ux%u\n", nv,
            dressed ? o->garment : "none", gm_nv, motion_name, method_used, o->frames, o->width, o->height);
     if (s.sim_map && simulated) {

@@ -2,12 +2,14 @@
 #include "character.h"
 #include "wear.h"
 #include "core/core.h"
+#include "weft/body.h"
 
 #if WEFT_RENDER_HAVE_ASSETS
 #include "gltf.h"
 #endif
 
 #include <math.h>
+#include <stdio.h>
 #include <stdlib.h>
 #include <string.h>
 
@@ -26,6 +28,10 @@ struct weft_sample_character {
     uint32_t *garment_joints;   /* garment_count * 4 */
     float *garment_weights;     /* garment_count * 4 */
     const float *garment_rest;  /* the caller's, kept while bound */
+    float *clip_mats;           /* clip_frames * joint_count * 16: a retargeted clip's skinning
+                                 * matrices (weft_sample_character_set_clip), NULL: its own animation */
+    uint32_t clip_frames;
+    float clip_fps;
 };
 
 uint32_t weft_sample_nearest_point(const float *points, uint32_t count, const float p[3], double *out_d2)
@@ -193,6 +199,7 @@ void weft_sample_character_destroy(weft_sample_character *c)
     free(c->blended);
     free(c->garment_joints);
     free(c->garment_weights);
+    free(c->clip_mats);
     free(c);
 }
 
@@ -201,7 +208,10 @@ uint32_t weft_sample_character_triangle_count(const weft_sample_character *c) { 
 const float *weft_sample_character_bind_vertices(const weft_sample_character *c) { return c->asset->positions; }
 const uint32_t *weft_sample_character_triangles(const weft_sample_character *c) { return c->asset->triangles; }
 uint32_t weft_sample_character_joint_count(const weft_sample_character *c) { return c->asset->joint_count; }
-uint32_t weft_sample_character_frame_count(const weft_sample_character *c) { return c->asset->frame_count; }
+uint32_t weft_sample_character_frame_count(const weft_sample_character *c)
+{
+    return c->clip_mats ? c->clip_frames : c->asset->frame_count;
+}
 
 const uint8_t *weft_sample_character_parts(const weft_sample_character *c, uint32_t *part_count)
 {
@@ -213,7 +223,8 @@ const uint8_t *weft_sample_character_parts(const weft_sample_character *c, uint3
 
 double weft_sample_character_duration(const weft_sample_character *c)
 {
-    return (double)(c->asset->frame_count - 1) / (double)c->asset->fps;
+    return c->clip_mats ? (double)(c->clip_frames - 1) / (double)c->clip_fps
+                        : (double)(c->asset->frame_count - 1) / (double)c->asset->fps;
 }
 
 /* Column-major 3x3 part of m (with scale s per column) -> unit quaternion x y z w. */
@@ -311,9 +322,10 @@ weft_result weft_sample_character_pose(weft_sample_character *c, double t, doubl
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_sample_character_pose: a character, finite t, u in [0, 1]");
     }
     const weft_skinned_asset *a = c->asset;
-    double f = floor(t * a->fps + 0.5);
-    f = f < 0.0 ? 0.0 : f > a->frame_count - 1 ? a->frame_count - 1 : f;
-    const float *mats = a->skin_matrices + (size_t)f * a->joint_count * 16;
+    const uint32_t frames = c->clip_mats ? c->clip_frames : a->frame_count;
+    double f = floor(t * (c->clip_mats ? c->clip_fps : a->fps) + 0.5);
+    f = f < 0.0 ? 0.0 : f > frames - 1 ? frames - 1 : f;
+    const float *mats = (c->clip_mats ? c->clip_mats : a->skin_matrices) + (size_t)f * a->joint_count * 16;
     for (uint32_t j = 0; j < a->joint_count; ++j) {
         if (u >= 1.0) {
             memcpy(c->blended + 16 * (size_t)j, mats + 16 * (size_t)j, 16 * sizeof(float));
@@ -403,6 +415,228 @@ weft_result weft_sample_character_skin_garment(const weft_sample_character *c, f
     return WEFT_OK;
 }
 
+/* ---- Retargeting an SMPL clip onto the character ------------------------------------------- */
+
+typedef struct quatd {
+    double x, y, z, w;
+} quatd;
+
+static quatd q_mul(quatd a, quatd b)
+{
+    return (quatd){a.w * b.x + a.x * b.w + a.y * b.z - a.z * b.y, a.w * b.y - a.x * b.z + a.y * b.w + a.z * b.x,
+                   a.w * b.z + a.x * b.y - a.y * b.x + a.z * b.w, a.w * b.w - a.x * b.x - a.y * b.y - a.z * b.z};
+}
+
+static void q_rotate(quatd q, const double v[3], double out[3])
+{
+    /* v + 2 w (u x v) + 2 u x (u x v), u = (x, y, z) */
+    const double u[3] = {q.x, q.y, q.z};
+    const double c1[3] = {u[1] * v[2] - u[2] * v[1], u[2] * v[0] - u[0] * v[2], u[0] * v[1] - u[1] * v[0]};
+    const double c2[3] = {u[1] * c1[2] - u[2] * c1[1], u[2] * c1[0] - u[0] * c1[2], u[0] * c1[1] - u[1] * c1[0]};
+    for (int k = 0; k < 3; ++k) {
+        out[k] = v[k] + 2.0 * (q.w * c1[k] + c2[k]);
+    }
+}
+
+/* The smallest rotation taking direction a onto direction b (identity when either is zero). */
+static quatd q_between(const double a[3], const double b[3])
+{
+    const double la = sqrt(a[0] * a[0] + a[1] * a[1] + a[2] * a[2]), lb = sqrt(b[0] * b[0] + b[1] * b[1] + b[2] * b[2]);
+    if (!(la > 1e-9) || !(lb > 1e-9)) {
+        return (quatd){0, 0, 0, 1};
+    }
+    const double x[3] = {a[0] / la, a[1] / la, a[2] / la}, y[3] = {b[0] / lb, b[1] / lb, b[2] / lb};
+    const double d = x[0] * y[0] + x[1] * y[1] + x[2] * y[2];
+    if (d < -1.0 + 1e-9) { /* opposite: half a turn about any axis perpendicular to x */
+        double axis[3] = {0.0, -x[2], x[1]};
+        if (fabs(x[0]) > 0.9) {
+            axis[0] = -x[2], axis[1] = 0.0, axis[2] = x[0];
+        }
+        const double l = sqrt(axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2]);
+        return (quatd){axis[0] / l, axis[1] / l, axis[2] / l, 0.0};
+    }
+    quatd q = {x[1] * y[2] - x[2] * y[1], x[2] * y[0] - x[0] * y[2], x[0] * y[1] - x[1] * y[0], 1.0 + d};
+    const double n = sqrt(q.x * q.x + q.y * q.y + q.z * q.z + q.w * q.w);
+    return (quatd){q.x / n, q.y / n, q.z / n, q.w / n};
+}
+
+/* Column-major rotation part of a rigid joint transform -> quaternion. */
+static quatd q_from_mat(const float *m)
+{
+    const double s[3] = {1.0, 1.0, 1.0};
+    double q[4];
+    rotation_of(m, s, q);
+    return (quatd){q[0], q[1], q[2], q[3]};
+}
+
+/* The character joint a map entry names: exact, or after a namespace prefix ("rig:Hips"). */
+static int32_t character_joint(const weft_skinned_asset *a, const char *name)
+{
+    for (uint32_t k = 0; name && name[0] && k < a->joint_count; ++k) {
+        const char *n = a->joint_names[k];
+        const char *colon = strrchr(n, ':');
+        if (strcmp(n, name) == 0 || (colon && strcmp(colon + 1, name) == 0)) {
+            return (int32_t)k;
+        }
+    }
+    return -1;
+}
+
+/* SMPL joints the retargeting needs mapped, and each SMPL joint's child along its bone (-1: a
+ * leaf, which keeps its parent's rest correction). */
+static const uint32_t k_required[] = {0, 1, 2, 3, 4, 5, 16, 17, 18, 19};
+static const int32_t k_bone_child[WEFT_BODY_JOINTS] = {3,  4,  5,  6,  7,  8,  9,  10, 11, 12, -1, -1,
+                                                       15, 16, 17, -1, 18, 19, 20, 21, 22, 23, -1, -1};
+
+weft_result weft_sample_character_set_clip(weft_sample_character *c, const weft_body *body, const weft_clip *clip,
+                                           const char *const *joint_map)
+{
+    if (!c || !body || !clip || !joint_map || clip->frame_count == 0 || !(clip->fps > 0.0f)) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
+                          "weft_sample_character_set_clip: a character, a body, a clip with frames and a joint map");
+    }
+    const weft_skinned_asset *a = c->asset;
+    const uint32_t nj = a->joint_count;
+    int32_t of_smpl[WEFT_BODY_JOINTS];
+    char missing[256] = "";
+    for (uint32_t j = 0; j < WEFT_BODY_JOINTS; ++j) {
+        of_smpl[j] = character_joint(a, joint_map[j]);
+        if (joint_map[j] && joint_map[j][0] && of_smpl[j] < 0) {
+            return weft__fail(WEFT_ERROR_FORMAT, "character joint map: '%s' (for %s) is not a joint of the character",
+                              joint_map[j], weft_joint_name(j));
+        }
+    }
+    for (size_t i = 0; i < sizeof k_required / sizeof k_required[0]; ++i) {
+        if (of_smpl[k_required[i]] < 0) {
+            const size_t used = strlen(missing);
+            snprintf(missing + used, sizeof missing - used, "%s%s", used ? ", " : "", weft_joint_name(k_required[i]));
+        }
+    }
+    if (missing[0]) {
+        return weft__fail(WEFT_ERROR_FORMAT, "character joint map: no character joint for %s (needed to play a clip)",
+                          missing);
+    }
+    int32_t *smpl_of = malloc(nj * sizeof *smpl_of);
+    uint32_t *order = malloc(nj * sizeof *order);
+    quatd *corr = malloc(nj * sizeof *corr), *delta = malloc(nj * sizeof *delta);
+    double *pos = malloc(nj * 3 * sizeof *pos);
+    float *mats = malloc((size_t)clip->frame_count * nj * 16 * sizeof *mats);
+    if (!smpl_of || !order || !corr || !delta || !pos || !mats) {
+        free(smpl_of), free(order), free(corr), free(delta), free(pos), free(mats);
+        return weft__fail(WEFT_ERROR_OUT_OF_MEMORY, "weft_sample_character_set_clip: out of memory");
+    }
+    for (uint32_t k = 0; k < nj; ++k) {
+        smpl_of[k] = -1;
+    }
+    for (uint32_t j = 0; j < WEFT_BODY_JOINTS; ++j) {
+        if (of_smpl[j] >= 0) {
+            smpl_of[of_smpl[j]] = (int32_t)j;
+        }
+    }
+    /* parents before children */
+    uint32_t n_ordered = 0;
+    uint8_t *done = calloc(nj, 1);
+    for (uint32_t pass = 0; done && n_ordered < nj && pass < nj; ++pass) {
+        for (uint32_t k = 0; k < nj; ++k) {
+            if (!done[k] && (a->parents[k] < 0 || done[a->parents[k]])) {
+                done[k] = 1;
+                order[n_ordered++] = k;
+            }
+        }
+    }
+    free(done);
+    const float *rest = weft_body_rest_joints(body);
+#define BIND_T(k, i) ((double)a->bind_matrices[16 * (size_t)(k) + 12 + (i)])
+    /* Rest corrections: the character's bind bone onto SMPL's T-pose bone, times the bind rotation's
+     * inverse, so that (SMPL world rotation) x corr is the joint's rotation from its bind pose. */
+    for (uint32_t i = 0; i < n_ordered; ++i) {
+        const uint32_t k = order[i];
+        const int32_t j = smpl_of[k], p = a->parents[k];
+        const int32_t cj = j >= 0 ? k_bone_child[j] : -1, ck = cj >= 0 ? of_smpl[cj] : -1;
+        if (j >= 0 && ck >= 0) {
+            const double dc[3] = {BIND_T(ck, 0) - BIND_T(k, 0), BIND_T(ck, 1) - BIND_T(k, 1), BIND_T(ck, 2) - BIND_T(k, 2)};
+            const double ds[3] = {rest[3 * cj] - rest[3 * j], rest[3 * cj + 1] - rest[3 * j + 1],
+                                  rest[3 * cj + 2] - rest[3 * j + 2]};
+            corr[k] = q_between(dc, ds);
+        } else {
+            corr[k] = p >= 0 ? corr[p] : (quatd){0, 0, 0, 1};
+        }
+    }
+    /* Root path scaled by the legs' ratio (the character's thigh + shin over SMPL's). */
+    const int32_t lh = of_smpl[1], lk = of_smpl[4], la = of_smpl[7];
+    double char_leg = 0.0, smpl_leg = 0.0;
+    for (int seg = 0; seg < 2; ++seg) {
+        const int32_t k0 = seg ? lk : lh, k1 = seg ? la : lk;
+        const uint32_t j0 = seg ? 4 : 1, j1 = seg ? 7 : 4;
+        if (k1 < 0) {
+            continue;
+        }
+        double dc = 0.0, ds = 0.0;
+        for (int i = 0; i < 3; ++i) {
+            dc += (BIND_T(k1, i) - BIND_T(k0, i)) * (BIND_T(k1, i) - BIND_T(k0, i));
+            ds += ((double)rest[3 * j1 + i] - rest[3 * j0 + i]) * ((double)rest[3 * j1 + i] - rest[3 * j0 + i]);
+        }
+        char_leg += sqrt(dc), smpl_leg += sqrt(ds);
+    }
+    const double scale = smpl_leg > 1e-9 ? char_leg / smpl_leg : 1.0;
+    weft_result r = WEFT_OK;
+    float joints[WEFT_BODY_JOINTS * 16];
+    for (uint32_t f = 0; f < clip->frame_count && r == WEFT_OK; ++f) {
+        weft_pose pose;
+        memcpy(pose.rotations, clip->rotations + (size_t)WEFT_POSE_ROTATION_FLOATS * f, sizeof pose.rotations);
+        memcpy(pose.translation, clip->translations + 3 * (size_t)f, sizeof pose.translation);
+        r = weft_body_pose(body, &pose, NULL, joints);
+        const double disp[3] = {joints[12] - rest[0], joints[13] - rest[1], joints[14] - rest[2]};
+        for (uint32_t i = 0; i < n_ordered && r == WEFT_OK; ++i) {
+            const uint32_t k = order[i];
+            const int32_t j = smpl_of[k], p = a->parents[k];
+            delta[k] = j >= 0 ? q_mul(q_from_mat(joints + 16 * j), corr[k]) : p >= 0 ? delta[p] : (quatd){0, 0, 0, 1};
+            if (p < 0) {
+                for (int e = 0; e < 3; ++e) {
+                    pos[3 * k + e] = BIND_T(k, e) + scale * disp[e];
+                }
+            } else {
+                const double off[3] = {BIND_T(k, 0) - BIND_T(p, 0), BIND_T(k, 1) - BIND_T(p, 1), BIND_T(k, 2) - BIND_T(p, 2)};
+                double turned[3];
+                q_rotate(delta[p], off, turned);
+                for (int e = 0; e < 3; ++e) {
+                    pos[3 * k + e] = pos[3 * p + e] + turned[e];
+                }
+            }
+            /* skinning matrix: rotation delta, translation pos - delta * bind position */
+            float *m = mats + ((size_t)f * nj + k) * 16;
+            const quatd q = delta[k];
+            const double xx = q.x * q.x, yy = q.y * q.y, zz = q.z * q.z, xy = q.x * q.y, xz = q.x * q.z, yz = q.y * q.z,
+                         wx = q.w * q.x, wy = q.w * q.y, wz = q.w * q.z;
+            const double R[9] = {1 - 2 * (yy + zz), 2 * (xy + wz), 2 * (xz - wy), /* column 0 */
+                                 2 * (xy - wz), 1 - 2 * (xx + zz), 2 * (yz + wx), /* column 1 */
+                                 2 * (xz + wy), 2 * (yz - wx), 1 - 2 * (xx + yy)}; /* column 2 */
+            const double b[3] = {BIND_T(k, 0), BIND_T(k, 1), BIND_T(k, 2)};
+            for (int col = 0; col < 3; ++col) {
+                for (int row = 0; row < 3; ++row) {
+                    m[4 * col + row] = (float)R[3 * col + row];
+                }
+                m[4 * col + 3] = 0.0f;
+            }
+            for (int row = 0; row < 3; ++row) {
+                m[12 + row] = (float)(pos[3 * k + row] - (R[row] * b[0] + R[3 + row] * b[1] + R[6 + row] * b[2]));
+            }
+            m[15] = 1.0f;
+        }
+    }
+#undef BIND_T
+    free(smpl_of), free(order), free(corr), free(delta), free(pos);
+    if (r != WEFT_OK || !weft__all_finite(mats, (size_t)clip->frame_count * nj * 16)) {
+        free(mats);
+        return r != WEFT_OK ? r : weft__fail(WEFT_ERROR_NOT_FINITE, "weft_sample_character_set_clip: non-finite pose");
+    }
+    free(c->clip_mats);
+    c->clip_mats = mats;
+    c->clip_frames = clip->frame_count;
+    c->clip_fps = clip->fps;
+    return WEFT_OK;
+}
+
 #else /* no weft_assets: no importer */
 
 weft_result weft_sample_character_load(weft_context *context, const char *path, weft_sample_character **out)
@@ -411,5 +645,11 @@ weft_result weft_sample_character_load(weft_context *context, const char *path, 
     return weft__fail(WEFT_ERROR_UNSUPPORTED, "this build has no weft_assets (glTF/FBX import)");
 }
 void weft_sample_character_destroy(weft_sample_character *c) { free(c); }
+weft_result weft_sample_character_set_clip(weft_sample_character *c, const weft_body *body, const weft_clip *clip,
+                                           const char *const *joint_map)
+{
+    (void)c, (void)body, (void)clip, (void)joint_map;
+    return weft__fail(WEFT_ERROR_UNSUPPORTED, "this build has no weft_assets (glTF/FBX import)");
+}
 
 #endif

@@ -11,6 +11,7 @@
 #define WEFT_SAMPLE_CHARACTER_H
 
 #include "weft.h"
+#include "weft/body.h"
 
 typedef struct weft_sample_character weft_sample_character;
 
@@ -39,6 +40,20 @@ uint32_t weft_sample_character_frame_count(const weft_sample_character *c);
  * slerped and the translation and scale interpolated). Writes vertex_count * 3 positions and
  * keeps the blended matrices for weft_sample_character_skin_garment. Allocates nothing. */
 weft_result weft_sample_character_pose(weft_sample_character *c, double t, double u, float *out_vertices);
+
+/* Plays an SMPL clip (weft_bvh_load_file's output for `body`, e.g. a library clip) on the
+ * character instead of its own animation, from then on (weft_sample_character_pose's t runs over
+ * the clip). joint_map: 24 entries in SMPL order, the character joint each SMPL joint drives
+ * (weft_bvh_read_joint_map's entries; NULL or "" = none; a namespace prefix before ':' is
+ * ignored). Retargeting: each mapped joint turns from its bind pose by its SMPL joint's world
+ * rotation times a rest correction (the smallest rotation taking the character's bind bone onto
+ * SMPL's T-pose bone, so a character bound in an A-pose works); unmapped joints turn with their
+ * parent; the root follows the pelvis path scaled by the legs' length ratio. Needs the pelvis,
+ * hips, knees, spine1, shoulders and elbows mapped; fails naming what is missing or a name that is
+ * no joint of the character. Allocates the clip's skinning matrices here; posing allocates
+ * nothing. */
+weft_result weft_sample_character_set_clip(weft_sample_character *c, const weft_body *body, const weft_clip *clip,
+                                           const char *const *joint_map);
 
 /* Binds a garment mesh fitted to the bind pose: each garment vertex takes the skinning of its
  * nearest character vertex. Refuses a garment that is not on this character (median distance

@@ -18,6 +18,9 @@ typedef struct weft_avatar_sample_options {
                                    NULL (default): the naming tables */
     const char *avatar;         /* "gltf:PATH": the user's skinned character (character.h), played by its
                                    own animation; NULL (default): weft's avatar */
+    const char *avatar_joint_map; /* with avatar and a mocap:/bvh: motion: the character's joint for each
+                                   SMPL joint (weft_bvh_read_joint_map's format); the motion then plays
+                                   on the character (weft_sample_character_set_clip) */
     const char *garment;        /* tshirt | skirt | dress | none | obj:PATH (a garment fitted to the
                                    avatar's bind pose) (default "tshirt"; with `avatar`, "none") */
     bool garment_given;         /* --garment was on the command line */

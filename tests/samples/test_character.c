@@ -8,6 +8,7 @@
 #include "pc2.h"
 #include "gltf.h"
 #include "weft/body.h"
+#include "weft/motion.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -263,6 +264,62 @@ static void test_bad_files(void)
     free(t);
 }
 
+/* A library clip (BVH, CMU names) retargeted onto weft's avatar, then through a joint map onto the
+ * renamed character: since the character is weft's avatar under other names, it must stand where
+ * the avatar stands in every frame. Maps missing required joints or naming no joint fail by name. */
+static void test_library_clip_on_character(void)
+{
+    weft_sample_character *c = NULL;
+    CHECK_RESULT(weft_sample_character_load(g_ctx, CHAR_GLTF, &c), WEFT_OK);
+    if (!c || !g_body) {
+        weft_sample_character_destroy(c);
+        return;
+    }
+    weft_bvh_def bd = weft_default_bvh_def();
+    bd.rest_joints = weft_body_rest_joints(g_body);
+    weft_clip *clip = NULL;
+    CHECK_RESULT(weft_bvh_load_file(g_ctx, WEFT_SOURCE_DIR "/samples/mocap/clips/walk_cmu07_01.bvh.gz", &bd, &clip),
+                 WEFT_OK);
+    char names[WEFT_BODY_JOINTS][16];
+    const char *map[WEFT_BODY_JOINTS];
+    for (uint32_t j = 0; j < WEFT_BODY_JOINTS; ++j) {
+        snprintf(names[j], sizeof names[j], "Bone_%02u", j); /* the file says rig:Bone_NN */
+        map[j] = names[j];
+    }
+    const uint32_t nv = weft_sample_character_vertex_count(c);
+    float *a = malloc((size_t)nv * 3 * sizeof(float)), *b = malloc((size_t)nv * 3 * sizeof(float));
+    if (clip && a && b) {
+        CHECK_RESULT(weft_sample_character_set_clip(c, g_body, clip, map), WEFT_OK);
+        CHECK_EQ_INT(weft_sample_character_frame_count(c), clip->frame_count);
+        double worst = 0.0;
+        for (uint32_t f = 0; f < clip->frame_count; f += 23) {
+            weft_pose pose;
+            CHECK_RESULT(weft_clip_sample(clip, f / (double)clip->fps, &pose), WEFT_OK);
+            CHECK_RESULT(weft_body_pose(g_body, &pose, b, NULL), WEFT_OK);
+            CHECK_RESULT(weft_sample_character_pose(c, f / (double)clip->fps, 1.0, a), WEFT_OK);
+            for (size_t i = 0; i < (size_t)nv; ++i) {
+                const double dx = a[3 * i] - b[3 * i], dy = a[3 * i + 1] - b[3 * i + 1], dz = a[3 * i + 2] - b[3 * i + 2];
+                worst = fmax(worst, sqrt(dx * dx + dy * dy + dz * dz));
+            }
+        }
+        printf("  library walk retargeted onto the renamed character vs weft's avatar: worst vertex %.2f mm\n",
+               1000.0 * worst);
+        CHECK_MSG(worst < 0.01, "worst vertex %.4f m", worst);
+        /* bad maps leave the retargeted clip in place */
+        map[18] = NULL;
+        CHECK_RESULT(weft_sample_character_set_clip(c, g_body, clip, map), WEFT_ERROR_FORMAT);
+        CHECK(strstr(weft_last_error(), "left_elbow") != NULL);
+        map[18] = "LeftForeArm";
+        CHECK_RESULT(weft_sample_character_set_clip(c, g_body, clip, map), WEFT_ERROR_FORMAT);
+        CHECK(strstr(weft_last_error(), "'LeftForeArm'") != NULL);
+        CHECK_EQ_INT(weft_sample_character_frame_count(c), clip->frame_count);
+    }
+    free(a);
+    free(b);
+    weft_clip_destroy(clip);
+    weft_sample_character_destroy(c);
+}
+
 static void setup(void)
 {
     weft_context_def cdef = weft_default_context_def();
@@ -277,4 +334,5 @@ static void teardown(void)
 }
 
 TEST_MAIN(TEST_CASE(setup), TEST_CASE(test_write_character), TEST_CASE(test_pose_matches_avatar),
-          TEST_CASE(test_garment_binding), TEST_CASE(test_bad_files), TEST_CASE(teardown))
+          TEST_CASE(test_garment_binding), TEST_CASE(test_library_clip_on_character), TEST_CASE(test_bad_files),
+          TEST_CASE(teardown))
