@@ -617,6 +617,49 @@ static weft_garment_def worn_def_on(const weft_sample_collider *col, const float
     return d;
 }
 
+weft_result weft_sample_waistband_create(weft_context *ctx, const weft_body *body, const weft_cloth_mesh *cloth,
+                                         weft_surface_pins **out)
+{
+    *out = NULL;
+    if (cloth->kind != WEFT_CLOTH_SKIRT && cloth->kind != WEFT_CLOTH_DRESS) {
+        return WEFT_OK;
+    }
+    const uint32_t n = weft_mesh_top_ring(cloth->positions, cloth->vertex_count, 0.012f, NULL, 0);
+    uint32_t *idx = malloc((n ? n : 1) * sizeof *idx);
+    float *rest = malloc((n ? n : 1) * 3 * sizeof *rest);
+    weft_result r = idx && rest ? WEFT_OK : weft__fail(WEFT_ERROR_OUT_OF_MEMORY, "waistband: out of memory");
+    if (r == WEFT_OK) {
+        weft_mesh_top_ring(cloth->positions, cloth->vertex_count, 0.012f, idx, n);
+        for (uint32_t k = 0; k < n; ++k) {
+            memcpy(rest + 3 * (size_t)k, cloth->positions + 3 * (size_t)idx[k], 3 * sizeof(float));
+        }
+        weft_surface_pins_def d = weft_default_surface_pins_def();
+        d.collider_rest_positions = weft_body_rest_vertices(body);
+        d.collider_vertex_count = weft_body_vertex_count(body);
+        d.collider_triangles = weft_body_triangles(body);
+        d.collider_triangle_count = weft_body_triangle_count(body);
+        d.rest_points = rest;
+        d.vertex_indices = idx;
+        d.count = n;
+        r = weft_surface_pins_create(ctx, &d, out);
+    }
+    free(idx);
+    free(rest);
+    return r;
+}
+
+weft_result weft_sample_waistband_pin(const weft_surface_pins *band, weft_garment *garment, const float *collider_next,
+                                      float *scratch)
+{
+    if (!band) {
+        return WEFT_OK;
+    }
+    weft_result r = weft_surface_pins_targets(band, collider_next, scratch);
+    return r != WEFT_OK ? r
+                        : weft_garment_set_pins(garment, weft_surface_pins_indices(band), scratch,
+                                                weft_surface_pins_count(band));
+}
+
 void weft_sample_set_substeps(weft_garment_def *def, uint32_t substeps)
 {
     def->substeps = substeps ? substeps : def->substeps;

@@ -147,6 +147,15 @@ weft_result weft_sample_worn_def(const weft_body *body, const weft_cloth_mesh *c
  * contacts and passes through the cloth. Every other method keeps fixed substeps. */
 #define WEFT_REFERENCE_SUBSTEP_FACTOR 8u
 void weft_sample_set_substeps(weft_garment_def *def, uint32_t substeps);
+/* The waistband of a skirt or dress for the reference XPBD, which runs without the max distance
+ * that holds the band for the other methods: the garment's top ring (weft_mesh_top_ring, 1.2 cm)
+ * as surface pins on the body's bind pose, as weft simgen pins it. *out is NULL for a T-shirt.
+ * Each frame before the step, weft_sample_waistband_pin sets the pins on the collider of t+1
+ * (scratch: 3 floats a band vertex, weft_surface_pins_count). */
+weft_result weft_sample_waistband_create(weft_context *ctx, const weft_body *body, const weft_cloth_mesh *cloth,
+                                         weft_surface_pins **out);
+weft_result weft_sample_waistband_pin(const weft_surface_pins *band, weft_garment *garment, const float *collider_next,
+                                      float *scratch);
 /* The sample's settle pose for simulated frame k of `settle` (k < settle): the bind pose blended
  * into the motion's first pose by a smoothstep of (k + 1) / settle, per-joint slerp. */
 void weft_avatar_sample_settle_pose(const weft_pose *bind, const weft_pose *first, uint32_t k, uint32_t settle,

@@ -227,6 +227,16 @@ static int run_cell(const mc_options *o, weft_context *ctx, const weft_body *bod
             rc = 1;
         }
     }
+    /* the reference's waistband (the other methods' max distance holds theirs) */
+    weft_surface_pins *band = NULL;
+    float *band_targets = NULL;
+    if (rc == 0 && m->method == WEFT_METHOD_XPBD) {
+        if (weft_sample_waistband_create(ctx, body, cloth, &band) != WEFT_OK ||
+            !(band_targets = malloc(((size_t)weft_surface_pins_count(band) + 1) * 3 * sizeof(float)))) {
+            fprintf(stderr, "weft bench mocap: waistband: %s\n", weft_last_error());
+            rc = 1;
+        }
+    }
     const float off_distance = kind == WEFT_CLOTH_TSHIRT ? 0.10f : 0.25f;
     weft_pose bind, first, pose;
     weft_body_bind_pose(body, &bind);
@@ -246,6 +256,9 @@ static int run_cell(const mc_options *o, weft_context *ctx, const weft_body *bod
         }
         const double t0 = weft__now_ms();
         weft_result r = weft_garment_set_collider(g, bverts);
+        if (r == WEFT_OK) {
+            r = weft_sample_waistband_pin(band, g, bverts, band_targets);
+        }
         if (r == WEFT_OK) {
             r = weft_garment_step(g);
         }
@@ -279,6 +292,8 @@ static int run_cell(const mc_options *o, weft_context *ctx, const weft_body *bod
         cell->max = weft_wear_percentile(ms, frames, 100.0);
     }
     weft_garment_destroy(g);
+    weft_surface_pins_destroy(band);
+    free(band_targets);
     weft_wear_destroy(wear);
     free(parts);
     free(bverts);
