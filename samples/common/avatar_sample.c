@@ -352,6 +352,8 @@ typedef struct sample_state {
     double cape_ms;
     uint64_t cape_pushed;       /* cape vertices its body collision moved, all steps */
     uint32_t cape_push_steps;   /* steps where it moved any */
+    weft_surface_pins *band;    /* the reference XPBD's waistband (skirts, dresses), else NULL */
+    float *band_targets;
 } sample_state;
 
 static void sample_free(sample_state *s)
@@ -362,6 +364,8 @@ static void sample_free(sample_state *s)
     free(s->obj_triangles);
     free(s->obj_weights);
     weft_garment_destroy(s->garment);
+    weft_surface_pins_destroy(s->band);
+    free(s->band_targets);
     weft_model_destroy(s->model);
     weft_cloth_destroy(s->cloth);
     weft_mesh_map_destroy(s->sim_map);
@@ -1064,6 +1068,13 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
             method_used = method_label;
             simulated = true;
         }
+        /* the reference XPBD ("xpbd", "xpbd:S") runs without the max distance: its waistband */
+        if (s.garment && strncmp(method_label, "xpbd", 4) == 0 && strncmp(method_label, "xpbd-fast", 9) != 0) {
+            if (weft_sample_waistband_create(s.ctx, s.body, simulated_mesh, &s.band) != WEFT_OK ||
+                !(s.band_targets = malloc(((size_t)weft_surface_pins_count(s.band) + 1) * 3 * sizeof(float)))) {
+                return fail_msg(&s, "the waistband");
+            }
+        }
         if (!simulated) {
             method_used = "skin";
         }
@@ -1181,7 +1192,9 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
         double t1 = weft__now_ms();
         const float *cloth = NULL;
         if (dressed && simulated) {
-            if (weft_garment_set_collider(s.garment, s.body_verts) != WEFT_OK || weft_garment_step(s.garment) != WEFT_OK) {
+            if (weft_garment_set_collider(s.garment, s.body_verts) != WEFT_OK ||
+                weft_sample_waistband_pin(s.band, s.garment, s.body_verts, s.band_targets) != WEFT_OK ||
+                weft_garment_step(s.garment) != WEFT_OK) {
                 char what[64];
                 snprintf(what, sizeof what, "cloth step at frame %u", k);
                 return fail_msg(&s, what);
