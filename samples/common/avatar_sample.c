@@ -508,7 +508,7 @@ static void camera_box(const weft_body *body, const weft_pose *pose, float lo[3]
     lo[0] = a[0] + pose->translation[0];
     hi[0] = b[0] + pose->translation[0];
     lo[1] = 0.0f;
-    hi[1] = b[1] + 0.1f;
+    hi[1] = b[1] + fmaxf(0.0f, pose->translation[1]) + 0.1f; /* a jump's airborne frames stay in view */
     lo[2] = a[2] + pose->translation[2];
     hi[2] = b[2] + pose->translation[2];
 }
@@ -870,7 +870,7 @@ static void camera_box_points(const float *rest, const float *posed, uint32_t n,
         }
     }
     lo[0] = (float)(a[0] + shift[0] / n), hi[0] = (float)(b[0] + shift[0] / n);
-    lo[1] = 0.0f, hi[1] = (float)b[1] + 0.1f;
+    lo[1] = 0.0f, hi[1] = (float)(b[1] + fmax(0.0, shift[1] / n)) + 0.1f; /* airborne frames stay in view */
     lo[2] = (float)(a[2] + shift[2] / n), hi[2] = (float)(b[2] + shift[2] / n);
 }
 
