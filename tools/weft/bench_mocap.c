@@ -30,11 +30,11 @@ const char weft_bench_mocap_help[] = "garments on the mocap library's clips: gar
 
 #define MC_MAX_CLIPS 128
 #define MC_MAX_METHODS 8
-#define MC_SETTLE 30
+#define MC_SETTLE 30 /* default settle frames */
 
 typedef struct mc_options {
     const char *split, *clips, *garments, *methods, *model, *md, *block, *resolution;
-    uint32_t frames;
+    uint32_t frames, settle;
     bool ccd, parts;
     float tether_cm, push_cm, strain_pct;
 } mc_options;
@@ -51,9 +51,11 @@ static void usage(FILE *f)
             "usage: weft bench mocap [--split test|train|all] [--clips A,B,...] [--garments tshirt,dress,skirt]\n"
             "                        [--methods lbs,model,xpbd-fast:5,xpbd-fast:10,xpbd:S] [--frames N]\n"
             "                        [--resolution 1k|4k] [--model FILE] [--ccd on|off] [--body-parts on|off]\n"
-            "                        [--tether-cm X] [--push-cm X] [--strain-limit PCT] [--md FILE [--block NAME]]\n"
+            "                        [--tether-cm X] [--push-cm X] [--strain-limit PCT] [--settle N]\n"
+            "                        [--md FILE [--block NAME]]\n"
             "  Defaults: the test split, all three garments, lbs,model,xpbd-fast:5,xpbd-fast:10, 300 frames\n"
-            "  (0: every frame of each clip), 1k, the shipped int8 garment model, and the worn-garment recipe\n"
+            "  (0: every frame of each clip) after 30 settle frames blending from the bind pose into the clip's\n"
+            "  first pose (--settle N, 1..1000), 1k, the shipped int8 garment model, and the worn-garment recipe\n"
             "  of the render sample: body parts on, CCD off, an 8 cm max distance, a 0.5 cm push, a 10 %%\n"
             "  strain limit for the learned model. xpbd:S is the reference as weft simgen runs it (parts\n"
             "  within 1 cm without neighbours, up to 8 S substeps on fast frames, none of the three fix-ups).\n"
@@ -243,10 +245,11 @@ static int run_cell(const mc_options *o, weft_context *ctx, const weft_body *bod
     if (rc == 0 && weft_clip_sample(clip, 0.0, &first) != WEFT_OK) {
         rc = 1;
     }
-    for (uint32_t k = 0; rc == 0 && !cell->failed && k < MC_SETTLE + frames; ++k) {
-        if (k < MC_SETTLE) {
-            weft_avatar_sample_settle_pose(&bind, &first, k, MC_SETTLE, &pose);
-        } else if (weft_clip_sample(clip, (double)(k - MC_SETTLE) / 60.0, &pose) != WEFT_OK) {
+    const uint32_t settle = o->settle;
+    for (uint32_t k = 0; rc == 0 && !cell->failed && k < settle + frames; ++k) {
+        if (k < settle) {
+            weft_avatar_sample_settle_pose(&bind, &first, k, settle, &pose);
+        } else if (weft_clip_sample(clip, (double)(k - settle) / 60.0, &pose) != WEFT_OK) {
             rc = 1;
             break;
         }
@@ -268,10 +271,10 @@ static int run_cell(const mc_options *o, weft_context *ctx, const weft_body *bod
             snprintf(cell->why, sizeof cell->why, "frame %u: %s", k, weft_last_error());
             break;
         }
-        if (k < MC_SETTLE) {
+        if (k < settle) {
             continue;
         }
-        ms[k - MC_SETTLE] = t1 - t0;
+        ms[k - settle] = t1 - t0;
         const weft_step_stats st = weft_garment_stats(g);
         cell->cuts += st.collider_cut;
         cell->ccd_over_budget += st.ccd_over_budget;
@@ -311,7 +314,7 @@ typedef struct mc_total {
 int weft_bench_mocap(int argc, char **argv)
 {
     mc_options o = {.split = "test", .garments = "tshirt,dress,skirt", .methods = "lbs,model,xpbd-fast:5,xpbd-fast:10",
-                    .model = "tools/train/models/garment.int8.safetensors", .resolution = "1k", .frames = 300,
+                    .model = "tools/train/models/garment.int8.safetensors", .resolution = "1k", .frames = 300, .settle = MC_SETTLE,
                     .ccd = false, .parts = true, .tether_cm = WEFT_WORN_TETHER_CM, .push_cm = WEFT_WORN_PUSH_CM,
                     .strain_pct = WEFT_WORN_STRAIN_PCT, .block = "mocap-table"};
     for (int i = 1; i < argc; i += 2) { /* every option takes a value (--help ends the loop) */
@@ -346,6 +349,10 @@ int weft_bench_mocap(int argc, char **argv)
             o.resolution = v;
         } else if (!strcmp(a, "--frames")) {
             if (!cli_u32("weft bench mocap", a, v, 0, 100000, &o.frames)) {
+                return 2;
+            }
+        } else if (!strcmp(a, "--settle")) {
+            if (!cli_u32("weft bench mocap", a, v, 1, 1000, &o.settle)) {
                 return 2;
             }
         } else if (!strcmp(a, "--ccd") || !strcmp(a, "--body-parts")) {
@@ -408,13 +415,18 @@ int weft_bench_mocap(int argc, char **argv)
     char *table = NULL;
     size_t len = 0, cap = 0;
     char line[1024];
+    char settle_arg[32] = "";
+    if (o.settle != MC_SETTLE) {
+        snprintf(settle_arg, sizeof settle_arg, " --settle %u", o.settle);
+    }
     snprintf(line, sizeof line,
-             "`weft bench mocap --split %s --frames %u --resolution %s --methods %s --garments %s --ccd %s --body-parts "
+             "`weft bench mocap --split %s --frames %u%s --resolution %s --methods %s --garments %s --ccd %s --body-parts "
              "%s --tether-cm %g --push-cm %g --strain-limit %g` (%s)\n\n"
              "| clip | garment | method | lost | worst off_body %% | inside_body mean / max %% | body_self_overlap "
              "mean / max %% | ms p50 / p99 / max | max / p50 |\n|---|---|---|---|---:|---:|---:|---:|---:|\n",
-             o.split, o.frames, o.resolution, o.methods, o.garments, o.ccd ? "on" : "off", o.parts ? "on" : "off",
+             o.split, o.frames, settle_arg, o.resolution, o.methods, o.garments, o.ccd ? "on" : "off", o.parts ? "on" : "off",
              (double)o.tether_cm, (double)o.push_cm, (double)o.strain_pct, weft_config_string());
+    fputs(line, stdout); /* the command and the table's head, as the page gets them */
     table = bench_append(table, &len, &cap, line);
     mc_total totals[MC_MAX_METHODS];
     memset(totals, 0, sizeof totals);
