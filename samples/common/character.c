@@ -256,6 +256,14 @@ static void rotation_of(const float *m, const double s[3], double q[4])
     }
 }
 
+/* Unit quaternion (x, y, z, w) -> rotation matrix r[row][col]. */
+static void rotation_matrix(double x, double y, double z, double w, double r[3][3])
+{
+    r[0][0] = 1 - 2 * (y * y + z * z), r[0][1] = 2 * (x * y - z * w), r[0][2] = 2 * (x * z + y * w);
+    r[1][0] = 2 * (x * y + z * w), r[1][1] = 1 - 2 * (x * x + z * z), r[1][2] = 2 * (y * z - x * w);
+    r[2][0] = 2 * (x * z - y * w), r[2][1] = 2 * (y * z + x * w), r[2][2] = 1 - 2 * (x * x + y * y);
+}
+
 /* The identity blended into m by u: rotation slerped from the identity, scale and translation
  * interpolated. */
 static void blend_from_identity(const float *m, double u, float *out)
@@ -280,10 +288,8 @@ static void blend_from_identity(const float *m, double u, float *out)
         a = sin((1.0 - u) * angle) / sin(angle);
         b = sin(u * angle) / sin(angle);
     }
-    const double x = b * q[0], y = b * q[1], z = b * q[2], w = a + b * q[3];
-    const double r[3][3] = {{1 - 2 * (y * y + z * z), 2 * (x * y - z * w), 2 * (x * z + y * w)},
-                            {2 * (x * y + z * w), 1 - 2 * (x * x + z * z), 2 * (y * z - x * w)},
-                            {2 * (x * z - y * w), 2 * (y * z + x * w), 1 - 2 * (x * x + y * y)}};
+    double r[3][3];
+    rotation_matrix(b * q[0], b * q[1], b * q[2], a + b * q[3], r);
     for (int col = 0; col < 3; ++col) {
         const double sc = 1.0 + u * (s[col] - 1.0);
         for (int row = 0; row < 3; ++row) {
@@ -605,21 +611,17 @@ weft_result weft_sample_character_set_clip(weft_sample_character *c, const weft_
             }
             /* skinning matrix: rotation delta, translation pos - delta * bind position */
             float *m = mats + ((size_t)f * nj + k) * 16;
-            const quatd q = delta[k];
-            const double xx = q.x * q.x, yy = q.y * q.y, zz = q.z * q.z, xy = q.x * q.y, xz = q.x * q.z, yz = q.y * q.z,
-                         wx = q.w * q.x, wy = q.w * q.y, wz = q.w * q.z;
-            const double R[9] = {1 - 2 * (yy + zz), 2 * (xy + wz), 2 * (xz - wy), /* column 0 */
-                                 2 * (xy - wz), 1 - 2 * (xx + zz), 2 * (yz + wx), /* column 1 */
-                                 2 * (xz + wy), 2 * (yz - wx), 1 - 2 * (xx + yy)}; /* column 2 */
+            double R[3][3];
+            rotation_matrix(delta[k].x, delta[k].y, delta[k].z, delta[k].w, R);
             const double b[3] = {BIND_T(k, 0), BIND_T(k, 1), BIND_T(k, 2)};
             for (int col = 0; col < 3; ++col) {
                 for (int row = 0; row < 3; ++row) {
-                    m[4 * col + row] = (float)R[3 * col + row];
+                    m[4 * col + row] = (float)R[row][col];
                 }
                 m[4 * col + 3] = 0.0f;
             }
             for (int row = 0; row < 3; ++row) {
-                m[12 + row] = (float)(pos[3 * k + row] - (R[row] * b[0] + R[3 + row] * b[1] + R[6 + row] * b[2]));
+                m[12 + row] = (float)(pos[3 * k + row] - (R[row][0] * b[0] + R[row][1] * b[1] + R[row][2] * b[2]));
             }
             m[15] = 1.0f;
         }

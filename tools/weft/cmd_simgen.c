@@ -14,7 +14,6 @@
 #endif
 
 #include <cjson/cJSON.h>
-#include <math.h>
 #include <dirent.h>
 #include <stdio.h>
 #include <stdlib.h>
