@@ -16,29 +16,55 @@ const char weft_cmd_quantize_help[] = "quantise an fp32 model to int8 or fp16 (c
 
 static const char k_tool[] = "weft quantize";
 
-static void usage(FILE *out)
+enum {
+    OPT_IN = 1, OPT_OUT, OPT_FORMAT, OPT_CALIB, OPT_CALIB_SPLIT, OPT_CALIB_FRAMES, OPT_SMOOTHQUANT,
+    OPT_MAX_LAYER_ERROR, OPT_VAL, OPT_NO_VAL, OPT_VAL_FRAMES, OPT_MIN_DIM, OPT_KEEP, OPT_REPORT,
+};
+
+static const cli_option k_options[] = {
+    {"format", "int8|fp16", OPT_FORMAT, "the quantised format (default int8)"},
+    {"calib", "SEQ_DIR|FOLDER|LIST", OPT_CALIB,
+     "calibrate on simgen sequences: a sequence folder, a folder of them (filtered\n"
+     "by --calib-split) or a split list file; repeatable (up to 64)"},
+    {"calib-split", "train|val|test", OPT_CALIB_SPLIT, "the split a --calib folder is filtered by"},
+    {"calib-frames", "N", OPT_CALIB_FRAMES, "frames recorded in total, 1..16777216"},
+    {"smoothquant", "ALPHA", OPT_SMOOTHQUANT,
+     "in [0, 1]: migrate activation outliers into the weights through the\n"
+     "preceding LayerNorm, kept per norm only where it lowers the measured error\n"
+     "(needs --calib)"},
+    {"max-layer-error", "E", OPT_MAX_LAYER_ERROR, "layers whose quantised output error is above E stay fp32 (1e-6..1e6)"},
+    {"val", "SEQ_DIR", OPT_VAL, "the validation sequence of the MVE ratio"},
+    {"no-val", NULL, OPT_NO_VAL, "skip the validation"},
+    {"val-frames", "N", OPT_VAL_FRAMES, "validation frames, 0..16777216 (default 0: the whole sequence)"},
+    {"min-dim", "N", OPT_MIN_DIM, "quantise weights with both dimensions >= N, 1..1048576 (default 16)"},
+    {"keep", "TENSOR", OPT_KEEP, "keep this tensor fp32; repeatable (up to 64)"},
+    {"report", "REPORT.json", OPT_REPORT, "write the per-layer report as JSON"},
+    {"in", "IN", OPT_IN, NULL},
+    {"out", "OUT", OPT_OUT, NULL},
+    {0},
+};
+
+static void notes(FILE *out)
 {
     fprintf(out,
-            "usage: weft quantize IN.safetensors OUT.safetensors [--format int8|fp16]\n"
-            "                     [--calib SEQ_DIR|FOLDER|SPLIT_LIST]... [--calib-split train|val|test]\n"
-            "                     [--calib-frames N] [--smoothquant ALPHA] [--max-layer-error E]\n"
-            "                     [--val SEQ_DIR | --no-val] [--val-frames N] [--min-dim N] [--keep TENSOR]...\n"
-            "                     [--report REPORT.json]\n"
-            "       (--in IN and --out OUT are accepted too)\n"
-            "Weights with both dimensions >= min-dim (1..1048576, default 16) are quantised; biases, norms,\n"
-            "small layers and tensors named by --keep or the model's \"keep_fp32\" metadata stay fp32.\n"
-            "--calib rolls the fp32 model out autoregressively over simgen sequences (a sequence folder, a\n"
-            "folder of them filtered by --calib-split, or a split list file), records every layer's input\n"
-            "range and measures its quantised output error; layers above --max-layer-error (1e-6..1e6,\n"
-            "default %.3g) stay fp32. --calib-frames (1..16777216, default %u) frames are recorded in total.\n"
-            "--smoothquant ALPHA in [0, 1] migrates activation outliers into the weights through the\n"
-            "preceding LayerNorm, kept per norm only where it lowers the measured error.\n"
-            "--val runs the fp32 and the quantised model on a sequence (default: %s) and reports the MVE\n"
-            "ratio over --val-frames frames (0..16777216, default 0: the whole sequence). Each layer's\n"
-            "decision is written as metadata \"quant.layer.<name>\".\n"
-            "On any error nothing is written.\n",
+            "IN and OUT may also be given as --in IN and --out OUT.\n"
+            "Biases, norms, small layers and tensors named by --keep or the model's \"keep_fp32\" metadata\n"
+            "stay fp32. --calib rolls the fp32 model out autoregressively over the sequences, records every\n"
+            "layer's input range and measures its quantised output error; layers above --max-layer-error\n"
+            "(default %.3g) stay fp32. --calib-frames defaults to %u. --val runs the fp32 and the quantised\n"
+            "model on a sequence and reports the MVE ratio; its default is\n  %s\n"
+            "Each layer's decision is written as metadata \"quant.layer.<name>\". On any error nothing is\n"
+            "written.\n",
             WEFT_QUANT_DEFAULT_MAX_LAYER_ERROR, WEFT_QUANT_DEFAULT_CALIB_FRAMES, weft_quant_default_val_dir());
 }
+
+static const cli_command k_command = {
+    .tool = "weft quantize",
+    .synopsis = "weft quantize IN.safetensors OUT.safetensors [options]",
+    .about = "Quantises an fp32 model to int8 or fp16 (calibration, per-layer error report).",
+    .options = k_options,
+    .notes = notes,
+};
 
 static bool is_dir(const char *p)
 {
@@ -53,38 +79,38 @@ int weft_cmd_quantize(int argc, char **argv)
     const char *keep[MAX_LIST + 1] = {0}, *calib[MAX_LIST + 1] = {0};
     int nkeep = 0, ncalib = 0;
     weft_quant_def def = weft_default_quant_def();
-    for (int i = 1; i < argc; ++i) {
-        const char *a = argv[i];
-        const char *v = i + 1 < argc ? argv[i + 1] : NULL;
-        if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
-            usage(stdout);
+    cli_parser p;
+    if (!cli_start(&p, &k_command, argc, argv)) {
+        return 2;
+    }
+    const char *v;
+    for (int id; (id = cli_next(&p, &v)) != CLI_END;) {
+        const char *a = cli_name(&k_command, id);
+        switch (id) {
+        case CLI_HELP:
+            cli_usage(&k_command, stdout);
             return 0;
-        } else if (strcmp(a, "--no-val") == 0) {
-            no_val = true;
-        } else if (a[0] != '-' || a[1] == '\0') {
-            if (!in) {
-                in = a;
-            } else if (!out) {
-                out = a;
-            } else {
-                fprintf(stderr, "weft quantize: unexpected argument '%s'\n", a);
-                return 2;
-            }
-        } else if (!v) {
-            fprintf(stderr, "weft quantize: %s needs a value\n", a);
-            usage(stderr);
+        case CLI_BAD:
             return 2;
-        } else if (strcmp(a, "--in") == 0) {
-            in = v, ++i;
-        } else if (strcmp(a, "--out") == 0) {
-            out = v, ++i;
-        } else if (strcmp(a, "--report") == 0) {
-            report_path = v, ++i;
-        } else if (strcmp(a, "--val") == 0) {
-            val = v, ++i;
-        } else if (strcmp(a, "--calib-split") == 0) {
-            def.calib_split = v, ++i;
-        } else if (strcmp(a, "--format") == 0) {
+        case OPT_IN:
+            in = v;
+            break;
+        case OPT_OUT:
+            out = v;
+            break;
+        case OPT_REPORT:
+            report_path = v;
+            break;
+        case OPT_VAL:
+            val = v;
+            break;
+        case OPT_NO_VAL:
+            no_val = true;
+            break;
+        case OPT_CALIB_SPLIT:
+            def.calib_split = v;
+            break;
+        case OPT_FORMAT:
             if (strcmp(v, "int8") == 0) {
                 def.format = WEFT_QUANT_INT8;
             } else if (strcmp(v, "fp16") == 0) {
@@ -93,45 +119,61 @@ int weft_cmd_quantize(int argc, char **argv)
                 fprintf(stderr, "weft quantize: unknown format '%s' (int8 or fp16)\n", v);
                 return 2;
             }
-            ++i;
-        } else if (strcmp(a, "--min-dim") == 0) {
+            break;
+        case OPT_MIN_DIM:
             if (!cli_u32(k_tool, a, v, 1, 1u << 20, &def.min_dim)) {
                 return 2;
             }
-            ++i;
-        } else if (strcmp(a, "--calib-frames") == 0) {
+            break;
+        case OPT_CALIB_FRAMES:
             if (!cli_u32(k_tool, a, v, 1, 1u << 24, &def.calib_frames)) {
                 return 2;
             }
-            ++i;
-        } else if (strcmp(a, "--val-frames") == 0) {
+            break;
+        case OPT_VAL_FRAMES:
             if (!cli_u32(k_tool, a, v, 0, 1u << 24, &def.val_frames)) {
                 return 2;
             }
-            ++i;
-        } else if (strcmp(a, "--smoothquant") == 0) {
+            break;
+        case OPT_SMOOTHQUANT:
             if (!cli_float(k_tool, a, v, 0.0f, 1.0f, &def.smoothquant_alpha)) {
                 return 2;
             }
-            ++i;
-        } else if (strcmp(a, "--max-layer-error") == 0) {
+            break;
+        case OPT_MAX_LAYER_ERROR:
             if (!cli_double(k_tool, a, v, 1e-6, 1e6, &def.max_layer_error)) {
                 return 2;
             }
-            ++i;
-        } else if (strcmp(a, "--keep") == 0 && nkeep < MAX_LIST) {
-            keep[nkeep++] = v, ++i;
-        } else if (strcmp(a, "--calib") == 0 && ncalib < MAX_LIST) {
-            calib[ncalib++] = v, ++i;
+            break;
+        case OPT_KEEP:
+        case OPT_CALIB:
+            if ((id == OPT_KEEP ? nkeep : ncalib) >= MAX_LIST) {
+                return cli_fail(&k_command, id == OPT_KEEP ? "more than 64 --keep" : "more than 64 --calib");
+            }
+            if (id == OPT_KEEP) {
+                keep[nkeep++] = v;
+            } else {
+                calib[ncalib++] = v;
+            }
+            break;
+        default:
+            return cli_fail(&k_command, "internal error: an option without a case");
+        }
+    }
+    char **rest;
+    const int nrest = cli_rest(&p, &rest);
+    for (int k = 0; k < nrest; ++k) {
+        if (!in) {
+            in = rest[k];
+        } else if (!out) {
+            out = rest[k];
         } else {
-            fprintf(stderr, "weft quantize: unexpected argument '%s'\n", a);
-            usage(stderr);
+            fprintf(stderr, "weft quantize: unexpected argument '%s'\n", rest[k]);
             return 2;
         }
     }
     if (!in || !out) {
-        usage(stderr);
-        return 2;
+        return cli_fail(&k_command, "IN and OUT are required");
     }
     if (def.smoothquant_alpha >= 0.0f && ncalib == 0) {
         fprintf(stderr, "weft quantize: --smoothquant needs --calib\n");

@@ -2,6 +2,7 @@
 #include "support_cli.h"
 
 #include <errno.h>
+#include <getopt.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -165,4 +166,153 @@ bool cli_floats(const char *tool, const char *option, const char *value, float l
     }
     memcpy(out, got, n * sizeof got[0]);
     return true;
+}
+
+/* ---- Options ------------------------------------------------------------------------------- */
+
+bool cli_start(cli_parser *p, const cli_command *cmd, int argc, char **argv)
+{
+    memset(p, 0, sizeof *p);
+    p->cmd = cmd;
+    p->argc = argc;
+    p->argv = argv;
+    int n = 0;
+    for (const cli_option *o = cmd->options; o && o->name; ++o, ++n) {
+        bool bad = n >= CLI_MAX_OPTIONS || o->id < 1 || o->name[0] == '\0' || strcmp(o->name, "help") == 0;
+        for (const cli_option *q = cmd->options; !bad && q != o; ++q) {
+            bad = strcmp(q->name, o->name) == 0 || q->id == o->id;
+        }
+        if (bad) {
+            fprintf(stderr, "%s: internal error: option table entry '--%s' (id %d) is malformed\n", cmd->tool,
+                    o->name ? o->name : "", o->id);
+            return false;
+        }
+        p->table[n] = (struct option){o->name, o->value ? required_argument : no_argument, NULL, o->id};
+    }
+    p->table[n] = (struct option){"help", no_argument, NULL, CLI_HELP};
+    p->table[n + 1] = (struct option){NULL, 0, NULL, 0};
+    p->count = n;
+    /* ':' first: a missing value is told apart from an unknown option; "h": -h. */
+    memcpy(p->short_opts, ":h", 3);
+    /* getopt keeps its position in globals: start over (0 also resets GNU getopt's permutation). */
+#ifdef __GLIBC__
+    optind = 0;
+#else
+    optind = 1;
+#endif
+    opterr = 0;
+    return true;
+}
+
+int cli_next(cli_parser *p, const char **value)
+{
+    *value = NULL;
+    if (p->done) {
+        return CLI_END;
+    }
+    const int before = optind;
+    const int c = getopt_long(p->argc, p->argv, p->short_opts, p->table, NULL);
+    if (c == -1) {
+        p->done = true;
+        p->first_positional = optind;
+        return CLI_END;
+    }
+    if (c == 'h' || c == CLI_HELP) {
+        return CLI_HELP;
+    }
+    /* the argument just read: getopt_long has moved optind past it (and its value) */
+    const int at = optind - 1 >= 1 ? optind - 1 : before;
+    const char *arg = at < p->argc ? p->argv[at] : "";
+    char what[512];
+    if (c == ':') {
+        snprintf(what, sizeof what, "%s needs a value", optopt > 0 ? cli_name(p->cmd, optopt) : arg);
+        return cli_fail(p->cmd, what), CLI_BAD;
+    }
+    if (c == '?') {
+        const bool is_long = strncmp(arg, "--", 2) == 0;
+        const bool prefix = optopt == 0 && is_long;
+        if (optopt > 0 && is_long) {
+            /* a value given to a flag (--flag=x) */
+            snprintf(what, sizeof what, "%s takes no value", cli_name(p->cmd, optopt));
+        } else if (prefix) {
+            size_t len = strcspn(arg + 2, "=");
+            int matches = 0;
+            for (int k = 0; k < p->count; ++k) {
+                matches += strncmp(p->table[k].name, arg + 2, len) == 0;
+            }
+            snprintf(what, sizeof what, "%s option '%.*s'", matches > 1 ? "ambiguous" : "unknown", (int)(len + 2), arg);
+        } else {
+            snprintf(what, sizeof what, "unknown option '%s'", arg);
+        }
+        return cli_fail(p->cmd, what), CLI_BAD;
+    }
+    *value = optarg;
+    return c;
+}
+
+int cli_rest(const cli_parser *p, char ***rest)
+{
+    const int first = p->done ? p->first_positional : p->argc;
+    *rest = p->argv + first;
+    return p->argc - first;
+}
+
+const char *cli_name(const cli_command *cmd, int id)
+{
+    static char name[96];
+    for (const cli_option *o = cmd->options; o && o->name; ++o) {
+        if (o->id == id) {
+            snprintf(name, sizeof name, "--%s", o->name);
+            return name;
+        }
+    }
+    return "?";
+}
+
+int cli_fail(const cli_command *cmd, const char *what)
+{
+    fprintf(stderr, "%s: %s (%s --help lists the options)\n", cmd->tool, what, cmd->tool);
+    return 2;
+}
+
+/* Prints text with every line after the first indented by `indent` spaces. */
+static void print_indented(FILE *out, const char *text, int indent)
+{
+    for (const char *s = text; *s;) {
+        const size_t len = strcspn(s, "\n");
+        fprintf(out, "%.*s\n", (int)len, s);
+        s += len + (s[len] == '\n');
+        if (*s) {
+            fprintf(out, "%*s", indent, "");
+        }
+    }
+}
+
+void cli_usage(const cli_command *cmd, FILE *out)
+{
+    enum { column = 28 };
+    fprintf(out, "usage: ");
+    print_indented(out, cmd->synopsis, 7);
+    if (cmd->about && cmd->about[0]) {
+        fprintf(out, "\n%s%s", cmd->about, cmd->about[strlen(cmd->about) - 1] == '\n' ? "" : "\n");
+    }
+    fprintf(out, "\noptions:\n");
+    for (const cli_option *o = cmd->options; o && o->name; ++o) {
+        if (!o->help) {
+            continue;
+        }
+        char head[128];
+        const int w = snprintf(head, sizeof head, "  --%s%s%s", o->name, o->value ? " " : "", o->value ? o->value : "");
+        if (w + 2 > column) {
+            fprintf(out, "%s\n%*s", head, column, "");
+        } else {
+            fprintf(out, "%-*s", column, head);
+        }
+        print_indented(out, o->help, column);
+    }
+    fprintf(out, "  %-*s%s\n", column - 2, "-h, --help", "this help");
+    if (cmd->notes) {
+        fprintf(out, "\n");
+        cmd->notes(out);
+    }
 }

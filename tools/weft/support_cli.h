@@ -1,4 +1,5 @@
-/* Numeric command-line values, parsed whole: the entire string is the number (no sign unless the
+/* The commands' option parsing: a table of options per command, read by getopt_long, with the
+ * --help text generated from the same table; and numeric option values, parsed whole: the entire string is the number (no sign unless the
  * range allows negatives, no spaces, no trailing text, no overflow, nothing but finite numbers)
  * and it lies in [lo, hi]. On failure each prints "<tool>: <option> wants <what> in [lo, hi],
  * got '<value>'" to stderr and returns false, leaving *out unchanged. Commands exit with status 2
@@ -9,6 +10,62 @@
 #include <stdbool.h>
 #include <stddef.h>
 #include <stdint.h>
+#include <getopt.h>
+#include <stdio.h>
+
+/* ---- Options ---------------------------------------------------------------------------------
+ * A command lists its options once, as a table ending in {0}; cli_next walks argv with
+ * getopt_long (so `--name value`, `--name=value`, unambiguous prefixes, and positional arguments
+ * anywhere all work) and cli_usage prints the help from the same table. -h and --help are
+ * built in. Every message names the tool and the option; errors return CLI_BAD after printing
+ * one line and a pointer to --help, and the command exits 2 (a usage error) before any work. */
+
+enum {
+    CLI_END = -1,   /* no options left: positional arguments are cli_rest() */
+    CLI_BAD = -2,   /* unknown option, a missing value or an ambiguous prefix (already reported) */
+    CLI_HELP = -3,  /* -h or --help */
+    CLI_MAX_OPTIONS = 96,
+};
+
+typedef struct cli_option {
+    const char *name;   /* the long name without "--" */
+    const char *value;  /* the value's name in the help ("N", "on|off"); NULL: a flag without one */
+    int id;             /* what cli_next returns for this option; >= 1 */
+    const char *help;   /* its help, lines separated by '\n'; NULL: accepted but not listed (an alias) */
+} cli_option;
+
+typedef struct cli_command {
+    const char *tool;             /* "weft quantize": the prefix of every message */
+    const char *synopsis;         /* printed after "usage: "; may span lines */
+    const char *about;            /* printed between the synopsis and the options; may be NULL */
+    const cli_option *options;    /* ends with an entry whose name is NULL */
+    void (*notes)(FILE *out);     /* optional text after the options (defaults known at run time) */
+} cli_command;
+
+typedef struct cli_parser {
+    const cli_command *cmd;
+    int argc;
+    char **argv;
+    int count;                    /* options in the table */
+    bool done;
+    int first_positional;         /* argv index of the first positional argument, after CLI_END */
+    char short_opts[4];
+    struct option table[CLI_MAX_OPTIONS + 2]; /* getopt_long's view of the options */
+} cli_parser;
+
+/* Prepares to read argv[1..argc) (argv[0] is the command's name). False (reported) when the table
+ * is malformed: too many options, a duplicate name or id, an id below 1. */
+bool cli_start(cli_parser *p, const cli_command *cmd, int argc, char **argv);
+/* The next option: its id with *value set (NULL for a flag), or CLI_END, CLI_BAD, CLI_HELP. */
+int cli_next(cli_parser *p, const char **value);
+/* After CLI_END: the positional arguments, in their order on the command line. */
+int cli_rest(const cli_parser *p, char ***rest);
+/* "--name" of an option id, for messages ("?" if unknown). */
+const char *cli_name(const cli_command *cmd, int id);
+/* The help: usage line, about, the options with their help, the notes. */
+void cli_usage(const cli_command *cmd, FILE *out);
+/* Reports "<tool>: <what>" and the pointer to --help on stderr; returns 2 (the usage exit). */
+int cli_fail(const cli_command *cmd, const char *what);
 
 bool cli_u32(const char *tool, const char *option, const char *value, uint32_t lo, uint32_t hi, uint32_t *out);
 bool cli_u64(const char *tool, const char *option, const char *value, uint64_t lo, uint64_t hi, uint64_t *out);
