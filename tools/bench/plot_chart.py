@@ -1,15 +1,17 @@
 #!/usr/bin/python3
 """Draws docs/img/chart.png from the CSV written by `weft bench chart` (docs/data/chart.csv).
 
-One panel per scenario (and one for the FNOpt grid scenes): ms/frame on a log x axis against
-error (MVE in cm; relative e3D for FNOpt), lower left is better. Every scored setting is a small
+One panel per scenario (and one for the FNOpt grid scenes, and one for real motion): ms/frame on a
+log x axis against error (MVE in cm; relative e3D for FNOpt; on real motion, which has no ground
+truth, the share of cloth inside the body), lower left is better. Every scored setting is a small
 faint marker in its family's colour; each family (learned int8/fp16/fp32, fast XPBD, reference
 XPBD, LBS, the FNOpt optimizers) gets one large marker and one label at its best setting (its
 point on the Pareto front if it has one, else its lowest error). The Pareto front (lowest error
 at this many ms or fewer, over the scored rows) is a step line. The axes fit the front and the
 labelled points; anything beyond them is a triangle on the edge, pointing outward, with its
-value. A red ring marks a labelled point where some runs exploded. Rows with failed or NaN runs,
-or no error, are not scored, only counted under their panel. The full table is the CSV.
+value. A red ring marks a labelled point where some runs exploded (on real motion: where a garment
+was lost). Rows with NaN runs or no error
+are not scored, only counted under their panel. The full table is the CSV.
 
 Usage: plot_chart.py --csv docs/data/chart.csv --out docs/img/chart.png
 """
@@ -121,32 +123,30 @@ def overlap(a, b):
 def draw_panel(ax, sc, rows):
     """Draws one scenario; returns the labels still to place, as (ms, error, text, colour)."""
     fn = any(r["family"] == "fnopt" for r in rows)
-    ekey = "e3d" if fn else "mve_cm"
-    pts, unscored_failed, unscored_nan, unscored_none = [], 0, 0, 0
+    mocap = sc == "mocap"
+    ekey = "e3d" if fn else "inside_body_pct" if mocap else "mve_cm"
+    pts, unscored_nan, unscored_none = [], 0, 0
     for r in rows:
         ms, err = num(r["ms_per_frame"]), num(r[ekey])
-        if count(r["failed_runs"]) > 0:
-            unscored_failed += 1
-        elif count(r["nan_runs"]) > 0:
+        if count(r["nan_runs"]) > 0:
             unscored_nan += 1
         elif ms > 0 and math.isfinite(err):
             pts.append((ms, err, r))
         else:
             unscored_none += 1
-    ax.set_title(sc, fontsize=10, fontweight="bold")
+    ax.set_title("real motion (mocap test clips)" if mocap else sc, fontsize=10, fontweight="bold")
     ax.set_xscale("log")
     ax.set_xlabel("ms per frame (log)", fontsize=FONT, loc="right")
-    ax.set_ylabel("e3D vs XPBD reference (relative)" if fn else "mean vertex error (cm)", fontsize=FONT)
+    ax.set_ylabel("e3D vs XPBD reference (relative)" if fn else "cloth inside the body (%)" if mocap
+                  else "mean vertex error (cm)", fontsize=FONT)
     ax.tick_params(labelsize=FONT)
     ax.grid(True, which="major", alpha=0.3)
     ax.grid(True, which="minor", axis="x", alpha=0.1)
     notes = []
-    if unscored_failed:
-        notes.append(f"{unscored_failed} failed")
     if unscored_nan:
         notes.append(f"{unscored_nan} NaN")
     if unscored_none:
-        notes.append(f"{unscored_none} no {'e3D' if fn else 'MVE'}")
+        notes.append(f"{unscored_none} no {'e3D' if fn else 'inside_body' if mocap else 'MVE'}")
     if notes:
         # Under the tick labels on the left, level with the axis title (which sits on the right).
         ax.annotate("not scored: " + ", ".join(notes), (0, 0), xycoords="axes fraction", textcoords="offset points",
@@ -249,7 +249,7 @@ def draw_panel(ax, sc, rows):
         size = 13 if marker == "*" else 9
         ax.plot(ms, err, marker=marker, color=color, markersize=size, linestyle="none",
                 markeredgecolor="white", markeredgewidth=0.8, zorder=6)
-        if count(r["exploded_runs"]) > 0:
+        if count(r["exploded_runs"]) > 0 or count(r.get("garments_lost")) > 0:
             ax.plot(ms, err, marker="o", markerfacecolor="none", markeredgecolor=RING_COLOR, markersize=15,
                     markeredgewidth=1.3, linestyle="none", zorder=5.5)
         labels.append((ms, err, short_label(key, r), color))
@@ -319,7 +319,7 @@ def legend_handles(present):
     names.append("off scale (value)")
     h.append(Line2D([], [], marker="o", markerfacecolor="none", markeredgecolor=RING_COLOR, linestyle="none",
                     markersize=11, markeredgewidth=1.3))
-    names.append("some runs exploded")
+    names.append("some runs exploded / garment lost")
     h.append(Line2D([], [], color=FRONT_COLOR, linewidth=1.3))
     names.append("Pareto front")
     return h, names
@@ -338,6 +338,8 @@ def main():
             scenarios.append(r["scenario"])
     if not scenarios:
         raise SystemExit("plot_chart.py: no rows in " + args.csv)
+    # the simulation scenarios first, then real motion, then the FNOpt grid (another metric)
+    scenarios.sort(key=lambda sc: (sc == "fnopt-grid", sc == "mocap"))
     n = len(scenarios)
     ncols = 1 if n == 1 else 2 if n in (2, 4) else 3
     nrows = math.ceil(n / ncols)

@@ -303,23 +303,62 @@ static int bench_postprocess(int frames, const scenario *sc)
     return 0;
 }
 
+enum { OPT_QUERIES = 1, OPT_FRAMES };
+
+static const cli_option k_options[] = {
+    /* 10^7 queries hold 1.9 GB of coordinates */
+    {"queries", "N", OPT_QUERIES, "narrow-phase queries of each kind, 1..10000000 (default 200000)"},
+    {"frames", "N", OPT_FRAMES,
+     "post-process repetitions per scenario (best / mean of them), 1..100000\n"
+     "(default 20)"},
+    {0},
+};
+
+static const cli_command k_command = {
+    .tool = "weft bench ccd",
+    .synopsis = "weft bench ccd [--queries N] [--frames N]",
+    .about = "CCD narrow-phase us/query (vertex-face and edge-edge, three kinds of query) and the full\n"
+             "post-process ms/frame of a 4096-vertex garment around a ~7k-triangle body, one core, thread CPU\n"
+             "time (docs/CCD.md records the figures).",
+    .options = k_options,
+    .notes = NULL,
+};
+
 int weft_bench_ccd(int argc, char **argv);
 int weft_bench_ccd(int argc, char **argv)
 {
     uint32_t queries = 200000, frames = 20;
-    for (int i = 1; i < argc; ++i) {
-        const bool q = strcmp(argv[i], "--queries") == 0;
-        if ((q || strcmp(argv[i], "--frames") == 0) && i + 1 < argc) {
-            /* 10^7 queries hold 1.9 GB of coordinates */
-            if (!cli_u32("weft bench ccd", argv[i], argv[i + 1], 1, q ? 10000000 : 100000, q ? &queries : &frames)) {
+    cli_parser parser;
+    if (!cli_start(&parser, &k_command, argc, argv)) {
+        return 2;
+    }
+    const char *v;
+    for (int id; (id = cli_next(&parser, &v)) != CLI_END;) {
+        switch (id) {
+        case CLI_HELP:
+            cli_usage(&k_command, stdout);
+            return 0;
+        case CLI_BAD:
+            return 2;
+        case OPT_QUERIES:
+            if (!cli_u32(k_command.tool, cli_name(&k_command, id), v, 1, 10000000, &queries)) {
                 return 2;
             }
-            ++i;
-        } else {
-            printf("usage: weft bench ccd [--queries N (1..10000000, default 200000)] [--frames N (1..100000, "
-                   "default 20)]\n");
-            return strcmp(argv[i], "--help") == 0 ? 0 : 2;
+            break;
+        case OPT_FRAMES:
+            if (!cli_u32(k_command.tool, cli_name(&k_command, id), v, 1, 100000, &frames)) {
+                return 2;
+            }
+            break;
+        default:
+            return cli_fail(&k_command, "internal error: an option without a case");
         }
+    }
+    char **rest;
+    if (cli_rest(&parser, &rest) > 0) {
+        char what[256];
+        snprintf(what, sizeof what, "unexpected argument '%.200s'", rest[0]);
+        return cli_fail(&k_command, what);
     }
     printf("# %s\n", weft_config_string());
     bench_narrow(queries, 3);

@@ -10,6 +10,7 @@
 #define _POSIX_C_SOURCE 200809L /* clock_gettime */
 #include "weft.h"
 #include "support_bench.h"
+#include "support_cli.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -52,13 +53,16 @@ typedef struct chart_method {
     char strain_contact_cm[8]; /* "" or `weft eval --strain-contact-cm` */
     char push_cm[8];    /* "" or `weft eval --push-cm` */
     bool garment_only;  /* tethers bind to the wearer: run on garment sequences only */
+    bool mocap;         /* a row of the real-motion panel (`weft bench mocap`) */
 } chart_method;
 
 typedef struct chart_row {
     char scenario[32];
     int method;
-    uint32_t sequences, frames, nan_runs, exploded_runs, failed_runs;
+    uint32_t sequences, frames, nan_runs, exploded_runs;
     double mve_w, e3d_w, coll_w, self_w, ms_w, max_strain;
+    double inside_w;       /* real motion: sum of the cells' mean inside_body % (cells in `sequences`) */
+    uint32_t lost;         /* real motion: cells whose garment was lost */
     bool pareto;
     char note[240];
 } chart_row;
@@ -72,37 +76,77 @@ typedef struct chart_opts {
     unsigned xpbd_fast[8]; /* WEFT_METHOD_XPBD_FAST substep counts */
     size_t nxpbd_fast;
     const char *fnopt_motions;
-    bool quick, plot, fnopt, frames_given;
+    uint32_t mocap_frames; /* frames per cell of the real-motion panel */
+    const char *mocap_clips, *mocap_garments;
+    bool quick, plot, fnopt, frames_given, mocap;
 } chart_opts;
 
-static void usage(FILE *f)
-{
-    fprintf(f,
-            "usage: weft bench chart --data DIR [--split test|val|train|all] [--models DIR] [--frames N] [--out DIR]\n"
-            "                        [--csv-dir DIR] [--max-seqs N] [--xpbd 5,10,20,40] [--xpbd-fast 5,10,20,40]\n"
-            "                        [--quick] [--no-plot] [--no-fnopt] [--fnopt-model PATH]\n"
-            "                        [--fnopt-motions xy,xyz,rot_h0]\n"
-            "  Runs LBS, XPBD (5/10/20/40 substeps), the fast XPBD with a game's collision projection\n"
-            "  (5/10/20/40, CCD off, and CCD on at the first), every DIR/*.safetensors model (fp32/fp16/int8,\n"
-            "  CCD on/off)\n"
-            "  on each sequence of the split, and the FNOpt grid scenes; writes OUT/CHART.md, OUT/img/chart.png and\n"
-            "  the CSV behind them, CSVDIR/chart.csv (default OUT: docs; default CSVDIR: docs/data when OUT is\n"
-            "  docs, else OUT).\n"
-            "  --quick   30 frames, at most 2 sequences per scenario, one FNOpt scene (xy; whole trajectory)\n");
-}
+/* The real-motion panel's methods: each shipped method at its defaults (`weft bench mocap`). */
+#define CHART_MOCAP_METHODS "lbs,model,xpbd-fast:5,xpbd-fast:10"
+#define CHART_MOCAP_METHODS_CLASSIC "lbs,xpbd-fast:5,xpbd-fast:10" /* without a shipped model */
+#define CHART_MOCAP_SCENARIO "mocap"
 
+enum {
+    OPT_DATA = 1, OPT_SPLIT, OPT_MODELS, OPT_FRAMES, OPT_OUT, OPT_CSV_DIR, OPT_MAX_SEQS, OPT_XPBD, OPT_XPBD_FAST,
+    OPT_QUICK, OPT_NO_PLOT, OPT_NO_FNOPT, OPT_FNOPT_MODEL, OPT_FNOPT_MOTIONS, OPT_NO_MOCAP, OPT_MOCAP_FRAMES,
+    OPT_MOCAP_CLIPS, OPT_MOCAP_GARMENTS,
+};
+
+static const cli_option k_options[] = {
+    {"data", "DIR", OPT_DATA, "the simgen sequences (required)"},
+    {"split", "test|val|train|all", OPT_SPLIT, "the split scored (default test)"},
+    {"models", "DIR", OPT_MODELS, "every DIR/*.safetensors model is charted (default tools/train/models)"},
+    {"frames", "N", OPT_FRAMES, "cut every rollout at N predicted frames, 0..1000000 (default 0: whole sequences)"},
+    {"max-seqs", "N", OPT_MAX_SEQS, "at most N sequences per scenario, 0..1000000 (default 0: all)"},
+    {"xpbd", "5,10,20,40", OPT_XPBD, "substep counts of the reference XPBD rows"},
+    {"xpbd-fast", "5,10,20,40", OPT_XPBD_FAST,
+     "substep counts of the fast XPBD rows (a game's collision projection; CCD off,\n"
+     "and CCD on at the first count)"},
+    {"out", "DIR", OPT_OUT, "where CHART.md and img/chart.png go (default docs)"},
+    {"csv-dir", "DIR", OPT_CSV_DIR, "where chart.csv goes (default docs/data when --out is docs, else --out)"},
+    {"quick", NULL, OPT_QUICK, "30 frames, at most 2 sequences per scenario, one FNOpt scene (xy)"},
+    {"no-plot", NULL, OPT_NO_PLOT, "write the tables, not the figure"},
+    {"no-fnopt", NULL, OPT_NO_FNOPT, "leave out the FNOpt grid scenes"},
+    {"fnopt-model", "PATH", OPT_FNOPT_MODEL, "the FNOpt weights (default tools/fnopt/models/fnopt_32.safetensors)"},
+    {"fnopt-motions", "xy,xyz,rot_h0", OPT_FNOPT_MOTIONS, "the FNOpt grid scenes run (default all three; --quick: xy)"},
+    {"no-mocap", NULL, OPT_NO_MOCAP, "leave out the real-motion panel"},
+    {"mocap-frames", "N", OPT_MOCAP_FRAMES,
+     "frames per clip and garment of the real-motion panel, 1..100000 (default 150;\n"
+     "--quick: 30)"},
+    {"mocap-clips", "A,B,...", OPT_MOCAP_CLIPS, "its clips (default: the mocap library's test split; --quick: walk_cmu07_01)"},
+    {"mocap-garments", "LIST", OPT_MOCAP_GARMENTS, "its garments (default tshirt,dress,skirt; --quick: tshirt)"},
+    {0},
+};
+
+static const cli_command k_command = {
+    .tool = "weft bench chart",
+    .synopsis = "weft bench chart --data DIR [options]",
+    .about = "Runs LBS, the reference XPBD, the fast XPBD, every learned model (fp32/fp16/int8, CCD on and\n"
+             "off) on each sequence of the split, and the FNOpt grid scenes, each as one `weft eval --json`\n"
+             "(or `weft fnopt run --gt`) run; writes OUT/CHART.md, OUT/img/chart.png and the CSV behind them.\n"
+             "The real-motion panel runs `weft bench mocap` (" CHART_MOCAP_METHODS ", each at its\n"
+             "defaults, on the library's test clips): there is no ground truth on real motion, so its error\n"
+             "axis is the share of cloth inside the body, and lost garments are counted.\n"
+             "A run that fails (a child that cannot start, crashes or reports an error) fails the whole\n"
+             "benchmark: nothing is written from partial results.",
+    .options = k_options,
+};
+
+static bool is_mocap(const chart_row *r) { return strcmp(r->scenario, CHART_MOCAP_SCENARIO) == 0; }
+
+/* The panel's error: e3D for FNOpt, inside_body % on real motion, MVE elsewhere. */
 static double row_error(const chart_row *r, const chart_method *m)
 {
     uint32_t w = r->frames;
     if (w == 0) {
         return NAN;
     }
-    return strcmp(m->family, "fnopt") == 0 ? r->e3d_w / w : r->mve_w / w;
+    return strcmp(m->family, "fnopt") == 0 ? r->e3d_w / w : is_mocap(r) ? r->inside_w / w : r->mve_w / w;
 }
 
 static bool row_valid(const chart_row *r, const chart_method *m)
 {
-    return r->frames > 0 && r->nan_runs == 0 && r->failed_runs < r->sequences && isfinite(row_error(r, m));
+    return r->frames > 0 && r->nan_runs == 0 && isfinite(row_error(r, m));
 }
 
 static chart_row *find_row(chart_row *rows, size_t *n, size_t cap, const char *scenario, int method)
@@ -169,7 +213,6 @@ static bool run_fnopt(const char *exe, const chart_opts *o, const chart_method *
     free(out);
     r->sequences++;
     if (!ok) {
-        r->failed_runs++;
         bench_sanitize(why);
         add_note(r, why[0] ? why : "fnopt printed no result row");
         return false;
@@ -184,7 +227,149 @@ static bool run_fnopt(const char *exe, const chart_opts *o, const chart_method *
     return true;
 }
 
-static void write_outputs(const chart_opts *o, const chart_method *methods, const chart_row *rows, size_t nrows,
+/* The method of a `weft bench mocap` cell ("lbs", "model int8", "xpbd-fast:5") as a chart method;
+ * added to the list the first time it is seen. -1 when the list is full. */
+static int mocap_method(chart_method *methods, size_t *nm, const char *name)
+{
+    char label[96], family[16], precision[8];
+    unsigned S = 0;
+    if (strcmp(name, "lbs") == 0) {
+        snprintf(label, sizeof label, "LBS");
+        snprintf(family, sizeof family, "lbs");
+        snprintf(precision, sizeof precision, "-");
+    } else if (strncmp(name, "model ", 6) == 0) {
+        snprintf(label, sizeof label, "garment %.8s", name + 6);
+        snprintf(family, sizeof family, "model");
+        snprintf(precision, sizeof precision, "%.7s", name + 6);
+    } else if (sscanf(name, "xpbd-fast:%u", &S) == 1) {
+        snprintf(label, sizeof label, "XPBD-fast-%u", S);
+        snprintf(family, sizeof family, "xpbd-fast");
+        snprintf(precision, sizeof precision, "-");
+    } else if (sscanf(name, "xpbd:%u", &S) == 1) {
+        snprintf(label, sizeof label, "XPBD-%u", S);
+        snprintf(family, sizeof family, "xpbd");
+        snprintf(precision, sizeof precision, "-");
+    } else {
+        snprintf(label, sizeof label, "%.90s", name);
+        snprintf(family, sizeof family, "other");
+        snprintf(precision, sizeof precision, "-");
+    }
+    for (size_t k = 0; k < *nm; ++k) {
+        if (methods[k].mocap && strcmp(methods[k].label, label) == 0) {
+            return (int)k;
+        }
+    }
+    if (*nm == CHART_MAX_METHODS) {
+        return -1;
+    }
+    chart_method *m = &methods[(*nm)++];
+    memset(m, 0, sizeof *m);
+    snprintf(m->label, sizeof m->label, "%s", label);
+    snprintf(m->family, sizeof m->family, "%s", family);
+    snprintf(m->method, sizeof m->method, "%.15s", name);
+    snprintf(m->precision, sizeof m->precision, "%s", precision);
+    m->mocap = true;
+    return (int)(*nm - 1);
+}
+
+/* The real-motion panel: one `weft bench mocap` child over the clips, garments and methods, its
+ * per-cell CSV read back into one row per method (means over the cells, weighted by frames). The
+ * child's CSV is kept as csv_cells (the per-cell table behind the panel). False (reported) when
+ * the child fails or a cell is missing. */
+static const char k_mocap_header[] = "clip,garment,method,lost,worst_off_body_pct,inside_body_mean_pct,";
+
+static bool run_mocap(const char *exe, const chart_opts *o, const char *csv_cells, chart_method *methods, size_t *nm,
+                      chart_row *rows, size_t *nrows, size_t row_cap, char *skipped, size_t skipped_cap)
+{
+    char frames[16], model[1100];
+    snprintf(frames, sizeof frames, "%u", o->mocap_frames);
+    /* The learned row is the shipped worn-garment model of --models, in int8 (its default). */
+    snprintf(model, sizeof model, "%s/garment.int8.safetensors", o->models);
+    const bool learned = bench_file_exists(model);
+    const char *method_list = learned ? CHART_MOCAP_METHODS : CHART_MOCAP_METHODS_CLASSIC;
+    if (!learned) {
+        snprintf(skipped, skipped_cap, "real motion, learned model: no `%.200s`", model);
+    }
+    const char *argv[20];
+    int n = 0;
+    argv[n++] = exe;
+    argv[n++] = "bench";
+    argv[n++] = "mocap";
+    argv[n++] = "--frames";
+    argv[n++] = frames;
+    argv[n++] = "--methods";
+    argv[n++] = method_list;
+    if (learned) {
+        argv[n++] = "--model";
+        argv[n++] = model;
+    }
+    argv[n++] = "--garments";
+    argv[n++] = o->mocap_garments ? o->mocap_garments : "tshirt,dress,skirt";
+    if (o->mocap_clips) {
+        argv[n++] = "--clips";
+        argv[n++] = o->mocap_clips;
+    }
+    argv[n++] = "--csv";
+    argv[n++] = csv_cells;
+    argv[n] = NULL;
+    printf("real motion: weft bench mocap --frames %s --methods %s --garments %s%s%s --csv %s\n", frames,
+           method_list, o->mocap_garments ? o->mocap_garments : "tshirt,dress,skirt", o->mocap_clips ? " --clips " : "",
+           o->mocap_clips ? o->mocap_clips : "", csv_cells);
+    fflush(stdout);
+    char *out = NULL, why[240];
+    const int rc = bench_spawn(argv, &out, why, sizeof why);
+    free(out);
+    if (rc != 0) {
+        bench_sanitize(why);
+        fprintf(stderr, "weft bench chart: the real-motion run failed: %s; nothing written\n", why);
+        return false;
+    }
+    FILE *f = fopen(csv_cells, "r");
+    char line[1024];
+    if (!f || !fgets(line, sizeof line, f) ||
+        strncmp(line, k_mocap_header, sizeof k_mocap_header - 1) != 0) {
+        fprintf(stderr, "weft bench chart: %s is not `weft bench mocap --csv` output; nothing written\n", csv_cells);
+        if (f) {
+            fclose(f);
+        }
+        return false;
+    }
+    size_t cells = 0;
+    while (fgets(line, sizeof line, f)) {
+        char clip[128], garment[32], method[64];
+        int lost = 0;
+        double off = NAN, inside = NAN, inside_max = NAN, self_mean = NAN, self_max = NAN, p50 = NAN;
+        if (sscanf(line, "%127[^,],%31[^,],%63[^,],%d,%lf,%lf,%lf,%lf,%lf,%lf", clip, garment, method, &lost, &off,
+                   &inside, &inside_max, &self_mean, &self_max, &p50) != 10 ||
+            !isfinite(inside) || !isfinite(p50)) {
+            fprintf(stderr, "weft bench chart: %s: unreadable cell '%.200s'; nothing written\n", csv_cells, line);
+            fclose(f);
+            return false;
+        }
+        const int k = mocap_method(methods, nm, method);
+        chart_row *r = k >= 0 ? find_row(rows, nrows, row_cap, CHART_MOCAP_SCENARIO, k) : NULL;
+        if (!r) {
+            fprintf(stderr, "weft bench chart: too many methods or rows; nothing written\n");
+            fclose(f);
+            return false;
+        }
+        const double w = o->mocap_frames;
+        r->sequences++;
+        r->frames += o->mocap_frames;
+        r->inside_w += inside * w;
+        r->ms_w += p50 * w;
+        r->lost += lost != 0;
+        ++cells;
+    }
+    fclose(f);
+    if (cells == 0) {
+        fprintf(stderr, "weft bench chart: the real-motion run scored no cell; nothing written\n");
+        return false;
+    }
+    return true;
+}
+
+static bool write_outputs(const chart_opts *o, const chart_method *methods, const chart_row *rows, size_t nrows,
                           char skipped[][300], size_t nskipped, const char *command, double wall_s, const char *exe)
 {
     char path[1200], csv[1200], link[1200];
@@ -192,10 +377,10 @@ static void write_outputs(const chart_opts *o, const chart_method *methods, cons
     FILE *f = bench_mkdirs(o->csv_dir) ? fopen(csv, "w") : NULL;
     if (!f) {
         fprintf(stderr, "weft bench chart: cannot write %s\n", csv);
-        return;
+        return false;
     }
     fprintf(f, "scenario,method,family,precision,ccd,sequences,frames,mve_cm,e3d,ms_per_frame,collision_rate,"
-               "self_collision_rate,max_edge_strain,nan_runs,exploded_runs,failed_runs,pareto,note\n");
+               "self_collision_rate,max_edge_strain,nan_runs,exploded_runs,pareto,note,inside_body_pct,garments_lost\n");
     for (size_t i = 0; i < nrows; ++i) {
         const chart_row *r = &rows[i];
         const chart_method *m = &methods[r->method];
@@ -203,13 +388,20 @@ static void write_outputs(const chart_opts *o, const chart_method *methods, cons
         bool fn = strcmp(m->family, "fnopt") == 0;
         fprintf(f, "%s,%s,%s,%s,%s,%u,%u,", r->scenario, m->label, m->family, m->precision, m->ccd ? "on" : "off",
                 r->sequences, r->frames);
-        if (fn) {
+        if (is_mocap(r)) {
+            fprintf(f, ",,%.6g,,,,", r->ms_w / w);
+        } else if (fn) {
             fprintf(f, ",%.6g,%.6g,,,,", r->e3d_w / w, r->ms_w / w);
         } else {
             fprintf(f, "%.6g,,%.6g,%.6g,%.6g,%.6g,", r->mve_w / w, r->ms_w / w, r->coll_w / w, r->self_w / w,
                     r->max_strain);
         }
-        fprintf(f, "%u,%u,%u,%d,%s\n", r->nan_runs, r->exploded_runs, r->failed_runs, r->pareto ? 1 : 0, r->note);
+        fprintf(f, "%u,%u,%d,%s,", r->nan_runs, r->exploded_runs, r->pareto ? 1 : 0, r->note);
+        if (is_mocap(r)) {
+            fprintf(f, "%.6g,%u\n", r->inside_w / w, r->lost);
+        } else {
+            fprintf(f, ",\n");
+        }
     }
     fclose(f);
 
@@ -217,11 +409,13 @@ static void write_outputs(const chart_opts *o, const chart_method *methods, cons
     f = fopen(path, "w");
     if (!f) {
         fprintf(stderr, "weft bench chart: cannot write %s\n", path);
-        return;
+        return false;
     }
     time_t now = time(NULL);
     char date[64];
     strftime(date, sizeof date, "%Y-%m-%d %H:%M UTC", gmtime(&now));
+    char mocap_link[1200];
+    bench_link(o->out, o->csv_dir, "chart_mocap.csv", mocap_link, sizeof mocap_link);
     fprintf(f, "# Speed against accuracy\n\n");
     fprintf(f, "![ms/frame against error, one panel per scenario](img/chart.png)\n\n");
     fprintf(f, "Generated by `weft bench chart` on %s in %.0f s:\n\n```\n%s\n```\n\n", date, wall_s, command);
@@ -260,15 +454,28 @@ static void write_outputs(const chart_opts *o, const chart_method *methods, cons
             continue;
         }
         bool fn = strcmp(methods[rows[pass].method].family, "fnopt") == 0;
-        fprintf(f, "## %s\n\n", sc);
-        if (fn) {
+        const bool mo = is_mocap(&rows[pass]);
+        fprintf(f, "## %s\n\n", mo ? "mocap (real motion)" : sc);
+        if (mo) {
+            fprintf(f, "The mocap library's clips (%s), garments %s, %u frames each after a 30-frame settle, "
+                       "every method at its defaults (the worn-garment recipe, CCD off): `weft bench mocap`, "
+                       "per-cell numbers in [chart_mocap.csv](%s). There is no ground truth on real motion, so "
+                       "the error is the share of cloth vertices inside the body (mean over frames and cells), "
+                       "beside the garments lost (a frame with over 1 %% of the vertices farther than 10 cm, "
+                       "25 cm for skirts and dresses, from the skinned garment; docs/STABILITY_MOCAP.md). ms/frame "
+                       "is the mean of the cells' median step.\n\n",
+                    o->mocap_clips ? o->mocap_clips : "the test split", o->mocap_garments ? o->mocap_garments
+                                                                                          : "tshirt, dress, skirt",
+                    o->mocap_frames, mocap_link);
+            fprintf(f, "| method | cells | garments lost | inside_body %% | ms/frame |\n|---|---|---|---|---|\n");
+        } else if (fn) {
             fprintf(f, "FNOpt grid scenes (`weft fnopt run --gt`), error = e3D relative to the XPBD reference of the "
                        "scene (not MVE; not comparable with the other panels).\n\n");
             fprintf(f, "| method | scenes | frames | e3D | ms/frame | diverged | note |\n|---|---|---|---|---|---|---|\n");
         } else {
             fprintf(f, "| method | CCD | sequences | frames | MVE (cm) | ms/frame | collision %% | self-collision %% | "
-                       "max edge strain | NaN | exploded | failed | note |\n"
-                       "|---|---|---|---|---|---|---|---|---|---|---|---|---|\n");
+                       "max edge strain | NaN | exploded | note |\n"
+                       "|---|---|---|---|---|---|---|---|---|---|---|---|\n");
         }
         /* rows of this scenario sorted by ms/frame (selection, the tables are tiny) */
         bool done[CHART_MAX_METHODS * CHART_MAX_SCEN] = {false};
@@ -293,14 +500,16 @@ static void write_outputs(const chart_opts *o, const chart_method *methods, cons
             const chart_method *m = &methods[r->method];
             double w = r->frames ? (double)r->frames : NAN;
             const char *b = r->pareto ? "**" : "";
-            if (fn) {
+            if (mo) {
+                fprintf(f, "| %s%s%s | %u | %u | %.2f | %.3f |\n", b, m->label, b, r->sequences, r->lost,
+                        r->inside_w / w, r->ms_w / w);
+            } else if (fn) {
                 fprintf(f, "| %s%s%s | %u | %u | %.4f | %.3f | %u | %s |\n", b, m->label, b, r->sequences, r->frames,
                         r->e3d_w / w, r->ms_w / w, r->nan_runs, r->note);
             } else {
-                fprintf(f, "| %s%s%s | %s | %u | %u | %.3f | %.3f | %.2f | %.2f | %.3f | %u | %u | %u | %s |\n", b,
+                fprintf(f, "| %s%s%s | %s | %u | %u | %.3f | %.3f | %.2f | %.2f | %.3f | %u | %u | %s |\n", b,
                         m->label, b, m->ccd ? "on" : "off", r->sequences, r->frames, r->mve_w / w, r->ms_w / w,
-                        r->coll_w / w, r->self_w / w, r->max_strain, r->nan_runs, r->exploded_runs, r->failed_runs,
-                        r->note);
+                        r->coll_w / w, r->self_w / w, r->max_strain, r->nan_runs, r->exploded_runs, r->note);
             }
         }
         fprintf(f, "\n");
@@ -316,76 +525,110 @@ static void write_outputs(const chart_opts *o, const chart_method *methods, cons
     fprintf(f, "Raw numbers: [chart.csv](%s). Chart drawn by `tools/bench/plot_chart.py`.\n", link);
     fclose(f);
 
-    if (o->plot) {
-        bench_plot(exe, "chart", "plot_chart.py", o->out, csv, "chart");
-    }
+    return !o->plot || bench_plot(exe, "chart", "plot_chart.py", o->out, csv, "chart");
 }
 
 int weft_bench_chart(int argc, char **argv)
 {
     chart_opts o = {.split = "test", .models = "tools/train/models", .out = "docs",
-                    .fnopt_model = "tools/fnopt/models/fnopt_32.safetensors", .plot = true, .fnopt = true};
+                    .fnopt_model = "tools/fnopt/models/fnopt_32.safetensors", .plot = true, .fnopt = true,
+                    .mocap = true};
     char command[2048];
     bench_command_line(command, sizeof command, "weft bench chart", argc, argv);
-    for (int i = 1; i < argc; ++i) {
-        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
-        if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
-            usage(stdout);
+    cli_parser cli;
+    if (!cli_start(&cli, &k_command, argc, argv)) {
+        return 2;
+    }
+    const char *v;
+    for (int id; (id = cli_next(&cli, &v)) != CLI_END;) {
+        const char *a = cli_name(&k_command, id);
+        switch (id) {
+        case CLI_HELP:
+            cli_usage(&k_command, stdout);
             return 0;
-        } else if (strcmp(a, "--quick") == 0) {
-            o.quick = true;
-        } else if (strcmp(a, "--no-plot") == 0) {
-            o.plot = false;
-        } else if (strcmp(a, "--no-fnopt") == 0) {
-            o.fnopt = false;
-        } else if (!v) {
-            fprintf(stderr, "weft bench chart: %s needs a value\n", a);
-            usage(stderr);
+        case CLI_BAD:
             return 2;
-        } else {
-            if (strcmp(a, "--xpbd") == 0 || strcmp(a, "--xpbd-fast") == 0) {
-                const bool fast = strcmp(a, "--xpbd-fast") == 0;
-                size_t *n = fast ? &o.nxpbd_fast : &o.nxpbd;
-                if (!bench_parse_substeps("chart", a, v, fast ? o.xpbd_fast : o.xpbd, 8, n)) {
-                    return 2;
-                }
-            } else if (strcmp(a, "--data") == 0) {
-                o.data = v;
-            } else if (strcmp(a, "--split") == 0) {
-                o.split = v;
-            } else if (strcmp(a, "--models") == 0) {
-                o.models = v;
-            } else if (strcmp(a, "--out") == 0) {
-                o.out = v;
-            } else if (strcmp(a, "--csv-dir") == 0) {
-                o.csv_dir = v;
-            } else if (strcmp(a, "--fnopt-model") == 0) {
-                o.fnopt_model = v;
-            } else if (strcmp(a, "--fnopt-motions") == 0) {
-                o.fnopt_motions = v;
-            } else if (strcmp(a, "--frames") == 0 || strcmp(a, "--max-seqs") == 0) {
-                if (!bench_parse_u32("chart", a, v, 0, 1000000, a[2] == 'f' ? &o.frames : &o.max_seqs)) {
-                    return 2;
-                }
-                o.frames_given = o.frames_given || a[2] == 'f';
-            } else {
-                fprintf(stderr, "weft bench chart: unknown option '%s'\n", a);
-                usage(stderr);
+        case OPT_QUICK:
+            o.quick = true;
+            break;
+        case OPT_NO_PLOT:
+            o.plot = false;
+            break;
+        case OPT_NO_FNOPT:
+            o.fnopt = false;
+            break;
+        case OPT_XPBD:
+        case OPT_XPBD_FAST: {
+            const bool fast = id == OPT_XPBD_FAST;
+            if (!bench_parse_substeps("chart", a, v, fast ? o.xpbd_fast : o.xpbd, 8, fast ? &o.nxpbd_fast : &o.nxpbd)) {
                 return 2;
             }
-            ++i;
+            break;
+        }
+        case OPT_DATA:
+            o.data = v;
+            break;
+        case OPT_SPLIT:
+            o.split = v;
+            break;
+        case OPT_MODELS:
+            o.models = v;
+            break;
+        case OPT_OUT:
+            o.out = v;
+            break;
+        case OPT_CSV_DIR:
+            o.csv_dir = v;
+            break;
+        case OPT_FNOPT_MODEL:
+            o.fnopt_model = v;
+            break;
+        case OPT_FNOPT_MOTIONS:
+            o.fnopt_motions = v;
+            break;
+        case OPT_NO_MOCAP:
+            o.mocap = false;
+            break;
+        case OPT_MOCAP_FRAMES:
+            if (!bench_parse_u32("chart", a, v, 1, 100000, &o.mocap_frames)) {
+                return 2;
+            }
+            break;
+        case OPT_MOCAP_CLIPS:
+            o.mocap_clips = v;
+            break;
+        case OPT_MOCAP_GARMENTS:
+            o.mocap_garments = v;
+            break;
+        case OPT_FRAMES:
+        case OPT_MAX_SEQS:
+            if (!bench_parse_u32("chart", a, v, 0, 1000000, id == OPT_FRAMES ? &o.frames : &o.max_seqs)) {
+                return 2;
+            }
+            o.frames_given = o.frames_given || id == OPT_FRAMES;
+            break;
+        default:
+            return cli_fail(&k_command, "internal error: an option without a case");
         }
     }
+    char **rest;
+    if (cli_rest(&cli, &rest) > 0) {
+        char what[300];
+        snprintf(what, sizeof what, "unexpected argument '%.200s'", rest[0]);
+        return cli_fail(&k_command, what);
+    }
     if (!o.data) {
-        fprintf(stderr, "weft bench chart: --data is required\n");
-        usage(stderr);
-        return 2;
+        return cli_fail(&k_command, "--data is required");
     }
     o.csv_dir = bench_csv_dir(o.csv_dir, o.out, BENCH_DOCS_DATA_DIR);
     if (o.quick) {
         o.frames = o.frames ? o.frames : 30;
         o.max_seqs = o.max_seqs ? o.max_seqs : 2;
+        o.mocap_frames = o.mocap_frames ? o.mocap_frames : 30;
+        o.mocap_clips = o.mocap_clips ? o.mocap_clips : "walk_cmu07_01";
+        o.mocap_garments = o.mocap_garments ? o.mocap_garments : "tshirt";
     }
+    o.mocap_frames = o.mocap_frames ? o.mocap_frames : 150;
     char exe[1024];
     bench_seq *seqs = NULL;
     size_t nseq = 0;
@@ -567,10 +810,12 @@ int weft_bench_chart(int argc, char **argv)
             bench_eval(exe, seqs[s].dir, extra, &e);
             r->sequences++;
             if (!e.ok) {
-                r->failed_runs++;
-                add_note(r, e.why);
-                printf("%-24s %-22s FAILED: %s\n", seqs[s].name, mm->label, e.why);
-                continue;
+                /* A run that did not finish scores nothing: the benchmark stops here and writes
+                 * no table or figure from partial results. */
+                fprintf(stderr, "weft bench chart: %s on %s failed: %s; nothing written\n", mm->label, seqs[s].name,
+                        e.why);
+                free(seqs);
+                return 1;
             }
             double w = e.frames;
             r->frames += e.frames;
@@ -600,20 +845,34 @@ int weft_bench_chart(int argc, char **argv)
                 char one[64];
                 size_t len = comma ? (size_t)(comma - mo) : strlen(mo);
                 snprintf(one, sizeof one, "%.*s", (int)(len < 63 ? len : 63), mo);
-                bool ok = run_fnopt(exe, &o, &methods[k], one, r);
-                printf("fnopt %-8s %-18s %s\n", one, methods[k].label, ok ? "ok" : r->note);
+                if (!run_fnopt(exe, &o, &methods[k], one, r)) {
+                    fprintf(stderr, "weft bench chart: FNOpt %s on %s failed: %s; nothing written\n",
+                            methods[k].label, one, r->note);
+                    free(seqs);
+                    return 1;
+                }
+                printf("fnopt %-8s %-18s ok\n", one, methods[k].label);
                 fflush(stdout);
                 mo = comma ? comma + 1 : mo + len;
             }
         }
     }
-    /* Unsupported precisions: the runtime says so in the eval error; record why. */
-    for (size_t i = 0; i < nrows; ++i) {
-        const chart_method *mm = &methods[rows[i].method];
-        if (rows[i].failed_runs == rows[i].sequences && nskipped < 64) {
-            snprintf(skipped[nskipped++], 300, "%.60s on %.31s: every run failed (%.180s)", mm->label, rows[i].scenario,
-                     rows[i].note[0] ? rows[i].note : "no message");
+    char cells_part[1200], cells_csv[1100];
+    snprintf(cells_csv, sizeof cells_csv, "%s/chart_mocap.csv", o.csv_dir);
+    snprintf(cells_part, sizeof cells_part, "%s.part", cells_csv);
+    if (o.mocap) {
+        char why_skipped[300] = "";
+        if (!bench_mkdirs(o.csv_dir) ||
+            !run_mocap(exe, &o, cells_part, methods, &nm, rows, &nrows, row_cap, why_skipped, sizeof why_skipped)) {
+            remove(cells_part);
+            free(seqs);
+            return 1;
         }
+        if (why_skipped[0] && nskipped < 64) {
+            snprintf(skipped[nskipped++], 300, "%s", why_skipped);
+        }
+    } else {
+        snprintf(skipped[nskipped++], 300, "real motion: disabled with --no-mocap");
     }
     /* Pareto front per scenario: no other valid row is at least as fast and as accurate, and
      * strictly better in one. */
@@ -636,7 +895,12 @@ int weft_bench_chart(int argc, char **argv)
     }
     clock_gettime(CLOCK_MONOTONIC, &t1);
     double wall = (double)(t1.tv_sec - t0.tv_sec) + (double)(t1.tv_nsec - t0.tv_nsec) * 1e-9;
-    write_outputs(&o, methods, rows, nrows, skipped, nskipped, command, wall, exe);
+    if (!write_outputs(&o, methods, rows, nrows, skipped, nskipped, command, wall, exe) ||
+        (o.mocap && rename(cells_part, cells_csv) != 0)) {
+        remove(cells_part);
+        free(seqs);
+        return 1;
+    }
     printf("wrote %s/chart.csv and %s/CHART.md (%zu rows, %.1f s)\n", o.csv_dir, o.out, nrows, wall);
     free(seqs);
     return 0;

@@ -33,7 +33,7 @@ const char weft_bench_mocap_help[] = "garments on the mocap library's clips: gar
 #define MC_SETTLE 30 /* default settle frames */
 
 typedef struct mc_options {
-    const char *split, *clips, *garments, *methods, *model, *md, *block, *resolution;
+    const char *split, *clips, *garments, *methods, *model, *md, *block, *resolution, *csv;
     uint32_t frames, settle;
     bool ccd, parts;
     float tether_cm, push_cm, strain_pct;
@@ -44,25 +44,6 @@ typedef struct mc_method {
     weft_method method;
     uint32_t substeps;
 } mc_method;
-
-static void usage(FILE *f)
-{
-    fprintf(f,
-            "usage: weft bench mocap [--split test|train|all] [--clips A,B,...] [--garments tshirt,dress,skirt]\n"
-            "                        [--methods lbs,model,xpbd-fast:5,xpbd-fast:10,xpbd:S] [--frames N]\n"
-            "                        [--resolution 1k|4k] [--model FILE] [--ccd on|off] [--body-parts on|off]\n"
-            "                        [--tether-cm X] [--push-cm X] [--strain-limit PCT] [--settle N]\n"
-            "                        [--md FILE [--block NAME]]\n"
-            "  Defaults: the test split, all three garments, lbs,model,xpbd-fast:5,xpbd-fast:10, 300 frames\n"
-            "  (0: every frame of each clip) after 30 settle frames blending from the bind pose into the clip's\n"
-            "  first pose (--settle N, 1..1000), 1k, the shipped int8 garment model, and the worn-garment recipe\n"
-            "  of the render sample: body parts on, CCD off, an 8 cm max distance, a 0.5 cm push, a 10 %%\n"
-            "  strain limit for the learned model. xpbd:S is the reference as weft simgen runs it (parts\n"
-            "  within 1 cm without neighbours, up to 8 S substeps on fast frames, none of the three fix-ups).\n"
-            "  --md writes the table into FILE between\n"
-            "  <!-- mocap-table --> markers (docs/STABILITY_MOCAP.md), or <!-- NAME --> with --block (another\n"
-            "  variant's table on the same page: letters, digits and '-').\n");
-}
 
 static bool parse_method(const char *s, size_t n, mc_method *m)
 {
@@ -311,67 +292,159 @@ typedef struct mc_total {
     double inside_mean_sum, inside_max, ratio_max, p50_sum;
 } mc_total;
 
+enum {
+    OPT_SPLIT = 1, OPT_CLIPS, OPT_GARMENTS, OPT_METHODS, OPT_FRAMES, OPT_SETTLE, OPT_RESOLUTION, OPT_MODEL, OPT_CCD,
+    OPT_BODY_PARTS, OPT_TETHER_CM, OPT_PUSH_CM, OPT_STRAIN_LIMIT, OPT_MD, OPT_BLOCK, OPT_CSV,
+};
+
+static const cli_option k_options[] = {
+    {"split", "test|train|all", OPT_SPLIT, "the clips of this split of the library (default test)"},
+    {"clips", "A,B,...", OPT_CLIPS, "only these clips, by name (instead of a split)"},
+    {"garments", "tshirt,dress,skirt", OPT_GARMENTS, "the garments (default all three)"},
+    {"methods", "lbs,model,xpbd-fast:5,xpbd-fast:10,xpbd:S", OPT_METHODS,
+     "the methods, at most 8 (default lbs,model,xpbd-fast:5,xpbd-fast:10); S:\n"
+     "substeps, 1..200. xpbd:S is the reference as weft simgen runs it (parts\n"
+     "within 1 cm without neighbours, up to 8 S substeps on fast frames, none\n"
+     "of the three fix-ups)"},
+    {"frames", "N", OPT_FRAMES,
+     "frames after the settle, 0..100000 (default 300; 0: every frame of each\n"
+     "clip)"},
+    {"settle", "N", OPT_SETTLE,
+     "settle frames blending from the bind pose into the clip's first pose,\n"
+     "1..1000 (default 30)"},
+    {"resolution", "1k|4k", OPT_RESOLUTION, "the garments' resolution (default 1k)"},
+    {"model", "FILE", OPT_MODEL,
+     "the learned model (default the shipped int8 garment model,\n"
+     "tools/train/models/garment.int8.safetensors)"},
+    {"ccd", "on|off", OPT_CCD, "the CCD post-process (default off)"},
+    {"body-parts", "on|off", OPT_BODY_PARTS, "the body parts of the worn-garment recipe (default on)"},
+    {"tether-cm", "X", OPT_TETHER_CM, "the max distance to the skinned garment, 0..1000 cm (default below)"},
+    {"push-cm", "X", OPT_PUSH_CM, "the collider push, 0..10 cm (default below)"},
+    {"strain-limit", "PCT", OPT_STRAIN_LIMIT, "the learned model's strain limit, 0..1000 % (default below)"},
+    {"md", "FILE", OPT_MD,
+     "write the table into FILE between <!-- mocap-table --> markers\n"
+     "(docs/STABILITY_MOCAP.md)"},
+    {"csv", "FILE", OPT_CSV,
+     "also write one CSV row per (clip, garment, method) cell (percentages and ms;\n"
+     "lost 0/1); written only when every cell ran"},
+    {"block", "NAME", OPT_BLOCK,
+     "with --md: between <!-- NAME --> markers instead (another variant's\n"
+     "table on the same page): NAME starts with mocap-table; lowercase\n"
+     "letters, digits and '-', under 64"},
+    {0},
+};
+
+static void notes(FILE *out)
+{
+    fprintf(out,
+            "Defaults: the test split, all three garments, lbs,model,xpbd-fast:5,xpbd-fast:10, 300 frames\n"
+            "(0: every frame of each clip) after %d settle frames blending from the bind pose into the clip's\n"
+            "first pose (--settle N, 1..1000), 1k, the shipped int8 garment model, and the worn-garment recipe\n"
+            "of the render sample: body parts on, CCD off, a max distance of %g cm, a push of %g cm and a\n"
+            "strain limit of %g %% for the learned model (the xpbd:S reference keeps simgen's recipe).\n",
+            MC_SETTLE, (double)WEFT_WORN_TETHER_CM, (double)WEFT_WORN_PUSH_CM, (double)WEFT_WORN_STRAIN_PCT);
+}
+
+static const cli_command k_command = {
+    .tool = "weft bench mocap",
+    .synopsis = "weft bench mocap [--split test|train|all] [--clips A,B,...] [--garments tshirt,dress,skirt]\n"
+                "                 [--methods lbs,model,xpbd-fast:5,xpbd-fast:10,xpbd:S] [--frames N]\n"
+                "                 [--resolution 1k|4k] [--model FILE] [--ccd on|off] [--body-parts on|off]\n"
+                "                 [--tether-cm X] [--push-cm X] [--strain-limit PCT] [--settle N]\n"
+                "                 [--md FILE [--block NAME]]",
+    .about = "Garments on the mocap library's clips (samples/mocap/clips.csv), per method, clip and garment:\n"
+             "garments lost, inside the body, ms p50/p99/max, on one thread.",
+    .options = k_options,
+    .notes = notes,
+};
+
 int weft_bench_mocap(int argc, char **argv)
 {
     mc_options o = {.split = "test", .garments = "tshirt,dress,skirt", .methods = "lbs,model,xpbd-fast:5,xpbd-fast:10",
                     .model = "tools/train/models/garment.int8.safetensors", .resolution = "1k", .frames = 300, .settle = MC_SETTLE,
                     .ccd = false, .parts = true, .tether_cm = WEFT_WORN_TETHER_CM, .push_cm = WEFT_WORN_PUSH_CM,
                     .strain_pct = WEFT_WORN_STRAIN_PCT, .block = "mocap-table"};
-    for (int i = 1; i < argc; i += 2) { /* every option takes a value (--help ends the loop) */
-        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
-        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-            usage(stdout);
-            return 0;
-        }
-        if (!v) {
-            fprintf(stderr, "weft bench mocap: %s needs a value\n", a);
-            usage(stderr);
-            return 2;
-        }
+    cli_parser parser;
+    if (!cli_start(&parser, &k_command, argc, argv)) {
+        return 2;
+    }
+    const char *v;
+    for (int id; (id = cli_next(&parser, &v)) != CLI_END;) {
+        const char *a = cli_name(&k_command, id);
         bool ok = true;
-        if (!strcmp(a, "--split")) {
+        switch (id) {
+        case CLI_HELP:
+            cli_usage(&k_command, stdout);
+            return 0;
+        case CLI_BAD:
+            return 2;
+        case OPT_SPLIT:
             o.split = v;
             ok = !strcmp(v, "test") || !strcmp(v, "train") || !strcmp(v, "all");
-        } else if (!strcmp(a, "--clips")) {
+            break;
+        case OPT_CLIPS:
             o.clips = v;
-        } else if (!strcmp(a, "--garments")) {
+            break;
+        case OPT_GARMENTS:
             o.garments = v;
-        } else if (!strcmp(a, "--methods")) {
+            break;
+        case OPT_METHODS:
             o.methods = v;
-        } else if (!strcmp(a, "--model")) {
+            break;
+        case OPT_MODEL:
             o.model = v;
-        } else if (!strcmp(a, "--md")) {
+            break;
+        case OPT_CSV:
+            o.csv = v;
+            break;
+        case OPT_MD:
             o.md = v;
-        } else if (!strcmp(a, "--block")) {
+            break;
+        case OPT_BLOCK:
             o.block = v;
-            ok = strncmp(v, "mocap-table", 11) == 0 && strlen(v) < 64 && strspn(v, "abcdefghijklmnopqrstuvwxyz0123456789-") == strlen(v);
-        } else if (!strcmp(a, "--resolution")) {
+            ok = strncmp(v, "mocap-table", 11) == 0 && strlen(v) < 64 &&
+                 strspn(v, "abcdefghijklmnopqrstuvwxyz0123456789-") == strlen(v);
+            break;
+        case OPT_RESOLUTION:
             o.resolution = v;
-        } else if (!strcmp(a, "--frames")) {
-            if (!cli_u32("weft bench mocap", a, v, 0, 100000, &o.frames)) {
+            break;
+        case OPT_FRAMES:
+            if (!cli_u32(k_command.tool, a, v, 0, 100000, &o.frames)) {
                 return 2;
             }
-        } else if (!strcmp(a, "--settle")) {
-            if (!cli_u32("weft bench mocap", a, v, 1, 1000, &o.settle)) {
+            break;
+        case OPT_SETTLE:
+            if (!cli_u32(k_command.tool, a, v, 1, 1000, &o.settle)) {
                 return 2;
             }
-        } else if (!strcmp(a, "--ccd") || !strcmp(a, "--body-parts")) {
+            break;
+        case OPT_CCD:
+        case OPT_BODY_PARTS:
             ok = !strcmp(v, "on") || !strcmp(v, "off");
-            *(!strcmp(a, "--ccd") ? &o.ccd : &o.parts) = !strcmp(v, "on");
-        } else if (!strcmp(a, "--tether-cm") || !strcmp(a, "--push-cm") || !strcmp(a, "--strain-limit")) {
-            float *dst = !strcmp(a, "--tether-cm") ? &o.tether_cm : (!strcmp(a, "--push-cm") ? &o.push_cm : &o.strain_pct);
-            if (!cli_float("weft bench mocap", a, v, 0.0f, dst == &o.push_cm ? 10.0f : 1000.0f, dst)) {
+            *(id == OPT_CCD ? &o.ccd : &o.parts) = !strcmp(v, "on");
+            break;
+        case OPT_TETHER_CM:
+        case OPT_PUSH_CM:
+        case OPT_STRAIN_LIMIT: {
+            float *dst = id == OPT_TETHER_CM ? &o.tether_cm : (id == OPT_PUSH_CM ? &o.push_cm : &o.strain_pct);
+            if (!cli_float(k_command.tool, a, v, 0.0f, id == OPT_PUSH_CM ? 10.0f : 1000.0f, dst)) {
                 return 2;
             }
-        } else {
-            fprintf(stderr, "weft bench mocap: unknown option '%s'\n", a);
-            usage(stderr);
-            return 2;
+            break;
+        }
+        default:
+            return cli_fail(&k_command, "internal error: an option without a case");
         }
         if (!ok) {
             fprintf(stderr, "weft bench mocap: bad value '%s' for %s\n", v, a);
             return 2;
         }
+    }
+    char **rest;
+    if (cli_rest(&parser, &rest) > 0) {
+        char what[256];
+        snprintf(what, sizeof what, "unexpected argument '%.200s'", rest[0]);
+        return cli_fail(&k_command, what);
     }
     mc_method methods[MC_MAX_METHODS];
     uint32_t nm = 0;
@@ -430,7 +503,12 @@ int weft_bench_mocap(int argc, char **argv)
     table = bench_append(table, &len, &cap, line);
     mc_total totals[MC_MAX_METHODS];
     memset(totals, 0, sizeof totals);
-    int rc = table ? 0 : 1;
+    char *csv = NULL;
+    size_t csv_len = 0, csv_cap = 0;
+    csv = bench_append(csv, &csv_len, &csv_cap,
+                       "clip,garment,method,lost,worst_off_body_pct,inside_body_mean_pct,inside_body_max_pct,"
+                       "body_self_overlap_mean_pct,body_self_overlap_max_pct,ms_p50,ms_p99,ms_max\n");
+    int rc = table && csv ? 0 : 1;
     for (uint32_t c = 0; rc == 0 && c < nclips; ++c) {
         char spec[128], path[1024];
         snprintf(spec, sizeof spec, "mocap:%.63s", clip_names[c]);
@@ -475,6 +553,16 @@ int weft_bench_mocap(int argc, char **argv)
                              clip_names[c], kind_names[gk], methods[k].label, w->frames_off ? "**lost**" : "no",
                              100.0 * w->off_body_max, 100.0 * w->inside_mean, 100.0 * w->inside_max,
                              100.0 * w->overlap_mean, 100.0 * w->overlap_max, cell.p50, cell.p99, cell.max, ratio);
+                    char row[512];
+                    snprintf(row, sizeof row, "%.63s,%s,%.31s,%d,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f\n",
+                             clip_names[c], kind_names[gk], methods[k].label, w->frames_off > 0,
+                             100.0 * w->off_body_max, 100.0 * w->inside_mean, 100.0 * w->inside_max,
+                             100.0 * w->overlap_mean, 100.0 * w->overlap_max, cell.p50, cell.p99, cell.max);
+                    csv = bench_append(csv, &csv_len, &csv_cap, row);
+                    if (!csv) {
+                        rc = 1;
+                        break;
+                    }
                 }
                 fputs(line, stdout);
                 fflush(stdout);
@@ -511,6 +599,15 @@ int weft_bench_mocap(int argc, char **argv)
         fprintf(stderr, "weft bench mocap: %u runs failed (rows above); no table written\n", failed);
         rc = 1;
     }
+    if (rc == 0 && o.csv) {
+        FILE *f = fopen(o.csv, "w");
+        const bool ok = f && fputs(csv, f) >= 0;
+        if (!f || fclose(f) != 0 || !ok) {
+            fprintf(stderr, "weft bench mocap: cannot write %s\n", o.csv);
+            rc = 1;
+        }
+    }
+    free(csv);
     if (rc == 0 && o.md) {
         size_t dsize = 0;
         char *doc = bench_slurp(o.md, &dsize);

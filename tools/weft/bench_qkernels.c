@@ -9,6 +9,7 @@
 #include "kernels/kernels.h"
 #include "kernels/kernels_internal.h"
 #include "kernels/qkernels.h"
+#include "support_cli.h"
 
 #include <stdio.h>
 #include <stdlib.h>
@@ -136,18 +137,56 @@ static void variant_peaks(const weft_qkernels *q, peak_fn **dot, peak_fn **fma)
 #endif
 }
 
+enum { OPT_QUICK = 1, OPT_MD };
+
+static const cli_option k_options[] = {
+    {"quick", NULL, OPT_QUICK, "time each kernel for 0.02 s a round instead of 0.2 s (best of 3 rounds)"},
+    {"md", NULL, OPT_MD,
+     "print the table as Markdown (for the docs) with a note on what it\n"
+     "measures"},
+    {0},
+};
+
+static const cli_command k_command = {
+    .tool = "weft bench qkernels",
+    .synopsis = "weft bench qkernels [--quick] [--md]",
+    .about = "Single-thread int8 / fp16 / deterministic-fp32 GEMM throughput of every variant this CPU runs, at\n"
+             "the cloth model's shapes, against the measured int8 dot-product and fp32 FMA peaks and the fp32\n"
+             "GEMM of the same level.",
+    .options = k_options,
+    .notes = NULL,
+};
+
 int weft_bench_qkernels(int argc, char **argv)
 {
     bool quick = false, md = false;
-    for (int i = 1; i < argc; ++i) {
-        if (strcmp(argv[i], "--quick") == 0) {
-            quick = true;
-        } else if (strcmp(argv[i], "--md") == 0) {
-            md = true;
-        } else {
-            fprintf(stderr, "usage: weft bench qkernels [--quick] [--md]\n%s\n", weft_bench_qkernels_help);
+    cli_parser parser;
+    if (!cli_start(&parser, &k_command, argc, argv)) {
+        return 2;
+    }
+    const char *val;
+    for (int id; (id = cli_next(&parser, &val)) != CLI_END;) {
+        switch (id) {
+        case CLI_HELP:
+            cli_usage(&k_command, stdout);
+            return 0;
+        case CLI_BAD:
             return 2;
+        case OPT_QUICK:
+            quick = true;
+            break;
+        case OPT_MD:
+            md = true;
+            break;
+        default:
+            return cli_fail(&k_command, "internal error: an option without a case");
         }
+    }
+    char **rest;
+    if (cli_rest(&parser, &rest) > 0) {
+        char what[256];
+        snprintf(what, sizeof what, "unexpected argument '%.200s'", rest[0]);
+        return cli_fail(&k_command, what);
     }
     const double min_time = quick ? 0.02 : 0.2;
     const weft_qkernels *variants[8];

@@ -21,6 +21,7 @@
 #define _POSIX_C_SOURCE 200809L /* opendir, stat */
 #include "weft.h"
 #include "support_bench.h"
+#include "support_cli.h"
 
 #include <cjson/cJSON.h>
 
@@ -83,33 +84,6 @@ typedef struct st_opts {
     bool quick, plot, fnopt, garment, rescore;
     bool no_ccd; /* --ccd off: every method without the CCD post-process (the default runs it) */
 } st_opts;
-
-static void usage(FILE *f)
-{
-    fprintf(f,
-            "usage: weft bench stability [--data DIR] [--out DIR] [--csv-dir DIR] [--models DIR]\n"
-            "                            [--scenario gripper|drop|garment]\n"
-            "                            [--base-vertices V] [--frames T] [--long-frames T] [--count N]\n"
-            "                            [--xpbd 5,10,20,40] [--xpbd-fast 5,10] [--quick] [--no-plot] [--no-fnopt]\n"
-            "                            [--no-garment]\n"
-            "                            [--fnopt-model PATH] [--time-limit S] [--rescore] [--axes LIST] [--ccd on|off]\n"
-            "  Generates the stress cases with weft simgen under DIR (default data/stability; resumable), scores\n"
-            "  LBS, XPBD 5/10/20/40, the fast XPBD (game collisions) 5/10 and every DIR/*.safetensors model\n"
-            "  (fp32/fp16/int8, CCD on) on each, and\n"
-            "  writes the table in OUT/STABILITY.md (between <!-- stability:table --> markers; the text around\n"
-            "  them is kept), OUT/img/stability.png and the CSV behind them, CSVDIR/stability.csv (default OUT:\n"
-            "  docs; default CSVDIR: docs/data when OUT is docs, else OUT).\n"
-            "  defaults: V=256 vertices, T=240 frames, long 2400 frames, 2 sequences per case, S=900 s of stepping\n"
-            "  per rollout before a method is marked too slow (its prefix is still scored)\n"
-            "  --quick   V=64, T=60, long 480 frames, 1 sequence per case, FNOpt speed axis with adam only, S=300\n"
-            "  --axes L  only the cases of these axes, a comma list of resolution, long, unseen, speed (e.g.\n"
-            "            --axes long: the 2400-frame rollout alone, into its own --out)\n"
-            "  --ccd off every method without the CCD post-process (default on): the methods' own stability,\n"
-            "            without the cost of CCD once cloth is inside the body\n"
-            "  --rescore ignore the scores kept from earlier runs (<seq>/scores/*.json) and evaluate again\n"
-            "            (scores are kept by the eval's arguments and, for models, the model file's contents: a\n"
-            "            retrained model is scored again by itself; a changed weft needs --rescore)\n");
-}
 
 /* The --axes keywords, each the first word of a case's axis name. */
 static const char *const k_axes[] = {"resolution", "long", "unseen", "speed"};
@@ -714,79 +688,176 @@ static int write_tables(const st_run *run)
     return 0;
 }
 
+enum {
+    OPT_DATA = 1, OPT_OUT, OPT_CSV_DIR, OPT_MODELS, OPT_SCENARIO, OPT_BASE_VERTICES, OPT_FRAMES, OPT_LONG_FRAMES,
+    OPT_COUNT, OPT_XPBD, OPT_XPBD_FAST, OPT_QUICK, OPT_NO_PLOT, OPT_NO_FNOPT, OPT_NO_GARMENT, OPT_FNOPT_MODEL,
+    OPT_TIME_LIMIT, OPT_RESCORE, OPT_AXES, OPT_CCD,
+};
+
+static const cli_option k_options[] = {
+    {"data", "DIR", OPT_DATA, "where the stress cases are generated (default data/stability; resumable)"},
+    {"out", "DIR", OPT_OUT, "where STABILITY.md and img/stability.png go (default docs)"},
+    {"csv-dir", "DIR", OPT_CSV_DIR, "where stability.csv goes (default docs/data when OUT is docs, else OUT)"},
+    {"models", "DIR", OPT_MODELS, "score every DIR/*.safetensors model (default tools/train/models)"},
+    {"scenario", "gripper|drop|garment", OPT_SCENARIO, "the simgen scenario of the cases (default gripper)"},
+    {"base-vertices", "V", OPT_BASE_VERTICES, "the base cloth vertex count, 1..1000000 (default 256; 64 with --quick)"},
+    {"frames", "T", OPT_FRAMES, "frames per case, 10..1000000 (default 240; 60 with --quick)"},
+    {"long-frames", "T", OPT_LONG_FRAMES, "frames of the long rollout, 10..1000000 (default 2400; 480 with --quick)"},
+    {"count", "N", OPT_COUNT, "sequences per case, 1..1000000 (default 2; 1 with --quick)"},
+    {"xpbd", "5,10,20,40", OPT_XPBD,
+     "the reference XPBD's substep counts, up to 8 of 1..1000 (default\n"
+     "5,10,20,40)"},
+    {"xpbd-fast", "5,10", OPT_XPBD_FAST,
+     "the fast XPBD's (game collisions) substep counts, up to 8 of 1..1000\n"
+     "(default 5,10)"},
+    {"quick", NULL, OPT_QUICK,
+     "V=64, T=60, long 480 frames, 1 sequence per case, FNOpt speed axis with\n"
+     "adam only, S=300"},
+    {"no-plot", NULL, OPT_NO_PLOT, "do not draw img/stability.png"},
+    {"no-fnopt", NULL, OPT_NO_FNOPT, "without the FNOpt speed axis"},
+    {"no-garment", NULL, OPT_NO_GARMENT, "without the unseen-garment case"},
+    {"fnopt-model", "PATH", OPT_FNOPT_MODEL,
+     "the FNOpt learned optimizer's weights (default\n"
+     "tools/fnopt/models/fnopt_32.safetensors)"},
+    {"time-limit", "S", OPT_TIME_LIMIT,
+     "seconds of stepping per rollout before a method is marked too slow (its\n"
+     "prefix is still scored), 1..1000000 (default 900; 300 with --quick)"},
+    {"rescore", NULL, OPT_RESCORE,
+     "ignore the scores kept from earlier runs (<seq>/scores/*.json) and\n"
+     "evaluate again (scores are kept by the eval's arguments and, for models,\n"
+     "the model file's contents: a retrained model is scored again by itself;\n"
+     "a changed weft needs --rescore)"},
+    {"axes", "LIST", OPT_AXES,
+     "only the cases of these axes, a comma list of resolution, long, unseen,\n"
+     "speed (e.g. --axes long: the 2400-frame rollout alone, into its own\n"
+     "--out)"},
+    {"ccd", "on|off", OPT_CCD,
+     "off: every method without the CCD post-process (default on): the\n"
+     "methods' own stability, without the cost of CCD once cloth is inside the\n"
+     "body"},
+    {0},
+};
+
+static const cli_command k_command = {
+    .tool = "weft bench stability",
+    .synopsis = "weft bench stability [--data DIR] [--out DIR] [--csv-dir DIR] [--models DIR]\n"
+                "                     [--scenario gripper|drop|garment]\n"
+                "                     [--base-vertices V] [--frames T] [--long-frames T] [--count N]\n"
+                "                     [--xpbd 5,10,20,40] [--xpbd-fast 5,10] [--quick] [--no-plot]\n"
+                "                     [--no-fnopt] [--no-garment] [--fnopt-model PATH] [--time-limit S]\n"
+                "                     [--rescore] [--axes LIST] [--ccd on|off]",
+    .about = "Generates the stress cases with weft simgen under DIR (default data/stability; resumable), scores\n"
+             "LBS, XPBD 5/10/20/40, the fast XPBD (game collisions) 5/10 and every DIR/*.safetensors model\n"
+             "(fp32/fp16/int8, CCD on) on each, and writes the table in OUT/STABILITY.md (between\n"
+             "<!-- stability:table --> markers; the text around them is kept), OUT/img/stability.png and the\n"
+             "CSV behind them, CSVDIR/stability.csv (default OUT: docs; default CSVDIR: docs/data when OUT is\n"
+             "docs, else OUT).\n"
+             "defaults: V=256 vertices, T=240 frames, long 2400 frames, 2 sequences per case, S=900 s of stepping\n"
+             "per rollout before a method is marked too slow (its prefix is still scored)",
+    .options = k_options,
+    .notes = NULL,
+};
+
 int weft_bench_stability(int argc, char **argv)
 {
     st_opts o = {.data = "data/stability", .out = "docs", .models = "tools/train/models", .scenario = "gripper",
                  .fnopt_model = "tools/fnopt/models/fnopt_32.safetensors", .plot = true, .fnopt = true,
                  .garment = true};
     char command[2048];
-    bench_command_line(command, sizeof command, "weft bench stability", argc, argv);
-    for (int i = 1; i < argc; ++i) {
-        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
-        if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
-            usage(stdout);
+    bench_command_line(command, sizeof command, "weft bench stability", argc, argv); /* before getopt reorders argv */
+    cli_parser parser;
+    if (!cli_start(&parser, &k_command, argc, argv)) {
+        return 2;
+    }
+    const char *v;
+    for (int id; (id = cli_next(&parser, &v)) != CLI_END;) {
+        const char *a = cli_name(&k_command, id);
+        switch (id) {
+        case CLI_HELP:
+            cli_usage(&k_command, stdout);
             return 0;
-        } else if (strcmp(a, "--quick") == 0) {
-            o.quick = true;
-        } else if (strcmp(a, "--no-plot") == 0) {
-            o.plot = false;
-        } else if (strcmp(a, "--no-fnopt") == 0) {
-            o.fnopt = false;
-        } else if (strcmp(a, "--no-garment") == 0) {
-            o.garment = false;
-        } else if (strcmp(a, "--rescore") == 0) {
-            o.rescore = true;
-        } else if (!v) {
-            fprintf(stderr, "weft bench stability: %s needs a value\n", a);
+        case CLI_BAD:
             return 2;
-        } else {
-            uint32_t *num = strcmp(a, "--base-vertices") == 0 ? &o.base_vertices
-                            : strcmp(a, "--frames") == 0      ? &o.frames
-                            : strcmp(a, "--long-frames") == 0 ? &o.long_frames
-                            : strcmp(a, "--count") == 0       ? &o.count
-                            : strcmp(a, "--time-limit") == 0  ? &o.time_limit
-                                                              : NULL;
-            if (num) {
-                if (!bench_parse_u32("stability", a, v, 1, 1000000, num)) {
-                    return 2;
-                }
-            } else if (strcmp(a, "--xpbd") == 0 || strcmp(a, "--xpbd-fast") == 0) {
-                const bool fast = strcmp(a, "--xpbd-fast") == 0;
-                size_t *n = fast ? &o.nxpbd_fast : &o.nxpbd;
-                if (!bench_parse_substeps("stability", a, v, fast ? o.xpbd_fast : o.xpbd, 8, n)) {
-                    return 2;
-                }
-            } else if (strcmp(a, "--data") == 0) {
-                o.data = v;
-            } else if (strcmp(a, "--out") == 0) {
-                o.out = v;
-            } else if (strcmp(a, "--csv-dir") == 0) {
-                o.csv_dir = v;
-            } else if (strcmp(a, "--models") == 0) {
-                o.models = v;
-            } else if (strcmp(a, "--scenario") == 0) {
-                o.scenario = v;
-            } else if (strcmp(a, "--fnopt-model") == 0) {
-                o.fnopt_model = v;
-            } else if (strcmp(a, "--ccd") == 0) {
-                if (strcmp(v, "on") != 0 && strcmp(v, "off") != 0) {
-                    fprintf(stderr, "weft bench stability: --ccd takes on or off\n");
-                    return 2;
-                }
-                o.no_ccd = strcmp(v, "off") == 0;
-            } else if (strcmp(a, "--axes") == 0) {
-                if (!axes_valid(v)) {
-                    fprintf(stderr, "weft bench stability: --axes wants a comma list of resolution, long, unseen, speed\n");
-                    return 2;
-                }
-                o.axes = v;
-            } else {
-                fprintf(stderr, "weft bench stability: unknown option '%s'\n", a);
-                usage(stderr);
+        case OPT_QUICK:
+            o.quick = true;
+            break;
+        case OPT_NO_PLOT:
+            o.plot = false;
+            break;
+        case OPT_NO_FNOPT:
+            o.fnopt = false;
+            break;
+        case OPT_NO_GARMENT:
+            o.garment = false;
+            break;
+        case OPT_RESCORE:
+            o.rescore = true;
+            break;
+        case OPT_BASE_VERTICES:
+        case OPT_FRAMES:
+        case OPT_LONG_FRAMES:
+        case OPT_COUNT:
+        case OPT_TIME_LIMIT: {
+            uint32_t *num = id == OPT_BASE_VERTICES ? &o.base_vertices
+                            : id == OPT_FRAMES      ? &o.frames
+                            : id == OPT_LONG_FRAMES ? &o.long_frames
+                            : id == OPT_COUNT       ? &o.count
+                                                    : &o.time_limit;
+            if (!bench_parse_u32("stability", a, v, 1, 1000000, num)) {
                 return 2;
             }
-            ++i;
+            break;
         }
+        case OPT_XPBD:
+        case OPT_XPBD_FAST: {
+            const bool fast = id == OPT_XPBD_FAST;
+            size_t *n = fast ? &o.nxpbd_fast : &o.nxpbd;
+            if (!bench_parse_substeps("stability", a, v, fast ? o.xpbd_fast : o.xpbd, 8, n)) {
+                return 2;
+            }
+            break;
+        }
+        case OPT_DATA:
+            o.data = v;
+            break;
+        case OPT_OUT:
+            o.out = v;
+            break;
+        case OPT_CSV_DIR:
+            o.csv_dir = v;
+            break;
+        case OPT_MODELS:
+            o.models = v;
+            break;
+        case OPT_SCENARIO:
+            o.scenario = v;
+            break;
+        case OPT_FNOPT_MODEL:
+            o.fnopt_model = v;
+            break;
+        case OPT_CCD:
+            if (strcmp(v, "on") != 0 && strcmp(v, "off") != 0) {
+                fprintf(stderr, "weft bench stability: --ccd takes on or off\n");
+                return 2;
+            }
+            o.no_ccd = strcmp(v, "off") == 0;
+            break;
+        case OPT_AXES:
+            if (!axes_valid(v)) {
+                fprintf(stderr, "weft bench stability: --axes wants a comma list of resolution, long, unseen, speed\n");
+                return 2;
+            }
+            o.axes = v;
+            break;
+        default:
+            return cli_fail(&k_command, "internal error: an option without a case");
+        }
+    }
+    char **rest;
+    if (cli_rest(&parser, &rest) > 0) {
+        char what[256];
+        snprintf(what, sizeof what, "unexpected argument '%.200s'", rest[0]);
+        return cli_fail(&k_command, what);
     }
     if (strcmp(o.scenario, "gripper") != 0 && strcmp(o.scenario, "drop") != 0 && strcmp(o.scenario, "garment") != 0) {
         fprintf(stderr, "weft bench stability: --scenario takes gripper, drop or garment\n");

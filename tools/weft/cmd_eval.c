@@ -820,40 +820,85 @@ static bool is_file(const char *dir, const char *name)
 
 static int cmp_str(const void *a, const void *b) { return strcmp(*(char *const *)a, *(char *const *)b); }
 
-static void usage(FILE *f)
+enum {
+    OPT_SEQ = 1, OPT_MODEL, OPT_METHOD, OPT_PRECISION, OPT_CCD, OPT_CCD_ITERATIONS, OPT_SPLIT, OPT_FRAMES, OPT_JSON,
+    OPT_CROP_CM, OPT_CROP, OPT_MAX_COLLIDER_TOKENS, OPT_TETHER_CM, OPT_STRAIN_LIMIT, OPT_STRAIN_CONTACT_CM,
+    OPT_SIM_MESH, OPT_TIME_LIMIT, OPT_PUSH_CM, OPT_PUSH_DEPTH_CM, OPT_WRITE_POS, OPT_PINS,
+};
+
+static const cli_option k_options[] = {
+    {"seq", "DIR", OPT_SEQ, "one sequence folder (meta.json + .npy) or a folder of them (required)"},
+    {"model", "M", OPT_MODEL, "the learned model (required for method model)"},
+    {"method", "model|lbs|xpbd:S|xpbd-fast:S", OPT_METHOD,
+     "the method (default model): xpbd:S the reference solver at S substeps\n"
+     "(1..1000, default 10); xpbd-fast:S the same material with a game's\n"
+     "collision projection instead of its bounds"},
+    {"precision", "fp32|fp16|int8", OPT_PRECISION, "the model's precision (default fp32)"},
+    {"ccd", "on|off", OPT_CCD, "the CCD post-process (default on)"},
+    {"ccd-iterations", "N", OPT_CCD_ITERATIONS, "CCD back-off passes before its fallback (1..64, default below)"},
+    {"split", "train|val|test", OPT_SPLIT, "in a folder of sequences, only those of this split"},
+    {"frames", "N", OPT_FRAMES, "score at most N frames per sequence (1..100000000)"},
+    {"json", NULL, OPT_JSON, "print the totals as one JSON object (no per-sequence lines)"},
+    {"crop-cm", "X", OPT_CROP_CM, "the model's collider crop margin, 0..10000 cm (0: the model's own)"},
+    {"crop", "box|cells", OPT_CROP,
+     "the model's collider crop: box (default, as the model was trained) or\n"
+     "cells (finer: within the margin of the occupied cells of a coarse grid)"},
+    {"max-collider-tokens", "N", OPT_MAX_COLLIDER_TOKENS, "keep at most N collider triangles (0..4294967295, 0: all)"},
+    {"tether-cm", "X", OPT_TETHER_CM,
+     "tethers to the skinned garment, radius X cm, 0..1000 (0 on vertices\n"
+     "pinned at the start)"},
+    {"strain-limit", "PCT", OPT_STRAIN_LIMIT,
+     "shorten edges stretched over PCT %, 0..1000 (0: off), after each step\n"
+     "(and in CCD)"},
+    {"strain-contact-cm", "X", OPT_STRAIN_CONTACT_CM,
+     "contact-aware limit, 0..100: vertices within X cm of the collider stay\n"
+     "put while it shortens edges (weft_garment_def.strain.contact)"},
+    {"push-cm", "X", OPT_PUSH_CM,
+     "push cloth inside the collider (up to --push-depth-cm) or closer than X\n"
+     "cm, 0..10, to X cm in front of it, before CCD\n"
+     "(weft_garment_def.collision.push)"},
+    {"push-depth-cm", "X", OPT_PUSH_DEPTH_CM,
+     "how deep inside the collider --push-cm still pushes cloth out, 0..50 cm\n"
+     "(default below; weft_garment_def.collision.push_depth)"},
+    {"sim-mesh", "DIR", OPT_SIM_MESH,
+     "simulate on DIR's rest_pos.npy + faces.npy (the same garment at another\n"
+     "resolution) and score its map onto the sequence's mesh (ms/frame\n"
+     "includes the map); a simulated vertex is pinned where its nearest scored\n"
+     "vertex is, and so is the nearest one to each pinned scored vertex, at\n"
+     "the reference sampled there"},
+    {"time-limit", "S", OPT_TIME_LIMIT,
+     "stop each rollout once its steps took S seconds, 0.001..1e6 (JSON:\n"
+     "time_limited, frames)"},
+    {"pins", "xpbd|all", OPT_PINS,
+     "the sequence's pins (gripper grasps) for the XPBD methods only (default,\n"
+     "the documented protocol) or for every method (set after a learned or LBS\n"
+     "step)"},
+    {"write-pos", "DIR", OPT_WRITE_POS,
+     "write each rollout to DIR/<sequence>.npy, [frames + 2, N, 3] float32:\n"
+     "the two reference frames it starts from, then every step (on the scored\n"
+     "mesh)"},
+    {0},
+};
+
+static void notes(FILE *out)
 {
-    fprintf(f, "usage: weft eval --seq DIR [--model M] [--method model|lbs|xpbd:S|xpbd-fast:S]\n"
-               "                 [--precision fp32|fp16|int8] [--ccd on|off] [--ccd-iterations N] [--split train|val|test] [--frames N] [--json]\n"
-               "                 [--crop-cm X] [--crop box|cells] [--max-collider-tokens N] [--tether-cm X]\n"
-               "                 [--strain-limit PCT] [--strain-contact-cm X] [--sim-mesh DIR] [--time-limit S]\n"
-               "                 [--push-cm X] [--push-depth-cm X] [--write-pos DIR] [--pins xpbd|all]\n"
-               "  DIR is one sequence folder (meta.json + .npy) or a folder of them.\n"
-               "  --method        xpbd:S the reference solver at S substeps (1..1000, default 10); xpbd-fast:S the\n"
-               "                  same material with a game's collision projection instead of its bounds\n"
-               "  --frames N      score at most N frames per sequence (1..100000000)\n"
-               "  --ccd-iterations N  CCD back-off passes before its fallback (1..64, default 16)\n"
-               "  --crop-cm X     the model's collider crop margin, 0..10000 cm (0: the model's own)\n"
-               "  --max-collider-tokens N  keep at most N collider triangles (0..4294967295, 0: all)\n"
-               "  --tether-cm X   tethers to the skinned garment, radius X cm, 0..1000 (0 on vertices pinned at\n"
-               "                  the start)\n"
-               "  --strain-limit PCT  shorten edges stretched over PCT %%, 0..1000 (0: off), after each step (and\n"
-               "                  in CCD)\n"
-               "  --strain-contact-cm X  contact-aware limit, 0..100: vertices within X cm of the collider stay put\n"
-               "                  while it shortens edges (weft_garment_def.strain.contact)\n"
-               "  --push-cm X     push cloth inside the collider (up to --push-depth-cm, 0..50, default 2) or\n"
-               "                  closer than X cm, 0..10, to X cm in front of it, before CCD\n"
-               "                  (weft_garment_def.collision.push)\n"
-               "  --sim-mesh DIR  simulate on DIR's rest_pos.npy + faces.npy (the same garment at another\n"
-               "                  resolution) and score its map onto the sequence's mesh (ms/frame includes the map);\n"
-               "                  a simulated vertex is pinned where its nearest scored vertex is, and so is the\n"
-               "                  nearest one to each pinned scored vertex, at the reference sampled there\n"
-               "  --time-limit S  stop each rollout once its steps took S seconds, 0.001..1e6 (JSON:\n"
-               "                  time_limited, frames)\n"
-               "  --pins xpbd|all the sequence's pins (gripper grasps) for the XPBD methods only (default, the\n"
-               "                  documented protocol) or for every method (set after a learned or LBS step)\n"
-               "  --write-pos DIR write each rollout to DIR/<sequence>.npy, [frames + 2, N, 3] float32: the two\n"
-               "                  reference frames it starts from, then every step (on the scored mesh)\n");
+    const weft_garment_def d = weft_default_garment_def();
+    fprintf(out, "Defaults: --ccd-iterations %u, --push-depth-cm %g.\n", d.ccd.iterations,
+            (double)d.collision.push_depth * 100.0);
 }
+
+static const cli_command k_command = {
+    .tool = "weft eval",
+    .synopsis = "weft eval --seq DIR [--model M] [--method model|lbs|xpbd:S|xpbd-fast:S]\n"
+                "          [--precision fp32|fp16|int8] [--ccd on|off] [--ccd-iterations N]\n"
+                "          [--split train|val|test] [--frames N] [--json] [--crop-cm X] [--crop box|cells]\n"
+                "          [--max-collider-tokens N] [--tether-cm X] [--strain-limit PCT]\n"
+                "          [--strain-contact-cm X] [--sim-mesh DIR] [--time-limit S] [--push-cm X]\n"
+                "          [--push-depth-cm X] [--write-pos DIR] [--pins xpbd|all]",
+    .about = "Scores a method's rollout against simgen sequences (MVE, collisions, timing).",
+    .options = k_options,
+    .notes = notes,
+};
 
 static const char k_tool[] = "weft eval";
 
@@ -874,31 +919,37 @@ int weft_cmd_eval(int argc, char **argv)
     eval_opts o = {.method = WEFT_METHOD_MODEL, .substeps = 10, .precision = WEFT_PRECISION_FP32, .ccd = true,
                    .ccd_iterations = weft_default_garment_def().ccd.iterations,
                    .push_depth = weft_default_garment_def().collision.push_depth};
-    for (int i = 1; i < argc; ++i) {
-        const char *a = argv[i];
-        const char *v = i + 1 < argc ? argv[i + 1] : NULL;
-        if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
-            usage(stdout);
+    cli_parser parser;
+    if (!cli_start(&parser, &k_command, argc, argv)) {
+        return 2;
+    }
+    const char *v;
+    for (int id; (id = cli_next(&parser, &v)) != CLI_END;) {
+        const char *a = cli_name(&k_command, id);
+        switch (id) {
+        case CLI_HELP:
+            cli_usage(&k_command, stdout);
             return 0;
-        } else if (strcmp(a, "--json") == 0) {
-            o.json = true;
-        } else if (!v) {
-            fprintf(stderr, "weft eval: %s needs a value\n", a);
-            usage(stderr);
+        case CLI_BAD:
             return 2;
-        } else if (strcmp(a, "--model") == 0) {
-            o.model_path = v, ++i;
-        } else if (strcmp(a, "--seq") == 0) {
-            o.seq = v, ++i;
-        } else if (strcmp(a, "--split") == 0) {
-            o.split = v, ++i;
-        } else if (strcmp(a, "--frames") == 0) {
+        case OPT_JSON:
+            o.json = true;
+            break;
+        case OPT_MODEL:
+            o.model_path = v;
+            break;
+        case OPT_SEQ:
+            o.seq = v;
+            break;
+        case OPT_SPLIT:
+            o.split = v;
+            break;
+        case OPT_FRAMES:
             if (!cli_u32(k_tool, a, v, 1, 100000000, &o.max_frames)) {
                 return 2;
             }
-            ++i;
-        } else if (strcmp(a, "--method") == 0) {
-            ++i;
+            break;
+        case OPT_METHOD:
             if (strcmp(v, "model") == 0) {
                 o.method = WEFT_METHOD_MODEL;
             } else if (strcmp(v, "lbs") == 0) {
@@ -920,8 +971,8 @@ int weft_cmd_eval(int argc, char **argv)
                 fprintf(stderr, "weft eval: unknown method '%s'\n", v);
                 return 2;
             }
-        } else if (strcmp(a, "--precision") == 0) {
-            ++i;
+            break;
+        case OPT_PRECISION:
             if (strcmp(v, "fp32") == 0) {
                 o.precision = WEFT_PRECISION_FP32;
             } else if (strcmp(v, "fp16") == 0) {
@@ -932,86 +983,95 @@ int weft_cmd_eval(int argc, char **argv)
                 fprintf(stderr, "weft eval: unknown precision '%s'\n", v);
                 return 2;
             }
-        } else if (strcmp(a, "--crop-cm") == 0) {
+            break;
+        case OPT_CROP_CM:
             /* model collider crop margin in cm (0: the model's own); the library validates it */
             if (!parse_hundredths(a, v, 10000.0f, &o.crop_margin)) {
                 return 2;
             }
-            ++i;
-        } else if (strcmp(a, "--time-limit") == 0) {
+            break;
+        case OPT_TIME_LIMIT: {
             double sec = 0.0;
             if (!cli_double(k_tool, a, v, 0.001, 1e6, &sec)) {
                 return 2;
             }
-            ++i;
             o.time_limit_ms = sec * 1e3;
-        } else if (strcmp(a, "--pins") == 0) {
+            break;
+        }
+        case OPT_PINS:
             if (strcmp(v, "all") != 0 && strcmp(v, "xpbd") != 0) {
                 fprintf(stderr, "weft eval: --pins takes xpbd or all\n");
                 return 2;
             }
-            o.pins_all = strcmp(v, "all") == 0, ++i;
-        } else if (strcmp(a, "--write-pos") == 0) {
-            o.write_pos = v, ++i;
-        } else if (strcmp(a, "--sim-mesh") == 0) {
-            o.sim_mesh = v, ++i; /* rest_pos.npy + faces.npy of the same garment at another resolution */
-        } else if (strcmp(a, "--tether-cm") == 0) {
+            o.pins_all = strcmp(v, "all") == 0;
+            break;
+        case OPT_WRITE_POS:
+            o.write_pos = v;
+            break;
+        case OPT_SIM_MESH:
+            o.sim_mesh = v; /* rest_pos.npy + faces.npy of the same garment at another resolution */
+            break;
+        case OPT_TETHER_CM:
             /* tethers to the skinned garment, radius in cm (0: off); the library validates it */
             if (!parse_hundredths(a, v, 1000.0f, &o.tether)) {
                 return 2;
             }
-            ++i;
-        } else if (strcmp(a, "--strain-limit") == 0) {
+            break;
+        case OPT_STRAIN_LIMIT:
             /* percent over rest length (0: off); the library validates it */
             if (!parse_hundredths(a, v, 1000.0f, &o.strain_limit)) {
                 return 2;
             }
-            ++i;
-        } else if (strcmp(a, "--strain-contact-cm") == 0) {
+            break;
+        case OPT_STRAIN_CONTACT_CM:
             if (!parse_hundredths(a, v, 100.0f, &o.strain_contact)) {
                 return 2;
             }
-            ++i;
-        } else if (strcmp(a, "--push-cm") == 0 || strcmp(a, "--push-depth-cm") == 0) {
-            const bool push = strcmp(a, "--push-cm") == 0;
+            break;
+        case OPT_PUSH_CM:
+        case OPT_PUSH_DEPTH_CM: {
+            const bool push = id == OPT_PUSH_CM;
             if (!parse_hundredths(a, v, push ? 10.0f : 50.0f, push ? &o.push : &o.push_depth)) {
                 return 2;
             }
-            ++i;
-        } else if (strcmp(a, "--crop") == 0) {
-            ++i;
+            break;
+        }
+        case OPT_CROP:
             if (strcmp(v, "box") != 0 && strcmp(v, "cells") != 0) {
                 fprintf(stderr, "weft eval: --crop takes box or cells\n");
                 return 2;
             }
             o.crop = strcmp(v, "cells") == 0 ? WEFT_COLLIDER_CROP_CELLS : WEFT_COLLIDER_CROP_BOX;
-        } else if (strcmp(a, "--max-collider-tokens") == 0) {
+            break;
+        case OPT_MAX_COLLIDER_TOKENS:
             if (!cli_u32(k_tool, a, v, 0, UINT32_MAX, &o.max_collider_tokens)) {
                 return 2;
             }
-            ++i;
-        } else if (strcmp(a, "--ccd") == 0) {
-            ++i;
+            break;
+        case OPT_CCD:
             if (strcmp(v, "on") != 0 && strcmp(v, "off") != 0) {
                 fprintf(stderr, "weft eval: --ccd takes on or off\n");
                 return 2;
             }
             o.ccd = strcmp(v, "on") == 0;
-        } else if (strcmp(a, "--ccd-iterations") == 0) {
+            break;
+        case OPT_CCD_ITERATIONS:
             if (!cli_u32(k_tool, a, v, 1, 64, &o.ccd_iterations)) {
                 return 2;
             }
-            ++i;
-        } else {
-            fprintf(stderr, "weft eval: unknown option '%s'\n", a);
-            usage(stderr);
-            return 2;
+            break;
+        default:
+            return cli_fail(&k_command, "internal error: an option without a case");
         }
     }
+    char **rest;
+    if (cli_rest(&parser, &rest) > 0) {
+        char what[256];
+        snprintf(what, sizeof what, "unexpected argument '%.200s'", rest[0]);
+        return cli_fail(&k_command, what);
+    }
     if (!o.seq || (o.method == WEFT_METHOD_MODEL && !o.model_path)) {
-        fprintf(stderr, "weft eval: --seq is required, and --model for method 'model'\n");
-        usage(stderr);
-        return 2;
+        return cli_fail(&k_command, "--seq is required, and --model for method 'model'");
     }
     weft_context_def cd = weft_default_context_def();
     weft_context *ctx = NULL;
