@@ -4,6 +4,8 @@
 
 #include <immintrin.h>
 #include <stddef.h>
+#include <stdint.h>
+#include <string.h>
 
 typedef __m256 V;
 typedef __m256 VM; /* all-ones / all-zeros lanes */
@@ -85,6 +87,23 @@ static inline void v_transpose(V r[VW])
     for (int c = 0; c < 4; ++c) {
         r[c] = _mm256_permute2f128_ps(u[c], u[4 + c], 0x20);
         r[4 + c] = _mm256_permute2f128_ps(u[c], u[4 + c], 0x31);
+    }
+}
+
+/* Integral values in [-127, 127] to int8, n <= 8 lanes (the int8 kernels' activation store; the
+ * same bytes as converting lane by lane). */
+#define QK_HAVE_STORE_I8 1
+static inline void qk_store_i8(int8_t *q, V v, size_t n)
+{
+    const __m256i w = _mm256_cvtps_epi32(v);
+    const __m128i h = _mm_packs_epi32(_mm256_castsi256_si128(w), _mm256_extracti128_si256(w, 1));
+    const __m128i b = _mm_packs_epi16(h, h);
+    if (n >= 8) {
+        _mm_storel_epi64((__m128i *)q, b);
+    } else {
+        int8_t t[16];
+        _mm_storeu_si128((__m128i *)t, b);
+        memcpy(q, t, n);
     }
 }
 
