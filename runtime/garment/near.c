@@ -186,7 +186,8 @@ static bool visit_near(uint32_t t, void *user)
     const double *c = q->g->near_cpos;
     double bary[3];
     double d2 = geo_point_triangle_sq(q->p, c + 3 * (size_t)tri[0], c + 3 * (size_t)tri[1], c + 3 * (size_t)tri[2], bary);
-    if (d2 < q->hit->d2) {
+    /* the least (distance, triangle index): the same answer in any visit order */
+    if (d2 < q->hit->d2 || (d2 == q->hit->d2 && q->hit->tri != UINT32_MAX && t < q->hit->tri)) {
         q->hit->d2 = d2;
         q->hit->tri = t;
         memcpy(q->hit->bary, bary, sizeof bary);
@@ -206,18 +207,9 @@ bool weft__near_nearest_in(const weft_garment *g, const double p[3], double radi
     hit->tri = UINT32_MAX;
     near_query q = {.g = g, .p = p, .hit = hit, .mask = mask};
     if (seed != UINT32_MAX) {
-        /* A triangle near p already bounds the search: only nearer ones can replace it. */
-        visit_near(seed, &q);
-        if (hit->tri == seed) {
-            radius = sqrt(hit->d2);
-        }
+        visit_near(seed, &q); /* last step's nearest triangle bounds the search from the start */
     }
-    double lo[3], hi[3];
-    for (int k = 0; k < 3; ++k) {
-        lo[k] = p[k] - radius;
-        hi[k] = p[k] + radius;
-    }
-    geo_bvh_query(g->near_tree, lo, hi, visit_near, &q);
+    geo_bvh_nearest(g->near_tree, p, &hit->d2, visit_near, &q);
     if (hit->tri == UINT32_MAX) {
         return false;
     }

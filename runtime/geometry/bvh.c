@@ -204,6 +204,58 @@ bool geo_bvh_query_above(const geo_bvh *bvh, const double lo[3], const double hi
     return query(bvh, lo, hi, false, above, fn, user);
 }
 
+/* Squared distance from p to the node's box (0 inside). */
+static inline double box_d2(const geo_bvh_node *nd, const double p[3])
+{
+    double d2 = 0.0;
+    for (int a = 0; a < 3; ++a) {
+        const double e = p[a] < nd->lo[a] ? nd->lo[a] - p[a] : (p[a] > nd->hi[a] ? p[a] - nd->hi[a] : 0.0);
+        d2 += e * e;
+    }
+    return d2;
+}
+
+bool geo_bvh_nearest(const geo_bvh *bvh, const double p[3], const double *bound_d2, geo_bvh_visit_fn *fn, void *user)
+{
+    if (bvh->node_count == 0) {
+        return true;
+    }
+    uint32_t stack[128];
+    double dist[128];
+    uint32_t sp = 0;
+    stack[sp] = 0;
+    dist[sp++] = box_d2(&bvh->nodes[0], p);
+    while (sp > 0) {
+        --sp;
+        if (dist[sp] > *bound_d2) {
+            continue; /* farther than the best found since it was pushed */
+        }
+        const geo_bvh_node *nd = &bvh->nodes[stack[sp]];
+        if (nd->count > 0) {
+            for (uint32_t s = nd->left; s < nd->left + nd->count; ++s) {
+                if (!fn(bvh->order[s], user)) {
+                    return false;
+                }
+            }
+            continue;
+        }
+        /* the nearer child on top, so it is opened first and tightens the bound */
+        const uint32_t a = nd->left, b = nd->left + 1;
+        const double da = box_d2(&bvh->nodes[a], p), db = box_d2(&bvh->nodes[b], p);
+        const uint32_t first = da <= db ? b : a, second = da <= db ? a : b;
+        const double dfirst = da <= db ? db : da, dsecond = da <= db ? da : db;
+        if (dfirst <= *bound_d2) {
+            stack[sp] = first;
+            dist[sp++] = dfirst;
+        }
+        if (dsecond <= *bound_d2) {
+            stack[sp] = second;
+            dist[sp++] = dsecond;
+        }
+    }
+    return true;
+}
+
 static inline bool nodes_meet(const geo_bvh_node *a, const geo_bvh_node *b)
 {
     return !(a->lo[0] > b->hi[0] || b->lo[0] > a->hi[0] || a->lo[1] > b->hi[1] || b->lo[1] > a->hi[1] ||

@@ -78,6 +78,12 @@ bool geo_bvh_query(const geo_bvh *bvh, const double lo[3], const double hi[3], g
  * subtrees holding no such primitive are skipped. The visit order is geo_bvh_query's. */
 bool geo_bvh_query_above(const geo_bvh *bvh, const double lo[3], const double hi[3], uint32_t above, geo_bvh_visit_fn *fn,
                       void *user);
+/* Nearest-primitive search around p: calls fn(prim, user) for the primitives of every leaf whose
+ * box lies within sqrt(*bound_d2) of p, nearer leaves first, re-reading *bound_d2 (which fn
+ * lowers as it finds nearer primitives) before each node, so far subtrees are never opened. The
+ * caller's fn decides ties; the set of primitives visited depends on the order found, so fn must
+ * give an order-independent answer (e.g. the least (distance, index)). */
+bool geo_bvh_nearest(const geo_bvh *bvh, const double p[3], const double *bound_d2, geo_bvh_visit_fn *fn, void *user);
 /* Calls fn(a, b, user) once for every unordered pair of distinct primitives whose leaves' boxes
  * overlap (two primitives of one leaf always; callers test the primitives' own boxes). One
  * traversal of the tree against itself: far fewer node visits than a query per primitive. */

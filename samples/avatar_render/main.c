@@ -14,10 +14,13 @@ int main(int argc, char **argv)
 {
     weft_avatar_sample_options options;
     weft_avatar_sample_default_options(&options);
-    int parsed = weft_avatar_sample_parse(argc, argv, 1, &options);
+    int parsed = weft_avatar_sample_parse("avatar_render", argc, argv, &options);
+    if (parsed == 1) {
+        weft_avatar_sample_usage(stdout, "avatar_render");
+        return 0;
+    }
     if (parsed != 0) {
-        weft_avatar_sample_usage(parsed == 1 ? stdout : stderr, "avatar_render");
-        return parsed == 1 ? 0 : 2;
+        return 2;
     }
     return weft_avatar_sample_run(&options);
 }

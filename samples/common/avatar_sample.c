@@ -13,6 +13,7 @@
 #include "core/core.h"
 
 #include <errno.h>
+#include <getopt.h>
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -55,61 +56,155 @@ void weft_avatar_sample_default_options(weft_avatar_sample_options *o)
     o->cape_model = "tools/fnopt/models/fnopt_32.safetensors";
 }
 
+/* ---- Options ---------------------------------------------------------------------------------
+ * One table, read by getopt_long (here and, merged with its own options, by `weft render`), from
+ * which the help is printed. */
+
+enum {
+    OPT_MOTION = 1, OPT_JOINT_MAP, OPT_AVATAR, OPT_AVATAR_JOINT_MAP, OPT_GARMENT, OPT_RESOLUTION,
+    OPT_SIM_RESOLUTION, OPT_METHOD, OPT_MODEL, OPT_PRECISION, OPT_TETHER_CM, OPT_STRAIN_LIMIT, OPT_PUSH_CM,
+    OPT_BODY_PARTS, OPT_CCD, OPT_EXPORT, OPT_FRAMES, OPT_SETTLE, OPT_OUT, OPT_SIZE, OPT_SHEET, OPT_YAW, OPT_PITCH,
+    OPT_SPEED, OPT_START, OPT_DETERMINISTIC, OPT_NO_FRAMES, OPT_CAPE, OPT_CAPE_MODEL, OPT_CAPE_PRECISION,
+    OPT_CROWD, OPT_LOD_TABLE, OPT_CROWD_MVE, OPT_CROWD_BUDGET,
+    OPT_COUNT
+};
+_Static_assert(OPT_COUNT <= WEFT_AVATAR_SAMPLE_OPTION_ID_END, "the sample's option ids are below the bound");
+
+const weft_sample_option weft_avatar_sample_option_table[] = {
+    {"motion", "NAME|mocap:CLIP|bvh:PATH|gltf:PATH", OPT_MOTION,
+     "idle walk run jump dance arm_raise flip, a clip of the CMU library by\n"
+     "name (samples/mocap/clips.csv, e.g. mocap:walk_cmu07_01), a BVH file\n"
+     "(plain or .gz), or a skinned glTF/FBX with SMPL joint names\n"
+     "(default walk)"},
+    {"joint-map", "FILE", OPT_JOINT_MAP,
+     "with bvh:PATH, the file's joint for each SMPL joint, one 'smpl_joint\n"
+     "source_joint' a line, for skeletons no naming table knows\n"
+     "(docs/RENDER.md)"},
+    {"avatar", "gltf:PATH", OPT_AVATAR,
+     "your own skinned character (glTF/FBX, any joint names, metres, Y up)\n"
+     "as the collider, played by its own animation (--start, --frames), or\n"
+     "by a mocap:/bvh: --motion with --avatar-joint-map; garments then come\n"
+     "from --garment obj:PATH (docs/RENDER.md, Your own character)"},
+    {"avatar-joint-map", "FILE", OPT_AVATAR_JOINT_MAP,
+     "with --avatar and a mocap:/bvh: --motion: the character's joint for\n"
+     "each SMPL joint, one 'smpl_joint character_joint' a line (the\n"
+     "--joint-map format)"},
+    {"garment", "KIND", OPT_GARMENT,
+     "tshirt | skirt | dress | none | obj:PATH, an OBJ garment fitted to the\n"
+     "avatar's bind pose (default tshirt; with --avatar, none)"},
+    {"resolution", "RES", OPT_RESOLUTION, "garment mesh 1k | 4k | 16k | 40k (default 4k)"},
+    {"sim-resolution", "RES", OPT_SIM_RESOLUTION,
+     "simulate this mesh of the garment and draw --resolution from it\n"
+     "(a mesh map; e.g. 1k for a 4k garment; default: the drawn mesh)"},
+    {"method", "M", OPT_METHOD,
+     "auto | model | xpbd[:S] | xpbd-fast[:S] | lbs | skin (default auto:\n"
+     "the learned model, else xpbd, lbs); S substeps, 1..1000 (default 10);\n"
+     "xpbd is the reference as weft simgen runs it (frames of a fast body\n"
+     "get up to 8 S substeps), xpbd-fast XPBD as a game runs it, fixed S\n"
+     "(docs/REFSIM.md)"},
+    {"model", "FILE", OPT_MODEL,
+     "safetensors model for the model method (default: the shipped garment\n"
+     "model for --precision,\n"
+     "tools/train/models/garment[.fp16|.int8].safetensors)"},
+    {"precision", "P", OPT_PRECISION, "fp32 | fp16 | int8: the model's arithmetic (default int8)"},
+    {"tether-cm", "X", OPT_TETHER_CM,
+     "tether every garment vertex within X cm of its skinned position,\n"
+     "0..1000 (default 8, off for xpbd; 0: off)"},
+    {"strain-limit", "PCT", OPT_STRAIN_LIMIT,
+     "shorten garment edges stretched over PCT % after each step, 0..1000\n"
+     "(0: off; default 10 for the learned model, off for xpbd)"},
+    {"push-cm", "X", OPT_PUSH_CM,
+     "push garment cloth inside the body (up to 2 cm) or nearer than X cm to\n"
+     "X cm in front of it, 0..10 (default 0.5, off for xpbd; 0: off;\n"
+     "docs/CCD.md, Collider push)"},
+    {"body-parts", "on|off", OPT_BODY_PARTS,
+     "garment vertices collide only with the body parts they lie against at\n"
+     "rest (each triangle's dominant bone; default on; docs/CCD.md, Body\n"
+     "parts)"},
+    {"ccd", "on|off", OPT_CCD,
+     "the CCD post-process after each step (default off: its cost is\n"
+     "unbounded where the body overlaps itself; docs/CCD.md, Body parts)"},
+    {"export", "DIR", OPT_EXPORT,
+     "write garment.obj + garment.pc2 and body.obj + body.pc2 (point caches\n"
+     "of the rendered frames, for Blender, Maya, 3ds Max; docs/RENDER.md,\n"
+     "Export)"},
+    {"frames", "N", OPT_FRAMES, "frames to render at 60 Hz, 1..100000 (default 120)"},
+    {"settle", "N", OPT_SETTLE,
+     "simulated frames blending from the bind pose into the motion,\n"
+     "0..10000 (default 30)"},
+    {"out", "DIR", OPT_OUT,
+     "output folder for frame_NNNN.png and contact_sheet.png\n"
+     "(default avatar_frames)"},
+    {"size", "WxH", OPT_SIZE, "image size, each 16..4096 (default 320x320)"},
+    {"sheet", "N", OPT_SHEET, "frames on the contact sheet, 1..64 (default 8)"},
+    {"yaw", "DEG", OPT_YAW, "camera direction about the vertical, -360..360 (default 25)"},
+    {"pitch", "DEG", OPT_PITCH, "camera elevation, -80..80 (default 8)"},
+    {"speed", "S", OPT_SPEED, "procedural motion speed, 0.05..8 (default 1)"},
+    {"start", "SECONDS", OPT_START, "start this far into the motion, 0..100000 (default 0)"},
+    {"deterministic", NULL, OPT_DETERMINISTIC,
+     "render with softpipe (reproducible bytes, slower) instead of llvmpipe"},
+    {"no-frames", NULL, OPT_NO_FRAMES, "write only the contact sheet"},
+    {"cape", NULL, OPT_CAPE,
+     "add a 24x40 cape stepped by FNOpt, pinned behind the shoulders (no\n"
+     "body collision)"},
+    {"cape-model", "FILE", OPT_CAPE_MODEL,
+     "its FNOpt weights (default tools/fnopt/models/fnopt_32.safetensors)"},
+    {"cape-precision", "P", OPT_CAPE_PRECISION, "fp32 | fp16 | int8: its FNO arithmetic (default fp32)"},
+    {"crowd", "N", OPT_CROWD,
+     "crowd mode: N (1..256) avatars in a grid, garments at mixed levels of\n"
+     "detail picked from the LOD table by depth; writes OUT/crowd.png (no\n"
+     "frames)"},
+    {"lod-table", "FILE", OPT_LOD_TABLE,
+     "the measured LOD table for --crowd (default\n"
+     "samples/data/lod_garment.csv, else samples/data/lod.csv; paths from\n"
+     "the source root)"},
+    {"crowd-mve", "CM", OPT_CROWD_MVE,
+     "accuracy target of the front row (default: the best usable level's\n"
+     "MVE); it grows by 100% per metre of depth"},
+    {"crowd-budget", "MS", OPT_CROWD_BUDGET, "per-character ms/frame budget for the pick (default none)"},
+    {NULL, NULL, 0, NULL},
+};
+
+/* Prints text with every line after the first indented by `indent` spaces. */
+static void print_indented(FILE *out, const char *text, int indent)
+{
+    for (const char *t = text; *t;) {
+        const size_t len = strcspn(t, "\n");
+        fprintf(out, "%.*s\n", (int)len, t);
+        t += len + (t[len] == '\n');
+        if (*t) {
+            fprintf(out, "%*s", indent, "");
+        }
+    }
+}
+
+/* The table's option lines, at column 28 as the weft CLI's help. */
+static void options_help(FILE *out)
+{
+    enum { column = 28 };
+    for (const weft_sample_option *o = weft_avatar_sample_option_table; o->name; ++o) {
+        if (!o->help) {
+            continue;
+        }
+        char head[128];
+        const int w = snprintf(head, sizeof head, "  --%s%s%s", o->name, o->value ? " " : "", o->value ? o->value : "");
+        if (w + 2 > column) {
+            fprintf(out, "%s\n%*s", head, column, "");
+        } else {
+            fprintf(out, "%-*s", column, head);
+        }
+        print_indented(out, o->help, column);
+    }
+}
+
 void weft_avatar_sample_usage(FILE *out, const char *program)
 {
-    fprintf(out, "usage: %s [options]\n", program);
-    fprintf(out,
-            "  --motion NAME|mocap:CLIP|bvh:PATH|gltf:PATH\n"
-            "                          idle walk run jump dance arm_raise flip, a clip of the CMU library by\n"
-            "                          name (samples/mocap/clips.csv, e.g. mocap:walk_cmu07_01), a BVH file\n"
-            "                          (plain or .gz), or a skinned glTF/FBX with SMPL joint names (default walk)\n"
-            "  --joint-map FILE        with bvh:PATH, the file's joint for each SMPL joint, one 'smpl_joint\n"
-            "                          source_joint' a line, for skeletons no naming table knows (docs/RENDER.md)\n"
-            "  --avatar gltf:PATH      your own skinned character (glTF/FBX, any joint names, metres, Y up) as the\n"
-            "                          collider, played by its own animation (--start, --frames), or by a mocap:/bvh:\n"
-            "                          --motion with --avatar-joint-map; garments then come from --garment obj:PATH\n"
-            "                          (docs/RENDER.md, Your own character)\n"
-            "  --avatar-joint-map FILE with --avatar and a mocap:/bvh: --motion: the character's joint for each SMPL\n"
-            "                          joint, one 'smpl_joint character_joint' a line (the --joint-map format)\n");
-    fprintf(out,
-            "  --garment KIND          tshirt | skirt | dress | none | obj:PATH, an OBJ garment fitted to the\n"
-            "                          avatar's bind pose (default tshirt; with --avatar, none)\n"
-            "  --resolution RES        garment mesh 1k | 4k | 16k | 40k (default 4k)\n"
-            "  --sim-resolution RES    simulate this mesh of the garment and draw --resolution from it\n"
-            "                          (a mesh map; e.g. 1k for a 4k garment; default: the drawn mesh)\n"
-            "  --method M              auto | model | xpbd[:S] | xpbd-fast[:S] | lbs | skin (default auto: the learned\n"
-            "                          model, else xpbd, lbs); S substeps, 1..1000 (default 10); xpbd is the reference\n"
-            "                          as weft simgen runs it (frames of a fast body get up to 8 S substeps), xpbd-fast\n"
-            "                          XPBD as a game runs it, fixed S (docs/REFSIM.md)\n"
-            "  --model FILE            safetensors model for the model method (default: the shipped garment model\n"
-            "                          for --precision, tools/train/models/garment[.fp16|.int8].safetensors)\n"
-            "  --precision P           fp32 | fp16 | int8: the model's arithmetic (default int8)\n"
-            "  --tether-cm X           tether every garment vertex within X cm of its skinned position (default 8,\n"
-            "                          off for xpbd; 0: off)\n"
-            "  --strain-limit PCT      shorten garment edges stretched over PCT %% after each step (0: off;\n"
-            "                          default 10 for the learned model, off for xpbd)\n"
-            "  --push-cm X             push garment cloth inside the body (up to 2 cm) or nearer than X cm to X cm\n"
-            "                          in front of it (default 0.5, off for xpbd; 0: off; docs/CCD.md, Collider push)\n"
-            "  --body-parts on|off     garment vertices collide only with the body parts they lie against at rest\n"
-            "                          (each triangle's dominant bone; default on; docs/CCD.md, Body parts)\n"
-            "  --ccd on|off            the CCD post-process after each step (default off: its cost is unbounded\n"
-            "                          where the body overlaps itself; docs/CCD.md, Body parts)\n"
-            "  --export DIR            write garment.obj + garment.pc2 and body.obj + body.pc2 (point caches of the\n"
-            "                          rendered frames, for Blender, Maya, 3ds Max; docs/RENDER.md, Export)\n"
-            "  --frames N              frames to render at 60 Hz (default 120)\n"
-            "  --settle N              simulated frames blending from the bind pose into the motion (default 30)\n"
-            "  --out DIR               output folder for frame_NNNN.png and contact_sheet.png (default avatar_frames)\n"
-            "  --size WxH              image size (default 320x320)\n"
-            "  --sheet N               frames on the contact sheet (default 8)\n"
-            "  --yaw DEG --pitch DEG   camera direction (default 25, 8)\n"
-            "  --speed S               procedural motion speed (default 1)\n"
-            "  --start SECONDS         start this far into the motion (default 0)\n"
-            "  --deterministic         render with softpipe (reproducible bytes, slower) instead of llvmpipe\n"
-            "  --no-frames             write only the contact sheet\n"
-            "  --cape                  add a 24x40 cape stepped by FNOpt, pinned behind the shoulders (no body collision)\n"
-            "  --cape-model FILE       its FNOpt weights (default tools/fnopt/models/fnopt_32.safetensors)\n"
-            "  --cape-precision P      fp32 | fp16 | int8: its FNO arithmetic (default fp32)\n");
-    weft_avatar_sample_crowd_usage(out);
+    fprintf(out, "usage: %s [options]\n\n"
+                 "The avatar performs a motion wearing a garment, rendered off-screen: PNG frames and a\n"
+                 "contact sheet in --out, per-frame timing on stdout.\n\noptions:\n",
+            program);
+    options_help(out);
+    fprintf(out, "  %-26s%s\n", "-h, --help", "this help");
 }
 
 static bool parse_precision(const char *s, weft_precision *out)
@@ -174,116 +269,195 @@ static bool parse_float(const char *s, float lo, float hi, float *out)
     return true;
 }
 
-int weft_avatar_sample_parse(int argc, char **argv, int first, weft_avatar_sample_options *o)
+bool weft_avatar_sample_apply(int id, const char *v, weft_avatar_sample_options *o)
 {
-    for (int i = first; i < argc; ++i) {
-        const char *a = argv[i];
-        const char *v = i + 1 < argc ? argv[i + 1] : NULL;
-        bool ok = true, takes = true;
-        if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
+    switch (id) {
+    case OPT_NO_FRAMES:
+        o->write_frames = false;
+        return true;
+    case OPT_DETERMINISTIC:
+        o->deterministic = true;
+        return true;
+    case OPT_CAPE:
+        o->cape = true;
+        return true;
+    default:
+        break;
+    }
+    if (!v) {
+        return false;
+    }
+    switch (id) {
+    case OPT_CROWD:
+        return weft_avatar_sample_crowd_option("--crowd", v, o);
+    case OPT_LOD_TABLE:
+        return weft_avatar_sample_crowd_option("--lod-table", v, o);
+    case OPT_CROWD_MVE:
+        return weft_avatar_sample_crowd_option("--crowd-mve", v, o);
+    case OPT_CROWD_BUDGET:
+        return weft_avatar_sample_crowd_option("--crowd-budget", v, o);
+    case OPT_MOTION:
+        o->motion = v;
+        o->motion_given = true;
+        return true;
+    case OPT_JOINT_MAP:
+        o->joint_map = v;
+        return true;
+    case OPT_AVATAR_JOINT_MAP:
+        o->avatar_joint_map = v;
+        return true;
+    case OPT_AVATAR:
+        o->avatar = v;
+        return strncmp(v, "gltf:", 5) == 0 && v[5] != '\0';
+    case OPT_GARMENT:
+        o->garment = v;
+        o->garment_given = true;
+        return true;
+    case OPT_RESOLUTION:
+        o->resolution = v;
+        return true;
+    case OPT_SIM_RESOLUTION:
+        o->sim_resolution = v;
+        return true;
+    case OPT_METHOD: {
+        o->method = v;
+        char base[16];
+        uint32_t substeps = 0;
+        return split_method(v, base, &substeps);
+    }
+    case OPT_MODEL:
+        o->model_path = v;
+        return true;
+    case OPT_PRECISION:
+        return parse_precision(v, &o->precision);
+    case OPT_TETHER_CM:
+        return parse_float(v, 0.0f, 1000.0f, &o->tether_cm);
+    case OPT_STRAIN_LIMIT:
+        return parse_float(v, 0.0f, 1000.0f, &o->strain_pct);
+    case OPT_PUSH_CM:
+        return parse_float(v, 0.0f, 10.0f, &o->push_cm);
+    case OPT_EXPORT:
+        o->export_dir = v;
+        return true;
+    case OPT_BODY_PARTS:
+    case OPT_CCD:
+        if (strcmp(v, "on") != 0 && strcmp(v, "off") != 0) {
+            return false;
+        }
+        *(id == OPT_CCD ? &o->ccd : &o->body_parts) = strcmp(v, "on") == 0;
+        return true;
+    case OPT_FRAMES:
+        return parse_u32(v, 1, 100000, &o->frames);
+    case OPT_SETTLE:
+        return parse_u32(v, 0, 10000, &o->settle_frames);
+    case OPT_OUT:
+        o->out_dir = v;
+        return true;
+    case OPT_SIZE: {
+        unsigned w = 0, h = 0;
+        char tail = 0;
+        if (sscanf(v, "%ux%u%c", &w, &h, &tail) != 2 || w < 16 || h < 16 || w > 4096 || h > 4096) {
+            return false;
+        }
+        o->width = w;
+        o->height = h;
+        return true;
+    }
+    case OPT_SHEET:
+        return parse_u32(v, 1, 64, &o->sheet_tiles);
+    case OPT_YAW:
+        return parse_float(v, -360.0f, 360.0f, &o->yaw);
+    case OPT_PITCH:
+        return parse_float(v, -80.0f, 80.0f, &o->pitch);
+    case OPT_START:
+        return parse_float(v, 0.0f, 100000.0f, &o->start);
+    case OPT_SPEED:
+        return parse_float(v, 0.05f, 8.0f, &o->speed);
+    case OPT_CAPE_MODEL:
+        o->cape_model = v;
+        return true;
+    case OPT_CAPE_PRECISION:
+        return parse_precision(v, &o->cape_precision);
+    default:
+        return false;
+    }
+}
+
+/* "--name" of an option id, for messages. */
+static const char *option_name(int id, char *buf, size_t cap)
+{
+    for (const weft_sample_option *o = weft_avatar_sample_option_table; o->name; ++o) {
+        if (o->id == id) {
+            snprintf(buf, cap, "--%s", o->name);
+            return buf;
+        }
+    }
+    snprintf(buf, cap, "?");
+    return buf;
+}
+
+int weft_avatar_sample_parse(const char *program, int argc, char **argv, weft_avatar_sample_options *o)
+{
+    enum { max_options = OPT_COUNT + 1 };
+    struct option table[max_options + 1];
+    int n = 0;
+    for (const weft_sample_option *e = weft_avatar_sample_option_table; e->name && n < max_options - 1; ++e, ++n) {
+        table[n] = (struct option){e->name, e->value ? required_argument : no_argument, NULL, e->id};
+    }
+    table[n++] = (struct option){"help", no_argument, NULL, 'h'};
+    table[n] = (struct option){NULL, 0, NULL, 0};
+    /* getopt keeps its position in globals: start over (0 also resets GNU getopt's permutation). */
+#ifdef __GLIBC__
+    optind = 0;
+#else
+    optind = 1;
+#endif
+    opterr = 0;
+    char name[96];
+    for (;;) {
+        const int before = optind;
+        const int c = getopt_long(argc, argv, ":h", table, NULL);
+        if (c == -1) {
+            break;
+        }
+        if (c == 'h') {
             return 1;
-        } else if (strcmp(a, "--no-frames") == 0) {
-            o->write_frames = false;
-            takes = false;
-        } else if (strcmp(a, "--deterministic") == 0) {
-            o->deterministic = true;
-            takes = false;
-        } else if (strcmp(a, "--cape") == 0) {
-            o->cape = true;
-            takes = false;
-        } else if (weft_avatar_sample_is_crowd_option(a)) {
-            if (!v) {
-                fprintf(stderr, "option %s needs a value\n", a);
-                return 2;
-            }
-            ok = weft_avatar_sample_crowd_option(a, v, o);
-        } else if (!v) {
-            static const char *const valued[] = {"--motion", "--joint-map", "--avatar", "--avatar-joint-map", "--garment", "--resolution", "--method", "--model",
-                                                 "--sim-resolution",
-                                                 "--precision", "--tether-cm", "--strain-limit", "--push-cm",
-                                                 "--body-parts", "--ccd", "--export",
-                                                 "--frames", "--settle",  "--out",        "--size",   "--sheet",
-                                                 "--yaw",    "--pitch",   "--start",      "--speed",
-                                                 "--cape-model", "--cape-precision"};
-            bool known = false;
-            for (size_t k = 0; k < sizeof valued / sizeof valued[0]; ++k) {
-                known |= strcmp(a, valued[k]) == 0;
-            }
-            fprintf(stderr, known ? "option %s needs a value\n" : "unknown option '%s'\n", a);
-            return 2;
-        } else if (strcmp(a, "--motion") == 0) {
-            o->motion = v;
-            o->motion_given = true;
-        } else if (strcmp(a, "--joint-map") == 0) {
-            o->joint_map = v;
-        } else if (strcmp(a, "--avatar-joint-map") == 0) {
-            o->avatar_joint_map = v;
-        } else if (strcmp(a, "--avatar") == 0) {
-            o->avatar = v;
-            ok = strncmp(v, "gltf:", 5) == 0 && v[5] != '\0';
-        } else if (strcmp(a, "--garment") == 0) {
-            o->garment = v;
-            o->garment_given = true;
-        } else if (strcmp(a, "--resolution") == 0) {
-            o->resolution = v;
-        } else if (strcmp(a, "--sim-resolution") == 0) {
-            o->sim_resolution = v;
-        } else if (strcmp(a, "--method") == 0) {
-            o->method = v;
-            char base[16];
-            uint32_t substeps = 0;
-            ok = split_method(v, base, &substeps);
-        } else if (strcmp(a, "--model") == 0) {
-            o->model_path = v;
-        } else if (strcmp(a, "--precision") == 0) {
-            ok = parse_precision(v, &o->precision);
-        } else if (strcmp(a, "--tether-cm") == 0) {
-            ok = parse_float(v, 0.0f, 1000.0f, &o->tether_cm);
-        } else if (strcmp(a, "--strain-limit") == 0) {
-            ok = parse_float(v, 0.0f, 1000.0f, &o->strain_pct);
-        } else if (strcmp(a, "--push-cm") == 0) {
-            ok = parse_float(v, 0.0f, 10.0f, &o->push_cm);
-        } else if (strcmp(a, "--export") == 0) {
-            o->export_dir = v;
-        } else if (strcmp(a, "--body-parts") == 0 || strcmp(a, "--ccd") == 0) {
-            bool *flag = strcmp(a, "--ccd") == 0 ? &o->ccd : &o->body_parts;
-            ok = !strcmp(v, "on") || !strcmp(v, "off");
-            *flag = !strcmp(v, "on");
-        } else if (strcmp(a, "--frames") == 0) {
-            ok = parse_u32(v, 1, 100000, &o->frames);
-        } else if (strcmp(a, "--settle") == 0) {
-            ok = parse_u32(v, 0, 10000, &o->settle_frames);
-        } else if (strcmp(a, "--out") == 0) {
-            o->out_dir = v;
-        } else if (strcmp(a, "--size") == 0) {
-            unsigned w = 0, h = 0;
-            char tail = 0;
-            ok = sscanf(v, "%ux%u%c", &w, &h, &tail) == 2 && w >= 16 && h >= 16 && w <= 4096 && h <= 4096;
-            o->width = w;
-            o->height = h;
-        } else if (strcmp(a, "--sheet") == 0) {
-            ok = parse_u32(v, 1, 64, &o->sheet_tiles);
-        } else if (strcmp(a, "--yaw") == 0) {
-            ok = parse_float(v, -360.0f, 360.0f, &o->yaw);
-        } else if (strcmp(a, "--pitch") == 0) {
-            ok = parse_float(v, -80.0f, 80.0f, &o->pitch);
-        } else if (strcmp(a, "--start") == 0) {
-            ok = parse_float(v, 0.0f, 100000.0f, &o->start);
-        } else if (strcmp(a, "--speed") == 0) {
-            ok = parse_float(v, 0.05f, 8.0f, &o->speed);
-        } else if (strcmp(a, "--cape-model") == 0) {
-            o->cape_model = v;
-        } else if (strcmp(a, "--cape-precision") == 0) {
-            ok = parse_precision(v, &o->cape_precision);
-        } else {
-            fprintf(stderr, "unknown option '%s'\n", a);
+        }
+        const int at = optind - 1 >= 1 ? optind - 1 : before;
+        const char *arg = at < argc ? argv[at] : "";
+        if (c == ':') {
+            fprintf(stderr, "%s: %s needs a value (%s --help lists the options)\n", program,
+                    optopt > 0 ? option_name(optopt, name, sizeof name) : arg, program);
             return 2;
         }
-        if (!ok) {
-            fprintf(stderr, "bad value '%s' for %s\n", v, a);
+        if (c == '?') {
+            const bool is_long = strncmp(arg, "--", 2) == 0;
+            if (optopt > 0 && is_long) {
+                fprintf(stderr, "%s: %s takes no value (%s --help lists the options)\n", program,
+                        option_name(optopt, name, sizeof name), program);
+            } else if (optopt == 0 && is_long) {
+                const size_t len = strcspn(arg + 2, "=");
+                int matches = 0;
+                for (int k = 0; table[k].name; ++k) {
+                    matches += strncmp(table[k].name, arg + 2, len) == 0;
+                }
+                fprintf(stderr, "%s: %s option '%.*s' (%s --help lists the options)\n", program,
+                        matches > 1 ? "ambiguous" : "unknown", (int)(len + 2), arg, program);
+            } else {
+                fprintf(stderr, "%s: unknown option '%s' (%s --help lists the options)\n", program, arg, program);
+            }
             return 2;
         }
-        i += takes;
+        if (!weft_avatar_sample_apply(c, optarg, o)) {
+            fprintf(stderr, "%s: bad value '%s' for %s\n", program, optarg ? optarg : "",
+                    option_name(c, name, sizeof name));
+            return 2;
+        }
+    }
+    if (optind < argc) {
+        fprintf(stderr, "%s: unexpected argument '%s' (%s --help lists the options)\n", program, argv[optind],
+                program);
+        return 2;
     }
     return 0;
 }

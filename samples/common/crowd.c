@@ -586,12 +586,6 @@ int weft_avatar_sample_crowd(const weft_avatar_sample_options *o)
 /* ---------------------------------------------------------------------------------------- */
 /* Options (available in every build so that the parser and the usage text do not change).   */
 
-bool weft_avatar_sample_is_crowd_option(const char *name)
-{
-    return strcmp(name, "--crowd") == 0 || strcmp(name, "--lod-table") == 0 || strcmp(name, "--crowd-mve") == 0 ||
-           strcmp(name, "--crowd-budget") == 0;
-}
-
 bool weft_avatar_sample_crowd_option(const char *name, const char *value, weft_avatar_sample_options *o)
 {
     char *end = NULL;
@@ -614,15 +608,4 @@ bool weft_avatar_sample_crowd_option(const char *name, const char *value, weft_a
     }
     *(strcmp(name, "--crowd-mve") == 0 ? &o->crowd_mve : &o->crowd_budget) = f;
     return true;
-}
-
-void weft_avatar_sample_crowd_usage(FILE *out)
-{
-    fprintf(out, "  --crowd N               crowd mode: N (1..256) avatars in a grid, garments at mixed levels of detail\n"
-                 "                          picked from the LOD table by depth; writes OUT/crowd.png (no frames)\n"
-                 "  --lod-table FILE        the measured LOD table for --crowd (default samples/data/lod_garment.csv,\n"
-                 "                          else samples/data/lod.csv; paths from the source root)\n"
-                 "  --crowd-mve CM          accuracy target of the front row (default: the best usable level's MVE);\n"
-                 "                          it grows by 100%% per metre of depth\n"
-                 "  --crowd-budget MS       per-character ms/frame budget for the pick (default none)\n");
 }

@@ -72,9 +72,28 @@ const char *weft_sample_mocap_dir(void);
  * Fails with WEFT_ERROR_INVALID_ARGUMENT naming the spec when it is neither or too long, and
  * with WEFT_ERROR_IO when a library clip does not exist. */
 weft_result weft_sample_motion_path(const char *spec, char *out_path, size_t size);
-/* Parses the options above from argv[first..argc). Returns 0, or 2 after printing the usage
- * (unknown option, bad value) to stderr, or 1 for --help (usage printed to stdout). */
-int weft_avatar_sample_parse(int argc, char **argv, int first, weft_avatar_sample_options *options);
+/* The sample's command-line options, one table from which both the parsing (getopt_long) and the
+ * help are made; `weft render` merges it with its own options. */
+typedef struct weft_sample_option {
+    const char *name;           /* the long name without "--" */
+    const char *value;          /* the value's name in the help ("N", "on|off"); NULL: a flag */
+    int id;                     /* what weft_avatar_sample_apply takes; 1 .. WEFT_AVATAR_SAMPLE_OPTION_ID_END - 1 */
+    const char *help;           /* its help, lines separated by '\n' (at most 72 columns); NULL: not listed */
+} weft_sample_option;
+/* The ids of the sample's options are below this (and below ':', '?' and 'h', getopt's own
+ * returns); a caller merging the table with its own options numbers those from here up. */
+#define WEFT_AVATAR_SAMPLE_OPTION_ID_END 50
+/* Ends with an entry whose name is NULL. */
+extern const weft_sample_option weft_avatar_sample_option_table[];
+/* Sets the option `id` of the table with its value (NULL for a flag). False when the value is
+ * not one the option takes (the caller reports "bad value 'V' for --NAME"). */
+bool weft_avatar_sample_apply(int id, const char *value, weft_avatar_sample_options *options);
+/* Parses argv[1..argc) into options with getopt_long (--name value, --name=value, unambiguous
+ * prefixes). Returns 0; 1 for -h/--help (nothing printed: the caller prints the usage); 2 after
+ * printing one line naming `program` and the option to stderr (unknown option, missing or bad
+ * value, a positional argument). */
+int weft_avatar_sample_parse(const char *program, int argc, char **argv, weft_avatar_sample_options *options);
+/* The help: "usage: PROGRAM [options]", a line about the sample, the options of the table. */
 void weft_avatar_sample_usage(FILE *out, const char *program);
 /* Runs the sample; returns a process exit status (0 on success) and prints per-frame timing. */
 int weft_avatar_sample_run(const weft_avatar_sample_options *options);
@@ -169,11 +188,10 @@ int weft_avatar_sample_docs_sheet(const char *path, uint32_t tile_size);
 /* Crowd mode (crowd.c): N avatars in a grid, each garment at the level the measured LOD table
  * picks for its distance; prints total and per-level cloth ms/frame, writes OUT/crowd.png. */
 int weft_avatar_sample_crowd(const weft_avatar_sample_options *options);
-/* Its options (--crowd, --lod-table, --crowd-mve, --crowd-budget) for weft_avatar_sample_parse:
- * whether `name` is one, and parsing its value (false on a bad value). */
-bool weft_avatar_sample_is_crowd_option(const char *name);
+/* Its options (--crowd, --lod-table, --crowd-mve, --crowd-budget; listed in
+ * weft_avatar_sample_option_table): parses the value of `name` ("--crowd"), false on a bad value
+ * (weft_avatar_sample_apply calls it). */
 bool weft_avatar_sample_crowd_option(const char *name, const char *value, weft_avatar_sample_options *options);
-void weft_avatar_sample_crowd_usage(FILE *out);
 
 #if WEFT_RENDER_HAVE_SAMPLE
 #include "weft/body.h"

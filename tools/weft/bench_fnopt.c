@@ -31,6 +31,37 @@ static double traj_e3d(const float *pos, const float *ref, uint32_t frames, size
 const char weft_bench_fnopt_help[] =
     "FNOpt ms/frame and e3D: learned optimizer (fp32/fp16/int8) vs GD/Adam/L-BFGS at 32/64/100";
 
+enum { OPT_MODEL = 1, OPT_FRAMES, OPT_RES, OPT_ITERS, OPT_LEARNED_ONLY, OPT_PRECISION, OPT_GT, OPT_MATERIAL };
+
+static const cli_option k_options[] = {
+    {"res", "32,64,100", OPT_RES, "up to 16 grid resolutions, each 10..1024 (default 32,64,100)"},
+    {"iters", "10,100", OPT_ITERS, "up to 16 inner iteration counts, each 1..10000 (default 10)"},
+    {"frames", "N", OPT_FRAMES, "frames per run, 0..100000 (0: the whole trajectory; default 20)"},
+    {"model", "PATH", OPT_MODEL, "the FNOpt weights (default tools/fnopt/models/fnopt_32.safetensors)"},
+    {"learned-only", NULL, OPT_LEARNED_ONLY, "skip the classical optimizers (GD, Adam, L-BFGS)"},
+    {"precision", "fp32,fp16,int8", OPT_PRECISION, "the learned optimizer's precisions (default fp32)"},
+    {"material", "Y,S,B", OPT_MATERIAL, "the energy coefficients, each 0..1e6 (default 1000,8,0.5)"},
+    {"gt", NULL, OPT_GT, "also the e3D against the XPBD reference (cached under data/fnopt/gt/)"},
+    {0},
+};
+
+static void notes(FILE *out)
+{
+    fprintf(out, "CSV columns:\n"
+                 "  e3d_vs_fp32: against the fp32 learned run at the same res and iters (run first)\n"
+                 "  e3d_xpbd:    against the XPBD reference (--gt; cached under data/fnopt/gt/)\n");
+}
+
+static const cli_command k_command = {
+    .tool = "weft bench fnopt",
+    .synopsis = "weft bench fnopt [--res 32,64,100] [--iters 10,100] [--frames 20] [--model PATH]\n"
+                "                 [--learned-only] [--precision fp32,fp16,int8] [--material Y,S,B] [--gt]",
+    .about = "FNOpt ms/frame and e3D: the learned optimizer (fp32/fp16/int8) against GD, Adam and L-BFGS on the\n"
+             "handle scene. CSV on stdout.",
+    .options = k_options,
+    .notes = notes,
+};
+
 int weft_bench_fnopt(int argc, char **argv)
 {
     const char *model_path = "tools/fnopt/models/fnopt_32.safetensors";
@@ -40,48 +71,63 @@ int weft_bench_fnopt(int argc, char **argv)
     bool classical = true, with_gt = false;
     const char *prec_list = "fp32";
     float Y = 1000.0f, S = 8.0f, B = 0.5f;
-    for (int i = 1; i < argc; ++i) {
-        const char *v = i + 1 < argc ? argv[i + 1] : NULL;
-        if (strcmp(argv[i], "--model") == 0 && v) {
-            model_path = v, ++i;
-        } else if (strcmp(argv[i], "--frames") == 0 && v) {
-            if (!cli_u32("weft bench fnopt", argv[i], v, 0, 100000, &frames)) {
+    cli_parser cp;
+    if (!cli_start(&cp, &k_command, argc, argv)) {
+        return 2;
+    }
+    const char *v;
+    for (int id; (id = cli_next(&cp, &v)) != CLI_END;) {
+        const char *a = cli_name(&k_command, id);
+        switch (id) {
+        case CLI_HELP:
+            cli_usage(&k_command, stdout);
+            return 0;
+        case CLI_BAD:
+            return 2;
+        case OPT_MODEL:
+            model_path = v;
+            break;
+        case OPT_FRAMES:
+            if (!cli_u32(k_command.tool, a, v, 0, 100000, &frames)) {
                 return 2;
             }
-            ++i;
-        } else if (strcmp(argv[i], "--res") == 0 && v) {
-            if (!cli_u32_list("weft bench fnopt", argv[i], v, 10, 1024, res_list, 16, &res_count)) {
+            break;
+        case OPT_RES:
+            if (!cli_u32_list(k_command.tool, a, v, 10, 1024, res_list, 16, &res_count)) {
                 return 2;
             }
-            ++i;
-        } else if (strcmp(argv[i], "--iters") == 0 && v) {
-            if (!cli_u32_list("weft bench fnopt", argv[i], v, 1, 10000, iters_list, 16, &iters_count)) {
+            break;
+        case OPT_ITERS:
+            if (!cli_u32_list(k_command.tool, a, v, 1, 10000, iters_list, 16, &iters_count)) {
                 return 2;
             }
-            ++i;
-        } else if (strcmp(argv[i], "--learned-only") == 0) {
+            break;
+        case OPT_LEARNED_ONLY:
             classical = false;
-        } else if (strcmp(argv[i], "--precision") == 0 && v) {
-            prec_list = v, ++i;
-        } else if (strcmp(argv[i], "--gt") == 0) {
+            break;
+        case OPT_PRECISION:
+            prec_list = v;
+            break;
+        case OPT_GT:
             with_gt = true;
-        } else if (strcmp(argv[i], "--material") == 0 && v) {
+            break;
+        case OPT_MATERIAL: {
             float m[3];
-            if (!cli_floats("weft bench fnopt", argv[i], v, 0.0f, 1e6f, m, 3)) {
+            if (!cli_floats(k_command.tool, a, v, 0.0f, 1e6f, m, 3)) {
                 return 2;
             }
-            Y = m[0], S = m[1], B = m[2], ++i;
-        } else {
-            printf("usage: weft bench fnopt [--res 32,64,100] [--iters 10,100] [--frames 20] [--model PATH]\n"
-                   "                        [--learned-only] [--precision fp32,fp16,int8] [--material Y,S,B] [--gt]\n"
-                   "  --res:       up to 16 grid resolutions, each 10..1024\n"
-                   "  --iters:     up to 16 inner iteration counts, each 1..10000\n"
-                   "  --frames:    frames per run, 0..100000 (0: the whole trajectory)\n"
-                   "  --material:  the energy coefficients, each 0..1e6 (default 1000,8,0.5)\n"
-                   "  e3d_vs_fp32: against the fp32 learned run at the same res and iters (run first)\n"
-                   "  e3d_xpbd:    against the XPBD reference (--gt; cached under data/fnopt/gt/)\n");
-            return strcmp(argv[i], "--help") == 0 ? 0 : 2;
+            Y = m[0], S = m[1], B = m[2];
+            break;
         }
+        default:
+            return cli_fail(&k_command, "internal error: an option without a case");
+        }
+    }
+    char **rest;
+    if (cli_rest(&cp, &rest) > 0) {
+        char what[512];
+        snprintf(what, sizeof what, "unexpected argument '%s'", rest[0]);
+        return cli_fail(&k_command, what);
     }
     weft_precision precs[WEFT_PRECISION_COUNT];
     uint32_t prec_count = 0;

@@ -41,17 +41,6 @@ typedef struct fr_cell {
     double pose, step, method, constraints, ccd; /* medians, ms */
 } fr_cell;
 
-static void usage(FILE *f)
-{
-    fprintf(f, "usage: weft bench frame [--motions walk,mocap:CLIP,...] [--resolutions 1k,4k]\n"
-               "                        [--methods model:int8,model:fp16,model:fp32,xpbd-fast:5,xpbd-fast:10,lbs]\n"
-               "                        [--frames N] [--md FILE]\n"
-               "  Defaults: the procedural walk and the mocap clip walk_cmu07_01, 1k and 4k, those six methods,\n"
-               "  60 measured frames (1..100000) after a 30-frame settle. The learned model is the shipped\n"
-               "  garment model at each precision. --md writes the table into FILE between <!-- frame-table -->\n"
-               "  markers (docs/MODEL_BENCH.md).\n");
-}
-
 static bool parse_method(const char *item, size_t n, fr_method *m)
 {
     char buf[32];
@@ -211,38 +200,82 @@ static bool list_item(const char *list, uint32_t index, char *buf, size_t cap)
     return true;
 }
 
+enum { OPT_MOTIONS = 1, OPT_RESOLUTIONS, OPT_METHODS, OPT_FRAMES, OPT_MD };
+
+static const cli_option k_options[] = {
+    {"motions", "walk,mocap:CLIP,...", OPT_MOTIONS,
+     "the motions, comma-separated (default: the procedural walk and the mocap\n"
+     "clip walk_cmu07_01)"},
+    {"resolutions", "1k,4k", OPT_RESOLUTIONS,
+     "the T-shirt's resolutions, comma-separated: 1k, 4k, 16k, 40k\n"
+     "(default 1k,4k)"},
+    {"methods", "M,...", OPT_METHODS,
+     "at most 8 of model:int8|fp16|fp32 (the shipped garment model at that\n"
+     "precision), xpbd-fast:S, xpbd:S (S substeps, 1..1000), lbs (default\n"
+     "model:int8,model:fp16,model:fp32,xpbd-fast:5,xpbd-fast:10,lbs)"},
+    {"frames", "N", OPT_FRAMES, "measured frames after a 30-frame settle, 1..100000 (default 60)"},
+    {"md", "FILE", OPT_MD, "write the table into FILE between <!-- frame-table --> markers\n(docs/MODEL_BENCH.md)"},
+    {0},
+};
+
+static const cli_command k_command = {
+    .tool = "weft bench frame",
+    .synopsis = "weft bench frame [--motions walk,mocap:CLIP,...] [--resolutions 1k,4k]\n"
+                "                 [--methods model:int8,model:fp16,model:fp32,xpbd-fast:5,xpbd-fast:10,lbs]\n"
+                "                 [--frames N] [--md FILE]",
+    .about = "What a worn garment costs a game per frame, split by stage: the default avatar wears the T-shirt\n"
+             "(the render sample's worn-garment recipe), settles into each motion over 30 frames and is\n"
+             "stepped --frames frames by each method at each resolution, one thread. Per cell the medians\n"
+             "of posing the body, the whole cloth step, the method, the constraint stage and CCD; then the\n"
+             "ratios learned int8 / fast XPBD-10, int8 / fp32 and the network's share of the int8 step.\n"
+             "Run from the repository root (the shipped models are read from tools/train/models).",
+    .options = k_options,
+    .notes = NULL,
+};
+
 int weft_bench_frame(int argc, char **argv)
 {
     const char *motions = "walk,mocap:walk_cmu07_01", *resolutions = "1k,4k", *md = NULL;
     const char *methods_text = "model:int8,model:fp16,model:fp32,xpbd-fast:5,xpbd-fast:10,lbs";
     uint32_t frames = 60;
-    for (int i = 1; i < argc; i += 2) {
-        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
-        if (!strcmp(a, "--help") || !strcmp(a, "-h")) {
-            usage(stdout);
+    cli_parser parser;
+    if (!cli_start(&parser, &k_command, argc, argv)) {
+        return 2;
+    }
+    const char *v;
+    for (int id; (id = cli_next(&parser, &v)) != CLI_END;) {
+        switch (id) {
+        case CLI_HELP:
+            cli_usage(&k_command, stdout);
             return 0;
-        }
-        if (!v) {
-            fprintf(stderr, "weft bench frame: %s needs a value\n", a);
+        case CLI_BAD:
             return 2;
-        }
-        if (!strcmp(a, "--motions")) {
+        case OPT_MOTIONS:
             motions = v;
-        } else if (!strcmp(a, "--resolutions")) {
+            break;
+        case OPT_RESOLUTIONS:
             resolutions = v;
-        } else if (!strcmp(a, "--methods")) {
+            break;
+        case OPT_METHODS:
             methods_text = v;
-        } else if (!strcmp(a, "--md")) {
+            break;
+        case OPT_MD:
             md = v;
-        } else if (!strcmp(a, "--frames")) {
-            if (!cli_u32("weft bench frame", a, v, 1, 100000, &frames)) {
+            break;
+        case OPT_FRAMES:
+            if (!cli_u32(k_command.tool, cli_name(&k_command, id), v, 1, 100000, &frames)) {
                 return 2;
             }
-        } else {
-            fprintf(stderr, "weft bench frame: unknown option '%s'\n", a);
-            usage(stderr);
-            return 2;
+            break;
+        default:
+            return cli_fail(&k_command, "internal error: an option without a case");
         }
+    }
+    char **rest;
+    if (cli_rest(&parser, &rest) > 0) {
+        char what[300];
+        snprintf(what, sizeof what, "unexpected argument '%.200s'", rest[0]);
+        return cli_fail(&k_command, what);
     }
     fr_method methods[FR_MAX];
     uint32_t nm = 0;

@@ -9,6 +9,8 @@
 #include "kernels/kernels.h"
 #include "kernels/kernels_internal.h"
 
+#include "support_cli.h"
+
 #include <math.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -452,31 +454,61 @@ static const char *const k_doc_intro[] = {
     "```\n",
     NULL};
 
+enum { OPT_QUICK = 1, OPT_ISA, OPT_JSON, OPT_MD };
+
+static const cli_option k_options[] = {
+    {"quick", NULL, OPT_QUICK, "short timings (about 10x faster, noisier)"},
+    {"isa", "scalar|avx2|avx512|neon", OPT_ISA, "only this level (default: every level this CPU runs)"},
+    {"md", NULL, OPT_MD, "Markdown report (docs/KERNELS.md is made from it)"},
+    {"json", NULL, OPT_JSON, "one JSON object (not with --md)"},
+    {0},
+};
+
+static const cli_command k_command = {
+    .tool = "weft bench kernels",
+    .synopsis = "weft bench kernels [--quick] [--isa scalar|avx2|avx512|neon] [--json | --md]",
+    .about = "Single-thread throughput of every fp32 kernel of every level this CPU runs, at the cloth model's\n"
+             "shapes, next to the measured fp32 FMA and int8 dot-product peaks of the same level.",
+    .options = k_options,
+};
+
 int weft_bench_kernels(int argc, char **argv)
 {
     bool quick = false, json = false, md = false;
     const char *only = NULL;
-    for (int i = 1; i < argc; ++i) {
-        if (strcmp(argv[i], "--quick") == 0) {
-            quick = true;
-        } else if (strcmp(argv[i], "--json") == 0) {
-            json = true;
-        } else if (strcmp(argv[i], "--md") == 0) {
-            md = true;
-        } else if (strcmp(argv[i], "--isa") == 0 && i + 1 < argc) {
-            only = argv[++i];
-        } else if (strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "-h") == 0) {
-            printf("usage: weft bench kernels [--quick] [--isa scalar|avx2|avx512|neon] [--json | --md]\n"
-                   "  %s\n"
-                   "  --quick  short timings (about 10x faster, noisier)\n"
-                   "  --md     Markdown report (docs/KERNELS.md is made from it)\n"
-                   "  --json   one JSON object\n",
-                   weft_bench_kernels_help);
+    cli_parser cp;
+    if (!cli_start(&cp, &k_command, argc, argv)) {
+        return 2;
+    }
+    const char *v;
+    for (int id; (id = cli_next(&cp, &v)) != CLI_END;) {
+        switch (id) {
+        case CLI_HELP:
+            cli_usage(&k_command, stdout);
             return 0;
-        } else {
-            fprintf(stderr, "weft bench kernels: unknown option '%s' (see --help)\n", argv[i]);
+        case CLI_BAD:
             return 2;
+        case OPT_QUICK:
+            quick = true;
+            break;
+        case OPT_JSON:
+            json = true;
+            break;
+        case OPT_MD:
+            md = true;
+            break;
+        case OPT_ISA:
+            only = v;
+            break;
+        default:
+            return cli_fail(&k_command, "internal error: an option without a case");
         }
+    }
+    char **rest;
+    if (cli_rest(&cp, &rest) > 0) {
+        char what[512];
+        snprintf(what, sizeof what, "unexpected argument '%s'", rest[0]);
+        return cli_fail(&k_command, what);
     }
     if (json && md) {
         fprintf(stderr, "weft bench kernels: --json and --md are exclusive\n");

@@ -83,46 +83,84 @@ typedef struct lod_opts {
     bool scale, scale_only, crop_cost;
 } lod_opts;
 
-static void usage(FILE *f)
-{
-    fprintf(f,
-            "usage: weft bench lod --data DIR [--split test|val|train|all] [--models DIR] [--out DIR] [--csv-dir DIR]\n"
-            "                      [--frames N] [--max-seqs N] [--xpbd 5,10,20] [--no-scale] [--scale-levels a,b,...]\n"
-            "                      [--scale-frames N] [--scale-res 1k|4k] [--scale-only] [--crops model,8,4:cells]\n"
-            "                      [--scenario S] [--name NAME] [--tether-cm X] [--strain-limit P] [--push-cm X]\n"
-            "                      [--sim-data DIR]\n"
-            "  Measures every level (LBS, XPBD at the given substeps, each DIR/*.safetensors model at\n"
-            "  fp32/fp16/int8 with and without CCD) on the split through `weft eval --json`, writes CSVDIR/lod.csv\n"
-            "  (loadable by weft_lod_table_load_file) and the table in OUT/LOD.md, then measures the\n"
-            "  per-character step cost of 1, 8 and 64 walking avatars at the --scale-levels (default: lbs,\n"
-            "  xpbd-5, every model at int8 and fp32 with CCD and at fp32 without). Default OUT: docs.\n"
-            "  --csv-dir DIR where the table goes (default: samples/data, where the samples load it, when OUT is\n"
-            "                docs; else OUT)\n"
-            "  --max-seqs N  at most N sequences of each scenario (the first by name), as bench chart\n"
-            "  --sim-data DIR  resolution levels: each sequence is also simulated on its coarser mesh in DIR\n"
-            "                (the sequence of the same scenario and index there, `weft simgen --resolution-series`)\n"
-            "                and scored on its own mesh (weft eval --sim-mesh) for LBS, the first XPBD and every\n"
-            "                model at its own crop; the level's resolution is the vertex share (named -rSHARE).\n"
-            "                Up to %d times.\n"
-            "  --scale-only  skip the table: reuse CSVDIR/lod.csv and regenerate only the per-character section\n"
-            "  --crops L     collider crops to measure every model level at (default: model, the model's own):\n"
-            "                'model' or a margin in cm (box rule, as trained), optionally :cells (finer rule) and\n"
-            "                @N (keep at most N triangles, the nearest), e.g. model,8,8:cells,model@3000; at most %d.\n"
-            "                Levels are named <model>-<precision>[-noccd][-cropCM|-cellsCM|-cells][-capN]\n"
-            "  --crop-cost   only measure the step cost of the --crops on the walking default avatar (T-shirt\n"
-            "                --scale-res, --scale-frames timed frames, CCD off, fp32): one garment per crop, stepped\n"
-            "                in turn each frame; prints median and min ms per step and the mean kept tokens.\n"
-            "                --crop-model FILE (default MODELS/game.safetensors)\n"
-            "  --scenario S  only the split's sequences of scenario S (e.g. garment)\n"
-            "  --name NAME   write CSVDIR/NAME.csv and the tables into their own sections of OUT/LOD.md (default lod)\n"
-            "  --tether-cm X, --strain-limit P  also measure LBS, the first XPBD and every model's int8 (CCD on and\n"
-            "                off) with tethers of X cm and/or a P %% strain limit, each 0.01..1000 (levels named\n"
-            "                ...-tX-sP)\n"
-            "  --push-cm X   ... and/or the collider push at X cm, 0.01..10 (levels named ...-pX; docs/CCD.md)\n"
-            "  --frames N, --max-seqs N  0..1000000 (0: whole sequences, every sequence); --scale-frames N\n"
-            "                1..1000000; --xpbd: up to 8 substep counts, each 1..1000\n",
-            LOD_MAX_SIM, LOD_MAX_CROPS);
-}
+#define LOD_STR_(x) #x
+#define LOD_STR(x) LOD_STR_(x)
+
+enum {
+    OPT_DATA = 1, OPT_SPLIT, OPT_MODELS, OPT_OUT, OPT_CSV_DIR, OPT_FRAMES, OPT_MAX_SEQS, OPT_XPBD, OPT_NO_SCALE,
+    OPT_SCALE_LEVELS, OPT_SCALE_FRAMES, OPT_SCALE_RES, OPT_SCALE_ONLY, OPT_CROPS, OPT_CROP_COST, OPT_CROP_MODEL,
+    OPT_SCENARIO, OPT_NAME, OPT_TETHER_CM, OPT_STRAIN_LIMIT, OPT_PUSH_CM, OPT_SIM_DATA,
+};
+
+static const cli_option k_options[] = {
+    {"data", "DIR", OPT_DATA, "the simgen data folder (required, except with --scale-only or --crop-cost)"},
+    {"split", "test|val|train|all", OPT_SPLIT, "the split measured (default test)"},
+    {"models", "DIR", OPT_MODELS, "the models measured, DIR/*.safetensors (default tools/train/models)"},
+    {"out", "DIR", OPT_OUT, "where LOD.md is (default docs)"},
+    {"csv-dir", "DIR", OPT_CSV_DIR,
+     "where the table goes (default: samples/data, where the samples load it,\n"
+     "when OUT is docs; else OUT)"},
+    {"frames", "N", OPT_FRAMES, "frames of each sequence, 0..1000000 (0: whole sequences)"},
+    {"max-seqs", "N", OPT_MAX_SEQS,
+     "at most N sequences of each scenario (the first by name), as bench\n"
+     "chart; 0..1000000 (0: every sequence)"},
+    {"xpbd", "5,10,20", OPT_XPBD, "up to 8 substep counts, each 1..1000 (default 5,10,20)"},
+    {"no-scale", NULL, OPT_NO_SCALE, "skip the per-character step cost"},
+    {"scale-levels", "a,b,...", OPT_SCALE_LEVELS,
+     "the levels of the per-character step cost (default: lbs, xpbd-5, every\n"
+     "model at int8 and fp32 with CCD and at fp32 without)"},
+    {"scale-frames", "N", OPT_SCALE_FRAMES, "timed frames of the per-character step cost, 1..1000000 (default 4)"},
+    {"scale-res", "1k|4k|16k|40k", OPT_SCALE_RES, "the T-shirt of the per-character step cost (default 1k)"},
+    {"scale-only", NULL, OPT_SCALE_ONLY,
+     "skip the table: reuse CSVDIR/lod.csv and regenerate only the\n"
+     "per-character section"},
+    {"crops", "L", OPT_CROPS,
+     "collider crops to measure every model level at (default: model, the\n"
+     "model's own): 'model' or a margin in cm (box rule, as trained),\n"
+     "optionally :cells (finer rule) and @N (keep at most N triangles, the\n"
+     "nearest), e.g. model,8,8:cells,model@3000; at most " LOD_STR(LOD_MAX_CROPS) ". Levels are\n"
+     "named <model>-<precision>[-noccd][-cropCM|-cellsCM|-cells][-capN]"},
+    {"crop-cost", NULL, OPT_CROP_COST,
+     "only measure the step cost of the --crops on the walking default avatar\n"
+     "(T-shirt --scale-res, --scale-frames timed frames, CCD off, fp32): one\n"
+     "garment per crop, stepped in turn each frame; prints median and min ms\n"
+     "per step and the mean kept tokens"},
+    {"crop-model", "FILE", OPT_CROP_MODEL, "the model of --crop-cost (default MODELS/game.safetensors)"},
+    {"scenario", "S", OPT_SCENARIO, "only the split's sequences of scenario S (e.g. garment)"},
+    {"name", "NAME", OPT_NAME,
+     "write CSVDIR/NAME.csv and the tables into their own sections of\n"
+     "OUT/LOD.md ([a-z0-9_-], at most 40 characters; default lod)"},
+    {"tether-cm", "X", OPT_TETHER_CM,
+     "also measure LBS, the first XPBD and every model's int8 (CCD on and off)\n"
+     "with tethers of X cm, 0.01..1000 (levels named ...-tX-sP)"},
+    {"strain-limit", "P", OPT_STRAIN_LIMIT, "... and/or with a P % strain limit, 0.01..1000"},
+    {"push-cm", "X", OPT_PUSH_CM,
+     "... and/or the collider push at X cm, 0.01..10 (levels named ...-pX;\n"
+     "docs/CCD.md)"},
+    {"sim-data", "DIR", OPT_SIM_DATA,
+     "resolution levels: each sequence is also simulated on its coarser mesh\n"
+     "in DIR (the sequence of the same scenario and index there,\n"
+     "`weft simgen --resolution-series`) and scored on its own mesh\n"
+     "(weft eval --sim-mesh) for LBS, the first XPBD and every model at its\n"
+     "own crop; the level's resolution is the vertex share (named -rSHARE).\n"
+     "Up to " LOD_STR(LOD_MAX_SIM) " times."},
+    {0},
+};
+
+static const cli_command k_command = {
+    .tool = "weft bench lod",
+    .synopsis = "weft bench lod --data DIR [--split test|val|train|all] [--models DIR] [--out DIR]\n"
+                "               [--csv-dir DIR] [--frames N] [--max-seqs N] [--xpbd 5,10,20] [--no-scale]\n"
+                "               [--scale-levels a,b,...] [--scale-frames N] [--scale-res RES] [--scale-only]\n"
+                "               [--crops model,8,4:cells] [--scenario S] [--name NAME] [--tether-cm X]\n"
+                "               [--strain-limit P] [--push-cm X] [--sim-data DIR]...\n"
+                "               [--crop-cost [--crop-model FILE]]",
+    .about = "Measures every level (LBS, XPBD at the given substeps, each DIR/*.safetensors model at\n"
+             "fp32/fp16/int8 with and without CCD) on the split through `weft eval --json`, writes CSVDIR/lod.csv\n"
+             "(loadable by weft_lod_table_load_file) and the table in OUT/LOD.md, then measures the\n"
+             "per-character step cost of 1, 8 and 64 walking avatars at the --scale-levels. Default OUT: docs.",
+    .options = k_options,
+};
 
 static double now_s(void)
 {
@@ -1001,40 +1039,50 @@ int weft_bench_lod(int argc, char **argv)
                   .scale_res = "1k", .name = "lod"};
     char command[2048];
     bench_command_line(command, sizeof command, "weft bench lod", argc, argv);
-    for (int i = 1; i < argc; ++i) {
-        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
-        if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
-            usage(stdout);
+    cli_parser cp;
+    if (!cli_start(&cp, &k_command, argc, argv)) {
+        return 2;
+    }
+    const char *v;
+    for (int id; (id = cli_next(&cp, &v)) != CLI_END;) {
+        const char *a = cli_name(&k_command, id);
+        switch (id) {
+        case CLI_HELP:
+            cli_usage(&k_command, stdout);
             return 0;
-        } else if (strcmp(a, "--no-scale") == 0) {
-            o.scale = false;
-            continue;
-        } else if (strcmp(a, "--scale-only") == 0) {
-            o.scale_only = true;
-            continue;
-        } else if (strcmp(a, "--crop-cost") == 0) {
-            o.crop_cost = true;
-            continue;
-        } else if (!v) {
-            fprintf(stderr, "weft bench lod: %s needs a value\n", a);
-            usage(stderr);
+        case CLI_BAD:
             return 2;
-        }
-        if (strcmp(a, "--data") == 0) {
+        case OPT_NO_SCALE:
+            o.scale = false;
+            break;
+        case OPT_SCALE_ONLY:
+            o.scale_only = true;
+            break;
+        case OPT_CROP_COST:
+            o.crop_cost = true;
+            break;
+        case OPT_DATA:
             o.data = v;
-        } else if (strcmp(a, "--split") == 0) {
+            break;
+        case OPT_SPLIT:
             o.split = v;
-        } else if (strcmp(a, "--models") == 0) {
+            break;
+        case OPT_MODELS:
             o.models = v;
-        } else if (strcmp(a, "--out") == 0) {
+            break;
+        case OPT_OUT:
             o.out = v;
-        } else if (strcmp(a, "--csv-dir") == 0) {
+            break;
+        case OPT_CSV_DIR:
             o.csv_dir = v;
-        } else if (strcmp(a, "--crop-model") == 0) {
+            break;
+        case OPT_CROP_MODEL:
             o.cost_model = v;
-        } else if (strcmp(a, "--scenario") == 0) {
+            break;
+        case OPT_SCENARIO:
             o.scenario = v;
-        } else if (strcmp(a, "--name") == 0) {
+            break;
+        case OPT_NAME:
             o.name = v;
             for (const char *p = v; *p; ++p) {
                 if (!((*p >= 'a' && *p <= 'z') || (*p >= '0' && *p <= '9') || *p == '_' || *p == '-') || p - v > 40) {
@@ -1042,45 +1090,60 @@ int weft_bench_lod(int argc, char **argv)
                     return 2;
                 }
             }
-        } else if (strcmp(a, "--push-cm") == 0) {
-            if (!cli_double("weft bench lod", a, v, 0.01, 10.0, &o.push_cm)) {
+            break;
+        case OPT_PUSH_CM:
+            if (!cli_double(k_command.tool, a, v, 0.01, 10.0, &o.push_cm)) {
                 return 2;
             }
-        } else if (strcmp(a, "--tether-cm") == 0 || strcmp(a, "--strain-limit") == 0) {
-            if (!cli_double("weft bench lod", a, v, 0.01, 1000.0, a[2] == 't' ? &o.tether_cm : &o.strain_pct)) {
+            break;
+        case OPT_TETHER_CM:
+        case OPT_STRAIN_LIMIT:
+            if (!cli_double(k_command.tool, a, v, 0.01, 1000.0, id == OPT_TETHER_CM ? &o.tether_cm : &o.strain_pct)) {
                 return 2;
             }
-        } else if (strcmp(a, "--sim-data") == 0) {
+            break;
+        case OPT_SIM_DATA:
             if (o.nsim == LOD_MAX_SIM) {
                 fprintf(stderr, "weft bench lod: at most %d --sim-data folders\n", LOD_MAX_SIM);
                 return 2;
             }
             o.sim_data[o.nsim++] = v;
-        } else if (strcmp(a, "--scale-levels") == 0) {
+            break;
+        case OPT_SCALE_LEVELS:
             o.scale_levels = v;
-        } else if (strcmp(a, "--scale-res") == 0) {
+            break;
+        case OPT_SCALE_RES:
             o.scale_res = v;
-        } else if (strcmp(a, "--crops") == 0) {
+            break;
+        case OPT_CROPS:
             if ((o.ncrops = parse_crops(v, o.crops, LOD_MAX_CROPS)) == 0) {
                 fprintf(stderr, "weft bench lod: --crops wants up to %d items like model,8,4:cells,model@3000\n",
                         LOD_MAX_CROPS);
                 return 2;
             }
-        } else if (strcmp(a, "--xpbd") == 0) {
+            break;
+        case OPT_XPBD:
             if (!bench_parse_substeps("lod", a, v, o.xpbd, 8, &o.nxpbd)) {
                 return 2;
             }
-        } else if (strcmp(a, "--frames") == 0 || strcmp(a, "--max-seqs") == 0 || strcmp(a, "--scale-frames") == 0) {
-            if (!bench_parse_u32("lod", a, v, a[2] == 's' ? 1 : 0, 1000000,
-                                 a[2] == 'f' ? &o.frames : a[2] == 'm' ? &o.max_seqs : &o.scale_frames)) {
+            break;
+        case OPT_FRAMES:
+        case OPT_MAX_SEQS:
+        case OPT_SCALE_FRAMES:
+            if (!bench_parse_u32("lod", a, v, id == OPT_SCALE_FRAMES ? 1 : 0, 1000000,
+                                 id == OPT_FRAMES ? &o.frames : id == OPT_MAX_SEQS ? &o.max_seqs : &o.scale_frames)) {
                 return 2;
             }
-        } else {
-            fprintf(stderr, "weft bench lod: unknown option '%s'\n", a);
-            usage(stderr);
-            return 2;
+            break;
+        default:
+            return cli_fail(&k_command, "internal error: an option without a case");
         }
-        ++i;
+    }
+    char **rest;
+    if (cli_rest(&cp, &rest) > 0) {
+        char what[512];
+        snprintf(what, sizeof what, "unexpected argument '%s'", rest[0]);
+        return cli_fail(&k_command, what);
     }
     weft_cloth_resolution res_check;
     if (weft_cloth_resolution_from_name(o.scale_res, &res_check) != WEFT_OK) {
@@ -1099,9 +1162,7 @@ int weft_bench_lod(int argc, char **argv)
         return scale_only(&o, command);
     }
     if (!o.data) {
-        fprintf(stderr, "weft bench lod: --data is required\n");
-        usage(stderr);
-        return 2;
+        return cli_fail(&k_command, "--data is required");
     }
     if (o.nxpbd == 0) {
         static const unsigned k_sub[] = {5, 10, 20};

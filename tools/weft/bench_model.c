@@ -418,28 +418,63 @@ typedef struct row {
 
 #define MAX_ROWS 16
 
+enum { OPT_QUICK = 1, OPT_MD, OPT_NO_TORCH, OPT_AVATAR_VERTICES };
+
+static const cli_option k_options[] = {
+    {"quick", NULL, OPT_QUICK, "fewer frames and shorter timings (faster, noisier)"},
+    {"md", NULL, OPT_MD, "Markdown report"},
+    {"no-torch", NULL, OPT_NO_TORCH, "skip the PyTorch eager column"},
+    {"avatar-vertices", "N", OPT_AVATAR_VERTICES, "the avatar mesh's size aimed at, 2000..40000 (default 8000)"},
+    {0},
+};
+
+static const cli_command k_command = {
+    .tool = "weft bench model",
+    .synopsis = "weft bench model [--quick] [--md] [--no-torch] [--avatar-vertices N]",
+    .about = "The learned model's end-to-end step: ms/frame at fp32/fp16/int8 and 1k/4k vertices, GMAC/s against\n"
+             "the measured peaks, PyTorch eager, batched crowds.",
+    .options = k_options,
+};
+
 int weft_bench_model(int argc, char **argv)
 {
     bool quick = false, md = false, torch = true;
     weft_avatar_def ad = weft_default_avatar_def();
-    for (int i = 1; i < argc; ++i) {
-        if (strcmp(argv[i], "--avatar-vertices") == 0 && i + 1 < argc) {
-            if (!cli_u32("weft bench model", argv[i], argv[i + 1], 2000, 40000, &ad.target_vertices)) {
+    cli_parser cp;
+    if (!cli_start(&cp, &k_command, argc, argv)) {
+        return 2;
+    }
+    const char *v;
+    for (int id; (id = cli_next(&cp, &v)) != CLI_END;) {
+        switch (id) {
+        case CLI_HELP:
+            cli_usage(&k_command, stdout);
+            return 0;
+        case CLI_BAD:
+            return 2;
+        case OPT_AVATAR_VERTICES:
+            if (!cli_u32(k_command.tool, cli_name(&k_command, id), v, 2000, 40000, &ad.target_vertices)) {
                 return 2;
             }
-            ++i;
-        } else if (strcmp(argv[i], "--quick") == 0) {
+            break;
+        case OPT_QUICK:
             quick = true;
-        } else if (strcmp(argv[i], "--md") == 0) {
+            break;
+        case OPT_MD:
             md = true;
-        } else if (strcmp(argv[i], "--no-torch") == 0) {
+            break;
+        case OPT_NO_TORCH:
             torch = false;
-        } else {
-            fprintf(stderr,
-                    "usage: weft bench model [--quick] [--md] [--no-torch] [--avatar-vertices N (2000..40000)]\n%s\n",
-                    weft_bench_model_help);
-            return 2;
+            break;
+        default:
+            return cli_fail(&k_command, "internal error: an option without a case");
         }
+    }
+    char **rest;
+    if (cli_rest(&cp, &rest) > 0) {
+        char what[512];
+        snprintf(what, sizeof what, "unexpected argument '%s'", rest[0]);
+        return cli_fail(&k_command, what);
     }
     const uint32_t warm = quick ? 3 : 10, timed = quick ? 15 : 60;
     const uint32_t crowd_warm = quick ? 2 : 4, crowd_timed = quick ? 5 : 15;

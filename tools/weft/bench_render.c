@@ -2,8 +2,6 @@
  *
  *   weft bench render [--size N] [--repeats N] [--supersample N] [--deterministic]
  *
- *   --size 16..4096 pixels (256), --repeats 1..10000 (10), --supersample 1..4 (2)
- *
  * Mesa picks its driver once per process, so one run measures either llvmpipe (default) or
  * softpipe (--deterministic, what the golden tests use). */
 #include "weft.h"
@@ -21,35 +19,73 @@ const char weft_bench_render_help[] = "time the off-screen renderer on the golde
 #include "core/core.h"
 #include "weft_scenes.h"
 
+enum { OPT_SIZE = 1, OPT_REPEATS, OPT_SUPERSAMPLE, OPT_DETERMINISTIC };
+
+/* the renderer takes 16..4096 pixels a side and supersamples 1..4 times */
+static const cli_option k_options[] = {
+    {"size", "N", OPT_SIZE, "image width and height in pixels, 16..4096 (default 256)"},
+    {"repeats", "N", OPT_REPEATS, "timed renders per scene, 1..10000 (default 10)"},
+    {"supersample", "N", OPT_SUPERSAMPLE, "supersampling factor, 1..4 (default 2)"},
+    {"deterministic", NULL, OPT_DETERMINISTIC,
+     "render with Mesa's softpipe, what the golden tests use, instead of\n"
+     "llvmpipe"},
+    {0},
+};
+
+static const cli_command k_command = {
+    .tool = "weft bench render",
+    .synopsis = "weft bench render [--size N] [--repeats N] [--supersample N] [--deterministic]",
+    .about = "Times the OSMesa off-screen renderer on the golden scenes: mean, min and max ms per scene.\n"
+             "Mesa picks its driver once per process, so one run measures either llvmpipe (default) or\n"
+             "softpipe (--deterministic).",
+    .options = k_options,
+    .notes = NULL,
+};
+
 int weft_bench_render(int argc, char **argv)
 {
     uint32_t size = 256, repeats = 10, supersample = 2;
     bool deterministic = false;
-    for (int i = 1; i < argc; ++i) {
-        /* the renderer takes 16..4096 pixels a side and supersamples 1..4 times */
-        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
-        if (strcmp(a, "--size") == 0 && v) {
-            if (!cli_u32("weft bench render", a, v, 16, 4096, &size)) {
-                return 2;
-            }
-            ++i;
-        } else if (strcmp(a, "--repeats") == 0 && v) {
-            if (!cli_u32("weft bench render", a, v, 1, 10000, &repeats)) {
-                return 2;
-            }
-            ++i;
-        } else if (strcmp(a, "--supersample") == 0 && v) {
-            if (!cli_u32("weft bench render", a, v, 1, 4, &supersample)) {
-                return 2;
-            }
-            ++i;
-        } else if (strcmp(a, "--deterministic") == 0) {
-            deterministic = true;
-        } else {
-            fprintf(stderr, "usage: weft bench render [--size 16..4096 (256)] [--repeats 1..10000 (10)]\n"
-                            "                         [--supersample 1..4 (2)] [--deterministic]\n");
+    cli_parser parser;
+    if (!cli_start(&parser, &k_command, argc, argv)) {
+        return 2;
+    }
+    const char *v;
+    for (int id; (id = cli_next(&parser, &v)) != CLI_END;) {
+        const char *a = cli_name(&k_command, id);
+        switch (id) {
+        case CLI_HELP:
+            cli_usage(&k_command, stdout);
+            return 0;
+        case CLI_BAD:
             return 2;
+        case OPT_SIZE:
+            if (!cli_u32(k_command.tool, a, v, 16, 4096, &size)) {
+                return 2;
+            }
+            break;
+        case OPT_REPEATS:
+            if (!cli_u32(k_command.tool, a, v, 1, 10000, &repeats)) {
+                return 2;
+            }
+            break;
+        case OPT_SUPERSAMPLE:
+            if (!cli_u32(k_command.tool, a, v, 1, 4, &supersample)) {
+                return 2;
+            }
+            break;
+        case OPT_DETERMINISTIC:
+            deterministic = true;
+            break;
+        default:
+            return cli_fail(&k_command, "internal error: an option without a case");
         }
+    }
+    char **rest;
+    if (cli_rest(&parser, &rest) > 0) {
+        char what[300];
+        snprintf(what, sizeof what, "unexpected argument '%.200s'", rest[0]);
+        return cli_fail(&k_command, what);
     }
     weft_context_def cdef = weft_default_context_def();
     weft_context *ctx = NULL;

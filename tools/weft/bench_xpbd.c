@@ -184,57 +184,101 @@ static double rmse(const float *a, const float *b, size_t nv, uint32_t frames)
     return sqrt(s / ((double)nv * frames));
 }
 
+enum { OPT_SCENE = 1, OPT_VERTICES, OPT_FRAMES, OPT_NO_80, OPT_ONLY, OPT_SEED, OPT_FAST };
+
+static const cli_option k_options[] = {
+    {"scene", "sheet|tshirt", OPT_SCENE,
+     "sheet: a sheet dropped onto a box (default); tshirt: a T-shirt on the\n"
+     "default avatar (body and motion drawn from --seed), draped once at\n"
+     "S = 40, then T frames of the motion at every S from that draped state"},
+    {"vertices", "N", OPT_VERTICES, "about N cloth vertices, 64..200000 (default 4096)"},
+    {"frames", "T", OPT_FRAMES, "frames per run, 1..100000 (default 60)"},
+    {"no-80", NULL, OPT_NO_80, "skip S = 80 (and the error against it)"},
+    {"only", "S", OPT_ONLY,
+     "run S substeps alone, 1..1000: cost, proximity-pass counters and a hash\n"
+     "of the trajectory (equal hashes: bit-identical output, for checking\n"
+     "speedups)"},
+    {"seed", "X", OPT_SEED, "the tshirt scene's body and motion, 0..2^64-1 (default 1)"},
+    {"fast", NULL, OPT_FAST,
+     "also run the fast method (WEFT_METHOD_XPBD_FAST: game-style collision\n"
+     "projection) at each S, scored against the reference's S = 40 and 80;\n"
+     "with --only, the fast method alone"},
+    {0},
+};
+
+static const cli_command k_command = {
+    .tool = "weft bench xpbd",
+    .synopsis = "weft bench xpbd [--scene sheet|tshirt] [--vertices N] [--frames T] [--no-80] [--only S]\n"
+                "                [--seed X] [--fast]",
+    .about = "XPBD solver cost per frame at S = 5, 10, 20, 40 (and 80) substeps, one core, and each run's error\n"
+             "against the S = 40 and S = 80 references.",
+    .options = k_options,
+};
+
 int weft_bench_xpbd(int argc, char **argv)
 {
     uint32_t vertices = 4096, frames = 60, only = 0;
     unsigned long long seed = 1;
     bool with80 = true, tshirt = false;
     bool fast = false;
-    for (int i = 1; i < argc; ++i) {
-        const char *v = i + 1 < argc ? argv[i + 1] : NULL;
-        if (strcmp(argv[i], "--vertices") == 0 && v) {
-            if (!cli_u32("weft bench xpbd", argv[i], v, 64, 200000, &vertices)) {
+    cli_parser p;
+    if (!cli_start(&p, &k_command, argc, argv)) {
+        return 2;
+    }
+    const char *v;
+    for (int id; (id = cli_next(&p, &v)) != CLI_END;) {
+        const char *a = cli_name(&k_command, id);
+        switch (id) {
+        case CLI_HELP:
+            cli_usage(&k_command, stdout);
+            return 0;
+        case CLI_BAD:
+            return 2;
+        case OPT_VERTICES:
+            if (!cli_u32(k_command.tool, a, v, 64, 200000, &vertices)) {
                 return 2;
             }
-            ++i;
-        } else if (strcmp(argv[i], "--frames") == 0 && v) {
-            if (!cli_u32("weft bench xpbd", argv[i], v, 1, 100000, &frames)) {
+            break;
+        case OPT_FRAMES:
+            if (!cli_u32(k_command.tool, a, v, 1, 100000, &frames)) {
                 return 2;
             }
-            ++i;
-        } else if (strcmp(argv[i], "--no-80") == 0) {
+            break;
+        case OPT_NO_80:
             with80 = false;
-        } else if (strcmp(argv[i], "--fast") == 0) {
+            break;
+        case OPT_FAST:
             fast = true;
-        } else if (strcmp(argv[i], "--only") == 0 && v) {
-            if (!cli_u32("weft bench xpbd", argv[i], v, 1, 1000, &only)) {
+            break;
+        case OPT_ONLY:
+            if (!cli_u32(k_command.tool, a, v, 1, 1000, &only)) {
                 return 2;
             }
-            ++i;
-        } else if (strcmp(argv[i], "--seed") == 0 && v) {
+            break;
+        case OPT_SEED: {
             uint64_t sd = 0;
-            if (!cli_u64("weft bench xpbd", argv[i], v, 0, UINT64_MAX, &sd)) {
+            if (!cli_u64(k_command.tool, a, v, 0, UINT64_MAX, &sd)) {
                 return 2;
             }
-            seed = sd, ++i;
-        } else if (strcmp(argv[i], "--scene") == 0 && i + 1 < argc &&
-                   (strcmp(argv[i + 1], "sheet") == 0 || strcmp(argv[i + 1], "tshirt") == 0)) {
-            tshirt = strcmp(argv[++i], "tshirt") == 0;
-        } else {
-            fprintf(stderr,
-                    "usage: weft bench xpbd [--scene sheet|tshirt] [--vertices N (64..200000, 4096)]\n"
-                    "                       [--frames T (1..100000, 60)] [--no-80] [--only S (1..1000)]\n"
-                    "                       [--seed X (0..2^64-1)] [--fast]\n"
-                    "  --scene    sheet: a sheet dropped onto a box (default); tshirt: a T-shirt on the default\n"
-                    "             avatar (body and motion drawn from --seed, default 1), draped once at S = 40,\n"
-                    "             then T frames of the motion at every S from that draped state\n"
-                    "  --only S   run S substeps alone: cost, proximity-pass counters and a hash of the\n"
-                    "             trajectory (equal hashes: bit-identical output, for checking speedups)\n"
-                    "  --fast     also run the fast method (WEFT_METHOD_XPBD_FAST: game-style collision\n"
-                    "             projection) at each S, scored against the reference's S = 40 and 80; with\n"
-                    "             --only, the fast method alone\n");
-            return strcmp(argv[i], "--help") == 0 ? 0 : 2;
+            seed = sd;
+            break;
         }
+        case OPT_SCENE:
+            if (strcmp(v, "sheet") != 0 && strcmp(v, "tshirt") != 0) {
+                fprintf(stderr, "weft bench xpbd: --scene wants sheet or tshirt, got '%s'\n", v);
+                return 2;
+            }
+            tshirt = strcmp(v, "tshirt") == 0;
+            break;
+        default:
+            return cli_fail(&k_command, "internal error: an option without a case");
+        }
+    }
+    char **rest;
+    if (cli_rest(&p, &rest) > 0) {
+        char what[512];
+        snprintf(what, sizeof what, "unexpected argument '%s'", rest[0]);
+        return cli_fail(&k_command, what);
     }
     weft_context_def cd = weft_default_context_def();
     weft_context *ctx = NULL;

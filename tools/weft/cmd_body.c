@@ -18,18 +18,45 @@ static double now_ms(void)
     return (double)ts.tv_sec * 1e3 + (double)ts.tv_nsec * 1e-6;
 }
 
-static void usage(FILE *out)
+enum {
+    OPT_OBJ = 1, OPT_GARMENT, OPT_RES, OPT_MOTION, OPT_TIME, OPT_TPOSE, OPT_HEIGHT, OPT_GIRTH, OPT_LEGS, OPT_SHOULDERS,
+    OPT_HIPS, OPT_VERTICES,
+};
+
+static const cli_option k_options[] = {
+    {"obj", "PATH", OPT_OBJ, "write the avatar (and the garment as a second object) as OBJ"},
+    {"garment", "KIND", OPT_GARMENT, "tshirt | skirt | dress | sheet | sheet_irregular"},
+    {"res", "RES", OPT_RES, "1k | 4k | 16k | 40k (default 4k)"},
+    {"motion", "NAME", OPT_MOTION, "pose with idle | walk | run | jump | dance | arm_raise | flip"},
+    {"time", "SECONDS", OPT_TIME, "time in the motion, 0..1e6 (default 0)"},
+    {"tpose", NULL, OPT_TPOSE, "pose with the zero (T) pose instead of the bind (A) pose"},
+    {"height", "M", OPT_HEIGHT, "avatar shape: standing height in metres, 0..100"},
+    {"girth", "G", OPT_GIRTH, "avatar shape: limb and torso thickness scale, 0..100"},
+    {"legs", "F", OPT_LEGS, "avatar shape: hip joint height / height, 0..100"},
+    {"shoulders", "S", OPT_SHOULDERS, "avatar shape: shoulder span scale, 0..100"},
+    {"hips", "H", OPT_HIPS, "avatar shape: hip span and volume scale, 0..100"},
+    {"vertices", "N", OPT_VERTICES, "avatar shape: mesh size aimed at, 1..10000000"},
+    {0},
+};
+
+static void notes(FILE *out)
 {
+    const weft_avatar_def d = weft_default_avatar_def();
     fprintf(out,
-            "usage: weft body [options]\n"
-            "  --obj PATH          write the avatar (and the garment as a second object) as OBJ\n"
-            "  --garment KIND      tshirt | skirt | dress | sheet | sheet_irregular\n"
-            "  --res RES           1k | 4k | 16k | 40k (default 4k)\n"
-            "  --motion NAME       pose with idle | walk | run | jump | dance | arm_raise | flip\n"
-            "  --time SECONDS      time in the motion (default 0)\n"
-            "  --tpose             pose with the zero (T) pose instead of the bind (A) pose\n"
-            "  --height M --girth G --legs F --shoulders S --hips H --vertices N   avatar shape\n");
+            "Avatar shape defaults: --height %.2f --girth %.2f --legs %.2f --shoulders %.2f --hips %.2f\n"
+            "--vertices %u.\n",
+            (double)d.height, (double)d.girth, (double)d.leg_fraction, (double)d.shoulder_width, (double)d.hip_width,
+            d.target_vertices);
 }
+
+static const cli_command k_command = {
+    .tool = "weft body",
+    .synopsis = "weft body [options]",
+    .about = "Builds the default avatar (and a garment or sheet), optionally poses it with a procedural motion,\n"
+             "prints counts and timings, and writes Wavefront OBJ for inspection.",
+    .options = k_options,
+    .notes = notes,
+};
 
 static int write_obj(const char *path, const float *bv, uint32_t bn, const uint32_t *bt, uint32_t btn, const float *gv,
                      const float *guv, uint32_t gn, const uint32_t *gt, uint32_t gtn)
@@ -73,65 +100,75 @@ int weft_cmd_body(int argc, char **argv)
     double t = 0;
     bool tpose = false;
     weft_avatar_def ad = weft_default_avatar_def();
-    for (int i = 1; i < argc; ++i) {
-        const char *a = argv[i];
-        const char *v = i + 1 < argc ? argv[i + 1] : NULL;
-        if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
-            usage(stdout);
+    cli_parser parser;
+    if (!cli_start(&parser, &k_command, argc, argv)) {
+        return 2;
+    }
+    const char *v;
+    for (int id; (id = cli_next(&parser, &v)) != CLI_END;) {
+        const char *a = cli_name(&k_command, id);
+        float *shape = NULL;
+        switch (id) {
+        case CLI_HELP:
+            cli_usage(&k_command, stdout);
             return 0;
-        } else if (strcmp(a, "--tpose") == 0) {
-            tpose = true;
-            continue;
-        }
-        if (!v) {
-            fprintf(stderr, "weft body: %s needs a value\n", a);
-            usage(stderr);
+        case CLI_BAD:
             return 2;
-        }
-        if (strcmp(a, "--obj") == 0) {
+        case OPT_TPOSE:
+            tpose = true;
+            break;
+        case OPT_OBJ:
             obj = v;
-        } else if (strcmp(a, "--garment") == 0) {
+            break;
+        case OPT_GARMENT:
             garment = v;
-        } else if (strcmp(a, "--res") == 0) {
+            break;
+        case OPT_RES:
             res = v;
-        } else if (strcmp(a, "--motion") == 0) {
+            break;
+        case OPT_MOTION:
             motion = v;
-        } else if (strcmp(a, "--time") == 0) {
+            break;
+        case OPT_TIME: {
             float tf = 0.0f;
-            if (!cli_float("weft body", a, v, 0.0f, 1e6f, &tf)) {
+            if (!cli_float(k_command.tool, a, v, 0.0f, 1e6f, &tf)) {
                 return 2;
             }
             t = tf;
-        } else if (strcmp(a, "--height") == 0) {
-            if (!cli_float("weft body", a, v, 0.0f, 100.0f, &ad.height)) {
+            break;
+        }
+        case OPT_HEIGHT:
+            shape = &ad.height;
+            break;
+        case OPT_GIRTH:
+            shape = &ad.girth;
+            break;
+        case OPT_LEGS:
+            shape = &ad.leg_fraction;
+            break;
+        case OPT_SHOULDERS:
+            shape = &ad.shoulder_width;
+            break;
+        case OPT_HIPS:
+            shape = &ad.hip_width;
+            break;
+        case OPT_VERTICES:
+            if (!cli_u32(k_command.tool, a, v, 1, 10000000, &ad.target_vertices)) {
                 return 2;
             }
-        } else if (strcmp(a, "--girth") == 0) {
-            if (!cli_float("weft body", a, v, 0.0f, 100.0f, &ad.girth)) {
-                return 2;
-            }
-        } else if (strcmp(a, "--legs") == 0) {
-            if (!cli_float("weft body", a, v, 0.0f, 100.0f, &ad.leg_fraction)) {
-                return 2;
-            }
-        } else if (strcmp(a, "--shoulders") == 0) {
-            if (!cli_float("weft body", a, v, 0.0f, 100.0f, &ad.shoulder_width)) {
-                return 2;
-            }
-        } else if (strcmp(a, "--hips") == 0) {
-            if (!cli_float("weft body", a, v, 0.0f, 100.0f, &ad.hip_width)) {
-                return 2;
-            }
-        } else if (strcmp(a, "--vertices") == 0) {
-            if (!cli_u32("weft body", a, v, 1, 10000000, &ad.target_vertices)) {
-                return 2;
-            }
-        } else {
-            fprintf(stderr, "weft body: unknown option '%s'\n", a);
-            usage(stderr);
+            break;
+        default:
+            return cli_fail(&k_command, "internal error: an option without a case");
+        }
+        if (shape && !cli_float(k_command.tool, a, v, 0.0f, 100.0f, shape)) {
             return 2;
         }
-        ++i;
+    }
+    char **rest;
+    if (cli_rest(&parser, &rest) > 0) {
+        char what[300];
+        snprintf(what, sizeof what, "unexpected argument '%.200s'", rest[0]);
+        return cli_fail(&k_command, what);
     }
     /* Names first, so a typo fails before the avatar is built. */
     weft_cloth_kind kind = WEFT_CLOTH_SHEET;

@@ -19,18 +19,30 @@
 
 const char weft_cmd_ccd_help[] = "continuous collision queries: weft ccd --queries FILE (vf/ee + 24 numbers per line)";
 
-static int usage(FILE *out)
-{
-    fprintf(out, "usage: weft ccd --queries FILE [--min-separation METRES]\n"
-                 "       weft ccd --csv FILE --type vf|ee [--min-separation METRES]\n"
-                 "  --min-separation: the gap kept between the primitives, 0..1 m (default 0)\n"
-                 "  --queries: one query per line, `vf` or `ee` then 24 numbers (4 points at t=0, then at t=1);\n"
-                 "             '-' reads stdin. Output: `1 t_c` (collision, earliest time) or `0` per query.\n"
-                 "  --csv: the public CCD benchmark's rational format (8 rows per query:\n"
-                 "         num_x,den_x,num_y,den_y,num_z,den_z,ground_truth); prints the same lines and a\n"
-                 "         false-negative / false-positive summary against the ground truth on stderr.\n");
-    return out == stdout ? 0 : 2;
-}
+enum { OPT_QUERIES = 1, OPT_CSV, OPT_TYPE, OPT_MIN_SEPARATION };
+
+static const cli_option k_options[] = {
+    {"queries", "FILE", OPT_QUERIES,
+     "one query per line, `vf` or `ee` then 24 numbers (4 points at t=0, then\n"
+     "at t=1); '-' reads stdin. Output: `1 t_c` (collision, earliest time) or\n"
+     "`0` per query"},
+    {"csv", "FILE", OPT_CSV,
+     "the public CCD benchmark's rational format (8 rows per query:\n"
+     "num_x,den_x,num_y,den_y,num_z,den_z,ground_truth); prints the same lines\n"
+     "and a false-negative / false-positive summary against the ground truth\n"
+     "on stderr"},
+    {"type", "vf|ee", OPT_TYPE, "the kind of the --csv file's queries (needed with --csv)"},
+    {"min-separation", "METRES", OPT_MIN_SEPARATION, "the gap kept between the primitives, 0..1 m (default 0)"},
+    {0},
+};
+
+static const cli_command k_command = {
+    .tool = "weft ccd",
+    .synopsis = "weft ccd --queries FILE [--min-separation METRES]\n"
+                "weft ccd --csv FILE --type vf|ee [--min-separation METRES]",
+    .about = "Runs the narrow phase on external continuous collision queries.",
+    .options = k_options,
+};
 
 /* Exact when numerator and denominator are integers below 2^53 and the denominator is a power of
  * two; otherwise the double is rounded and the file's ground truth may not hold for it. */
@@ -122,23 +134,41 @@ int weft_cmd_ccd(int argc, char **argv)
 {
     const char *path = NULL, *csv = NULL, *type = NULL;
     double eta = 0.0;
-    for (int i = 1; i < argc; ++i) {
-        if (strcmp(argv[i], "--queries") == 0 && i + 1 < argc) {
-            path = argv[++i];
-        } else if (strcmp(argv[i], "--csv") == 0 && i + 1 < argc) {
-            csv = argv[++i];
-        } else if (strcmp(argv[i], "--type") == 0 && i + 1 < argc) {
-            type = argv[++i];
-        } else if (strcmp(argv[i], "--min-separation") == 0 && i + 1 < argc) {
-            if (!cli_double("weft ccd", argv[i], argv[i + 1], 0.0, 1.0, &eta)) {
+    cli_parser cp;
+    if (!cli_start(&cp, &k_command, argc, argv)) {
+        return 2;
+    }
+    const char *v;
+    for (int id; (id = cli_next(&cp, &v)) != CLI_END;) {
+        switch (id) {
+        case CLI_HELP:
+            cli_usage(&k_command, stdout);
+            return 0;
+        case CLI_BAD:
+            return 2;
+        case OPT_QUERIES:
+            path = v;
+            break;
+        case OPT_CSV:
+            csv = v;
+            break;
+        case OPT_TYPE:
+            type = v;
+            break;
+        case OPT_MIN_SEPARATION:
+            if (!cli_double(k_command.tool, cli_name(&k_command, id), v, 0.0, 1.0, &eta)) {
                 return 2;
             }
-            ++i;
-        } else if (strcmp(argv[i], "--help") == 0 || strcmp(argv[i], "-h") == 0) {
-            return usage(stdout);
-        } else {
-            return usage(stderr);
+            break;
+        default:
+            return cli_fail(&k_command, "internal error: an option without a case");
         }
+    }
+    char **rest;
+    if (cli_rest(&cp, &rest) > 0) {
+        char what[512];
+        snprintf(what, sizeof what, "unexpected argument '%s'", rest[0]);
+        return cli_fail(&k_command, what);
     }
     if (csv) {
         if (!type || (strcmp(type, "vf") != 0 && strcmp(type, "ee") != 0)) {
@@ -148,7 +178,7 @@ int weft_cmd_ccd(int argc, char **argv)
         return run_csv(csv, strcmp(type, "vf") == 0, eta);
     }
     if (!path) {
-        return usage(stderr);
+        return cli_fail(&k_command, "--queries FILE or --csv FILE is required");
     }
     FILE *f = strcmp(path, "-") == 0 ? stdin : fopen(path, "r");
     if (!f) {

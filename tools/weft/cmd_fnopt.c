@@ -541,29 +541,44 @@ static const char *optimizer_name(weft_fnopt_optimizer o)
 
 static const char k_tool[] = "weft fnopt";
 
-static void usage(void)
-{
-    printf("usage: weft fnopt run|fit [options]\n"
-           "  --res N            grid resolution, 10..1024 (32)\n"
-           "  --motion M         xy yz xz xyz xyz3 xyz4 rot_h0 rot_h1, optionally with _opp (xy)\n"
-           "  --handles H        corners diagonal middle corner-middle corner-center single-corner\n"
-           "                     single-middle single-center (corners)\n"
-           "  --frames F         frames to run, 0..100000 (0: the whole 2.75 s trajectory at speed 1)\n"
-           "  --speed S          trajectory speed factor, 0.01..100 (1)\n"
-           "  --amplitude A      translation per move in metres, 0..10 (0.5)\n"
-           "  --optimizer O      learned gd adam lbfgs (learned)\n"
-           "  --iters K          inner iterations per step, 1..10000 (10)\n"
-           "  --lr X             step size of gd/adam/lbfgs, 1e-6..100 (0.01)\n"
-           "  --model PATH       FNOpt weights (tools/fnopt/models/fnopt_32.safetensors)\n"
-           "  --material Y,S,B   energy coefficients in grid units, each 0..1e6 (1000,8,0.5)\n"
-           "  --repulsion K      self-repulsion weight, 0..1e6 (0)\n"
-           "  --precision P      fp32 fp16 int8: the learned optimizer's FNO arithmetic (fp32)\n"
-           "  --gt               score against the XPBD reference (e3D, Chamfer)\n"
-           "  --loss             also report the mean final loss per step\n"
-           "  --csv FILE         append the result row to FILE\n"
-           "  --out FILE         write the positions (frames x res^2 x 3 float32, metres, Y up)\n");
-}
+enum {
+    OPT_RES = 1, OPT_MOTION, OPT_HANDLES, OPT_FRAMES, OPT_SPEED, OPT_AMPLITUDE, OPT_OPTIMIZER, OPT_ITERS, OPT_LR,
+    OPT_MODEL, OPT_MATERIAL, OPT_REPULSION, OPT_PRECISION, OPT_GT, OPT_LOSS, OPT_CSV, OPT_OUT,
+};
 
+static const cli_option k_options[] = {
+    {"res", "N", OPT_RES, "grid resolution, 10..1024 (32)"},
+    {"motion", "M", OPT_MOTION, "xy yz xz xyz xyz3 xyz4 rot_h0 rot_h1, optionally with _opp (xy)"},
+    {"handles", "H", OPT_HANDLES,
+     "corners diagonal middle corner-middle corner-center single-corner\n"
+     "single-middle single-center (corners)"},
+    {"frames", "F", OPT_FRAMES, "frames to run, 0..100000 (0: the whole 2.75 s trajectory at speed 1)"},
+    {"speed", "S", OPT_SPEED, "trajectory speed factor, 0.01..100 (1)"},
+    {"amplitude", "A", OPT_AMPLITUDE, "translation per move in metres, 0..10 (0.5)"},
+    {"optimizer", "O", OPT_OPTIMIZER, "learned gd adam lbfgs (learned)"},
+    {"iters", "K", OPT_ITERS, "inner iterations per step, 1..10000 (10)"},
+    {"lr", "X", OPT_LR, "step size of gd/adam/lbfgs, 1e-6..100 (0.01)"},
+    {"model", "PATH", OPT_MODEL, "FNOpt weights (tools/fnopt/models/fnopt_32.safetensors)"},
+    {"material", "Y,S,B", OPT_MATERIAL, "energy coefficients in grid units, each 0..1e6 (1000,8,0.5)"},
+    {"repulsion", "K", OPT_REPULSION, "self-repulsion weight, 0..1e6 (0)"},
+    {"precision", "P", OPT_PRECISION, "fp32 fp16 int8: the learned optimizer's FNO arithmetic (fp32)"},
+    {"gt", NULL, OPT_GT, "score against the XPBD reference (e3D, Chamfer)"},
+    {"loss", NULL, OPT_LOSS, "also report the mean final loss per step"},
+    {"csv", "FILE", OPT_CSV, "append the result row to FILE"},
+    {"out", "FILE", OPT_OUT, "write the positions (frames x res^2 x 3 float32, metres, Y up)"},
+    {0},
+};
+
+static const cli_command k_command = {
+    .tool = "weft fnopt",
+    .synopsis = "weft fnopt run|fit [options]",
+    .about = "FNOpt grid cloth scenes against the XPBD reference (docs/FNOPT.md):\n"
+             "  run   one scene: ms/frame, and e3D / Chamfer against XPBD with --gt\n"
+             "  fit   coordinate search of the material (Y, S, B) against XPBD",
+    .options = k_options,
+};
+
+/* argv[0] is the subcommand (run or fit); the options follow it. */
 static int parse(int argc, char **argv, cli *c)
 {
     c->scene = (fnopt_scene_opts){.res = 32, .size_m = 1.0f, .fps = 60.0f, .speed = 1.0f, .amplitude_m = 0.5f,
@@ -571,63 +586,90 @@ static int parse(int argc, char **argv, cli *c)
     c->run = (fnopt_run_opts){.optimizer = WEFT_FNOPT_LEARNED, .iterations = 10, .learning_rate = 0.01f,
                               .Y = 1000.0f, .S = 8.0f, .B = 0.5f};
     c->model_path = "tools/fnopt/models/fnopt_32.safetensors";
-    for (int i = 2; i < argc; ++i) {
-        const char *a = argv[i], *v = i + 1 < argc ? argv[i + 1] : NULL;
-#define ARG(name) (strcmp(a, name) == 0 && v && (++i, true))
-        if (strcmp(a, "--gt") == 0) {
+    cli_parser p;
+    if (!cli_start(&p, &k_command, argc, argv)) {
+        return 2;
+    }
+    const char *v;
+    for (int id; (id = cli_next(&p, &v)) != CLI_END;) {
+        const char *a = cli_name(&k_command, id);
+        switch (id) {
+        case CLI_HELP:
+            cli_usage(&k_command, stdout);
+            return 1;
+        case CLI_BAD:
+            return 2;
+        case OPT_GT:
             c->gt = true;
-        } else if (strcmp(a, "--loss") == 0) {
+            break;
+        case OPT_LOSS:
             c->run.report_loss = true;
-        } else if (ARG("--res")) {
+            break;
+        case OPT_RES:
             if (!cli_u32(k_tool, a, v, 10, 1024, &c->scene.res)) {
                 return 2;
             }
-        } else if (ARG("--motion")) {
+            break;
+        case OPT_MOTION:
             c->scene.motion = v;
-        } else if (ARG("--handles")) {
+            break;
+        case OPT_HANDLES:
             c->scene.handles = v;
-        } else if (ARG("--frames")) {
+            break;
+        case OPT_FRAMES:
             if (!cli_u32(k_tool, a, v, 0, 100000, &c->scene.frames)) {
                 return 2;
             }
-        } else if (ARG("--speed")) {
+            break;
+        case OPT_SPEED:
             if (!cli_float(k_tool, a, v, 0.01f, 100.0f, &c->scene.speed)) {
                 return 2;
             }
-        } else if (ARG("--amplitude")) {
+            break;
+        case OPT_AMPLITUDE:
             if (!cli_float(k_tool, a, v, 0.0f, 10.0f, &c->scene.amplitude_m)) {
                 return 2;
             }
-        } else if (ARG("--iters")) {
+            break;
+        case OPT_ITERS:
             if (!cli_u32(k_tool, a, v, 1, 10000, &c->run.iterations)) {
                 return 2;
             }
-        } else if (ARG("--lr")) {
+            break;
+        case OPT_LR:
             if (!cli_float(k_tool, a, v, 1e-6f, 100.0f, &c->run.learning_rate)) {
                 return 2;
             }
-        } else if (ARG("--model")) {
+            break;
+        case OPT_MODEL:
             c->model_path = v;
-        } else if (ARG("--repulsion")) {
+            break;
+        case OPT_REPULSION:
             if (!cli_float(k_tool, a, v, 0.0f, 1e6f, &c->run.repulsion)) {
                 return 2;
             }
-        } else if (ARG("--precision")) {
+            break;
+        case OPT_PRECISION:
             if (!fnopt_parse_precision(v, &c->run.precision)) {
                 fprintf(stderr, "weft fnopt: --precision wants fp32, fp16 or int8\n");
                 return 2;
             }
-        } else if (ARG("--csv")) {
+            break;
+        case OPT_CSV:
             c->csv = v;
-        } else if (ARG("--out")) {
+            break;
+        case OPT_OUT:
             c->out = v;
-        } else if (ARG("--material")) {
+            break;
+        case OPT_MATERIAL: {
             float m[3];
             if (!cli_floats(k_tool, a, v, 0.0f, 1e6f, m, 3)) {
                 return 2;
             }
             c->run.Y = m[0], c->run.S = m[1], c->run.B = m[2];
-        } else if (ARG("--optimizer")) {
+            break;
+        }
+        case OPT_OPTIMIZER: {
             int k = 0;
             for (; k < 4 && strcmp(v, optimizer_name((weft_fnopt_optimizer)k)) != 0; ++k) {
             }
@@ -636,14 +678,17 @@ static int parse(int argc, char **argv, cli *c)
                 return 2;
             }
             c->run.optimizer = (weft_fnopt_optimizer)k;
-        } else if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
-            usage();
-            return 1;
-        } else {
-            fprintf(stderr, "weft fnopt: unknown or incomplete option '%s'\n", a);
-            return 2;
+            break;
         }
-#undef ARG
+        default:
+            return cli_fail(&k_command, "internal error: an option without a case");
+        }
+    }
+    char **rest;
+    if (cli_rest(&p, &rest) > 0) {
+        char what[512];
+        snprintf(what, sizeof what, "unexpected argument '%s'", rest[0]);
+        return cli_fail(&k_command, what);
     }
     return 0;
 }
@@ -748,12 +793,20 @@ static int fit(weft_context *ctx, cli *c, weft_model *model)
 
 int weft_cmd_fnopt(int argc, char **argv)
 {
-    if (argc < 2 || (strcmp(argv[1], "run") != 0 && strcmp(argv[1], "fit") != 0)) {
-        usage();
-        return argc < 2 ? 2 : (strcmp(argv[1], "--help") == 0 ? 0 : 2);
+    if (argc >= 2 && (strcmp(argv[1], "--help") == 0 || strcmp(argv[1], "-h") == 0)) {
+        cli_usage(&k_command, stdout);
+        return 0;
+    }
+    if (argc < 2) {
+        return cli_fail(&k_command, "run or fit is required");
+    }
+    if (strcmp(argv[1], "run") != 0 && strcmp(argv[1], "fit") != 0) {
+        char what[512];
+        snprintf(what, sizeof what, "unknown subcommand '%s', want run or fit", argv[1]);
+        return cli_fail(&k_command, what);
     }
     cli c = {0};
-    int pr = parse(argc, argv, &c);
+    int pr = parse(argc - 1, argv + 1, &c);
     if (pr != 0) {
         return pr == 1 ? 0 : pr;
     }

@@ -7,7 +7,9 @@
  *   weft render --seq DIR --sheet OUT.png [--frames 0,60,120] [--tile N] [--columns N]
  *               [--yaw DEG] [--pitch DEG] [--no-caption]
  *                                                 contact sheet of a simgen sequence folder
- */
+ *
+ * The sample's options (samples/common/avatar_sample.c, weft_avatar_sample_option_table) and
+ * weft render's own are one option table; the sample's are applied once the mode is known. */
 #include "weft.h"
 
 #include "support_cli.h"
@@ -89,26 +91,86 @@ static bool parse_tile(const char *s, uint32_t *w, uint32_t *h)
     return true;
 }
 
-/* weft render --seq: the options left after the shared ones are only --yaw and --pitch. */
-static int sequence_sheet(weft_seq_sheet_options *o, const char *frames, int nrest, char **rest)
+/* weft render's own options; the sample's (weft_avatar_sample_option_table) are listed with them,
+ * in one table for getopt_long and the help. Their ids lie above the sample's and above getopt's
+ * ':', '?' and 'h'. */
+enum {
+    OPT_UPDATE_GOLDENS = 200, OPT_CHECK_GOLDENS, OPT_GOLDEN_DIR, OPT_DOCS_SHEET, OPT_TILE, OPT_SEQ, OPT_COLUMNS,
+    OPT_NO_CAPTION,
+};
+_Static_assert(WEFT_AVATAR_SAMPLE_OPTION_ID_END <= OPT_UPDATE_GOLDENS, "weft render's option ids follow the sample's");
+
+static const cli_option k_render_options[] = {
+    {"update-goldens", NULL, OPT_UPDATE_GOLDENS, "re-render the golden images into --golden-dir"},
+    {"check-goldens", NULL, OPT_CHECK_GOLDENS, "compare with the goldens; diffs go to --out (default .)"},
+    {"golden-dir", "DIR", OPT_GOLDEN_DIR, "the golden images (default tests/golden)"},
+    {"docs-sheet", "PATH", OPT_DOCS_SHEET, "render the avatar/garment/pose contact sheet"},
+    {"tile", "N|WxH", OPT_TILE,
+     "with --docs-sheet: N, 64..1024 (default 200); with --seq: N or WxH, each\n"
+     "64..1024 (default 240, 240x320 for garments)"},
+    {"seq", "DIR", OPT_SEQ,
+     "contact sheet of a simgen sequence folder into --sheet PNG; --sheet,\n"
+     "--frames, --yaw and --pitch then mean other things (below)"},
+    {"columns", "N", OPT_COLUMNS, "with --seq: tiles per row, 1..32 (default: all in one row up to 6)"},
+    {"no-caption", NULL, OPT_NO_CAPTION, "with --seq: no caption strip"},
+    {0},
+};
+
+/* The sample's options, then weft render's: filled by weft_cmd_render. */
+static cli_option g_options[CLI_MAX_OPTIONS + 1];
+
+static void notes(FILE *out)
 {
-    if (!o->out_path) {
-        fprintf(stderr, "weft render: --seq needs --sheet OUT.png\n");
-        return 2;
-    }
-    for (int i = 1; i < nrest; ++i) {
-        bool yaw = strcmp(rest[i], "--yaw") == 0, pitch = strcmp(rest[i], "--pitch") == 0;
-        if ((yaw || pitch) && i + 1 < nrest) {
-            const float limit = yaw ? 360.0f : 85.0f;
-            if (!cli_float("weft render", rest[i], rest[i + 1], -limit, limit, yaw ? &o->yaw : &o->pitch)) {
-                return 2;
-            }
-            ++i;
-        } else {
-            fprintf(stderr, "weft render: option '%s' does not apply to --seq (see weft render --help)\n", rest[i]);
-            return 2;
+    fprintf(out, "With --seq: --sheet PNG is the sheet to write, --frames 0,60,120 the frames drawn (default 0,\n"
+                 "T/4, T/2, 3T/4, T-1), --yaw DEG -360..360 and --pitch DEG -85..85 (default per scenario); no\n"
+                 "other sample option applies. --update-goldens, --check-goldens and --docs-sheet take only\n"
+                 "--golden-dir, --out and --tile; the sample's other options are ignored there.\n");
+}
+
+static const cli_command k_command = {
+    .tool = "weft render",
+    .synopsis = "weft render [sample options]\n"
+                "weft render --update-goldens|--check-goldens [--golden-dir DIR] [--out DIR]\n"
+                "weft render --docs-sheet PATH [--tile N]\n"
+                "weft render --seq DIR --sheet OUT.png [--frames 0,60,120] [--tile N|WxH] [--columns N]\n"
+                "            [--yaw DEG] [--pitch DEG] [--no-caption]",
+    .about = "Renders the avatar wearing a garment through a motion (the avatar render sample, its options\n"
+             "from --motion to --crowd-budget): PNG frames and a contact sheet. Also re-renders or checks\n"
+             "the golden images of tests/golden, renders the docs contact sheet\n"
+             "(docs/img/avatar_contact_sheet.png) and contact sheets of simgen sequence folders.",
+    .options = g_options,
+    .notes = notes,
+};
+
+/* Lists the sample's options and weft render's in g_options; false if they do not fit. */
+static bool merge_options(void)
+{
+    size_t n = 0;
+    for (const weft_sample_option *e = weft_avatar_sample_option_table; e->name; ++e) {
+        if (n == CLI_MAX_OPTIONS) {
+            return false;
         }
+        g_options[n++] = (cli_option){e->name, e->value, e->id, e->help};
     }
+    for (const cli_option *e = k_render_options; e->name; ++e) {
+        if (n == CLI_MAX_OPTIONS) {
+            return false;
+        }
+        g_options[n++] = *e;
+    }
+    g_options[n] = (cli_option){0};
+    return true;
+}
+
+/* Whether option `id` is the sample's --NAME. */
+static bool is_option(int id, const char *name)
+{
+    return strcmp(cli_name(&k_command, id) + 2, name) == 0;
+}
+
+/* weft render --seq, its options checked. */
+static int sequence_sheet(weft_seq_sheet_options *o, const char *frames)
+{
     if (frames && weft_seq_sheet_parse_frames(frames, o) != WEFT_OK) {
         fprintf(stderr, "weft render: %s\n", weft_last_error());
         return 2;
@@ -138,7 +200,14 @@ static int sequence_sheet(weft_seq_sheet_options *o, const char *frames, int nre
     return 0;
 }
 
-int weft_cmd_render(int argc, char **argv)
+/* One of the sample's options, kept until the mode is known (--frames, --sheet, --yaw and --pitch
+ * mean other things with --seq). */
+typedef struct sample_arg {
+    int id;
+    const char *value;
+} sample_arg;
+
+static int render(int argc, char **argv, sample_arg *sample_args)
 {
     const char *golden_dir = "tests/golden";
     const char *docs_sheet = NULL;
@@ -147,102 +216,139 @@ int weft_cmd_render(int argc, char **argv)
     int golden_mode = 0; /* 1 update, 2 check */
     weft_seq_sheet_options seq;
     weft_seq_sheet_default_options(&seq);
-    const char *seq_frames = NULL;
-    /* --frames means a frame list with --seq and a frame count for the avatar sample */
     bool seq_mode = false;
-    for (int i = 1; i < argc; ++i) {
-        seq_mode |= strcmp(argv[i], "--seq") == 0;
+    int nsample = 0;
+    cli_parser p;
+    if (!cli_start(&p, &k_command, argc, argv)) {
+        return 2;
     }
-    /* weft-specific options first; the rest go to the sample's parser */
-    char **rest = malloc((size_t)argc * sizeof *rest);
-    if (!rest) {
-        return 1;
-    }
-    int nrest = 0;
-    rest[nrest++] = argv[0];
-    const char *out_dir = ".";
-    for (int i = 1; i < argc; ++i) {
-        if (strcmp(argv[i], "--update-goldens") == 0) {
+    const char *v;
+    for (int id; (id = cli_next(&p, &v)) != CLI_END;) {
+        const char *a = cli_name(&k_command, id);
+        switch (id) {
+        case CLI_HELP:
+            cli_usage(&k_command, stdout);
+            return 0;
+        case CLI_BAD:
+            return 2;
+        case OPT_UPDATE_GOLDENS:
             golden_mode = 1;
-        } else if (strcmp(argv[i], "--check-goldens") == 0) {
+            break;
+        case OPT_CHECK_GOLDENS:
             golden_mode = 2;
-        } else if (strcmp(argv[i], "--golden-dir") == 0 && i + 1 < argc) {
-            golden_dir = argv[++i];
-        } else if (strcmp(argv[i], "--docs-sheet") == 0 && i + 1 < argc) {
-            docs_sheet = argv[++i];
-        } else if (strcmp(argv[i], "--tile") == 0 && i + 1 < argc) {
-            /* --seq takes N or WxH (checked below), the docs sheet a square tile */
-            tile_text = argv[++i];
-            if (!seq_mode && !cli_u32("weft render", argv[i - 1], tile_text, 64, 1024, &tile)) {
-                free(rest);
+            break;
+        case OPT_GOLDEN_DIR:
+            golden_dir = v;
+            break;
+        case OPT_DOCS_SHEET:
+            docs_sheet = v;
+            break;
+        case OPT_TILE:
+            tile_text = v; /* N or WxH with --seq, N for the docs sheet: checked once the mode is known */
+            break;
+        case OPT_SEQ:
+            seq.seq_dir = v;
+            seq_mode = true;
+            break;
+        case OPT_COLUMNS:
+            if (!cli_u32(k_command.tool, a, v, 1, WEFT_SEQ_SHEET_MAX_FRAMES, &seq.columns)) {
                 return 2;
             }
-        } else if (strcmp(argv[i], "--seq") == 0 && i + 1 < argc) {
-            seq.seq_dir = argv[++i];
-        } else if (strcmp(argv[i], "--sheet") == 0 && i + 1 < argc) {
-            seq.out_path = argv[++i];
-        } else if (strcmp(argv[i], "--frames") == 0 && i + 1 < argc && seq_mode) {
-            seq_frames = argv[++i];
-        } else if (strcmp(argv[i], "--columns") == 0 && i + 1 < argc) {
-            if (!cli_u32("weft render", argv[i], argv[i + 1], 1, WEFT_SEQ_SHEET_MAX_FRAMES, &seq.columns)) {
-                free(rest);
-                return 2;
-            }
-            ++i;
-        } else if (strcmp(argv[i], "--no-caption") == 0) {
+            break;
+        case OPT_NO_CAPTION:
             seq.caption = false;
-        } else {
-            if (strcmp(argv[i], "--out") == 0 && i + 1 < argc) {
-                out_dir = argv[i + 1];
+            break;
+        default:
+            if (id < 1 || id >= WEFT_AVATAR_SAMPLE_OPTION_ID_END) {
+                return cli_fail(&k_command, "internal error: an option without a case");
             }
-            rest[nrest++] = argv[i];
+            sample_args[nsample++] = (sample_arg){id, v};
+            break;
         }
     }
-    int status;
+    char **rest;
+    if (cli_rest(&p, &rest) > 0) {
+        char what[512];
+        snprintf(what, sizeof what, "unexpected argument '%s'", rest[0]);
+        return cli_fail(&k_command, what);
+    }
+    if (!seq_mode && tile_text && !cli_u32(k_command.tool, "--tile", tile_text, 64, 1024, &tile)) {
+        return 2;
+    }
     if (seq_mode) {
-        if (!seq.seq_dir) {
-            fprintf(stderr, "weft render: --seq needs a sequence folder\n");
-            free(rest);
-            return 2;
+        const char *seq_frames = NULL;
+        for (int k = 0; k < nsample; ++k) {
+            const int id = sample_args[k].id;
+            const char *value = sample_args[k].value;
+            if (is_option(id, "frames")) {
+                seq_frames = value;
+            } else if (is_option(id, "sheet")) {
+                seq.out_path = value;
+            } else if (is_option(id, "yaw") || is_option(id, "pitch")) {
+                const bool yaw = is_option(id, "yaw");
+                const float limit = yaw ? 360.0f : 85.0f;
+                if (!cli_float(k_command.tool, cli_name(&k_command, id), value, -limit, limit,
+                               yaw ? &seq.yaw : &seq.pitch)) {
+                    return 2;
+                }
+            } else {
+                fprintf(stderr, "weft render: option '%s' does not apply to --seq (see weft render --help)\n",
+                        cli_name(&k_command, id));
+                return 2;
+            }
         }
         uint32_t w = 0, h = 0;
         if (tile_text && !parse_tile(tile_text, &w, &h)) {
             fprintf(stderr, "weft render: --tile wants N or WxH pixels, each in [64, 1024], got '%s'\n", tile_text);
-            free(rest);
             return 2;
         }
         if (tile_text) {
             seq.tile = w;
             seq.tile_height = h;
         }
-        status = sequence_sheet(&seq, seq_frames, nrest, rest);
-    } else if (golden_mode) {
-        status = goldens(golden_dir, out_dir, golden_mode == 1);
-    } else if (docs_sheet) {
-        status = weft_avatar_sample_docs_sheet(docs_sheet, tile);
-    } else {
-        weft_avatar_sample_options options;
-        weft_avatar_sample_default_options(&options);
-        int parsed = weft_avatar_sample_parse(nrest, rest, 1, &options);
-        if (parsed != 0) {
-            weft_avatar_sample_usage(parsed == 1 ? stdout : stderr, "weft render");
-            FILE *out = parsed == 1 ? stdout : stderr;
-            fprintf(out,
-                    "  --update-goldens        re-render the golden images into --golden-dir (default tests/golden)\n"
-                    "  --check-goldens         compare with the goldens; diffs go to --out\n"
-                    "  --docs-sheet PATH       render the avatar/garment/pose contact sheet (--tile N, 64..1024,\n"
-                    "                          default 200)\n"
-                    "  --seq DIR --sheet PNG   contact sheet of a simgen sequence folder: --frames 0,60,120 (default\n"
-                    "                          0, T/4, T/2, 3T/4, T-1), --tile N or WxH, each 64..1024 (default\n"
-                    "                          240, 240x320 for garments), --columns N (1..32),\n"
-                    "                          --yaw DEG (-360..360) / --pitch DEG (-85..85) (default per\n"
-                    "                          scenario), --no-caption\n");
-            free(rest);
-            return parsed == 1 ? 0 : 2;
+        if (!seq.out_path) {
+            fprintf(stderr, "weft render: --seq needs --sheet OUT.png\n");
+            return 2;
         }
-        status = weft_avatar_sample_run(&options);
+        return sequence_sheet(&seq, seq_frames);
     }
-    free(rest);
+    if (golden_mode) {
+        const char *out_dir = ".";
+        for (int k = 0; k < nsample; ++k) {
+            if (is_option(sample_args[k].id, "out")) {
+                out_dir = sample_args[k].value;
+            }
+        }
+        return goldens(golden_dir, out_dir, golden_mode == 1);
+    }
+    if (docs_sheet) {
+        return weft_avatar_sample_docs_sheet(docs_sheet, tile);
+    }
+    weft_avatar_sample_options options;
+    weft_avatar_sample_default_options(&options);
+    for (int k = 0; k < nsample; ++k) {
+        if (!weft_avatar_sample_apply(sample_args[k].id, sample_args[k].value, &options)) {
+            char what[512];
+            snprintf(what, sizeof what, "bad value '%s' for %s", sample_args[k].value ? sample_args[k].value : "",
+                     cli_name(&k_command, sample_args[k].id));
+            return cli_fail(&k_command, what);
+        }
+    }
+    return weft_avatar_sample_run(&options);
+}
+
+int weft_cmd_render(int argc, char **argv)
+{
+    if (!merge_options()) {
+        return cli_fail(&k_command, "internal error: too many options");
+    }
+    sample_arg *sample_args = malloc((size_t)(argc > 0 ? argc : 1) * sizeof *sample_args);
+    if (!sample_args) {
+        fprintf(stderr, "weft render: out of memory\n");
+        return 1;
+    }
+    const int status = render(argc, argv, sample_args);
+    free(sample_args);
     return status;
 }
 #else

@@ -496,89 +496,161 @@ static int plan_windows(const mocap_clip *list, uint32_t nc, uint32_t frames, ui
     return (int)added;
 }
 
-static void usage(FILE *f)
+enum {
+    OPT_OUT = 1, OPT_ALL, OPT_SCENARIO, OPT_COUNT, OPT_VERTICES, OPT_LIKE, OPT_MANIFEST_ONLY, OPT_MOCAP, OPT_CLIPS,
+    OPT_MOCAP_DIR, OPT_BVH, OPT_JOINT_MAP, OPT_AVATAR, OPT_GARMENT, OPT_PREROLL, OPT_TIER, OPT_SPLIT, OPT_ONLY,
+    OPT_NO_GARMENTS, OPT_SHARD, OPT_LIMIT, OPT_FRAMES, OPT_SUBSTEPS, OPT_MAX_SUBSTEPS, OPT_GARMENT_SUBSTEPS,
+    OPT_FAST_COLLIDER, OPT_SEED, OPT_SPEED, OPT_RESOLUTION_SERIES, OPT_ARM_SPREAD, OPT_ARM_SPREAD_RETRY,
+    OPT_EASE_IN_RETRY, OPT_AMPLITUDE_RETRY, OPT_NO_GARMENT_RETRY, OPT_NO_VALIDATE, OPT_REDO_REJECTED,
+    OPT_CHECKPOINT_FRAMES, OPT_TIME_LIMIT,
+};
+
+static const cli_option k_options[] = {
+    {"out", "DIR", OPT_OUT, "the dataset folder (created with its parents); required"},
+    {"all", NULL, OPT_ALL,
+     "the whole planned set: per scenario (drop, gripper, garment) 150 x 1k,\n"
+     "30 x 4k and 2 x 16k vertices, smallest first"},
+    {"scenario", "drop|gripper|garment", OPT_SCENARIO,
+     "--count sequences of one scenario at --vertices, named\n"
+     "<scenario>_v<V>_<index>"},
+    {"count", "N", OPT_COUNT, "sequences of --scenario, 1..100000 (default 10)"},
+    {"vertices", "V", OPT_VERTICES, "cloth vertices of --scenario, --mocap, --bvh and --like, 3..10000000\n(default 1024)"},
+    {"like", "DIR", OPT_LIKE,
+     "the scene of the sequence in DIR (its meta.json's scenario, seed_u64,\n"
+     "frames and motion speed) at --vertices, as DIR-NAME_v<vertices>: a twin\n"
+     "at another resolution for cross-resolution tests (e.g. the 1k twin of a\n"
+     "16k sequence)"},
+    {"manifest-only", NULL, OPT_MANIFEST_ONLY,
+     "generate nothing: rewrite DIR/manifest.json and the split files from the\n"
+     "finished sequences"},
+    {"mocap", "train|test|all", OPT_MOCAP,
+     "garments on the mocap library's clips of that split\n"
+     "(samples/mocap/clips.csv): windows of --frames every --frames/60 s of\n"
+     "each clip (fewer frames at a clip's end), named\n"
+     "mocap_<clip>_v<V>_<first frame>, the avatar and garment drawn from the\n"
+     "name; no arm spread, body parts in the reference and the validator\n"
+     "(docs/REFSIM.md, Real motion). Test clips give test sequences, train\n"
+     "clips train and (by the name's hash, 1 in 10) val sequences"},
+    {"clips", "A,B,...", OPT_CLIPS, "with --mocap: only these clips (names as in clips.csv)"},
+    {"mocap-dir", "DIR", OPT_MOCAP_DIR, "the library (default $WEFT_MOCAP_DIR, else samples/mocap)"},
+    {"bvh", "PATH", OPT_BVH,
+     "the same windows of one BVH file of yours (plain or .gz, any skeleton\n"
+     "weft_bvh_load_file maps), named mocap_<file stem>_..., train or val by\n"
+     "name"},
+    {"joint-map", "FILE", OPT_JOINT_MAP,
+     "with --bvh: the file's joint for each SMPL joint, one\n"
+     "'smpl_joint source_joint' a line (a skeleton no naming table knows;\n"
+     "docs/RENDER.md, BVH import)"},
+    {"avatar", "gltf:PATH", OPT_AVATAR,
+     "your own skinned character (glTF/FBX, any joint names, metres, Y up) as\n"
+     "the collider, played by its own animation after a pre-roll of --preroll\n"
+     "frames; body parts from its joints; one sequence,\n"
+     "character_<avatar>_<garment>; needs --garment, and no --all, --scenario,\n"
+     "--mocap, --bvh, --like or --manifest-only"},
+    {"garment", "obj:PATH", OPT_GARMENT,
+     "with --avatar: the garment, an OBJ fitted to the character's bind pose\n"
+     "(refused when it is not on the character or lies inside it;\n"
+     "docs/RENDER.md, Your own character)"},
+    {"preroll", "N", OPT_PREROLL,
+     "with --avatar: pre-roll frames, 2..1000 (default 90): half blending from\n"
+     "the bind pose, half holding the first pose; not recorded"},
+    {"tier", "1k|4k|16k", OPT_TIER,
+     "generate only that tier of --all (e.g. the 16k cross-resolution\n"
+     "sequences before the 1k tier is finished)"},
+    {"split", "train|val|test", OPT_SPLIT,
+     "only sequences whose name falls in that split (the split is a hash of\n"
+     "the name): e.g. the held-out test sequences without the training set"},
+    {"only", "drop|gripper|garment", OPT_ONLY, "only that scenario of --all (same names and seeds as in the full plan)"},
+    {"no-garments", NULL, OPT_NO_GARMENTS, "leave the garment scenario out of --all (it is the slowest)"},
+    {"shard", "I/N", OPT_SHARD,
+     "only sequences whose plan index is I modulo N (job arrays;\n"
+     "0 <= I < N <= 100000)"},
+    {"limit", "N", OPT_LIMIT, "stop after generating N new sequences (0..100000000)"},
+    {"frames", "T", OPT_FRAMES,
+     "recorded frames per sequence, 1..1000000\n"
+     "(default 240; --like: the other sequence's)"},
+    {"substeps", "S", OPT_SUBSTEPS, "solver substeps per frame of the first attempt, 1..4000 (default 40)"},
+    {"max-substeps", "S", OPT_MAX_SUBSTEPS,
+     "a rejected sequence is retried with more substeps up to S, 0..4000\n"
+     "(default 80; below --substeps: --substeps)"},
+    {"garment-substeps", "S", OPT_GARMENT_SUBSTEPS,
+     "first attempt of a garment sequence when above --substeps (0..4000)\n"
+     "(default: none, garments start at --substeps like the others)"},
+    {"fast-collider", "F", OPT_FAST_COLLIDER,
+     "a frame whose collider moves fast near the cloth gets up to F times the\n"
+     "attempt's substeps, so the solver's bounds can keep the cloth it pushes\n"
+     "outside it (1..16, 1 = fixed substeps; default below)"},
+    {"seed", "X", OPT_SEED,
+     "every sequence's seed is hashed from X and its name, 0..2^64-1\n"
+     "(default 1)"},
+    {"speed", "X", OPT_SPEED,
+     "scale the avatar's motion and the gripper's schedule (0.1..10, default\n"
+     "1; the stability suite's speed axis); same draws as at speed 1"},
+    {"resolution-series", NULL, OPT_RESOLUTION_SERIES,
+     "seed each sequence from <scenario>_<index>, not its full name, so the\n"
+     "same --scenario/--count/--seed at another --vertices draws the same\n"
+     "scene (objects, body, motion, garment type) at another resolution"},
+    {"arm-spread", "R", OPT_ARM_SPREAD,
+     "the avatar's arms held R radians further from the torso than the motion\n"
+     "has them, in every garment sequence (0..0.8; 0: as before, when the\n"
+     "skinned avatar intersects itself at the armpits in most frames)"},
+    {"arm-spread-retry", "R", OPT_ARM_SPREAD_RETRY,
+     "a garment still rejected at --max-substeps is retried, gently: with the\n"
+     "avatar's arms R radians further still (--arm-spread + R <= 0.8), its\n"
+     "motion eased in over --ease-in-retry and scaled by --amplitude-retry"},
+    {"ease-in-retry", "S", OPT_EASE_IN_RETRY, "the retry's motion eased in from rest over S seconds (0..2)"},
+    {"amplitude-retry", "A", OPT_AMPLITUDE_RETRY, "the retry's motion amplitude scaled by A (0.1..1)"},
+    {"no-garment-retry", NULL, OPT_NO_GARMENT_RETRY, "no such retry"},
+    {"no-validate", NULL, OPT_NO_VALIDATE, "skip the validator (every finished sequence is accepted)"},
+    {"redo-rejected", NULL, OPT_REDO_REJECTED,
+     "generate the finished but rejected sequences again (after a generator\n"
+     "change, e.g. the gentle garment retry), besides the unfinished ones"},
+    {"checkpoint-frames", "N", OPT_CHECKPOINT_FRAMES,
+     "save a sequence's state every N frames, 0..100000\n"
+     "(DIR/<name>/checkpoint.bin) and continue from it when rerun (default: 10\n"
+     "for sequences of 16k vertices or more, 0 = none below); part of what\n"
+     "defines the sequence"},
+    {"time-limit", "S", OPT_TIME_LIMIT,
+     "stop at the first checkpoint after S seconds, 0..1e9 (sequences without\n"
+     "checkpoints are not started once S has passed); rerun to continue"},
+    {0},
+};
+
+static void notes(FILE *out)
 {
-    fprintf(f,
-            "usage: weft simgen --out DIR (--all | --scenario drop|gripper|garment [--count N] [--vertices V])\n"
-            "                   [--shard I/N] [--frames T] [--substeps S] [--max-substeps S] [--seed X]\n"
-            "                   [--garment-substeps S] [--no-validate] [--manifest-only] [--limit N]\n"
-            "                   [--no-garments] [--speed X] [--resolution-series] [--tier 1k|4k|16k]\n"
-            "                   [--split train|val|test] [--only drop|gripper|garment] [--arm-spread-retry R]\n"
-            "                   [--ease-in-retry S] [--amplitude-retry A] [--no-garment-retry] [--redo-rejected]\n"
-            "                   [--fast-collider F] [--arm-spread R]\n");
-    fprintf(f,
-            "       weft simgen --out DIR --avatar gltf:PATH --garment obj:PATH [--frames T] [--substeps S]\n"
-            "                   [--max-substeps S] [--fast-collider F] [--preroll N] [--no-validate]\n"
-            "  --avatar gltf:PATH  your own skinned character (glTF/FBX, any joint names, metres, Y up) as\n"
-            "                   the collider, played by its own animation after a pre-roll of N frames\n"
-            "                   (--preroll, 2..1000, default 90: half blending from the bind pose, half\n"
-            "                   holding the first pose; not recorded); body parts from its joints; one\n"
-            "                   sequence, character_<avatar>_<garment>\n"
-            "  --garment obj:PATH  the garment, an OBJ fitted to the character's bind pose (refused when it\n"
-            "                   is not on the character or lies inside it; docs/RENDER.md, Your own character)\n");
-    fprintf(f,
-            "       weft simgen --out DIR (--mocap train|test|all [--clips A,B,...] [--mocap-dir DIR] | --bvh PATH)\n"
-            "                   [--vertices V]\n"
-            "                   [--frames T] [--split train|val|test] [--shard I/N] [...]\n"
-            "  --mocap S        garments on the mocap library's clips of split S (samples/mocap/clips.csv):\n"
-            "                   windows of --frames every --frames/60 s of each clip (fewer frames at a\n"
-            "                   clip's end), named mocap_<clip>_v<V>_<first frame>, the avatar and garment\n"
-            "                   drawn from the name; no arm spread, body parts in the reference and the\n"
-            "                   validator (docs/REFSIM.md, Real motion). Test clips give test sequences,\n"
-            "                   train clips train and (by the name's hash, 1 in 10) val sequences\n"
-            "  --clips A,B      only these clips (names as in clips.csv)\n"
-            "  --bvh PATH       the same windows of one BVH file of yours (plain or .gz, any skeleton\n"
-            "                   weft_bvh_load_file maps), named mocap_<file stem>_..., train or val by name\n"
-            "  --joint-map FILE with --bvh: the file's joint for each SMPL joint, one 'smpl_joint source_joint'\n"
-            "                   a line (a skeleton no naming table knows; docs/RENDER.md, BVH import)\n"
-            "  --mocap-dir DIR  the library (default $WEFT_MOCAP_DIR, else samples/mocap)\n");
-    fprintf(f,
-            "  --all            the whole planned set: per scenario (drop, gripper, garment) 150 x 1k,\n"
-            "                   30 x 4k and 2 x 16k vertices, smallest first\n"
-            "  --tier T         generate only that tier of --all (e.g. the 16k cross-resolution\n"
-            "                   sequences before the 1k tier is finished)\n"
-            "  --split S        only sequences whose name falls in split S (the split is a hash of the\n"
-            "                   name): e.g. the held-out test sequences without the training set\n"
-            "  --no-garments    leave the garment scenario out of --all (it is the slowest)\n"
-            "  --only S         only the scenario S of --all (same names and seeds as in the full plan)\n"
-            "  --arm-spread R   the avatar's arms held R radians further from the torso than the motion has\n"
-            "                   them, in every garment sequence (0..0.8, default 0.3; 0: as before, when the\n"
-            "                   skinned avatar intersects itself at the armpits in most frames)\n"
-            "  --arm-spread-retry R, --ease-in-retry S, --amplitude-retry A  a garment still rejected at\n"
-            "                   --max-substeps is retried with the avatar's arms R radians further still\n"
-            "                   (--arm-spread + R <= 0.8, default 0.3), its motion eased in from rest over S seconds\n"
-            "                   (0..2, default 0.5) and its amplitude scaled by A (0.1..1, default 0.75)\n"
-            "  --no-garment-retry  no such retry\n"
-            "  --speed X        scale the avatar's motion and the gripper's schedule (0.1..10, default 1;\n"
-            "                   the stability suite's speed axis); same draws as at speed 1\n"
-            "  --resolution-series  seed each sequence from <scenario>_<index>, not its full name, so the\n"
-            "                   same --scenario/--count/--seed at another --vertices draws the same scene\n"
-            "                   (objects, body, motion, garment type) at another resolution\n"
-            "  --fast-collider F  a frame whose collider moves fast near the cloth gets up to F times the\n"
-            "                   attempt's substeps, so the solver's bounds can keep the cloth it pushes\n"
-            "                   outside it (1..16; default %u, 1 = fixed substeps)\n"
-            "  --garment-substeps S  first attempt of a garment sequence when above --substeps (0..4000)\n"
-            "                   (default: none, garments start at --substeps like the others)\n"
-            "  --redo-rejected  generate the finished but rejected sequences again (after a generator\n"
-            "                   change, e.g. the gentle garment retry), besides the unfinished ones\n"
-            "  --shard I/N      only sequences whose plan index is I modulo N (job arrays; 0 <= I < N <= 100000)\n"
-            "  --limit N        stop after generating N new sequences (0..100000000)\n"
-            "  --checkpoint-frames N  save a sequence's state every N frames, 0..100000 (DIR/<name>/checkpoint.bin)\n"
-            "                   and continue from it when rerun (default: 10 for sequences of 16k\n"
-            "                   vertices or more, 0 = none below); part of what defines the sequence\n"
-            "  --like DIR       the scene of the sequence in DIR (its meta.json's scenario, seed_u64, frames and\n"
-            "                   motion speed) at --vertices, as DIR-NAME_v<vertices>: a twin at another\n"
-            "                   resolution for cross-resolution tests (e.g. the 1k twin of a 16k sequence)\n"
-            "  --time-limit S   stop at the first checkpoint after S seconds, 0..1e9 (sequences without\n"
-            "                   checkpoints are not started once S has passed); rerun to continue\n"
+    const weft_sim_sequence_def d = weft_sim_default_sequence_def();
+    fprintf(out,
+            "Defaults: --arm-spread %.2g, --arm-spread-retry %.2g, --ease-in-retry %.2g, --amplitude-retry %.2g,\n"
+            "--fast-collider %u.\n"
             "Finished sequences (DIR/<name>/meta.json present) are skipped, so a run resumes.\n"
-            "Writes DIR/manifest.json and DIR/splits/<scenario>_{train,val,test}.txt (8:1:1).\n",
-            weft_sim_default_sequence_def().fast_collider_factor);
-    fprintf(f, "Ranges: --count 1..100000, --vertices 3..10000000, --frames 1..1000000, --substeps 1..4000,\n"
-               "--max-substeps 0..4000, --seed 0..2^64-1; a value out of range or not a whole number is refused.\n");
+            "Writes DIR/manifest.json and DIR/splits/<scenario>_{train,val,test}.txt (8:1:1).\n"
+            "A value out of range or not a whole number (where one is wanted) is refused.\n",
+            (double)d.garment_arm_spread, (double)d.garment_retry_arm_spread, (double)d.garment_retry_ease_in,
+            (double)d.garment_retry_amplitude, d.fast_collider_factor);
 }
 
-/* Index of a garment float option (the arm spread and the gentle retry's three), -1 for others. */
+static const cli_command k_command = {
+    .tool = "weft simgen",
+    .synopsis =
+        "weft simgen --out DIR (--all | --scenario drop|gripper|garment [--count N] [--vertices V])\n"
+        "            [--shard I/N] [--frames T] [--substeps S] [--max-substeps S] [--seed X]\n"
+        "            [--garment-substeps S] [--no-validate] [--manifest-only] [--limit N]\n"
+        "            [--no-garments] [--speed X] [--resolution-series] [--tier 1k|4k|16k]\n"
+        "            [--split train|val|test] [--only drop|gripper|garment] [--arm-spread-retry R]\n"
+        "            [--ease-in-retry S] [--amplitude-retry A] [--no-garment-retry] [--redo-rejected]\n"
+        "            [--fast-collider F] [--arm-spread R] [--checkpoint-frames N] [--time-limit S]\n"
+        "weft simgen --out DIR --avatar gltf:PATH --garment obj:PATH [--frames T] [--substeps S]\n"
+        "            [--max-substeps S] [--fast-collider F] [--preroll N] [--no-validate]\n"
+        "weft simgen --out DIR (--mocap train|test|all [--clips A,B,...] [--mocap-dir DIR]\n"
+        "                       | --bvh PATH [--joint-map FILE])\n"
+        "            [--vertices V] [--frames T] [--split train|val|test] [--shard I/N] [...]\n"
+        "weft simgen --out DIR --like DIR [--vertices V] [--frames T] [...]",
+    .about = "Generates the reference-simulation dataset (docs/DATASET.md): XPBD cloth sequences (drop,\n"
+             "gripper, garment) certified frame by frame by the validator, for training.",
+    .options = k_options,
+    .notes = notes,
+};
+
 /* "I/N": two whole numbers, 0 <= I < N <= 100000, nothing else. */
 static bool parse_shard(const char *v, uint32_t *i, uint32_t *n)
 {
@@ -603,17 +675,6 @@ static bool parse_shard(const char *v, uint32_t *i, uint32_t *n)
     *i = (uint32_t)a;
     *n = (uint32_t)b;
     return true;
-}
-
-static int garment_option(const char *arg)
-{
-    static const char *const names[4] = {"--arm-spread-retry", "--ease-in-retry", "--amplitude-retry", "--arm-spread"};
-    for (int k = 0; k < 4; ++k) {
-        if (strcmp(arg, names[k]) == 0) {
-            return k;
-        }
-    }
-    return -1;
 }
 
 /* --avatar gltf:PATH --garment obj:PATH: one sequence of the user's garment on the user's
@@ -756,83 +817,117 @@ int weft_cmd_simgen(int argc, char **argv)
     long checkpoint_frames = -1; /* -1: by size */
     double time_limit = 0.0;
     unsigned long long seed0 = 1;
-    for (int i = 1; i < argc; ++i) {
-        const char *a = argv[i];
-        const char *v = i + 1 < argc ? argv[i + 1] : NULL;
-        if (strcmp(a, "--help") == 0 || strcmp(a, "-h") == 0) {
-            usage(stdout);
+    cli_parser parser;
+    if (!cli_start(&parser, &k_command, argc, argv)) {
+        return 2;
+    }
+    const char *v;
+    for (int id; (id = cli_next(&parser, &v)) != CLI_END;) {
+        const char *a = cli_name(&k_command, id);
+        switch (id) {
+        case CLI_HELP:
+            cli_usage(&k_command, stdout);
             return 0;
-        } else if (strcmp(a, "--all") == 0) {
+        case CLI_BAD:
+            return 2;
+        case OPT_ALL:
             all = true;
-        } else if (v && strcmp(a, "--mocap") == 0) {
+            break;
+        case OPT_MOCAP:
             if (strcmp(v, "train") && strcmp(v, "test") && strcmp(v, "all")) {
                 fprintf(stderr, "simgen: --mocap wants train, test or all, got '%s'\n", v);
                 return 2;
             }
-            mocap = argv[++i];
-        } else if (v && strcmp(a, "--bvh") == 0) {
-            bvh = argv[++i];
-        } else if (v && strcmp(a, "--avatar") == 0) {
-            avatar = argv[++i];
-        } else if (v && strcmp(a, "--garment") == 0) {
-            garment = argv[++i];
-        } else if (v && strcmp(a, "--preroll") == 0) {
+            mocap = v;
+            break;
+        case OPT_BVH:
+            bvh = v;
+            break;
+        case OPT_AVATAR:
+            avatar = v;
+            break;
+        case OPT_GARMENT:
+            garment = v;
+            break;
+        case OPT_PREROLL:
             if (!cli_u32("simgen", a, v, 2, 1000, &preroll)) {
                 return 2;
             }
-            ++i;
-        } else if (v && strcmp(a, "--joint-map") == 0) {
+            break;
+        case OPT_JOINT_MAP:
             if (weft_bvh_read_joint_map(v, &joint_map) != WEFT_OK) {
                 fprintf(stderr, "simgen: --joint-map: %s\n", weft_last_error());
                 return 2;
             }
             joint_map_given = true;
-            ++i;
-        } else if (v && strcmp(a, "--clips") == 0) {
-            mocap_clips = argv[++i];
-        } else if (v && strcmp(a, "--mocap-dir") == 0) {
-            mocap_dir = argv[++i];
-        } else if (strcmp(a, "--no-garments") == 0) {
+            break;
+        case OPT_CLIPS:
+            mocap_clips = v;
+            break;
+        case OPT_MOCAP_DIR:
+            mocap_dir = v;
+            break;
+        case OPT_NO_GARMENTS:
             garments = false;
-        } else if (v && strcmp(a, "--speed") == 0) {
+            break;
+        case OPT_SPEED:
             if (!cli_float("simgen", a, v, 0.1f, 10.0f, &motion_speed)) {
                 return 2;
             }
-            ++i;
-        } else if (v && strcmp(a, "--fast-collider") == 0) {
+            break;
+        case OPT_FAST_COLLIDER:
             if (!cli_u32("simgen", a, v, 1, 16, &fast_collider)) {
                 return 2;
             }
-            ++i;
-        } else if (v && strcmp(a, "--garment-substeps") == 0) {
+            break;
+        case OPT_GARMENT_SUBSTEPS:
             if (!cli_u32("simgen", a, v, 0, 4000, &garment_substeps)) {
                 return 2;
             }
-            ++i;
-        } else if (v && strcmp(a, "--only") == 0) {
-            only = v, ++i;
-        } else if (strcmp(a, "--no-garment-retry") == 0) {
+            break;
+        case OPT_ONLY:
+            only = v;
+            break;
+        case OPT_NO_GARMENT_RETRY:
             garment_retry = false;
-        } else if (v && garment_option(a) >= 0) {
-            /* range, unit and target of the garment arm spread and the gentle-retry settings */
-            const int k = garment_option(a);
-            static const float lo[4] = {0.0f, 0.0f, 0.1f, 0.0f}, hi[4] = {0.8f, 2.0f, 1.0f, 0.8f};
-            float *target[4] = {&arm_spread_retry, &ease_in_retry, &amplitude_retry, &arm_spread};
-            if (!cli_float("simgen", a, v, lo[k], hi[k], target[k])) {
+            break;
+        /* range, unit and target of the garment arm spread and the gentle-retry settings */
+        case OPT_ARM_SPREAD_RETRY:
+            if (!cli_float("simgen", a, v, 0.0f, 0.8f, &arm_spread_retry)) {
                 return 2;
             }
-            ++i;
-        } else if (strcmp(a, "--redo-rejected") == 0) {
+            break;
+        case OPT_EASE_IN_RETRY:
+            if (!cli_float("simgen", a, v, 0.0f, 2.0f, &ease_in_retry)) {
+                return 2;
+            }
+            break;
+        case OPT_AMPLITUDE_RETRY:
+            if (!cli_float("simgen", a, v, 0.1f, 1.0f, &amplitude_retry)) {
+                return 2;
+            }
+            break;
+        case OPT_ARM_SPREAD:
+            if (!cli_float("simgen", a, v, 0.0f, 0.8f, &arm_spread)) {
+                return 2;
+            }
+            break;
+        case OPT_REDO_REJECTED:
             redo_rejected = true;
-        } else if (strcmp(a, "--resolution-series") == 0) {
+            break;
+        case OPT_RESOLUTION_SERIES:
             resolution_series = true;
-        } else if (strcmp(a, "--manifest-only") == 0) {
+            break;
+        case OPT_MANIFEST_ONLY:
             manifest_only = true;
-        } else if (strcmp(a, "--no-validate") == 0) {
+            break;
+        case OPT_NO_VALIDATE:
             validate = false;
-        } else if (v && strcmp(a, "--out") == 0) {
-            out = v, ++i;
-        } else if (v && strcmp(a, "--tier") == 0) {
+            break;
+        case OPT_OUT:
+            out = v;
+            break;
+        case OPT_TIER:
             tier = NULL;
             for (size_t t = 0; t < sizeof k_tiers / sizeof k_tiers[0]; ++t) {
                 tier = strcmp(v, k_tiers[t].tag) == 0 ? k_tiers[t].tag : tier;
@@ -841,78 +936,87 @@ int weft_cmd_simgen(int argc, char **argv)
                 fprintf(stderr, "simgen: --tier wants 1k, 4k or 16k, got '%s'\n", v);
                 return 2;
             }
-            ++i;
-        } else if (v && strcmp(a, "--split") == 0) {
+            break;
+        case OPT_SPLIT:
             if (strcmp(v, "train") != 0 && strcmp(v, "val") != 0 && strcmp(v, "test") != 0) {
                 fprintf(stderr, "simgen: --split wants train, val or test, got '%s'\n", v);
                 return 2;
             }
             split = v;
-            ++i;
-        } else if (v && strcmp(a, "--scenario") == 0) {
-            scenario = v, ++i;
-        } else if (v && strcmp(a, "--count") == 0) {
+            break;
+        case OPT_SCENARIO:
+            scenario = v;
+            break;
+        case OPT_COUNT:
             if (!cli_u32("simgen", a, v, 1, 100000, &count)) {
                 return 2;
             }
-            ++i;
-        } else if (v && strcmp(a, "--vertices") == 0) {
+            break;
+        case OPT_VERTICES:
             if (!cli_u32("simgen", a, v, 3, 10000000, &vertices)) {
                 return 2;
             }
-            ++i;
-        } else if (v && strcmp(a, "--frames") == 0) {
+            break;
+        case OPT_FRAMES:
             if (!cli_u32("simgen", a, v, 1, 1000000, &frames)) {
                 return 2;
             }
-            ++i;
             frames_given = true;
-        } else if (v && strcmp(a, "--like") == 0) {
-            like = v, ++i;
-        } else if (v && strcmp(a, "--substeps") == 0) {
+            break;
+        case OPT_LIKE:
+            like = v;
+            break;
+        case OPT_SUBSTEPS:
             if (!cli_u32("simgen", a, v, 1, 4000, &substeps)) {
                 return 2;
             }
-            ++i;
-        } else if (v && strcmp(a, "--max-substeps") == 0) {
+            break;
+        case OPT_MAX_SUBSTEPS:
             if (!cli_u32("simgen", a, v, 0, 4000, &max_substeps)) {
                 return 2;
             }
-            ++i;
-        } else if (v && strcmp(a, "--checkpoint-frames") == 0) {
+            break;
+        case OPT_CHECKPOINT_FRAMES: {
             uint32_t every = 0;
             if (!cli_u32("simgen", a, v, 0, 100000, &every)) {
                 return 2;
             }
-            checkpoint_frames = (long)every, ++i;
-        } else if (v && strcmp(a, "--time-limit") == 0) {
+            checkpoint_frames = (long)every;
+            break;
+        }
+        case OPT_TIME_LIMIT:
             if (!cli_double("simgen", a, v, 0.0, 1e9, &time_limit)) {
                 return 2;
             }
-            ++i;
-        } else if (v && strcmp(a, "--limit") == 0) {
+            break;
+        case OPT_LIMIT:
             if (!cli_u32("simgen", a, v, 0, 100000000, &limit)) {
                 return 2;
             }
-            ++i;
-        } else if (v && strcmp(a, "--seed") == 0) {
+            break;
+        case OPT_SEED: {
             uint64_t sd = 0;
             if (!cli_u64("simgen", a, v, 0, UINT64_MAX, &sd)) {
                 return 2;
             }
             seed0 = sd;
-            ++i;
-        } else if (v && strcmp(a, "--shard") == 0) {
+            break;
+        }
+        case OPT_SHARD:
             if (!parse_shard(v, &shard_i, &shard_n)) {
                 fprintf(stderr, "simgen: --shard wants I/N with 0 <= I < N <= 100000, got '%s'\n", v);
                 return 2;
             }
-            ++i;
-        } else {
-            fprintf(stderr, "simgen: unknown or incomplete option '%s'\n", a);
-            usage(stderr);
-            return 2;
+            break;
+        default:
+            return cli_fail(&k_command, "internal error: an option without a case");
         }
+    }
+    char **rest;
+    if (cli_rest(&parser, &rest) > 0) {
+        char what[300];
+        snprintf(what, sizeof what, "unexpected argument '%.200s'", rest[0]);
+        return cli_fail(&k_command, what);
     }
     if ((tier || only) && !all) {
         fprintf(stderr, "simgen: --tier and --only select part of --all; add --all\n");
@@ -936,8 +1040,7 @@ int weft_cmd_simgen(int argc, char **argv)
     }
     if (avatar) {
         if (!out) {
-            usage(stderr);
-            return 2;
+            return cli_fail(&k_command, "--out DIR is required");
         }
         weft_sim_sequence_def base = weft_sim_default_sequence_def();
         base.frames = frames;
@@ -959,9 +1062,11 @@ int weft_cmd_simgen(int argc, char **argv)
         fprintf(stderr, "simgen: --clips selects clips of --mocap; add --mocap\n");
         return 2;
     }
-    if (!out || (!all && !scenario && !manifest_only && !like && !mocap && !bvh)) {
-        usage(stderr);
-        return 2;
+    if (!out) {
+        return cli_fail(&k_command, "--out DIR is required");
+    }
+    if (!all && !scenario && !manifest_only && !like && !mocap && !bvh) {
+        return cli_fail(&k_command, "one of --all, --scenario, --mocap, --bvh, --like, --avatar or --manifest-only is required");
     }
     if (max_substeps < substeps) {
         max_substeps = substeps;

@@ -170,6 +170,14 @@ bool cli_floats(const char *tool, const char *option, const char *value, float l
 
 /* ---- Options ------------------------------------------------------------------------------- */
 
+enum { CLI_VAL_BASE = 1000 };
+
+/* The table entry getopt_long reported as c (or as optopt), or NULL. */
+static const cli_option *option_of(const cli_parser *p, int c)
+{
+    return c >= CLI_VAL_BASE && c < CLI_VAL_BASE + p->count ? &p->cmd->options[c - CLI_VAL_BASE] : NULL;
+}
+
 bool cli_start(cli_parser *p, const cli_command *cmd, int argc, char **argv)
 {
     memset(p, 0, sizeof *p);
@@ -187,7 +195,8 @@ bool cli_start(cli_parser *p, const cli_command *cmd, int argc, char **argv)
                     o->name ? o->name : "", o->id);
             return false;
         }
-        p->table[n] = (struct option){o->name, o->value ? required_argument : no_argument, NULL, o->id};
+        /* getopt_long returns 1000 + the option's index: no clash with its own ':', '?', 'h' */
+        p->table[n] = (struct option){o->name, o->value ? required_argument : no_argument, NULL, CLI_VAL_BASE + n};
     }
     p->table[n] = (struct option){"help", no_argument, NULL, CLI_HELP};
     p->table[n + 1] = (struct option){NULL, 0, NULL, 0};
@@ -224,16 +233,21 @@ int cli_next(cli_parser *p, const char **value)
     const int at = optind - 1 >= 1 ? optind - 1 : before;
     const char *arg = at < p->argc ? p->argv[at] : "";
     char what[512];
+    const cli_option *bad = option_of(p, optopt);
     if (c == ':') {
-        snprintf(what, sizeof what, "%s needs a value", optopt > 0 ? cli_name(p->cmd, optopt) : arg);
+        if (bad) {
+            snprintf(what, sizeof what, "--%s needs a value", bad->name);
+        } else {
+            snprintf(what, sizeof what, "%s needs a value", arg);
+        }
         return cli_fail(p->cmd, what), CLI_BAD;
     }
     if (c == '?') {
         const bool is_long = strncmp(arg, "--", 2) == 0;
         const bool prefix = optopt == 0 && is_long;
-        if (optopt > 0 && is_long) {
+        if (bad && is_long) {
             /* a value given to a flag (--flag=x) */
-            snprintf(what, sizeof what, "%s takes no value", cli_name(p->cmd, optopt));
+            snprintf(what, sizeof what, "--%s takes no value", bad->name);
         } else if (prefix) {
             size_t len = strcspn(arg + 2, "=");
             int matches = 0;
@@ -246,8 +260,12 @@ int cli_next(cli_parser *p, const char **value)
         }
         return cli_fail(p->cmd, what), CLI_BAD;
     }
+    const cli_option *o = option_of(p, c);
+    if (!o) {
+        return cli_fail(p->cmd, "internal error: getopt_long returned an unknown option"), CLI_BAD;
+    }
     *value = optarg;
-    return c;
+    return o->id;
 }
 
 int cli_rest(const cli_parser *p, char ***rest)
