@@ -463,7 +463,8 @@ WEFT_API weft_surface_pins_def weft_default_surface_pins_def(void);
 WEFT_API weft_result weft_surface_pins_create(weft_context *context, const weft_surface_pins_def *def,
                                               weft_surface_pins **out_pins);
 WEFT_API void weft_surface_pins_destroy(weft_surface_pins *pins);
-/* The targets on the collider posed at `collider_positions` (collider_vertex_count * 3), count * 3. */
+/* The targets on the collider posed at `collider_positions` (collider_vertex_count * 3), count * 3.
+ * It uses scratch held by the pins object: one thread at a time per object, as for garments. */
 WEFT_API weft_result weft_surface_pins_targets(const weft_surface_pins *pins, const float *collider_positions,
                                                float *out_targets);
 WEFT_API uint32_t weft_surface_pins_count(const weft_surface_pins *pins);

@@ -117,7 +117,8 @@ weft_result geo_skin_create_points(const weft_context *ctx, const float *points,
                                 uint32_t triangle_count, const char *who, geo_skin **out);
 void geo_skin_destroy(const weft_context *ctx, geo_skin *skin);
 /* Bound positions for collider vertex positions c (vertex_count * 3 into out_pos); fails only
- * when every triangle bound to a vertex has collapsed. */
+ * when every triangle bound to a vertex has collapsed. Each bound triangle's frame is computed
+ * once into the skin's scratch, so one skin is evaluated by one thread at a time. */
 weft_result geo_skin_eval(const geo_skin *skin, const uint32_t *collider_triangles, const float *c, const char *who,
                        float *out_pos);
 

@@ -8,6 +8,7 @@
 
 #include <float.h>
 #include <math.h>
+#include <stdlib.h>
 #include <string.h>
 
 #define SKIN_SLOTS 4
@@ -19,10 +20,73 @@ typedef struct skin_bind {
     float weight[SKIN_SLOTS];
 } skin_bind;
 
+/* The frame of one collider triangle, computed once per evaluation however many bindings use it. */
+typedef struct skin_frame {
+    double t1[3], t2[3], nn[3];
+    bool ok;                     /* false: the triangle collapsed this frame */
+} skin_frame;
+
 struct geo_skin {
     skin_bind *bind;
     uint32_t n;
+    uint32_t tri_count;          /* distinct triangles the bindings use */
+    uint32_t *tris;              /* tri_count collider triangles */
+    uint32_t *slot;              /* n * SKIN_SLOTS: index into tris of each binding (weight 0: unused) */
+    skin_frame *frames;          /* tri_count scratch, rewritten by every geo_skin_eval */
 };
+
+static int cmp_u32(const void *a, const void *b)
+{
+    const uint32_t x = *(const uint32_t *)a, y = *(const uint32_t *)b;
+    return x < y ? -1 : (x > y ? 1 : 0);
+}
+
+/* The distinct triangles of the bindings and each binding's index among them. */
+static weft_result make_frames(const weft_context *ctx, geo_skin *s)
+{
+    const size_t slots = (size_t)s->n * SKIN_SLOTS;
+    uint32_t *all = weft__alloc(ctx, (slots ? slots : 1) * sizeof(uint32_t));
+    s->slot = weft__alloc(ctx, (slots ? slots : 1) * sizeof(uint32_t));
+    if (!all || !s->slot) {
+        weft__free(ctx, all, (slots ? slots : 1) * sizeof(uint32_t));
+        return WEFT_ERROR_OUT_OF_MEMORY;
+    }
+    size_t m = 0;
+    for (uint32_t i = 0; i < s->n; ++i) {
+        for (int k = 0; k < SKIN_SLOTS; ++k) {
+            if (s->bind[i].weight[k] != 0.0f) {
+                all[m++] = s->bind[i].tri[k];
+            }
+        }
+    }
+    qsort(all, m, sizeof *all, cmp_u32);
+    size_t u = 0;
+    for (size_t i = 0; i < m; ++i) {
+        if (u == 0 || all[i] != all[u - 1]) {
+            all[u++] = all[i];
+        }
+    }
+    s->tri_count = (uint32_t)u;
+    s->tris = weft__alloc(ctx, (u ? u : 1) * sizeof(uint32_t));
+    s->frames = weft__alloc(ctx, (u ? u : 1) * sizeof(skin_frame));
+    if (!s->tris || !s->frames) {
+        weft__free(ctx, all, (slots ? slots : 1) * sizeof(uint32_t));
+        return WEFT_ERROR_OUT_OF_MEMORY;
+    }
+    memcpy(s->tris, all, u * sizeof *all);
+    weft__free(ctx, all, (slots ? slots : 1) * sizeof(uint32_t));
+    for (uint32_t i = 0; i < s->n; ++i) {
+        for (int k = 0; k < SKIN_SLOTS; ++k) {
+            uint32_t *at = &s->slot[(size_t)i * SKIN_SLOTS + k];
+            *at = UINT32_MAX;
+            if (s->bind[i].weight[k] != 0.0f) {
+                const uint32_t *hit = bsearch(&s->bind[i].tri[k], s->tris, u, sizeof *s->tris, cmp_u32);
+                *at = (uint32_t)(hit - s->tris);
+            }
+        }
+    }
+    return WEFT_OK;
+}
 
 /* Orthonormal frame (t1 along edge 0-1, n the face normal, t2 = n x t1). False if degenerate. */
 static bool tri_frame(const double *a, const double *b, const double *c, double t1[3], double t2[3], double nn[3])
@@ -173,6 +237,10 @@ weft_result geo_skin_create_points(const weft_context *ctx, const float *points,
     }
     geo_bvh_destroy(ctx, &bvh);
     weft__free(ctx, cpos, nc3 * sizeof(double));
+    if (make_frames(ctx, s) != WEFT_OK) {
+        geo_skin_destroy(ctx, s);
+        return WEFT_ERROR_OUT_OF_MEMORY;
+    }
     *out = s;
     return WEFT_OK;
 }
@@ -180,6 +248,10 @@ weft_result geo_skin_create_points(const weft_context *ctx, const float *points,
 void geo_skin_destroy(const weft_context *ctx, geo_skin *s)
 {
     if (s) {
+        const size_t slots = (size_t)s->n * SKIN_SLOTS;
+        weft__free(ctx, s->slot, (slots ? slots : 1) * sizeof(uint32_t));
+        weft__free(ctx, s->tris, (s->tri_count ? s->tri_count : 1) * sizeof(uint32_t));
+        weft__free(ctx, s->frames, (s->tri_count ? s->tri_count : 1) * sizeof(skin_frame));
         weft__free(ctx, s->bind, s->n * sizeof *s->bind);
         weft__free(ctx, s, sizeof *s);
     }
@@ -187,6 +259,18 @@ void geo_skin_destroy(const weft_context *ctx, geo_skin *s)
 
 weft_result geo_skin_eval(const geo_skin *s, const uint32_t *collider_triangles, const float *c, const char *who, float *out_pos)
 {
+    /* Each triangle's frame once (many bindings share a triangle); the same values as per binding. */
+    for (uint32_t u = 0; u < s->tri_count; ++u) {
+        const uint32_t *tri = collider_triangles + 3 * (size_t)s->tris[u];
+        double a[3], bb[3], cc[3];
+        for (int j = 0; j < 3; ++j) {
+            a[j] = c[3 * (size_t)tri[0] + j];
+            bb[j] = c[3 * (size_t)tri[1] + j];
+            cc[j] = c[3 * (size_t)tri[2] + j];
+        }
+        skin_frame *f = &s->frames[u];
+        f->ok = tri_frame(a, bb, cc, f->t1, f->t2, f->nn);
+    }
     for (uint32_t i = 0; i < s->n; ++i) {
         const skin_bind *b = &s->bind[i];
         double out[3] = {0, 0, 0}, wsum = 0.0;
@@ -195,20 +279,22 @@ weft_result geo_skin_eval(const geo_skin *s, const uint32_t *collider_triangles,
             if (b->weight[k] == 0.0f) {
                 continue;
             }
+            const skin_frame *f = &s->frames[s->slot[(size_t)i * SKIN_SLOTS + k]];
+            if (!f->ok) {
+                continue; /* a collapsed collider triangle: the other bindings carry the vertex */
+            }
             const uint32_t *tri = collider_triangles + 3 * (size_t)b->tri[k];
-            double a[3], bb[3], cc[3], t1[3], t2[3], nn[3];
+            double a[3], bb[3], cc[3];
             for (int j = 0; j < 3; ++j) {
                 a[j] = c[3 * (size_t)tri[0] + j];
                 bb[j] = c[3 * (size_t)tri[1] + j];
                 cc[j] = c[3 * (size_t)tri[2] + j];
             }
-            if (!tri_frame(a, bb, cc, t1, t2, nn)) {
-                continue; /* a collapsed collider triangle: the other bindings carry the vertex */
-            }
             double w = b->weight[k];
             for (int j = 0; j < 3; ++j) {
                 double q = b->bary[k][0] * a[j] + b->bary[k][1] * bb[j] + b->bary[k][2] * cc[j];
-                out[j] += w * (q + b->offset[k][0] * t1[j] + b->offset[k][1] * t2[j] + b->offset[k][2] * nn[j]);
+                out[j] += w * (q + b->offset[k][0] * f->t1[j] + b->offset[k][1] * f->t2[j] +
+                               b->offset[k][2] * f->nn[j]);
             }
             wsum += w;
             any = true;
