@@ -130,17 +130,12 @@ int weft_bench_body(int argc, char **argv)
     uint32_t frame_count = 600;
     bool contact = false;
     cli_parser parser;
-    if (!cli_start(&parser, &k_command, argc, argv)) {
-        return 2;
-    }
+    cli_start(&parser, &k_command, argc, argv);
     const char *v;
     for (int id; (id = cli_next(&parser, &v)) != CLI_END;) {
         switch (id) {
-        case CLI_HELP:
-            cli_usage(&k_command, stdout);
-            return 0;
-        case CLI_BAD:
-            return 2;
+        case CLI_STOP:
+            return parser.exit;
         case OPT_FRAMES:
             if (!cli_u32(k_command.tool, cli_name(&k_command, id), v, 1, 1000000, &frame_count)) {
                 return 2;
@@ -153,11 +148,8 @@ int weft_bench_body(int argc, char **argv)
             return cli_fail(&k_command, "internal error: an option without a case");
         }
     }
-    char **rest;
-    if (cli_rest(&parser, &rest) > 0) {
-        char what[300];
-        snprintf(what, sizeof what, "unexpected argument '%.200s'", rest[0]);
-        return cli_fail(&k_command, what);
+    if (cli_no_rest(&parser) != 0) {
+        return 2;
     }
     const int frames = (int)frame_count;
     weft_context_def cd = weft_default_context_def();

@@ -329,17 +329,12 @@ int weft_bench_ccd(int argc, char **argv)
 {
     uint32_t queries = 200000, frames = 20;
     cli_parser parser;
-    if (!cli_start(&parser, &k_command, argc, argv)) {
-        return 2;
-    }
+    cli_start(&parser, &k_command, argc, argv);
     const char *v;
     for (int id; (id = cli_next(&parser, &v)) != CLI_END;) {
         switch (id) {
-        case CLI_HELP:
-            cli_usage(&k_command, stdout);
-            return 0;
-        case CLI_BAD:
-            return 2;
+        case CLI_STOP:
+            return parser.exit;
         case OPT_QUERIES:
             if (!cli_u32(k_command.tool, cli_name(&k_command, id), v, 1, 10000000, &queries)) {
                 return 2;
@@ -354,11 +349,8 @@ int weft_bench_ccd(int argc, char **argv)
             return cli_fail(&k_command, "internal error: an option without a case");
         }
     }
-    char **rest;
-    if (cli_rest(&parser, &rest) > 0) {
-        char what[256];
-        snprintf(what, sizeof what, "unexpected argument '%.200s'", rest[0]);
-        return cli_fail(&k_command, what);
+    if (cli_no_rest(&parser) != 0) {
+        return 2;
     }
     printf("# %s\n", weft_config_string());
     bench_narrow(queries, 3);

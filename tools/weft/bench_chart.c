@@ -536,18 +536,13 @@ int weft_bench_chart(int argc, char **argv)
     char command[2048];
     bench_command_line(command, sizeof command, "weft bench chart", argc, argv);
     cli_parser cli;
-    if (!cli_start(&cli, &k_command, argc, argv)) {
-        return 2;
-    }
+    cli_start(&cli, &k_command, argc, argv);
     const char *v;
     for (int id; (id = cli_next(&cli, &v)) != CLI_END;) {
         const char *a = cli_name(&k_command, id);
         switch (id) {
-        case CLI_HELP:
-            cli_usage(&k_command, stdout);
-            return 0;
-        case CLI_BAD:
-            return 2;
+        case CLI_STOP:
+            return cli.exit;
         case OPT_QUICK:
             o.quick = true;
             break;
@@ -611,11 +606,8 @@ int weft_bench_chart(int argc, char **argv)
             return cli_fail(&k_command, "internal error: an option without a case");
         }
     }
-    char **rest;
-    if (cli_rest(&cli, &rest) > 0) {
-        char what[300];
-        snprintf(what, sizeof what, "unexpected argument '%.200s'", rest[0]);
-        return cli_fail(&k_command, what);
+    if (cli_no_rest(&cli) != 0) {
+        return 2;
     }
     if (!o.data) {
         return cli_fail(&k_command, "--data is required");

@@ -72,18 +72,13 @@ int weft_bench_fnopt(int argc, char **argv)
     const char *prec_list = "fp32";
     float Y = 1000.0f, S = 8.0f, B = 0.5f;
     cli_parser cp;
-    if (!cli_start(&cp, &k_command, argc, argv)) {
-        return 2;
-    }
+    cli_start(&cp, &k_command, argc, argv);
     const char *v;
     for (int id; (id = cli_next(&cp, &v)) != CLI_END;) {
         const char *a = cli_name(&k_command, id);
         switch (id) {
-        case CLI_HELP:
-            cli_usage(&k_command, stdout);
-            return 0;
-        case CLI_BAD:
-            return 2;
+        case CLI_STOP:
+            return cp.exit;
         case OPT_MODEL:
             model_path = v;
             break;
@@ -123,11 +118,8 @@ int weft_bench_fnopt(int argc, char **argv)
             return cli_fail(&k_command, "internal error: an option without a case");
         }
     }
-    char **rest;
-    if (cli_rest(&cp, &rest) > 0) {
-        char what[512];
-        snprintf(what, sizeof what, "unexpected argument '%s'", rest[0]);
-        return cli_fail(&k_command, what);
+    if (cli_no_rest(&cp) != 0) {
+        return 2;
     }
     weft_precision precs[WEFT_PRECISION_COUNT];
     uint32_t prec_count = 0;

@@ -239,17 +239,12 @@ int weft_bench_frame(int argc, char **argv)
     const char *methods_text = "model:int8,model:fp16,model:fp32,xpbd-fast:5,xpbd-fast:10,lbs";
     uint32_t frames = 60;
     cli_parser parser;
-    if (!cli_start(&parser, &k_command, argc, argv)) {
-        return 2;
-    }
+    cli_start(&parser, &k_command, argc, argv);
     const char *v;
     for (int id; (id = cli_next(&parser, &v)) != CLI_END;) {
         switch (id) {
-        case CLI_HELP:
-            cli_usage(&k_command, stdout);
-            return 0;
-        case CLI_BAD:
-            return 2;
+        case CLI_STOP:
+            return parser.exit;
         case OPT_MOTIONS:
             motions = v;
             break;
@@ -271,11 +266,8 @@ int weft_bench_frame(int argc, char **argv)
             return cli_fail(&k_command, "internal error: an option without a case");
         }
     }
-    char **rest;
-    if (cli_rest(&parser, &rest) > 0) {
-        char what[300];
-        snprintf(what, sizeof what, "unexpected argument '%.200s'", rest[0]);
-        return cli_fail(&k_command, what);
+    if (cli_no_rest(&parser) != 0) {
+        return 2;
     }
     fr_method methods[FR_MAX];
     uint32_t nm = 0;

@@ -477,17 +477,12 @@ int weft_bench_kernels(int argc, char **argv)
     bool quick = false, json = false, md = false;
     const char *only = NULL;
     cli_parser cp;
-    if (!cli_start(&cp, &k_command, argc, argv)) {
-        return 2;
-    }
+    cli_start(&cp, &k_command, argc, argv);
     const char *v;
     for (int id; (id = cli_next(&cp, &v)) != CLI_END;) {
         switch (id) {
-        case CLI_HELP:
-            cli_usage(&k_command, stdout);
-            return 0;
-        case CLI_BAD:
-            return 2;
+        case CLI_STOP:
+            return cp.exit;
         case OPT_QUICK:
             quick = true;
             break;
@@ -504,11 +499,8 @@ int weft_bench_kernels(int argc, char **argv)
             return cli_fail(&k_command, "internal error: an option without a case");
         }
     }
-    char **rest;
-    if (cli_rest(&cp, &rest) > 0) {
-        char what[512];
-        snprintf(what, sizeof what, "unexpected argument '%s'", rest[0]);
-        return cli_fail(&k_command, what);
+    if (cli_no_rest(&cp) != 0) {
+        return 2;
     }
     if (json && md) {
         fprintf(stderr, "weft bench kernels: --json and --md are exclusive\n");

@@ -1040,18 +1040,13 @@ int weft_bench_lod(int argc, char **argv)
     char command[2048];
     bench_command_line(command, sizeof command, "weft bench lod", argc, argv);
     cli_parser cp;
-    if (!cli_start(&cp, &k_command, argc, argv)) {
-        return 2;
-    }
+    cli_start(&cp, &k_command, argc, argv);
     const char *v;
     for (int id; (id = cli_next(&cp, &v)) != CLI_END;) {
         const char *a = cli_name(&k_command, id);
         switch (id) {
-        case CLI_HELP:
-            cli_usage(&k_command, stdout);
-            return 0;
-        case CLI_BAD:
-            return 2;
+        case CLI_STOP:
+            return cp.exit;
         case OPT_NO_SCALE:
             o.scale = false;
             break;
@@ -1139,11 +1134,8 @@ int weft_bench_lod(int argc, char **argv)
             return cli_fail(&k_command, "internal error: an option without a case");
         }
     }
-    char **rest;
-    if (cli_rest(&cp, &rest) > 0) {
-        char what[512];
-        snprintf(what, sizeof what, "unexpected argument '%s'", rest[0]);
-        return cli_fail(&k_command, what);
+    if (cli_no_rest(&cp) != 0) {
+        return 2;
     }
     weft_cloth_resolution res_check;
     if (weft_cloth_resolution_from_name(o.scale_res, &res_check) != WEFT_OK) {

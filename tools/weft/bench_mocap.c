@@ -365,19 +365,14 @@ int weft_bench_mocap(int argc, char **argv)
                     .ccd = false, .parts = true, .tether_cm = WEFT_WORN_TETHER_CM, .push_cm = WEFT_WORN_PUSH_CM,
                     .strain_pct = WEFT_WORN_STRAIN_PCT, .block = "mocap-table"};
     cli_parser parser;
-    if (!cli_start(&parser, &k_command, argc, argv)) {
-        return 2;
-    }
+    cli_start(&parser, &k_command, argc, argv);
     const char *v;
     for (int id; (id = cli_next(&parser, &v)) != CLI_END;) {
         const char *a = cli_name(&k_command, id);
         bool ok = true;
         switch (id) {
-        case CLI_HELP:
-            cli_usage(&k_command, stdout);
-            return 0;
-        case CLI_BAD:
-            return 2;
+        case CLI_STOP:
+            return parser.exit;
         case OPT_SPLIT:
             o.split = v;
             ok = !strcmp(v, "test") || !strcmp(v, "train") || !strcmp(v, "all");
@@ -440,11 +435,8 @@ int weft_bench_mocap(int argc, char **argv)
             return 2;
         }
     }
-    char **rest;
-    if (cli_rest(&parser, &rest) > 0) {
-        char what[256];
-        snprintf(what, sizeof what, "unexpected argument '%.200s'", rest[0]);
-        return cli_fail(&k_command, what);
+    if (cli_no_rest(&parser) != 0) {
+        return 2;
     }
     mc_method methods[MC_MAX_METHODS];
     uint32_t nm = 0;

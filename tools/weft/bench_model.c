@@ -441,17 +441,12 @@ int weft_bench_model(int argc, char **argv)
     bool quick = false, md = false, torch = true;
     weft_avatar_def ad = weft_default_avatar_def();
     cli_parser cp;
-    if (!cli_start(&cp, &k_command, argc, argv)) {
-        return 2;
-    }
+    cli_start(&cp, &k_command, argc, argv);
     const char *v;
     for (int id; (id = cli_next(&cp, &v)) != CLI_END;) {
         switch (id) {
-        case CLI_HELP:
-            cli_usage(&k_command, stdout);
-            return 0;
-        case CLI_BAD:
-            return 2;
+        case CLI_STOP:
+            return cp.exit;
         case OPT_AVATAR_VERTICES:
             if (!cli_u32(k_command.tool, cli_name(&k_command, id), v, 2000, 40000, &ad.target_vertices)) {
                 return 2;
@@ -470,11 +465,8 @@ int weft_bench_model(int argc, char **argv)
             return cli_fail(&k_command, "internal error: an option without a case");
         }
     }
-    char **rest;
-    if (cli_rest(&cp, &rest) > 0) {
-        char what[512];
-        snprintf(what, sizeof what, "unexpected argument '%s'", rest[0]);
-        return cli_fail(&k_command, what);
+    if (cli_no_rest(&cp) != 0) {
+        return 2;
     }
     const uint32_t warm = quick ? 3 : 10, timed = quick ? 15 : 60;
     const uint32_t crowd_warm = quick ? 2 : 4, crowd_timed = quick ? 5 : 15;

@@ -161,17 +161,12 @@ int weft_bench_qkernels(int argc, char **argv)
 {
     bool quick = false, md = false;
     cli_parser parser;
-    if (!cli_start(&parser, &k_command, argc, argv)) {
-        return 2;
-    }
+    cli_start(&parser, &k_command, argc, argv);
     const char *val;
     for (int id; (id = cli_next(&parser, &val)) != CLI_END;) {
         switch (id) {
-        case CLI_HELP:
-            cli_usage(&k_command, stdout);
-            return 0;
-        case CLI_BAD:
-            return 2;
+        case CLI_STOP:
+            return parser.exit;
         case OPT_QUICK:
             quick = true;
             break;
@@ -182,11 +177,8 @@ int weft_bench_qkernels(int argc, char **argv)
             return cli_fail(&k_command, "internal error: an option without a case");
         }
     }
-    char **rest;
-    if (cli_rest(&parser, &rest) > 0) {
-        char what[256];
-        snprintf(what, sizeof what, "unexpected argument '%.200s'", rest[0]);
-        return cli_fail(&k_command, what);
+    if (cli_no_rest(&parser) != 0) {
+        return 2;
     }
     const double min_time = quick ? 0.02 : 0.2;
     const weft_qkernels *variants[8];

@@ -47,18 +47,13 @@ int weft_bench_render(int argc, char **argv)
     uint32_t size = 256, repeats = 10, supersample = 2;
     bool deterministic = false;
     cli_parser parser;
-    if (!cli_start(&parser, &k_command, argc, argv)) {
-        return 2;
-    }
+    cli_start(&parser, &k_command, argc, argv);
     const char *v;
     for (int id; (id = cli_next(&parser, &v)) != CLI_END;) {
         const char *a = cli_name(&k_command, id);
         switch (id) {
-        case CLI_HELP:
-            cli_usage(&k_command, stdout);
-            return 0;
-        case CLI_BAD:
-            return 2;
+        case CLI_STOP:
+            return parser.exit;
         case OPT_SIZE:
             if (!cli_u32(k_command.tool, a, v, 16, 4096, &size)) {
                 return 2;
@@ -81,11 +76,8 @@ int weft_bench_render(int argc, char **argv)
             return cli_fail(&k_command, "internal error: an option without a case");
         }
     }
-    char **rest;
-    if (cli_rest(&parser, &rest) > 0) {
-        char what[300];
-        snprintf(what, sizeof what, "unexpected argument '%.200s'", rest[0]);
-        return cli_fail(&k_command, what);
+    if (cli_no_rest(&parser) != 0) {
+        return 2;
     }
     weft_context_def cdef = weft_default_context_def();
     weft_context *ctx = NULL;

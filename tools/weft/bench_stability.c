@@ -766,18 +766,13 @@ int weft_bench_stability(int argc, char **argv)
     char command[2048];
     bench_command_line(command, sizeof command, "weft bench stability", argc, argv); /* before getopt reorders argv */
     cli_parser parser;
-    if (!cli_start(&parser, &k_command, argc, argv)) {
-        return 2;
-    }
+    cli_start(&parser, &k_command, argc, argv);
     const char *v;
     for (int id; (id = cli_next(&parser, &v)) != CLI_END;) {
         const char *a = cli_name(&k_command, id);
         switch (id) {
-        case CLI_HELP:
-            cli_usage(&k_command, stdout);
-            return 0;
-        case CLI_BAD:
-            return 2;
+        case CLI_STOP:
+            return parser.exit;
         case OPT_QUICK:
             o.quick = true;
             break;
@@ -853,11 +848,8 @@ int weft_bench_stability(int argc, char **argv)
             return cli_fail(&k_command, "internal error: an option without a case");
         }
     }
-    char **rest;
-    if (cli_rest(&parser, &rest) > 0) {
-        char what[256];
-        snprintf(what, sizeof what, "unexpected argument '%.200s'", rest[0]);
-        return cli_fail(&k_command, what);
+    if (cli_no_rest(&parser) != 0) {
+        return 2;
     }
     if (strcmp(o.scenario, "gripper") != 0 && strcmp(o.scenario, "drop") != 0 && strcmp(o.scenario, "garment") != 0) {
         fprintf(stderr, "weft bench stability: --scenario takes gripper, drop or garment\n");

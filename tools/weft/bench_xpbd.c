@@ -222,18 +222,13 @@ int weft_bench_xpbd(int argc, char **argv)
     bool with80 = true, tshirt = false;
     bool fast = false;
     cli_parser p;
-    if (!cli_start(&p, &k_command, argc, argv)) {
-        return 2;
-    }
+    cli_start(&p, &k_command, argc, argv);
     const char *v;
     for (int id; (id = cli_next(&p, &v)) != CLI_END;) {
         const char *a = cli_name(&k_command, id);
         switch (id) {
-        case CLI_HELP:
-            cli_usage(&k_command, stdout);
-            return 0;
-        case CLI_BAD:
-            return 2;
+        case CLI_STOP:
+            return p.exit;
         case OPT_VERTICES:
             if (!cli_u32(k_command.tool, a, v, 64, 200000, &vertices)) {
                 return 2;
@@ -274,11 +269,8 @@ int weft_bench_xpbd(int argc, char **argv)
             return cli_fail(&k_command, "internal error: an option without a case");
         }
     }
-    char **rest;
-    if (cli_rest(&p, &rest) > 0) {
-        char what[512];
-        snprintf(what, sizeof what, "unexpected argument '%s'", rest[0]);
-        return cli_fail(&k_command, what);
+    if (cli_no_rest(&p) != 0) {
+        return 2;
     }
     weft_context_def cd = weft_default_context_def();
     weft_context *ctx = NULL;

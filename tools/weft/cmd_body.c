@@ -101,19 +101,14 @@ int weft_cmd_body(int argc, char **argv)
     bool tpose = false;
     weft_avatar_def ad = weft_default_avatar_def();
     cli_parser parser;
-    if (!cli_start(&parser, &k_command, argc, argv)) {
-        return 2;
-    }
+    cli_start(&parser, &k_command, argc, argv);
     const char *v;
     for (int id; (id = cli_next(&parser, &v)) != CLI_END;) {
         const char *a = cli_name(&k_command, id);
         float *shape = NULL;
         switch (id) {
-        case CLI_HELP:
-            cli_usage(&k_command, stdout);
-            return 0;
-        case CLI_BAD:
-            return 2;
+        case CLI_STOP:
+            return parser.exit;
         case OPT_TPOSE:
             tpose = true;
             break;
@@ -164,11 +159,8 @@ int weft_cmd_body(int argc, char **argv)
             return 2;
         }
     }
-    char **rest;
-    if (cli_rest(&parser, &rest) > 0) {
-        char what[300];
-        snprintf(what, sizeof what, "unexpected argument '%.200s'", rest[0]);
-        return cli_fail(&k_command, what);
+    if (cli_no_rest(&parser) != 0) {
+        return 2;
     }
     /* Names first, so a typo fails before the avatar is built. */
     weft_cloth_kind kind = WEFT_CLOTH_SHEET;

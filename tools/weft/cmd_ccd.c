@@ -135,17 +135,12 @@ int weft_cmd_ccd(int argc, char **argv)
     const char *path = NULL, *csv = NULL, *type = NULL;
     double eta = 0.0;
     cli_parser cp;
-    if (!cli_start(&cp, &k_command, argc, argv)) {
-        return 2;
-    }
+    cli_start(&cp, &k_command, argc, argv);
     const char *v;
     for (int id; (id = cli_next(&cp, &v)) != CLI_END;) {
         switch (id) {
-        case CLI_HELP:
-            cli_usage(&k_command, stdout);
-            return 0;
-        case CLI_BAD:
-            return 2;
+        case CLI_STOP:
+            return cp.exit;
         case OPT_QUERIES:
             path = v;
             break;
@@ -164,11 +159,8 @@ int weft_cmd_ccd(int argc, char **argv)
             return cli_fail(&k_command, "internal error: an option without a case");
         }
     }
-    char **rest;
-    if (cli_rest(&cp, &rest) > 0) {
-        char what[512];
-        snprintf(what, sizeof what, "unexpected argument '%s'", rest[0]);
-        return cli_fail(&k_command, what);
+    if (cli_no_rest(&cp) != 0) {
+        return 2;
     }
     if (csv) {
         if (!type || (strcmp(type, "vf") != 0 && strcmp(type, "ee") != 0)) {

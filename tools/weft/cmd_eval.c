@@ -920,18 +920,13 @@ int weft_cmd_eval(int argc, char **argv)
                    .ccd_iterations = weft_default_garment_def().ccd.iterations,
                    .push_depth = weft_default_garment_def().collision.push_depth};
     cli_parser parser;
-    if (!cli_start(&parser, &k_command, argc, argv)) {
-        return 2;
-    }
+    cli_start(&parser, &k_command, argc, argv);
     const char *v;
     for (int id; (id = cli_next(&parser, &v)) != CLI_END;) {
         const char *a = cli_name(&k_command, id);
         switch (id) {
-        case CLI_HELP:
-            cli_usage(&k_command, stdout);
-            return 0;
-        case CLI_BAD:
-            return 2;
+        case CLI_STOP:
+            return parser.exit;
         case OPT_JSON:
             o.json = true;
             break;
@@ -1064,11 +1059,8 @@ int weft_cmd_eval(int argc, char **argv)
             return cli_fail(&k_command, "internal error: an option without a case");
         }
     }
-    char **rest;
-    if (cli_rest(&parser, &rest) > 0) {
-        char what[256];
-        snprintf(what, sizeof what, "unexpected argument '%.200s'", rest[0]);
-        return cli_fail(&k_command, what);
+    if (cli_no_rest(&parser) != 0) {
+        return 2;
     }
     if (!o.seq || (o.method == WEFT_METHOD_MODEL && !o.model_path)) {
         return cli_fail(&k_command, "--seq is required, and --model for method 'model'");

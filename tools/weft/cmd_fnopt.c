@@ -587,18 +587,13 @@ static int parse(int argc, char **argv, cli *c)
                               .Y = 1000.0f, .S = 8.0f, .B = 0.5f};
     c->model_path = "tools/fnopt/models/fnopt_32.safetensors";
     cli_parser p;
-    if (!cli_start(&p, &k_command, argc, argv)) {
-        return 2;
-    }
+    cli_start(&p, &k_command, argc, argv);
     const char *v;
     for (int id; (id = cli_next(&p, &v)) != CLI_END;) {
         const char *a = cli_name(&k_command, id);
         switch (id) {
-        case CLI_HELP:
-            cli_usage(&k_command, stdout);
-            return 1;
-        case CLI_BAD:
-            return 2;
+        case CLI_STOP:
+            return p.exit == 0 ? 1 : p.exit; /* 1: help printed */
         case OPT_GT:
             c->gt = true;
             break;
@@ -684,11 +679,8 @@ static int parse(int argc, char **argv, cli *c)
             return cli_fail(&k_command, "internal error: an option without a case");
         }
     }
-    char **rest;
-    if (cli_rest(&p, &rest) > 0) {
-        char what[512];
-        snprintf(what, sizeof what, "unexpected argument '%s'", rest[0]);
-        return cli_fail(&k_command, what);
+    if (cli_no_rest(&p) != 0) {
+        return 2;
     }
     return 0;
 }

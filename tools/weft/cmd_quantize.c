@@ -80,18 +80,13 @@ int weft_cmd_quantize(int argc, char **argv)
     int nkeep = 0, ncalib = 0;
     weft_quant_def def = weft_default_quant_def();
     cli_parser p;
-    if (!cli_start(&p, &k_command, argc, argv)) {
-        return 2;
-    }
+    cli_start(&p, &k_command, argc, argv);
     const char *v;
     for (int id; (id = cli_next(&p, &v)) != CLI_END;) {
         const char *a = cli_name(&k_command, id);
         switch (id) {
-        case CLI_HELP:
-            cli_usage(&k_command, stdout);
-            return 0;
-        case CLI_BAD:
-            return 2;
+        case CLI_STOP:
+            return p.exit;
         case OPT_IN:
             in = v;
             break;

@@ -219,18 +219,13 @@ static int render(int argc, char **argv, sample_arg *sample_args)
     bool seq_mode = false;
     int nsample = 0;
     cli_parser p;
-    if (!cli_start(&p, &k_command, argc, argv)) {
-        return 2;
-    }
+    cli_start(&p, &k_command, argc, argv);
     const char *v;
     for (int id; (id = cli_next(&p, &v)) != CLI_END;) {
         const char *a = cli_name(&k_command, id);
         switch (id) {
-        case CLI_HELP:
-            cli_usage(&k_command, stdout);
-            return 0;
-        case CLI_BAD:
-            return 2;
+        case CLI_STOP:
+            return p.exit;
         case OPT_UPDATE_GOLDENS:
             golden_mode = 1;
             break;
@@ -266,11 +261,8 @@ static int render(int argc, char **argv, sample_arg *sample_args)
             break;
         }
     }
-    char **rest;
-    if (cli_rest(&p, &rest) > 0) {
-        char what[512];
-        snprintf(what, sizeof what, "unexpected argument '%s'", rest[0]);
-        return cli_fail(&k_command, what);
+    if (cli_no_rest(&p) != 0) {
+        return 2;
     }
     if (!seq_mode && tile_text && !cli_u32(k_command.tool, "--tile", tile_text, 64, 1024, &tile)) {
         return 2;

@@ -818,18 +818,13 @@ int weft_cmd_simgen(int argc, char **argv)
     double time_limit = 0.0;
     unsigned long long seed0 = 1;
     cli_parser parser;
-    if (!cli_start(&parser, &k_command, argc, argv)) {
-        return 2;
-    }
+    cli_start(&parser, &k_command, argc, argv);
     const char *v;
     for (int id; (id = cli_next(&parser, &v)) != CLI_END;) {
         const char *a = cli_name(&k_command, id);
         switch (id) {
-        case CLI_HELP:
-            cli_usage(&k_command, stdout);
-            return 0;
-        case CLI_BAD:
-            return 2;
+        case CLI_STOP:
+            return parser.exit;
         case OPT_ALL:
             all = true;
             break;
@@ -1012,11 +1007,8 @@ int weft_cmd_simgen(int argc, char **argv)
             return cli_fail(&k_command, "internal error: an option without a case");
         }
     }
-    char **rest;
-    if (cli_rest(&parser, &rest) > 0) {
-        char what[300];
-        snprintf(what, sizeof what, "unexpected argument '%.200s'", rest[0]);
-        return cli_fail(&k_command, what);
+    if (cli_no_rest(&parser) != 0) {
+        return 2;
     }
     if ((tier || only) && !all) {
         fprintf(stderr, "simgen: --tier and --only select part of --all; add --all\n");

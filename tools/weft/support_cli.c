@@ -170,7 +170,7 @@ bool cli_floats(const char *tool, const char *option, const char *value, float l
 
 /* ---- Options ------------------------------------------------------------------------------- */
 
-enum { CLI_VAL_BASE = 1000 };
+enum { CLI_VAL_BASE = 1000, CLI_VAL_HELP = 999 };
 
 /* The table entry getopt_long reported as c (or as optopt), or NULL. */
 static const cli_option *option_of(const cli_parser *p, int c)
@@ -178,7 +178,7 @@ static const cli_option *option_of(const cli_parser *p, int c)
     return c >= CLI_VAL_BASE && c < CLI_VAL_BASE + p->count ? &p->cmd->options[c - CLI_VAL_BASE] : NULL;
 }
 
-bool cli_start(cli_parser *p, const cli_command *cmd, int argc, char **argv)
+void cli_start(cli_parser *p, const cli_command *cmd, int argc, char **argv)
 {
     memset(p, 0, sizeof *p);
     p->cmd = cmd;
@@ -193,12 +193,13 @@ bool cli_start(cli_parser *p, const cli_command *cmd, int argc, char **argv)
         if (bad) {
             fprintf(stderr, "%s: internal error: option table entry '--%s' (id %d) is malformed\n", cmd->tool,
                     o->name ? o->name : "", o->id);
-            return false;
+            p->malformed = true;
+            return;
         }
         /* getopt_long returns 1000 + the option's index: no clash with its own ':', '?', 'h' */
         p->table[n] = (struct option){o->name, o->value ? required_argument : no_argument, NULL, CLI_VAL_BASE + n};
     }
-    p->table[n] = (struct option){"help", no_argument, NULL, CLI_HELP};
+    p->table[n] = (struct option){"help", no_argument, NULL, CLI_VAL_HELP};
     p->table[n + 1] = (struct option){NULL, 0, NULL, 0};
     p->count = n;
     /* ':' first: a missing value is told apart from an unknown option; "h": -h. */
@@ -210,12 +211,15 @@ bool cli_start(cli_parser *p, const cli_command *cmd, int argc, char **argv)
     optind = 1;
 #endif
     opterr = 0;
-    return true;
 }
 
 int cli_next(cli_parser *p, const char **value)
 {
     *value = NULL;
+    if (p->malformed) {
+        p->exit = 2;
+        return CLI_STOP;
+    }
     if (p->done) {
         return CLI_END;
     }
@@ -226,9 +230,12 @@ int cli_next(cli_parser *p, const char **value)
         p->first_positional = optind;
         return CLI_END;
     }
-    if (c == 'h' || c == CLI_HELP) {
-        return CLI_HELP;
+    if (c == 'h' || c == CLI_VAL_HELP) {
+        cli_usage(p->cmd, stdout);
+        p->exit = 0;
+        return CLI_STOP;
     }
+    p->exit = 2; /* any return below but the last is a usage error */
     /* the argument just read: getopt_long has moved optind past it (and its value) */
     const int at = optind - 1 >= 1 ? optind - 1 : before;
     const char *arg = at < p->argc ? p->argv[at] : "";
@@ -240,7 +247,7 @@ int cli_next(cli_parser *p, const char **value)
         } else {
             snprintf(what, sizeof what, "%s needs a value", arg);
         }
-        return cli_fail(p->cmd, what), CLI_BAD;
+        return cli_fail(p->cmd, what), CLI_STOP;
     }
     if (c == '?') {
         const bool is_long = strncmp(arg, "--", 2) == 0;
@@ -258,11 +265,11 @@ int cli_next(cli_parser *p, const char **value)
         } else {
             snprintf(what, sizeof what, "unknown option '%s'", arg);
         }
-        return cli_fail(p->cmd, what), CLI_BAD;
+        return cli_fail(p->cmd, what), CLI_STOP;
     }
     const cli_option *o = option_of(p, c);
     if (!o) {
-        return cli_fail(p->cmd, "internal error: getopt_long returned an unknown option"), CLI_BAD;
+        return cli_fail(p->cmd, "internal error: getopt_long returned an unknown option"), CLI_STOP;
     }
     *value = optarg;
     return o->id;
@@ -273,6 +280,17 @@ int cli_rest(const cli_parser *p, char ***rest)
     const int first = p->done ? p->first_positional : p->argc;
     *rest = p->argv + first;
     return p->argc - first;
+}
+
+int cli_no_rest(const cli_parser *p)
+{
+    char **rest;
+    if (cli_rest(p, &rest) == 0) {
+        return 0;
+    }
+    char what[300];
+    snprintf(what, sizeof what, "unexpected argument '%.200s'", rest[0]);
+    return cli_fail(p->cmd, what);
 }
 
 const char *cli_name(const cli_command *cmd, int id)

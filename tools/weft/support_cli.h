@@ -17,13 +17,24 @@
  * A command lists its options once, as a table ending in {0}; cli_next walks argv with
  * getopt_long (so `--name value`, `--name=value`, unambiguous prefixes, and positional arguments
  * anywhere all work) and cli_usage prints the help from the same table. -h and --help are
- * built in. Every message names the tool and the option; errors return CLI_BAD after printing
- * one line and a pointer to --help, and the command exits 2 (a usage error) before any work. */
+ * built in: they print the help and stop. Every message names the tool and the option; a usage
+ * error prints one line and a pointer to --help and stops with 2, before the command does any
+ * work. The loop of every command:
+ *
+ *   cli_parser cli;
+ *   cli_start(&cli, &k_command, argc, argv);
+ *   for (int id; (id = cli_next(&cli, &value)) != CLI_END;) {
+ *       switch (id) {
+ *       case CLI_STOP: return cli.exit;
+ *       case OPT_FRAMES: ... cli_u32(...) ...; break;
+ *       }
+ *   }
+ */
 
 enum {
     CLI_END = -1,   /* no options left: positional arguments are cli_rest() */
-    CLI_BAD = -2,   /* unknown option, a missing value or an ambiguous prefix (already reported) */
-    CLI_HELP = -3,  /* -h or --help */
+    CLI_STOP = -2,  /* stop with exit status parser.exit: 0 after printing --help, 2 after reporting
+                     * a usage error (unknown option, missing value, ambiguous prefix) */
     CLI_MAX_OPTIONS = 96,
 };
 
@@ -47,19 +58,25 @@ typedef struct cli_parser {
     int argc;
     char **argv;
     int count;                    /* options in the table */
+    int exit;                     /* with CLI_STOP: the command's exit status */
     bool done;
+    bool malformed;               /* the table failed cli_start's checks */
     int first_positional;         /* argv index of the first positional argument, after CLI_END */
     char short_opts[4];
     struct option table[CLI_MAX_OPTIONS + 2]; /* getopt_long's view of the options */
 } cli_parser;
 
-/* Prepares to read argv[1..argc) (argv[0] is the command's name). False (reported) when the table
- * is malformed: too many options, a duplicate name or id, an id below 1. */
-bool cli_start(cli_parser *p, const cli_command *cmd, int argc, char **argv);
-/* The next option: its id with *value set (NULL for a flag), or CLI_END, CLI_BAD, CLI_HELP. */
+/* Prepares to read argv[1..argc) (argv[0] is the command's name). A malformed table (too many
+ * options, a duplicate name or id, an id below 1) is reported by the first cli_next, which then
+ * stops with 2. */
+void cli_start(cli_parser *p, const cli_command *cmd, int argc, char **argv);
+/* The next option: its id with *value set (NULL for a flag), CLI_END, or CLI_STOP. */
 int cli_next(cli_parser *p, const char **value);
 /* After CLI_END: the positional arguments, in their order on the command line. */
 int cli_rest(const cli_parser *p, char ***rest);
+/* After CLI_END, for a command that takes no positional argument: 0, or 2 after reporting the
+ * first one as unexpected. */
+int cli_no_rest(const cli_parser *p);
 /* "--name" of an option id, for messages ("?" if unknown). */
 const char *cli_name(const cli_command *cmd, int id);
 /* The help: usage line, about, the options with their help, the notes. */
