@@ -95,7 +95,8 @@ const weft_sample_option weft_avatar_sample_option_table[] = {
     {"resolution", "RES", OPT_RESOLUTION, "garment mesh 1k | 4k | 16k | 40k (default 4k)"},
     {"sim-resolution", "RES", OPT_SIM_RESOLUTION,
      "simulate this mesh of the garment and draw --resolution from it\n"
-     "(a mesh map; e.g. 1k for a 4k garment; default: the drawn mesh)"},
+     "(a mesh map; default: 1k for the learned model (auto, model), else the\n"
+     "drawn mesh; --sim-resolution 4k simulates a 4k garment directly)"},
     {"method", "M", OPT_METHOD,
      "auto | model | xpbd[:S] | xpbd-fast[:S] | lbs | skin (default auto:\n"
      "the learned model, else xpbd, lbs); S substeps, 1..1000 (default 10);\n"
@@ -506,6 +507,7 @@ typedef struct sample_state {
     weft_cloth_mesh *cloth;
     weft_cloth_mesh *sim_cloth;         /* --sim-resolution: the simulated mesh (cloth is drawn) */
     weft_mesh_map *sim_map;             /* sim_cloth -> cloth */
+    const char *sim_resolution;         /* the simulated mesh's name (1k, 4k, ...) when sim_map is made */
     weft_model *model;
     weft_garment *garment;
     weft_renderer *renderer;
@@ -1207,9 +1209,15 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
             return fail_msg(&s, "out of memory");
         }
         const weft_cloth_mesh *simulated_mesh = s.cloth;
-        if (o->sim_resolution && strcmp(o->sim_resolution, o->resolution) != 0) {
+        /* The learned model (auto, model) simulates the 1k mesh and draws a finer one through the
+         * mesh map unless --sim-resolution names the mesh: the model learned at 1k, and 1k carried
+         * to 4k costs about half the 4k step at an error no worse (docs/RESOLUTION.md). */
+        const bool learned = strcmp(o->method, "auto") == 0 || strcmp(o->method, "model") == 0;
+        const char *sim_resolution =
+            o->sim_resolution ? o->sim_resolution : (learned && res != WEFT_CLOTH_RES_1K ? "1k" : NULL);
+        if (sim_resolution && strcmp(sim_resolution, o->resolution) != 0) {
             weft_cloth_resolution sres;
-            if (weft_cloth_resolution_from_name(o->sim_resolution, &sres) != WEFT_OK) {
+            if (weft_cloth_resolution_from_name(sim_resolution, &sres) != WEFT_OK) {
                 fprintf(stderr, "avatar_render: --sim-resolution must be 1k, 4k, 16k or 40k\n");
                 sample_free(&s);
                 return 2;
@@ -1227,6 +1235,7 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
             md.from_triangle_count = s.sim_cloth->triangle_count;
             md.to_rest_positions = s.cloth->positions;
             md.to_vertex_count = s.cloth->vertex_count;
+            s.sim_resolution = sim_resolution;
             if (weft_mesh_map_create(s.ctx, &md, &s.sim_map) != WEFT_OK) {
                 return fail_msg(&s, "weft_mesh_map_create");
             }
@@ -1330,7 +1339,7 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
     printf("avatar %u vertices; garment %s (%u vertices); motion %s; cloth method %s; %u frames at 60 Hz, %ux%u\n", nv,
            dressed ? o->garment : "none", gm_nv, motion_name, method_used, o->frames, o->width, o->height);
     if (s.sim_map && simulated) {
-        printf("simulated at %s (%u vertices), drawn at %s through a mesh map\n", o->sim_resolution,
+        printf("simulated at %s (%u vertices), drawn at %s through a mesh map\n", s.sim_resolution,
                s.sim_cloth->vertex_count, o->resolution);
     }
     weft_pose bind, first, pose;
