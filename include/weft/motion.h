@@ -48,9 +48,11 @@ extern "C" {
  * the SMPL rest bone direction onto the source rest bone direction) absorbs differences between
  * the two rest poses, so sources whose rest is not a T-pose work too. SMPL local rotations are
  * then G_parent^-1 G. The root translation is the source hips' path scaled by the ratio of leg
- * lengths (target / source, which also converts units), placed so that a source floor at y = 0
- * lands on the target's floor, and started above the origin in X and Z. Frames are resampled to
- * def.fps with quaternion slerp.
+ * lengths (target / source, which also converts units), started above the origin in X and Z,
+ * and stood on the target's floor: one vertical shift for the whole clip puts the 5th percentile
+ * (over the imported frames) of the lowest foot joint (ankle or toe) at that joint's rest height,
+ * since mocap floors are rarely at y = 0 (def.keep_source_height keeps the source's floor at
+ * y = 0 instead). Frames are resampled to def.fps with quaternion slerp.
  *
  * Bad input (not BVH, truncated, NaN values, a value count that disagrees with Frames x
  * CHANNELS, an unknown skeleton, a retargeted root more than 10 km from the start) returns WEFT_ERROR_FORMAT, _NOT_FINITE or _SIZE_MISMATCH with
@@ -74,6 +76,9 @@ typedef struct weft_bvh_def {
     uint32_t first_frame;       /* first source frame to import (default 0) */
     uint32_t max_frames;        /* at most this many source frames; 0 = all */
     bool keep_horizontal_origin;/* keep the source's X/Z position instead of starting at 0 */
+    /* keep the source's height (its floor at y = 0 lands on the target's floor) instead of
+     * standing the clip on the target's floor (default false) */
+    bool keep_source_height;
     weft_bvh_report *report;    /* optional output: the joint mapping of a successful load */
     /* A joint map instead of the naming tables: the source joint driving each SMPL joint, 24
      * entries in SMPL order (NULL or "" = none), e.g. from weft_bvh_read_joint_map. Each name

@@ -126,6 +126,38 @@ static void m3_apply(const m3 *a, const double v[3], double out[3])
     }
 }
 
+static int cmp_double(const void *a, const void *b)
+{
+    const double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* How far the frame's lowest foot joint (ankle or toe, either side) is above its rest height:
+ * forward kinematics of the target skeleton from its world rotations and the pelvis at
+ * rest + (0, ty, 0) (only heights matter). */
+static double foot_lift(const float *rest, const m3 *target_world, double ty)
+{
+    double pos[WEFT_BODY_JOINTS][3];
+    pos[0][0] = rest[0], pos[0][1] = rest[1] + ty, pos[0][2] = rest[2];
+    double lowest = INFINITY;
+    for (uint32_t j = 1; j < WEFT_BODY_JOINTS; ++j) {
+        const int32_t p = k_parents[j];
+        const double bone[3] = {(double)rest[3 * j] - rest[3 * p], (double)rest[3 * j + 1] - rest[3 * p + 1],
+                                (double)rest[3 * j + 2] - rest[3 * p + 2]};
+        double d[3];
+        m3_apply(&target_world[p], bone, d);
+        for (int k = 0; k < 3; ++k) {
+            pos[j][k] = pos[p][k] + d[k];
+        }
+        if (j == WEFT_JOINT_LEFT_ANKLE || j == WEFT_JOINT_RIGHT_ANKLE || j == WEFT_JOINT_LEFT_FOOT ||
+            j == WEFT_JOINT_RIGHT_FOOT) {
+            const double h = pos[j][1] - rest[3 * j + 1];
+            lowest = h < lowest ? h : lowest;
+        }
+    }
+    return lowest;
+}
+
 static m3 m3_from_quat(double w, double x, double y, double z)
 {
     double n = sqrt(w * w + x * x + y * y + z * z);
@@ -684,6 +716,13 @@ static weft_result retarget(weft_context *ctx, const struct aiScene *scene, cons
         weft_clip_destroy(clip);
         return weft__fail(WEFT_ERROR_OUT_OF_MEMORY, "BVH: out of memory");
     }
+    /* each frame's lowest foot joint (ankles, toes) above its own height at rest, for the floor */
+    double *lift = malloc((size_t)frames * sizeof *lift);
+    if (!lift) {
+        free(world);
+        weft_clip_destroy(clip);
+        return weft__fail(WEFT_ERROR_OUT_OF_MEMORY, "BVH: out of memory");
+    }
     double origin_xz[2] = {0, 0};
     for (uint32_t f = 0; f < frames; ++f) {
         uint32_t key = first + f;
@@ -752,8 +791,20 @@ static weft_result retarget(weft_context *ctx, const struct aiScene *scene, cons
         tr[0] = (float)(scale * x - (def->keep_horizontal_origin ? rest[0] : 0.0));
         tr[1] = (float)(scale * root_pos[1] - rest[1]);
         tr[2] = (float)(scale * z - (def->keep_horizontal_origin ? rest[2] : 0.0));
+        lift[f] = foot_lift(rest, target_world, tr[1]);
     }
     free(world);
+    if (!def->keep_source_height) {
+        /* Feet on the target's floor: one vertical shift for the whole clip, so that the 5th
+         * percentile of the frames' lowest foot joint stands where that joint stands at rest
+         * (mocap floors are rarely at y = 0; jumps and crouches keep their heights). */
+        qsort(lift, frames, sizeof *lift, cmp_double);
+        const double floor_lift = lift[(size_t)(0.05 * (double)(frames - 1) + 0.5)];
+        for (uint32_t f = 0; isfinite(floor_lift) && f < frames; ++f) {
+            clip->translations[(size_t)f * 3 + 1] -= (float)floor_lift;
+        }
+    }
+    free(lift);
     if (!weft__all_finite(clip->rotations, (size_t)frames * WEFT_POSE_ROTATION_FLOATS) ||
         !weft__all_finite(clip->translations, (size_t)frames * 3)) {
         weft_clip_destroy(clip);

@@ -248,6 +248,62 @@ static void test_synthetic_exact(void)
     free(vals);
 }
 
+/* The lowest foot joint's (ankle or toe) height above its rest height, by the test's own FK. */
+static double lowest_foot_lift(const weft_pose *pose, const float *rest)
+{
+    static const int feet[4] = {WEFT_JOINT_LEFT_ANKLE, WEFT_JOINT_RIGHT_ANKLE, WEFT_JOINT_LEFT_FOOT, WEFT_JOINT_RIGHT_FOOT};
+    double pos[24][3], lowest = INFINITY;
+    fk(pose, rest, pos);
+    for (int i = 0; i < 4; ++i) {
+        lowest = fmin(lowest, pos[feet[i]][1] - rest[3 * feet[i] + 1]);
+    }
+    return lowest;
+}
+
+static int cmp_double_asc(const void *a, const void *b)
+{
+    const double x = *(const double *)a, y = *(const double *)b;
+    return (x > y) - (x < y);
+}
+
+/* The clip stands on the target's floor whatever the source's floor height: the synthetic clip
+ * sunk 0.3 m (and raised 0.7 m) loads to the same root path as the original, whose feet rest on
+ * y = 0; keep_source_height keeps the source's offset. */
+static void test_floor_placement(void)
+{
+    const float *rest = weft_bvh_default_rest_joints();
+    const int frames = 5;
+    double *vals = synthetic_frames(rest, frames);
+    text_buf b0 = smpl_bvh(rest, vals, frames, 1.0 / 60.0);
+    const double shifts[2] = {-0.3, 0.7};
+    weft_bvh_def def = weft_default_bvh_def();
+    def.unit_scale = 1.0f;
+    weft_clip *ref = NULL;
+    CHECK_RESULT(weft_bvh_load_memory(g_ctx, b0.data, b0.len, &def, &ref), WEFT_OK);
+    for (int s = 0; s < 2 && ref; ++s) {
+        for (int f = 0; f < frames; ++f) {
+            vals[75 * f + 1] += shifts[s] - (s ? shifts[s - 1] : 0.0);
+        }
+        text_buf b = smpl_bvh(rest, vals, frames, 1.0 / 60.0);
+        for (int keep = 0; keep < 2; ++keep) {
+            def.keep_source_height = keep;
+            weft_clip *clip = NULL;
+            CHECK_RESULT(weft_bvh_load_memory(g_ctx, b.data, b.len, &def, &clip), WEFT_OK);
+            for (uint32_t f = 0; clip && f < clip->frame_count; ++f) {
+                const float *t = clip->translations + 3 * f, *t0 = ref->translations + 3 * f;
+                CHECK_NEAR(t[0], t0[0], 1e-5);
+                CHECK_NEAR(t[1], t0[1] + (keep ? shifts[s] : 0.0), 1e-5);
+                CHECK_NEAR(t[2], t0[2], 1e-5);
+            }
+            weft_clip_destroy(clip);
+        }
+        free(b.data);
+    }
+    weft_clip_destroy(ref);
+    free(b0.data);
+    free(vals);
+}
+
 /* Rest correction: a source whose rest pose has the left arm 45 degrees down (an A-pose) while
  * the SMPL rest is a T-pose. Retargeting matches bone directions (twist about a bone is not
  * observable from joint positions), so the check is on posed joint positions: the source's rest
@@ -998,6 +1054,21 @@ static void test_mocap_test_split_loads(void)
                     break;
                 }
             }
+            /* on the floor (the library's floors are not at y = 0): the 5th percentile of the
+             * lowest foot joint stands at its rest height, and no frame sinks a foot 10 cm */
+            double *lift = malloc(c->frame_count * sizeof *lift);
+            for (uint32_t k = 0; lift && k < c->frame_count; ++k) {
+                weft_pose pose;
+                CHECK_RESULT(weft_clip_sample(c, (double)k / 60.0, &pose), WEFT_OK);
+                lift[k] = lowest_foot_lift(&pose, weft_bvh_default_rest_joints());
+            }
+            if (lift) {
+                qsort(lift, c->frame_count, sizeof *lift, cmp_double_asc);
+                const double p5 = lift[(size_t)(0.05 * (double)(c->frame_count - 1) + 0.5)];
+                CHECK_MSG(fabs(p5) < 1e-3 && lift[0] > -0.10, "%s: lowest foot 5th percentile %.4f m, min %.4f m", path,
+                          p5, lift[0]);
+            }
+            free(lift);
             ++clips;
         }
         weft_clip_destroy(c);
@@ -1249,7 +1320,7 @@ static void setup(void)
 
 static void teardown(void) { weft_context_destroy(g_ctx); }
 
-TEST_MAIN(TEST_CASE(setup), TEST_CASE(test_synthetic_exact), TEST_CASE(test_rest_correction), TEST_CASE(test_translation_scale), TEST_CASE(test_cmu_01_01),
+TEST_MAIN(TEST_CASE(setup), TEST_CASE(test_synthetic_exact), TEST_CASE(test_rest_correction), TEST_CASE(test_translation_scale), TEST_CASE(test_floor_placement), TEST_CASE(test_cmu_01_01),
           TEST_CASE(test_cmu_01_03), TEST_CASE(test_boxing_toes), TEST_CASE(test_cmu_on_avatar), TEST_CASE(test_bad_input), TEST_CASE(test_fuzz_synthetic),
           TEST_CASE(test_fuzz_cmu), TEST_CASE(test_mocap_gz_equals_plain), TEST_CASE(test_mocap_test_split_loads),
           TEST_CASE(test_bvh_path_is_a_directory), TEST_CASE(test_namings_retarget_identically), TEST_CASE(test_joint_map_file), TEST_CASE(test_joint_angles_test_split),
