@@ -80,6 +80,7 @@ typedef enum weft_result {
     WEFT_ERROR_BAD_METADATA,       /* __metadata__ missing, not strings, or config invalid */
     WEFT_ERROR_FORMAT,             /* any other malformed input file (npz, npy, BVH, glTF, ...) */
     WEFT_ERROR_NOT_CONVERGED,      /* an iterative solve hit its limit; the result is still safe */
+    WEFT_ERROR_BUSY,               /* another thread is using the object's shared scratch */
     WEFT_RESULT_COUNT
 } weft_result;
 
@@ -409,6 +410,33 @@ WEFT_API weft_garment_def weft_model_garment_def(const weft_model *model);
 WEFT_API weft_result weft_garment_create(weft_context *context, const weft_garment_def *def,
                                          weft_garment **out_garment);
 WEFT_API void weft_garment_destroy(weft_garment *garment);
+
+/* ---- Shared garment assets (crowds) ---------------------------------------------------------
+ * An asset holds what weft_garment_create makes from a def that stepping never changes: the
+ * meshes, the skin binding, body-part masks, edge lists and rest lengths, the collider tree's
+ * layout, the CCD world, the model's converted weights and constant tokens; and one set of step
+ * scratch. An instance made from it holds only its state: positions at t-1, t and t+1, the
+ * collider at t and t+1, pins, statistics and the learned model's latent history (the XPBD
+ * methods keep their whole solver state per instance). An instance behaves exactly as a garment
+ * made by weft_garment_create from the same def, bit for bit, and takes every garment call.
+ *
+ * Threads: instances of one asset share its scratch, so only one of them at a time may be in
+ * weft_garment_step, weft_garment_constrain or weft_garment_skinned_positions; a call that
+ * finds another instance of its asset there fails with WEFT_ERROR_BUSY and changes nothing.
+ * A host stepping crowds on several threads gives each thread its own asset.
+ * weft_garments_step steps an asset's instances one after another (not stacked: they share the
+ * scratch a stacked step would need per garment). docs/MODEL_BENCH.md, *Crowds*. */
+typedef struct weft_garment_asset weft_garment_asset;
+/* Validates def as weft_garment_create does; nothing is made on failure. */
+WEFT_API weft_result weft_garment_asset_create(weft_context *context, const weft_garment_def *def,
+                                               weft_garment_asset **out_asset);
+/* Every instance must be destroyed first. */
+WEFT_API void weft_garment_asset_destroy(weft_garment_asset *asset);
+/* A new garment in the def's initial state, collider at collider_rest_positions; destroy it with
+ * weft_garment_destroy. */
+WEFT_API weft_result weft_garment_asset_instance(weft_garment_asset *asset, weft_garment **out_garment);
+/* Instances of the asset alive now. */
+WEFT_API uint32_t weft_garment_asset_instance_count(const weft_garment_asset *asset);
 
 /* Replaces the state: positions at t and at t-1 (prev may be NULL: zero velocity). Clears the
  * model's frame history. */

@@ -31,6 +31,7 @@ static const char *const g_result_strings[WEFT_RESULT_COUNT] = {
     [WEFT_ERROR_BAD_METADATA] = "bad metadata",
     [WEFT_ERROR_FORMAT] = "malformed file",
     [WEFT_ERROR_NOT_CONVERGED] = "not converged",
+    [WEFT_ERROR_BUSY] = "busy",
 };
 
 const char *weft_result_string(weft_result result)

@@ -4,6 +4,7 @@
 #include "geometry/geometry.h"
 #include "model/model.h"
 
+#include <assert.h>
 #include <math.h>
 #include <string.h>
 
@@ -102,8 +103,28 @@ weft_result weft__check_mesh(const char *what, const float *positions, uint32_t 
     return WEFT_OK;
 }
 
+/* What an instance owns (weft_garment_asset_instance); the rest is its asset's. */
+static void free_instance_buffers(weft_garment *g)
+{
+    const weft_context *ctx = g->ctx;
+    const size_t nv3 = (size_t)g->vertex_count * 3 * sizeof(float);
+    const size_t nc3 = (size_t)g->collider_vertex_count * 3 * sizeof(float);
+    weft__free(ctx, g->collider_prev, nc3);
+    weft__free(ctx, g->collider_next, nc3);
+    weft__free(ctx, g->x, nv3);
+    weft__free(ctx, g->x_prev, nv3);
+    weft__free(ctx, g->x_next, nv3);
+    weft__free(ctx, g->pin_indices, (size_t)g->vertex_count * sizeof(uint32_t));
+    weft__free(ctx, g->pin_targets, nv3);
+    weft__free(ctx, g, sizeof *g);
+}
+
 static void free_buffers(weft_garment *g)
 {
+    if (g->asset) {
+        free_instance_buffers(g);
+        return;
+    }
     const weft_context *ctx = g->ctx;
     size_t nv3 = (size_t)g->vertex_count * 3 * sizeof(float);
     size_t nc3 = (size_t)g->collider_vertex_count * 3 * sizeof(float);
@@ -403,8 +424,128 @@ void weft_garment_destroy(weft_garment *garment)
         return;
     }
     garment->ops->destroy(garment);
+    if (garment->asset) {
+        atomic_fetch_sub(&garment->asset->instances, 1u);
+        free_instance_buffers(garment);
+        return;
+    }
     weft__ccd_garment_destroy(garment);
     free_buffers(garment);
+}
+
+/* ---- Shared assets -------------------------------------------------------------------------- */
+
+weft_result weft_garment_asset_create(weft_context *context, const weft_garment_def *def,
+                                      weft_garment_asset **out_asset)
+{
+    if (!context || !def || !out_asset) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
+                          "weft_garment_asset_create: context, def and out_asset are required");
+    }
+    weft_garment_asset *a = weft__alloc(context, sizeof *a);
+    if (!a) {
+        return WEFT_ERROR_OUT_OF_MEMORY;
+    }
+    memset(a, 0, sizeof *a);
+    a->ctx = context;
+    atomic_init(&a->instances, 0u);
+    atomic_init(&a->busy, 0);
+    weft_result r = weft_garment_create(context, def, &a->proto);
+    if (r != WEFT_OK) {
+        weft__free(context, a, sizeof *a);
+        return r;
+    }
+    *out_asset = a;
+    return WEFT_OK;
+}
+
+void weft_garment_asset_destroy(weft_garment_asset *asset)
+{
+    if (!asset) {
+        return;
+    }
+    assert(atomic_load(&asset->instances) == 0 && "weft_garment_asset_destroy: instances alive");
+    weft_garment_destroy(asset->proto);
+    weft__free(asset->ctx, asset, sizeof *asset);
+}
+
+uint32_t weft_garment_asset_instance_count(const weft_garment_asset *asset)
+{
+    return asset ? atomic_load(&((weft_garment_asset *)asset)->instances) : 0;
+}
+
+weft_result weft_garment_asset_instance(weft_garment_asset *asset, weft_garment **out_garment)
+{
+    if (!asset || !out_garment) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_garment_asset_instance: asset and out_garment are required");
+    }
+    const weft_garment *p = asset->proto;
+    weft_context *ctx = asset->ctx;
+    weft_garment *g = weft__alloc(ctx, sizeof *g);
+    if (!g) {
+        return WEFT_ERROR_OUT_OF_MEMORY;
+    }
+    *g = *p; /* the asset's pointers; the state below is the instance's own */
+    g->asset = asset;
+    g->method_state = NULL;
+    g->x = g->x_prev = g->x_next = g->collider_prev = g->collider_next = g->pin_targets = NULL;
+    g->pin_indices = NULL;
+    const size_t nv3 = (size_t)p->vertex_count * 3 * sizeof(float);
+    const size_t nc3 = (size_t)p->collider_vertex_count * 3 * sizeof(float);
+    g->x = weft__alloc(ctx, nv3);
+    g->x_prev = weft__alloc(ctx, nv3);
+    g->x_next = weft__alloc(ctx, nv3);
+    g->pin_indices = weft__alloc(ctx, (size_t)p->vertex_count * sizeof(uint32_t));
+    g->pin_targets = weft__alloc(ctx, nv3);
+    bool ok = g->x && g->x_prev && g->x_next && g->pin_indices && g->pin_targets;
+    if (ok && p->collider_vertex_count > 0) {
+        g->collider_prev = weft__alloc(ctx, nc3);
+        g->collider_next = weft__alloc(ctx, nc3);
+        ok = g->collider_prev && g->collider_next;
+    }
+    if (!ok) {
+        free_instance_buffers(g);
+        return WEFT_ERROR_OUT_OF_MEMORY;
+    }
+    /* the prototype is never stepped: its state is the def's initial state */
+    memcpy(g->x, p->x, nv3);
+    memcpy(g->x_prev, p->x_prev, nv3);
+    if (p->collider_vertex_count > 0) {
+        memcpy(g->collider_prev, p->collider_prev, nc3);
+    }
+    g->collider_next_set = false;
+    g->cut_pending = false;
+    g->pin_count = 0;
+    g->stats = (weft_step_stats){0};
+    const weft_result r = g->ops->instance ? g->ops->instance(p, g) : g->ops->create(g);
+    if (r != WEFT_OK) {
+        free_instance_buffers(g);
+        return r;
+    }
+    atomic_fetch_add(&asset->instances, 1u);
+    *out_garment = g;
+    return WEFT_OK;
+}
+
+bool weft__garment_enter(weft_garment *g, const char *who)
+{
+    if (!g->asset) {
+        return true;
+    }
+    int idle = 0;
+    if (atomic_compare_exchange_strong(&g->asset->busy, &idle, 1)) {
+        return true;
+    }
+    weft__fail(WEFT_ERROR_BUSY, "%s: another instance of this garment's asset is stepping on another thread (an "
+               "asset's instances share its scratch: one at a time, or one asset per thread)", who);
+    return false;
+}
+
+void weft__garment_leave(weft_garment *g)
+{
+    if (g->asset) {
+        atomic_store(&g->asset->busy, 0);
+    }
 }
 
 weft_result weft_garment_set_state(weft_garment *g, const float *positions, const float *prev_positions)
@@ -685,12 +826,16 @@ weft_result weft_garment_step(weft_garment *g)
         return weft__fail(WEFT_ERROR_NO_COLLIDER,
                           "weft_garment_step: call weft_garment_set_collider with the collider at t+1 first");
     }
+    if (!weft__garment_enter(g, "weft_garment_step")) {
+        return WEFT_ERROR_BUSY;
+    }
     double t0 = weft__now_ms();
     weft_result r;
     if (weft__garment_cut(g, &r)) {
         if (r == WEFT_OK) {
             g->stats.step_ms = weft__now_ms() - t0;
         }
+        weft__garment_leave(g);
         return r;
     }
     r = g->ops->step(g);
@@ -698,6 +843,7 @@ weft_result weft_garment_step(weft_garment *g)
     if (r == WEFT_OK) {
         r = weft__garment_finish_step(g);
     }
+    weft__garment_leave(g);
     if (r == WEFT_OK) {
         g->stats.method_ms = t1 - t0;
     }
@@ -723,17 +869,22 @@ weft_result weft_garment_constrain(weft_garment *g, const float *next_positions)
         return weft__fail(WEFT_ERROR_NO_COLLIDER,
                           "weft_garment_constrain: call weft_garment_set_collider with the collider at t+1 first");
     }
+    if (!weft__garment_enter(g, "weft_garment_constrain")) {
+        return WEFT_ERROR_BUSY;
+    }
     const double t0 = weft__now_ms();
     weft_result r;
     if (g->collider_vertex_count > 0 && weft__garment_cut(g, &r)) {
         if (r == WEFT_OK) {
             g->stats.step_ms = weft__now_ms() - t0;
         }
+        weft__garment_leave(g);
         return r;
     }
     /* x_next is scratch until the rotation; a failing stage leaves x and x_prev as they were */
     memcpy(g->x_next, next_positions, (size_t)g->vertex_count * 3 * sizeof(float));
     r = weft__garment_finish_step(g);
+    weft__garment_leave(g);
     if (r == WEFT_OK) {
         g->stats.method_ms = 0.0;
         g->stats.step_ms = weft__now_ms() - t0;
@@ -765,7 +916,14 @@ weft_result weft_garment_skinned_positions(const weft_garment *g, float *out)
         return weft__fail(WEFT_ERROR_UNSUPPORTED, "weft_garment_skinned_positions: the garment has no skin binding (no "
                           "collider, or neither tethers nor collision.cut_distance)");
     }
-    return geo_skin_eval(g->skin, g->collider_triangles, g->collider_prev, "weft_garment_skinned_positions", out);
+    weft_garment *m = (weft_garment *)g; /* the asset's scratch is held, not the garment changed */
+    if (!weft__garment_enter(m, "weft_garment_skinned_positions")) {
+        return WEFT_ERROR_BUSY;
+    }
+    const weft_result r =
+        geo_skin_eval(g->skin, g->collider_triangles, g->collider_prev, "weft_garment_skinned_positions", out);
+    weft__garment_leave(m);
+    return r;
 }
 
 weft_garment_def weft_model_garment_def(const weft_model *model)

@@ -6,10 +6,25 @@
 
 #include "core/core.h"
 
+#include <stdatomic.h>
+
 typedef struct weft_method_ops weft_method_ops;
+
+/* A shared asset (weft_garment_asset_create): `proto` is a garment made from the def, never
+ * stepped itself; instances copy it and own only their state (see instance_of below). */
+struct weft_garment_asset {
+    weft_context *ctx;
+    struct weft_garment *proto;
+    _Atomic uint32_t instances;
+    _Atomic int busy;                   /* an instance is inside a step (its scratch in use) */
+};
 
 struct weft_garment {
     weft_context *ctx;
+    /* The asset this garment is an instance of, or NULL for a garment of its own. An instance
+     * owns x, x_prev, x_next, the collider at t and t+1, the pins and its method state; every
+     * other pointer below is the asset's. */
+    struct weft_garment_asset *asset;
     const weft_method_ops *ops;
     void *method_state;                 /* owned by the method */
     const weft_model *model;
@@ -92,12 +107,22 @@ struct weft_method_ops {
     /* Allocate method_state and precompute everything constant for this garment. */
     weft_result (*create)(weft_garment *g);
     void (*destroy)(weft_garment *g);
+    /* Make an instance's method state from the asset's prototype: what stays constant and the
+     * step scratch shared with `proto`, the state its own. NULL: create() runs for the instance
+     * (the XPBD methods, whose solver state is most of what they hold). destroy() must then free
+     * only what the instance owns (g->asset is set). */
+    weft_result (*instance)(const weft_garment *proto, weft_garment *g);
     /* Clear any frame history (called after weft_garment_set_state). May be NULL. */
     void (*reset)(weft_garment *g);
     /* Write positions at t+1 into g->x_next from g->x, g->x_prev, the colliders and the pins.
      * Must not change g->x or g->x_prev; on failure the garment is left as it was. */
     weft_result (*step)(weft_garment *g);
 };
+
+/* An instance's hold on its asset's scratch for one call (no-op for a garment of its own):
+ * false, with WEFT_ERROR_BUSY reported for `who`, when another instance holds it. */
+bool weft__garment_enter(weft_garment *g, const char *who);
+void weft__garment_leave(weft_garment *g);
 
 /* The tail of every step, single or batched, once the method wrote g->x_next: NaN check,
  * tethers, CCD post-process, buffer rotation, frame count. On failure the state is unchanged.

@@ -80,9 +80,16 @@ weft_result weft_garments_step(weft_garment *const *garments, uint32_t count)
         weft_garment *g = garments[i];
         g->cut_pending = false;
         if (g->collider_vertex_count > 0 && g->collider_next_set) {
+            if (!weft__garment_enter(g, "weft_garments_step")) {
+                g->cut_pending = true; /* not stepped this call */
+                note(&st, i, WEFT_ERROR_BUSY);
+                continue;
+            }
             const double t0 = weft__now_ms();
             weft_result r;
-            if (weft__garment_cut(g, &r)) {
+            const bool cut = weft__garment_cut(g, &r);
+            weft__garment_leave(g);
+            if (cut) {
                 g->cut_pending = true;
                 if (r == WEFT_OK) {
                     g->stats.step_ms = weft__now_ms() - t0;

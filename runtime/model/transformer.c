@@ -798,6 +798,16 @@ static void ct_destroy(weft_garment *g)
         return;
     }
     batch_free(g->ctx, s->batch);
+    if (g->asset) { /* an instance: its history and observer buffers; the rest is the asset's */
+        for (uint32_t i = 0; i < s->buf_count; ++i) {
+            weft__free(g->ctx, *s->bufs[i].ptr, s->bufs[i].floats * sizeof(float));
+        }
+        weft__free(g->ctx, s->obs_in, s->obs_floats * sizeof(float));
+        weft__free(g->ctx, s->obs_out, s->obs_floats * sizeof(float));
+        weft__free(g->ctx, s, sizeof *s);
+        g->method_state = NULL;
+        return;
+    }
     geo_skin_destroy(g->ctx, s->skin);
     weft_garment_destroy(s->prior_sim);
     for (uint32_t i = 0; i < s->buf_count; ++i) {
@@ -1165,6 +1175,33 @@ static weft_result ct_create(weft_garment *g)
         return r;
     }
     precompute(g, s);
+    s->hist_empty = true;
+    return WEFT_OK;
+}
+
+/* An instance of an asset: the prototype's weights, tables, constant tokens, crop, skin binding
+ * and step scratch; its own latent history (the only state a step carries to the next). */
+static weft_result ct_instance(const weft_garment *proto, weft_garment *g)
+{
+    const ct_state *p = proto->method_state;
+    ct_state *s = weft__alloc(g->ctx, sizeof *s);
+    if (!s) {
+        return WEFT_ERROR_OUT_OF_MEMORY;
+    }
+    *s = *p;
+    s->buf_count = 0;
+    s->batch = NULL;
+    s->observer = NULL;
+    s->observer_user = NULL;
+    s->obs_in = s->obs_out = NULL;
+    s->obs_floats = 0;
+    s->hist = s->hist_new = NULL;
+    g->method_state = s;
+    const size_t hkd = (size_t)s->c.history * s->c.K * s->c.D;
+    if (!add_buf(g, s, &s->hist, hkd) || !add_buf(g, s, &s->hist_new, hkd)) {
+        ct_destroy(g);
+        return WEFT_ERROR_OUT_OF_MEMORY;
+    }
     s->hist_empty = true;
     return WEFT_OK;
 }
@@ -1597,7 +1634,8 @@ bool weft__ct_batchable(const weft_garment *g)
 {
     /* The xpbd prior's solve may fail on its own, so such garments step one by one. */
     const ct_state *s = g && g->method == WEFT_METHOD_MODEL ? g->method_state : NULL;
-    return s && !s->observer && !s->prior_sim;
+    /* An asset's instances share its step scratch, which a stacked step needs per member. */
+    return s && !s->observer && !s->prior_sim && !g->asset;
 }
 
 void weft__ct_step_group(weft_garment *const *garments, uint32_t count, weft_result *results)
@@ -1675,6 +1713,7 @@ const weft_method_ops weft__method_model = {
     .supports_pins = false,
     .create = ct_create,
     .destroy = ct_destroy,
+    .instance = ct_instance,
     .reset = ct_reset,
     .step = ct_step,
 };

@@ -12,9 +12,18 @@ static weft_result lbs_create(weft_garment *g)
     return r;
 }
 
+/* An instance steps through its asset's binding (constant, with its evaluation scratch). */
+static weft_result lbs_instance(const weft_garment *proto, weft_garment *g)
+{
+    g->method_state = proto->method_state;
+    return WEFT_OK;
+}
+
 static void lbs_destroy(weft_garment *g)
 {
-    geo_skin_destroy(g->ctx, g->method_state);
+    if (!g->asset) {
+        geo_skin_destroy(g->ctx, g->method_state);
+    }
     g->method_state = NULL;
 }
 
@@ -28,6 +37,7 @@ const weft_method_ops weft__lbs_ops = {
     .supports_pins = false,
     .create = lbs_create,
     .destroy = lbs_destroy,
+    .instance = lbs_instance,
     .reset = NULL,
     .step = lbs_step,
 };

@@ -180,6 +180,127 @@ static int run_cell(weft_context *ctx, weft_body *body, const weft_sample_motion
     return rc;
 }
 
+/* ---- Crowds: instances of one garment asset ------------------------------------------------ */
+
+/* Live bytes through the crowd context's allocator. */
+static size_t g_crowd_live;
+
+static void *crowd_alloc(size_t size, size_t alignment, void *user)
+{
+    (void)user;
+    void *p = NULL;
+    if (posix_memalign(&p, alignment < sizeof(void *) ? sizeof(void *) : alignment, size ? size : 1) != 0) {
+        return NULL;
+    }
+    g_crowd_live += size;
+    return p;
+}
+
+static void crowd_free(void *p, size_t size, void *user)
+{
+    (void)user;
+    if (p) {
+        g_crowd_live -= size;
+        free(p);
+    }
+}
+
+typedef struct fr_crowd {
+    double ms_per_character;            /* median over frames of (all characters' steps) / n */
+    double first_mb, extra_mb, own_mb;  /* asset + first instance, each further one, a garment of its own */
+} fr_crowd;
+
+/* n characters wearing instances of one asset of the learned int8 T-shirt at 1k, each on the
+ * motion shifted by 0.137 s per character, settled over FR_SETTLE frames, then `frames` frames of
+ * weft_garments_step over all of them (posing excluded). Returns 0, or 1 with the reason printed. */
+static int run_crowd(weft_body *body, const weft_sample_motion *mo, uint32_t n, uint32_t frames, fr_crowd *out)
+{
+    weft_context_def cd = weft_default_context_def();
+    cd.allocator.alloc = crowd_alloc;
+    cd.allocator.free = crowd_free;
+    weft_context *ctx = NULL;
+    weft_model *model = NULL;
+    weft_cloth_mesh *cloth = NULL;
+    weft_garment_asset *asset = NULL;
+    weft_garment **gs = calloc(n, sizeof *gs);
+    const uint32_t nbv = weft_body_vertex_count(body);
+    float *verts = malloc((size_t)n * nbv * 3 * sizeof(float));
+    uint8_t *parts = malloc(weft_body_triangle_count(body));
+    double *ms = calloc(frames, sizeof(double));
+    weft_cloth_def cdef = weft_default_cloth_def(WEFT_CLOTH_TSHIRT);
+    weft_garment_def d;
+    int rc = gs && verts && parts && ms ? 0 : 1;
+    if (rc == 0 && (weft_context_create(&cd, &ctx) != WEFT_OK ||
+                    weft_model_load_file_as(ctx, shipped_model(WEFT_PRECISION_INT8), "clothtransformer", &model) != WEFT_OK ||
+                    weft_cloth_create(ctx, &cdef, body, &cloth) != WEFT_OK ||
+                    weft_sample_worn_def(body, cloth, WEFT_METHOD_MODEL, parts, &d) != WEFT_OK)) {
+        rc = 1;
+    }
+    if (rc == 0) {
+        d.model = model;
+        d.precision = WEFT_PRECISION_INT8;
+        weft_garment *own = NULL;
+        const size_t b0 = g_crowd_live;
+        rc = weft_garment_create(ctx, &d, &own) == WEFT_OK ? 0 : 1;
+        out->own_mb = (double)(g_crowd_live - b0) / 1e6;
+        weft_garment_destroy(own);
+    }
+    const size_t before = g_crowd_live;
+    if (rc == 0 && weft_garment_asset_create(ctx, &d, &asset) != WEFT_OK) {
+        rc = 1;
+    }
+    for (uint32_t c = 0; rc == 0 && c < n; ++c) {
+        rc = weft_garment_asset_instance(asset, &gs[c]) == WEFT_OK ? 0 : 1;
+        if (c == 0) {
+            out->first_mb = (double)(g_crowd_live - before) / 1e6;
+        }
+    }
+    out->extra_mb = n > 1 ? (double)(g_crowd_live - before) / 1e6 - out->first_mb : 0.0;
+    out->extra_mb /= n > 1 ? (double)(n - 1) : 1.0;
+    weft_pose bind, first, pose;
+    weft_body_bind_pose(body, &bind);
+    for (uint32_t k = 0; rc == 0 && k < FR_SETTLE + frames; ++k) {
+        for (uint32_t c = 0; rc == 0 && c < n; ++c) {
+            const double phase = 0.137 * c;
+            if (weft_sample_motion_pose(mo, phase, &first) != WEFT_OK) {
+                rc = 1;
+            } else if (k < FR_SETTLE) {
+                weft_avatar_sample_settle_pose(&bind, &first, k, FR_SETTLE, &pose);
+            } else if (weft_sample_motion_pose(mo, phase + (double)(k - FR_SETTLE) / 60.0, &pose) != WEFT_OK) {
+                rc = 1;
+            }
+            float *v = verts + (size_t)c * nbv * 3;
+            if (rc == 0 && (weft_body_pose(body, &pose, v, NULL) != WEFT_OK || weft_garment_set_collider(gs[c], v) != WEFT_OK)) {
+                rc = 1;
+            }
+        }
+        const double t0 = weft__now_ms();
+        if (rc == 0 && weft_garments_step(gs, n) != WEFT_OK) {
+            rc = 1;
+        }
+        if (rc == 0 && k >= FR_SETTLE) {
+            ms[k - FR_SETTLE] = (weft__now_ms() - t0) / (double)n;
+        }
+    }
+    if (rc != 0) {
+        fprintf(stderr, "weft bench frame: crowd of %u: %s\n", n, weft_last_error());
+    } else {
+        out->ms_per_character = median(ms, frames);
+    }
+    for (uint32_t c = 0; gs && c < n; ++c) {
+        weft_garment_destroy(gs[c]);
+    }
+    weft_garment_asset_destroy(asset);
+    weft_cloth_destroy(cloth);
+    weft_model_destroy(model);
+    weft_context_destroy(ctx);
+    free(gs);
+    free(verts);
+    free(parts);
+    free(ms);
+    return rc;
+}
+
 /* The list item `name` of a comma-separated list, copied into buf; false past the end. */
 static bool list_item(const char *list, uint32_t index, char *buf, size_t cap)
 {
@@ -200,7 +321,7 @@ static bool list_item(const char *list, uint32_t index, char *buf, size_t cap)
     return true;
 }
 
-enum { OPT_MOTIONS = 1, OPT_RESOLUTIONS, OPT_METHODS, OPT_FRAMES, OPT_MD };
+enum { OPT_MOTIONS = 1, OPT_RESOLUTIONS, OPT_METHODS, OPT_FRAMES, OPT_CROWD, OPT_MD };
 
 static const cli_option k_options[] = {
     {"motions", "walk,mocap:CLIP,...", OPT_MOTIONS,
@@ -214,6 +335,9 @@ static const cli_option k_options[] = {
      "precision), xpbd-fast:S, xpbd:S (S substeps, 1..1000), lbs (default\n"
      "model:int8,model:fp16,model:fp32,xpbd-fast:5,xpbd-fast:10,lbs)"},
     {"frames", "N", OPT_FRAMES, "measured frames after a 30-frame settle, 1..100000 (default 60)"},
+    {"crowd", "N", OPT_CROWD,
+     "also N characters wearing instances of one garment asset (learned int8, T-shirt 1k,\nfirst motion) against "
+     "one: ms and memory per character; 0 = off,\n2..1024 (default 64)"},
     {"md", "FILE", OPT_MD, "write the table into FILE between <!-- frame-table --> markers\n(docs/MODEL_BENCH.md)"},
     {0},
 };
@@ -222,7 +346,7 @@ static const cli_command k_command = {
     .tool = "weft bench frame",
     .synopsis = "weft bench frame [--motions walk,mocap:CLIP,...] [--resolutions 1k,4k]\n"
                 "                 [--methods model:int8,model:fp16,model:fp32,xpbd-fast:5,xpbd-fast:10,lbs]\n"
-                "                 [--frames N] [--md FILE]",
+                "                 [--frames N] [--crowd N] [--md FILE]",
     .about = "What a worn garment costs a game per frame, split by stage: the default avatar wears the T-shirt\n"
              "(the render sample's worn-garment recipe), settles into each motion over 30 frames and is\n"
              "stepped --frames frames by each method at each resolution, one thread. Per cell the medians\n"
@@ -237,7 +361,7 @@ int weft_bench_frame(int argc, char **argv)
 {
     const char *motions = "walk,mocap:walk_cmu07_01", *resolutions = "1k,4k", *md = NULL;
     const char *methods_text = "model:int8,model:fp16,model:fp32,xpbd-fast:5,xpbd-fast:10,lbs";
-    uint32_t frames = 60;
+    uint32_t frames = 60, crowd = 64;
     cli_parser parser;
     cli_start(&parser, &k_command, argc, argv);
     const char *v;
@@ -260,6 +384,14 @@ int weft_bench_frame(int argc, char **argv)
         case OPT_FRAMES:
             if (!cli_u32(k_command.tool, cli_name(&k_command, id), v, 1, 100000, &frames)) {
                 return 2;
+            }
+            break;
+        case OPT_CROWD:
+            if (!cli_u32(k_command.tool, cli_name(&k_command, id), v, 0, 1024, &crowd)) {
+                return 2;
+            }
+            if (crowd == 1) {
+                return cli_fail(&k_command, "--crowd 1: a crowd is 2..1024 characters (0: off)");
             }
             break;
         default:
@@ -308,11 +440,11 @@ int weft_bench_frame(int argc, char **argv)
     size_t len = 0, cap = 0;
     char line[1024];
     snprintf(line, sizeof line,
-             "`weft bench frame --motions %s --resolutions %s --methods %s --frames %u` (%s; one thread; medians "
-             "of %u frames; ms)\n\n"
+             "`weft bench frame --motions %s --resolutions %s --methods %s --frames %u --crowd %u` (%s; one thread; "
+             "medians of %u frames; ms)\n\n"
              "| motion | garment | method | body posing | whole cloth step | method | constraints | CCD |\n"
              "|---|---|---|---:|---:|---:|---:|---:|\n",
-             motions, resolutions, methods_text, frames, weft_config_string(), frames);
+             motions, resolutions, methods_text, frames, crowd, weft_config_string(), frames);
     table = rc == 0 ? bench_append(table, &len, &cap, line) : NULL;
     char ratios[4096] = "";
     char motion_spec[128], res[16];
@@ -374,6 +506,37 @@ int weft_bench_frame(int argc, char **argv)
         rc = table ? 0 : 1;
         if (table) {
             printf("\n%s", strstr(table, "| motion | garment | learned int8 /"));
+        }
+    }
+    if (rc == 0 && table && crowd > 0) {
+        /* the crowd on the first motion: one character, then `crowd`, the same code path */
+        weft_sample_motion mo;
+        fr_crowd one, many;
+        if (!list_item(motions, 0, motion_spec, sizeof motion_spec) ||
+            weft_sample_motion_load(ctx, body, motion_spec, 1.0f, false, &mo) != WEFT_OK) {
+            fprintf(stderr, "weft bench frame: crowd motion: %s\n", weft_last_error());
+            rc = 1;
+        } else {
+            rc = run_crowd(body, &mo, 1, frames, &one);
+            rc = rc == 0 ? run_crowd(body, &mo, crowd, frames, &many) : rc;
+            weft_sample_motion_free(&mo);
+        }
+        if (rc == 0) {
+            snprintf(line, sizeof line,
+                     "\nCrowd on %s: characters wearing instances of one garment asset (learned int8, T-shirt 1k, "
+                     "each character 0.137 s further into the motion), stepped by `weft_garments_step`; ms per "
+                     "character are medians over frames of the call's time / characters.\n\n"
+                     "| characters | ms per character | vs one character | asset + first instance MB | each "
+                     "further instance MB | further / first | a garment of its own MB |\n"
+                     "|---:|---:|---:|---:|---:|---:|---:|\n"
+                     "| 1 | %.2f | 1.00 | %.2f | - | - | %.2f |\n"
+                     "| %u | %.2f | %.2f (target <= 1.1) | %.2f | %.3f | %.1f %% (target <= 10 %%) | %.2f |\n",
+                     motion_spec, one.ms_per_character, one.first_mb, one.own_mb, crowd, many.ms_per_character,
+                     many.ms_per_character / one.ms_per_character, many.first_mb, many.extra_mb,
+                     100.0 * many.extra_mb / many.first_mb, many.own_mb);
+            fputs(line, stdout);
+            table = bench_append(table, &len, &cap, line);
+            rc = table ? 0 : 1;
         }
     }
     if (rc == 0 && md) {
