@@ -1,11 +1,12 @@
-#define _POSIX_C_SOURCE 200809L
 /* Shared garment assets (weft_garment_asset_*): two instances of one asset, stepped in turn on
  * different motions, end bit-identical to two garments made from the same def, for every method
  * of the worn recipe (LBS, the shipped garment model in int8 and fp32, the fast XPBD, an external
  * solver through the constraint stage; tethers, strain limit, push, body parts, floor, CCD on and
  * off), through a cut and a set_state; an extra instance costs at most a tenth of the first's
  * memory for the learned model and LBS; an instance entered while another is stepping fails with
- * WEFT_ERROR_BUSY and is left as it was; bad arguments fail by name. */
+ * WEFT_ERROR_BUSY and is left as it was; bad arguments fail by name. The T-shirt at 1k on weft's
+ * avatar. */
+#define _POSIX_C_SOURCE 200809L /* posix_memalign */
 #include "test.h"
 #include "weft.h"
 #include "weft/body.h"
@@ -87,6 +88,7 @@ static bool scene_make(scene *s)
     weft_avatar_def ad = weft_default_avatar_def();
     CHECK_RESULT(weft_avatar_create(s->ctx, &ad, &s->body), WEFT_OK);
     weft_cloth_def cdef = weft_default_cloth_def(WEFT_CLOTH_TSHIRT);
+    cdef.resolution = WEFT_CLOTH_RES_1K;
     CHECK_RESULT(weft_cloth_create(s->ctx, &cdef, s->body, &s->cloth), WEFT_OK);
     CHECK_RESULT(weft_model_load_file(s->ctx, GARMENT_MODEL, &s->model), WEFT_OK);
     CHECK_RESULT(weft_model_load_file(s->ctx, UNIFIED_MODEL, &s->unified), WEFT_OK);

@@ -228,6 +228,7 @@ static int run_crowd(weft_body *body, const weft_sample_motion *mo, uint32_t n, 
     uint8_t *parts = malloc(weft_body_triangle_count(body));
     double *ms = calloc(frames, sizeof(double));
     weft_cloth_def cdef = weft_default_cloth_def(WEFT_CLOTH_TSHIRT);
+    cdef.resolution = WEFT_CLOTH_RES_1K;
     weft_garment_def d;
     int rc = gs && verts && parts && ms ? 0 : 1;
     if (rc == 0 && (weft_context_create(&cd, &ctx) != WEFT_OK ||
