@@ -103,8 +103,8 @@ weft_result weft__check_mesh(const char *what, const float *positions, uint32_t 
     return WEFT_OK;
 }
 
-/* What an instance owns (weft_garment_asset_instance); the rest is its asset's. */
-static void free_instance_buffers(weft_garment *g)
+/* The state: what an instance owns (weft_garment_asset_instance); the rest is its asset's. */
+static void free_state(weft_garment *g)
 {
     const weft_context *ctx = g->ctx;
     const size_t nv3 = (size_t)g->vertex_count * 3 * sizeof(float);
@@ -116,35 +116,26 @@ static void free_instance_buffers(weft_garment *g)
     weft__free(ctx, g->x_next, nv3);
     weft__free(ctx, g->pin_indices, (size_t)g->vertex_count * sizeof(uint32_t));
     weft__free(ctx, g->pin_targets, nv3);
-    weft__free(ctx, g, sizeof *g);
 }
 
 static void free_buffers(weft_garment *g)
 {
-    if (g->asset) {
-        free_instance_buffers(g);
-        return;
-    }
+    free_state(g);
     const weft_context *ctx = g->ctx;
-    size_t nv3 = (size_t)g->vertex_count * 3 * sizeof(float);
-    size_t nc3 = (size_t)g->collider_vertex_count * 3 * sizeof(float);
-    weft__free(ctx, g->rest, nv3);
-    weft__free(ctx, g->triangles, (size_t)g->triangle_count * 3 * sizeof(uint32_t));
-    weft__free(ctx, g->collider_rest, nc3);
-    weft__free(ctx, g->collider_triangles, (size_t)g->collider_triangle_count * 3 * sizeof(uint32_t));
-    weft__free(ctx, g->collider_prev, nc3);
-    weft__free(ctx, g->collider_next, nc3);
-    weft__free(ctx, g->x, nv3);
-    weft__free(ctx, g->x_prev, nv3);
-    weft__free(ctx, g->x_next, nv3);
-    weft__free(ctx, g->pin_indices, (size_t)g->vertex_count * sizeof(uint32_t));
-    weft__free(ctx, g->pin_targets, nv3);
-    geo_skin_destroy(ctx, g->skin);
-    weft__free(ctx, g->tether_radius, (size_t)g->vertex_count * sizeof(float));
-    weft__free(ctx, g->tether_target, nv3);
-    weft__strain_destroy(g);
-    weft__near_destroy(g);
-    weft__parts_destroy(g);
+    if (!g->asset) {
+        const size_t nv3 = (size_t)g->vertex_count * 3 * sizeof(float);
+        const size_t nc3 = (size_t)g->collider_vertex_count * 3 * sizeof(float);
+        weft__free(ctx, g->rest, nv3);
+        weft__free(ctx, g->triangles, (size_t)g->triangle_count * 3 * sizeof(uint32_t));
+        weft__free(ctx, g->collider_rest, nc3);
+        weft__free(ctx, g->collider_triangles, (size_t)g->collider_triangle_count * 3 * sizeof(uint32_t));
+        geo_skin_destroy(ctx, g->skin);
+        weft__free(ctx, g->tether_radius, (size_t)g->vertex_count * sizeof(float));
+        weft__free(ctx, g->tether_target, nv3);
+        weft__strain_destroy(g);
+        weft__near_destroy(g);
+        weft__parts_destroy(g);
+    }
     weft__free(ctx, g, sizeof *g);
 }
 
@@ -426,7 +417,7 @@ void weft_garment_destroy(weft_garment *garment)
     garment->ops->destroy(garment);
     if (garment->asset) {
         atomic_fetch_sub(&garment->asset->instances, 1u);
-        free_instance_buffers(garment);
+        free_buffers(garment);
         return;
     }
     weft__ccd_garment_destroy(garment);
@@ -504,7 +495,7 @@ weft_result weft_garment_asset_instance(weft_garment_asset *asset, weft_garment 
         ok = g->collider_prev && g->collider_next;
     }
     if (!ok) {
-        free_instance_buffers(g);
+        free_buffers(g);
         return WEFT_ERROR_OUT_OF_MEMORY;
     }
     /* the prototype is never stepped: its state is the def's initial state */
@@ -519,7 +510,7 @@ weft_result weft_garment_asset_instance(weft_garment_asset *asset, weft_garment 
     g->stats = (weft_step_stats){0};
     const weft_result r = g->ops->instance ? g->ops->instance(p, g) : g->ops->create(g);
     if (r != WEFT_OK) {
-        free_instance_buffers(g);
+        free_buffers(g);
         return r;
     }
     atomic_fetch_add(&asset->instances, 1u);
