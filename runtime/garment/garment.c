@@ -118,6 +118,26 @@ static void free_state(weft_garment *g)
     weft__free(ctx, g->pin_targets, nv3);
 }
 
+/* Allocates the state buffers free_state frees (sizes from g's counts); false when one fails. */
+static bool alloc_state(weft_garment *g)
+{
+    const weft_context *ctx = g->ctx;
+    const size_t nv3 = (size_t)g->vertex_count * 3 * sizeof(float);
+    const size_t nc3 = (size_t)g->collider_vertex_count * 3 * sizeof(float);
+    g->x = weft__alloc(ctx, nv3);
+    g->x_prev = weft__alloc(ctx, nv3);
+    g->x_next = weft__alloc(ctx, nv3);
+    g->pin_indices = weft__alloc(ctx, (size_t)g->vertex_count * sizeof(uint32_t));
+    g->pin_targets = weft__alloc(ctx, nv3);
+    bool ok = g->x && g->x_prev && g->x_next && g->pin_indices && g->pin_targets;
+    if (ok && g->collider_vertex_count > 0) {
+        g->collider_prev = weft__alloc(ctx, nc3);
+        g->collider_next = weft__alloc(ctx, nc3);
+        ok = g->collider_prev && g->collider_next;
+    }
+    return ok;
+}
+
 static void free_buffers(weft_garment *g)
 {
     free_state(g);
@@ -334,18 +354,11 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
     size_t nc3 = (size_t)def->collider_vertex_count * 3 * sizeof(float);
     g->rest = weft__alloc(context, nv3);
     g->triangles = weft__alloc(context, (size_t)def->triangle_count * 3 * sizeof(uint32_t));
-    g->x = weft__alloc(context, nv3);
-    g->x_prev = weft__alloc(context, nv3);
-    g->x_next = weft__alloc(context, nv3);
-    g->pin_indices = weft__alloc(context, (size_t)def->vertex_count * sizeof(uint32_t));
-    g->pin_targets = weft__alloc(context, nv3);
-    bool ok = g->rest && g->triangles && g->x && g->x_prev && g->x_next && g->pin_indices && g->pin_targets;
+    bool ok = g->rest && g->triangles && alloc_state(g);
     if (ok && def->collider_vertex_count > 0) {
         g->collider_rest = weft__alloc(context, nc3);
         g->collider_triangles = weft__alloc(context, (size_t)def->collider_triangle_count * 3 * sizeof(uint32_t));
-        g->collider_prev = weft__alloc(context, nc3);
-        g->collider_next = weft__alloc(context, nc3);
-        ok = g->collider_rest && g->collider_triangles && g->collider_prev && g->collider_next;
+        ok = g->collider_rest && g->collider_triangles;
     }
     if (!ok) {
         free_buffers(g);
@@ -417,10 +430,9 @@ void weft_garment_destroy(weft_garment *garment)
     garment->ops->destroy(garment);
     if (garment->asset) {
         atomic_fetch_sub(&garment->asset->instances, 1u);
-        free_buffers(garment);
-        return;
+    } else {
+        weft__ccd_garment_destroy(garment); /* an instance's CCD world is its asset's */
     }
-    weft__ccd_garment_destroy(garment);
     free_buffers(garment);
 }
 
@@ -483,18 +495,7 @@ weft_result weft_garment_asset_instance(weft_garment_asset *asset, weft_garment 
     g->pin_indices = NULL;
     const size_t nv3 = (size_t)p->vertex_count * 3 * sizeof(float);
     const size_t nc3 = (size_t)p->collider_vertex_count * 3 * sizeof(float);
-    g->x = weft__alloc(ctx, nv3);
-    g->x_prev = weft__alloc(ctx, nv3);
-    g->x_next = weft__alloc(ctx, nv3);
-    g->pin_indices = weft__alloc(ctx, (size_t)p->vertex_count * sizeof(uint32_t));
-    g->pin_targets = weft__alloc(ctx, nv3);
-    bool ok = g->x && g->x_prev && g->x_next && g->pin_indices && g->pin_targets;
-    if (ok && p->collider_vertex_count > 0) {
-        g->collider_prev = weft__alloc(ctx, nc3);
-        g->collider_next = weft__alloc(ctx, nc3);
-        ok = g->collider_prev && g->collider_next;
-    }
-    if (!ok) {
+    if (!alloc_state(g)) {
         free_buffers(g);
         return WEFT_ERROR_OUT_OF_MEMORY;
     }
