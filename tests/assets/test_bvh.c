@@ -1069,6 +1069,16 @@ static void test_mocap_test_split_loads(void)
                           p5, lift[0]);
             }
             free(lift);
+            /* how far the clip was moved: against the source's own floor (keep_source_height) */
+            weft_bvh_def keep = weft_default_bvh_def();
+            keep.keep_source_height = true;
+            weft_clip *src = NULL;
+            CHECK_RESULT(weft_bvh_load_file(g_ctx, path, &keep, &src), WEFT_OK);
+            if (src) {
+                printf("  %-28s stood on the floor: raised %+.1f cm\n", strrchr(path, '/') + 1,
+                       100.0 * (double)(c->translations[1] - src->translations[1]));
+            }
+            weft_clip_destroy(src);
             ++clips;
         }
         weft_clip_destroy(c);
