@@ -81,6 +81,15 @@ typedef struct weft_fnopt_def {
     /* Evaluate the loss once more after the last iteration so weft_fnopt_stats.loss_final is
      * filled (costs one extra gradient evaluation per step). Default false. */
     bool report_loss;
+    /* Descent guard (default true): the step commits the iterate with the lowest loss among
+     * a = 0 and the K optimizer iterates, instead of always the last one. The iterations
+     * themselves are not changed (the learned optimizer climbs on purpose within a step, then
+     * descends); the guard costs one loss evaluation without gradient per step. So a committed
+     * acceleration never has a higher loss than a = 0, which keeps rollouts stable where the
+     * optimizer alone ends a step on an overshoot (finer grids, faster handles, reduced
+     * precision; docs/FNOPT.md). false commits the last iterate: the paper's rule (the PyTorch
+     * parity goldens). */
+    bool descent_guard;
     /* LEARNED: arithmetic of the FNO's 1x1 layers, converted from the fp32 model at creation.
      * FP16: fp16 weights, fp32 accumulation. INT8: int8 weights and per-row int8 activations in
      * the wide layers (lifting 256 -> 64, skips, projection 64 -> 64), int32 accumulation. Both run
@@ -98,6 +107,9 @@ typedef struct weft_fnopt_stats {
     double loss_first;                  /* L at a = 0 in the last step */
     double loss_final;                  /* L at the final a (only with def.report_loss) */
     double grad_norm_final;             /* |dL/da| at the final a (only with def.report_loss) */
+    /* The iterate the last step committed: K = the optimizer's last; below K the descent
+     * guard chose an earlier one with a lower loss (0: a = 0). */
+    uint32_t committed_iterate;
 } weft_fnopt_stats;
 
 WEFT_API weft_fnopt_def weft_default_fnopt_def(void);

@@ -12,6 +12,7 @@ struct weft_fnopt {
     weft_fnopt_optimizer optimizer;
     uint32_t iterations;
     bool report_loss;
+    bool descent_guard;
 
     float *x, *v, *x_new, *v_new;       /* 3n each */
     float *acc, *grad;                  /* 3n each */
@@ -25,6 +26,9 @@ struct weft_fnopt {
 
     fnopt_learned learned;
     float *backup;                      /* 6n: g_prev and s_prev before the step */
+    float *best;                        /* 3n: the step's lowest-loss acceleration (descent guard) */
+    float *best_rec;                    /* 6n: g_prev and s_prev at that iterate (learned) */
+    float best_scale[3];
     fnopt_classic classic;
 
     weft_fnopt_stats stats;
@@ -47,6 +51,7 @@ weft_fnopt_def weft_default_fnopt_def(void)
     d.adam_beta1 = 0.9f;
     d.adam_beta2 = 0.999f;
     d.lbfgs_history = 10;
+    d.descent_guard = true;
     d.internal_cookie = WEFT_DEF_COOKIE;
     return d;
 }
@@ -88,6 +93,8 @@ void weft_fnopt_destroy(weft_fnopt *f)
     weft__free(ctx, f->seen, n);
     weft__free(ctx, f->handles, n * sizeof(uint32_t));
     weft__free(ctx, f->backup, 6 * n * sizeof(float));
+    weft__free(ctx, f->best, 3 * n * sizeof(float));
+    weft__free(ctx, f->best_rec, 6 * n * sizeof(float));
     if (f->loss.mass) {
         fnopt__loss_free(ctx, &f->loss);
     }
@@ -172,6 +179,7 @@ weft_result weft_fnopt_create(weft_context *ctx, const weft_fnopt_def *def, weft
     f->optimizer = def->optimizer;
     f->iterations = def->iterations;
     f->report_loss = def->report_loss;
+    f->descent_guard = def->descent_guard;
     f->x = weft__alloc(ctx, 3 * n * sizeof(float));
     f->v = weft__alloc(ctx, 3 * n * sizeof(float));
     f->x_new = weft__alloc(ctx, 3 * n * sizeof(float));
@@ -183,8 +191,10 @@ weft_result weft_fnopt_create(weft_context *ctx, const weft_fnopt_def *def, weft
     f->seen = weft__alloc(ctx, n);
     f->handles = weft__alloc(ctx, n * sizeof(uint32_t));
     f->backup = weft__alloc(ctx, 6 * n * sizeof(float));
+    f->best = weft__alloc(ctx, 3 * n * sizeof(float));
+    f->best_rec = weft__alloc(ctx, 6 * n * sizeof(float));
     if (!f->x || !f->v || !f->x_new || !f->v_new || !f->acc || !f->grad || !f->bc || !f->mask || !f->seen ||
-        !f->handles || !f->backup) {
+        !f->handles || !f->backup || !f->best || !f->best_rec) {
         weft_fnopt_destroy(f);
         return weft__fail(WEFT_ERROR_OUT_OF_MEMORY, "%s: out of memory for the %ux%u state", fn, f->h, f->w);
     }
@@ -348,16 +358,45 @@ weft_result weft_fnopt_step(weft_fnopt *f)
     } else {
         fnopt__classic_reset(&f->classic);
     }
-    double first = 0.0;
+    /* the descent guard remembers the lowest-loss iterate (a = 0 is iterate 0) */
+    double first = 0.0, lowest = INFINITY;
+    uint32_t committed = f->iterations;
     for (uint32_t k = 0; k < f->iterations; ++k) {
         double l = fnopt__loss_eval(&f->loss, &f->in, f->acc, f->grad);
         if (k == 0) {
             first = l;
         }
+        if (f->descent_guard && l < lowest) {
+            lowest = l;
+            committed = k;
+            memcpy(f->best, f->acc, n3 * sizeof(float));
+            if (f->optimizer == WEFT_FNOPT_LEARNED) {
+                /* the recurrent state that produced this iterate, carried into the next step
+                 * if it is committed */
+                memcpy(f->best_rec, f->learned.g_prev, n3 * sizeof(float));
+                memcpy(f->best_rec + n3, f->learned.s_prev, n3 * sizeof(float));
+                memcpy(f->best_scale, f->learned.scale, sizeof f->best_scale);
+            }
+        }
         if (f->optimizer == WEFT_FNOPT_LEARNED) {
             fnopt__learned_update(&f->learned, f->grad, f->acc);
         } else {
             fnopt__classic_update(&f->classic, f->grad, f->acc);
+        }
+    }
+    if (f->descent_guard) {
+        /* the last iterate costs one more loss value, without its gradient; it is committed
+         * unless an earlier iterate (or a = 0) had a lower loss or it is not finite */
+        double l = fnopt__loss_eval(&f->loss, &f->in, f->acc, NULL);
+        if (l <= lowest || !(lowest < INFINITY)) {
+            committed = f->iterations;
+        } else {
+            memcpy(f->acc, f->best, n3 * sizeof(float));
+            if (f->optimizer == WEFT_FNOPT_LEARNED) {
+                memcpy(f->learned.g_prev, f->best_rec, n3 * sizeof(float));
+                memcpy(f->learned.s_prev, f->best_rec + n3, n3 * sizeof(float));
+                memcpy(f->learned.scale, f->best_scale, sizeof f->best_scale);
+            }
         }
     }
     double final_loss = 0.0, gnorm = 0.0;
@@ -402,6 +441,7 @@ weft_result weft_fnopt_step(weft_fnopt *f)
     f->stats.loss_first = first;
     f->stats.loss_final = final_loss;
     f->stats.grad_norm_final = gnorm;
+    f->stats.committed_iterate = committed;
     f->stats.step_ms = weft__now_ms() - t0 - t_report;
     return WEFT_OK;
 }

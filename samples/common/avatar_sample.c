@@ -64,7 +64,7 @@ enum {
     OPT_MOTION = 1, OPT_JOINT_MAP, OPT_AVATAR, OPT_AVATAR_JOINT_MAP, OPT_GARMENT, OPT_RESOLUTION,
     OPT_SIM_RESOLUTION, OPT_METHOD, OPT_MODEL, OPT_PRECISION, OPT_TETHER_CM, OPT_STRAIN_LIMIT, OPT_PUSH_CM,
     OPT_BODY_PARTS, OPT_CCD, OPT_EXPORT, OPT_FRAMES, OPT_SETTLE, OPT_OUT, OPT_SIZE, OPT_SHEET, OPT_YAW, OPT_PITCH,
-    OPT_SPEED, OPT_START, OPT_DETERMINISTIC, OPT_NO_FRAMES, OPT_CAPE, OPT_CAPE_MODEL, OPT_CAPE_PRECISION,
+    OPT_SPEED, OPT_START, OPT_DETERMINISTIC, OPT_NO_FRAMES, OPT_CAPE, OPT_CAPE_MODEL, OPT_CAPE_PRECISION, OPT_CAPE_METHOD,
     OPT_CROWD, OPT_LOD_TABLE, OPT_CROWD_MVE, OPT_CROWD_BUDGET,
     OPT_COUNT
 };
@@ -146,8 +146,11 @@ const weft_sample_option weft_avatar_sample_option_table[] = {
      "render with softpipe (reproducible bytes, slower) instead of llvmpipe"},
     {"no-frames", NULL, OPT_NO_FRAMES, "write only the contact sheet"},
     {"cape", NULL, OPT_CAPE,
-     "add a 24x40 cape stepped by FNOpt, pinned behind the shoulders (no\n"
-     "body collision)"},
+     "add a 32x40 cape pinned behind the shoulders, stepped by FNOpt with\n"
+     "body collision through the constraint stage"},
+    {"cape-method", "M", OPT_CAPE_METHOD,
+     "fnopt | xpbd-fast:S: step the cape by FNOpt (default) or, on the same\n"
+     "grid, pins and collision, by fast XPBD with S substeps (1..200)"},
     {"cape-model", "FILE", OPT_CAPE_MODEL,
      "its FNOpt weights (default tools/fnopt/models/fnopt_32.safetensors)"},
     {"cape-precision", "P", OPT_CAPE_PRECISION, "fp32 | fp16 | int8: its FNO arithmetic (default fp32)"},
@@ -379,6 +382,12 @@ bool weft_avatar_sample_apply(int id, const char *v, weft_avatar_sample_options 
         return true;
     case OPT_CAPE_PRECISION:
         return parse_precision(v, &o->cape_precision);
+    case OPT_CAPE_METHOD:
+        if (!strcmp(v, "fnopt")) {
+            o->cape_xpbd_substeps = 0;
+            return true;
+        }
+        return !strncmp(v, "xpbd-fast:", 10) && parse_u32(v + 10, 1, 200, &o->cape_xpbd_substeps);
     default:
         return false;
     }
@@ -695,8 +704,11 @@ static int cape_setup(const weft_avatar_sample_options *o, sample_state *s)
     if (!o->cape) {
         return 0;
     }
-    enum { ACROSS = 24, DOWN = 40 };
-    weft_result r = weft_sample_cape_create(s->ctx, s->body, o->cape_model, o->cape_precision, ACROSS, DOWN, &s->cape);
+    weft_sample_cape_def cd = weft_sample_default_cape_def();
+    cd.model_path = o->cape_model;
+    cd.precision = o->cape_precision;
+    cd.xpbd_substeps = o->cape_xpbd_substeps;
+    weft_result r = weft_sample_cape_create(s->ctx, s->body, &cd, &s->cape);
     if (r != WEFT_OK) {
         fprintf(stderr, "avatar_render: cape with '%s': %s: %s\n", o->cape_model, weft_result_string(r),
                 weft_last_error());
@@ -710,9 +722,14 @@ static int cape_setup(const weft_avatar_sample_options *o, sample_state *s)
         return 1;
     }
     const float lc = weft_sample_cape_units_per_metre(s->cape);
+    if (cd.xpbd_substeps) {
+        printf("cape: %ux%u grid (%.2f x %.2f m) by fast XPBD, %u substeps; body collision 1 cm\n", cd.across,
+               cd.down, (double)((cd.across - 1) / lc), (double)((cd.down - 1) / lc), cd.xpbd_substeps);
+        return 0;
+    }
     printf("cape: %ux%u FNOpt grid (%.2f x %.2f m), %s FNO, one step per frame; body collision through the "
-           "constraint stage (1 cm push)\n", ACROSS, DOWN,
-           (double)((ACROSS - 1) / lc), (double)((DOWN - 1) / lc),
+           "constraint stage (1 cm push)\n", cd.across, cd.down,
+           (double)((cd.across - 1) / lc), (double)((cd.down - 1) / lc),
            o->cape_precision == WEFT_PRECISION_FP16 ? "fp16" : (o->cape_precision == WEFT_PRECISION_INT8 ? "int8" : "fp32"));
     return 0;
 }
@@ -1503,9 +1520,10 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
                p50 > 0.0 ? pmax / p50 : 0.0);
     }
     if (s.cape) {
-        printf("cape (FNOpt): %.2f ms per step over %u steps (included in the cloth column), %u non-finite steps; "
+        printf("cape (%s): %.2f ms per step over %u steps (included in the cloth column), %u non-finite steps; "
                "body collision moved cape vertices in %u steps (%llu vertex moves)\n",
-               s.cape_ms / (settle + o->frames), settle + o->frames, weft_sample_cape_failed_steps(s.cape),
+               o->cape_xpbd_substeps ? "fast XPBD" : "FNOpt", s.cape_ms / (settle + o->frames), settle + o->frames,
+               weft_sample_cape_failed_steps(s.cape),
                s.cape_push_steps, (unsigned long long)s.cape_pushed);
     }
     if (o->export_dir) {

@@ -1,5 +1,6 @@
-/* The FNOpt cape of the avatar sample: a grid cloth stepped by the learned optimizer
- * (weft/fnopt.h) whose whole top row is pinned along a curve behind the shoulders and the neck.
+/* The cape of the avatar sample: a grid cloth stepped by the learned optimizer FNOpt
+ * (weft/fnopt.h), or by fast XPBD for comparison, whose whole top row is pinned along a curve
+ * behind the shoulders and the neck.
  * The pins are points bound to the body in its bind pose with the skinning weights of the
  * nearest skin vertex, so every frame their targets are the body's own skinning of them.
  *
@@ -8,7 +9,8 @@
  * positions go through an external garment (WEFT_METHOD_EXTERNAL, weft_garment_constrain) whose
  * collision pushes cloth inside the body (up to 5 cm deep) or nearer than 1 cm to 1 cm in front
  * of it; where that moved the cloth, the corrected positions (and the velocities by the same
- * correction) go back into the optimizer. */
+ * correction) go back into the optimizer. The XPBD cape is a weft_garment over the same grid
+ * with the same pins, collider and collision distances. */
 #include "weft_sample.h"
 
 #if WEFT_RENDER_HAVE_SAMPLE
@@ -37,7 +39,9 @@ struct weft_sample_cape {
     uint32_t *tris;
     uint32_t tri_count;
     uint32_t failed_steps;
-    weft_garment *collide;      /* the body collision stage (external garment) */
+    weft_garment *collide;      /* FNOpt: the body collision stage (external garment) */
+    weft_garment *xpbd;         /* XPBD: the whole cape */
+    float *ref_rest, *ref_weights; /* n * 3, n * WEFT_BODY_JOINTS: the rigid reference */
     float *grid_fix, *vel_fix;  /* n * 3: corrected grid positions and velocities */
     uint32_t pushed;            /* cape vertices the last step's collision moved */
 };
@@ -48,6 +52,9 @@ void weft_sample_cape_destroy(weft_sample_cape *c)
         return;
     }
     weft_garment_destroy(c->collide);
+    weft_garment_destroy(c->xpbd);
+    free(c->ref_rest);
+    free(c->ref_weights);
     free(c->grid_fix);
     free(c->vel_fix);
     weft_fnopt_destroy(c->fnopt);
@@ -138,13 +145,20 @@ static float pin_curve(const weft_body *body, const float *joints, uint32_t coun
     return total;
 }
 
-weft_result weft_sample_cape_create(weft_context *ctx, const weft_body *body, const char *model_path,
-                                    weft_precision precision, uint32_t across, uint32_t down,
+weft_sample_cape_def weft_sample_default_cape_def(void)
+{
+    return (weft_sample_cape_def){.model_path = "tools/fnopt/models/fnopt_32.safetensors",
+                                  .precision = WEFT_PRECISION_FP32, .across = 32, .down = 40, .xpbd_substeps = 0};
+}
+
+weft_result weft_sample_cape_create(weft_context *ctx, const weft_body *body, const weft_sample_cape_def *def,
                                     weft_sample_cape **out)
 {
-    if (!ctx || !body || !model_path || !out || across < 10 || down < 10 || across > 256 || down > 256) {
+    if (!ctx || !body || !def || !out || (!def->model_path && def->xpbd_substeps == 0) || def->across < 10 ||
+        def->down < 10 || def->across > 256 || def->down > 256 || def->xpbd_substeps > 200) {
         return WEFT_ERROR_INVALID_ARGUMENT;
     }
+    const uint32_t across = def->across, down = def->down;
     *out = NULL;
     weft_sample_cape *c = calloc(1, sizeof *c);
     if (!c) {
@@ -162,13 +176,15 @@ weft_result weft_sample_cape_create(weft_context *ctx, const weft_body *body, co
     c->pin_index = malloc((size_t)across * sizeof(uint32_t));
     c->world = malloc((size_t)c->n * 3 * sizeof(float));
     c->tris = malloc((size_t)c->tri_count * 3 * sizeof(uint32_t));
+    c->ref_rest = malloc((size_t)c->n * 3 * sizeof(float));
+    c->ref_weights = malloc((size_t)c->n * WEFT_BODY_JOINTS * sizeof(float));
     float *grid0 = malloc((size_t)c->n * 3 * sizeof(float));
     float joints[24 * 16];
     weft_pose bind;
     weft_body_bind_pose(body, &bind);
     weft_result r = WEFT_ERROR_OUT_OF_MEMORY;
     if (!c->pin_rest || !c->pin_weights || !c->pin_world || !c->pin_grid || !c->pin_index || !c->world || !c->tris ||
-        !grid0) {
+        !c->ref_rest || !c->ref_weights || !grid0) {
         goto fail;
     }
     if ((r = weft_body_pose(body, &bind, NULL, joints)) != WEFT_OK) {
@@ -222,33 +238,50 @@ weft_result weft_sample_cape_create(weft_context *ctx, const weft_body *body, co
             c->tris[t++] = v10, c->tris[t++] = v00 + 1, c->tris[t++] = v10 + 1;
         }
     }
-    if ((r = weft_model_load_file_as(ctx, model_path, "fnopt", &c->model)) != WEFT_OK) {
-        goto fail;
-    }
-    weft_fnopt_def def = weft_default_fnopt_def();
-    def.height = across;
-    def.width = down;
-    def.initial_positions = grid0;
-    def.model = c->model;
-    def.precision = precision;
-    /* the material fitted to the XPBD reference (docs/FNOPT.md), inside the training ranges */
-    def.stretch = 100.0f;
-    def.shear = 3.0f;
-    def.bend = 5.0f;
-    def.gravity[0] = def.gravity[2] = 0.0f;
-    def.gravity[1] = -9.81f * c->lc / (60.0f * 60.0f); /* Y up, one step per 60 Hz frame */
-    if ((r = weft_fnopt_create(ctx, &def, &c->fnopt)) != WEFT_OK) {
-        goto fail;
-    }
     for (size_t q = 0; q < (size_t)c->n * 3; ++q) {
         c->world[q] = grid0[q] / c->lc;
     }
+    memcpy(c->ref_rest, c->world, (size_t)c->n * 3 * sizeof(float));
+    for (uint32_t i = 0; i < across; ++i) {
+        for (uint32_t j = 0; j < down; ++j) {
+            memcpy(c->ref_weights + ((size_t)i * down + j) * WEFT_BODY_JOINTS,
+                   c->pin_weights + (size_t)i * WEFT_BODY_JOINTS, WEFT_BODY_JOINTS * sizeof(float));
+        }
+    }
     /* the body collision: the cape as laid out in the bind pose against the body in it */
-    weft_garment_def gd =
-        weft_sample_body_garment_def(body, WEFT_METHOD_EXTERNAL, c->world, c->n, c->tris, c->tri_count);
+    weft_garment_def gd = weft_sample_body_garment_def(body, def->xpbd_substeps ? WEFT_METHOD_XPBD_FAST
+                                                                                : WEFT_METHOD_EXTERNAL,
+                                                       c->world, c->n, c->tris, c->tri_count);
     gd.collision.push = CAPE_PUSH_M;
     gd.collision.push_depth = CAPE_PUSH_DEPTH_M;
     gd.ccd.enabled = false;
+    if (def->xpbd_substeps) {
+        weft_sample_set_substeps(&gd, def->xpbd_substeps);
+        if ((r = weft_garment_create(ctx, &gd, &c->xpbd)) != WEFT_OK) {
+            goto fail;
+        }
+        free(grid0);
+        *out = c;
+        return WEFT_OK;
+    }
+    if ((r = weft_model_load_file_as(ctx, def->model_path, "fnopt", &c->model)) != WEFT_OK) {
+        goto fail;
+    }
+    weft_fnopt_def fd = weft_default_fnopt_def();
+    fd.height = across;
+    fd.width = down;
+    fd.initial_positions = grid0;
+    fd.model = c->model;
+    fd.precision = def->precision;
+    /* the material fitted to the XPBD reference (docs/FNOPT.md), inside the training ranges */
+    fd.stretch = 100.0f;
+    fd.shear = 3.0f;
+    fd.bend = 5.0f;
+    fd.gravity[0] = fd.gravity[2] = 0.0f;
+    fd.gravity[1] = -9.81f * c->lc / (60.0f * 60.0f); /* Y up, one step per 60 Hz frame */
+    if ((r = weft_fnopt_create(ctx, &fd, &c->fnopt)) != WEFT_OK) {
+        goto fail;
+    }
     c->grid_fix = malloc((size_t)c->n * 3 * sizeof(float));
     c->vel_fix = malloc((size_t)c->n * 3 * sizeof(float));
     if (!c->grid_fix || !c->vel_fix) {
@@ -273,6 +306,20 @@ weft_result weft_sample_cape_step(weft_sample_cape *c, const weft_body *body, co
     weft_result r = weft_body_skin_points(body, pose, c->pin_rest, c->pin_weights, c->across, c->pin_world);
     if (r != WEFT_OK) {
         return r;
+    }
+    if (c->xpbd) {
+        if (!body_vertices) {
+            return WEFT_ERROR_INVALID_ARGUMENT; /* the solver collides as it steps */
+        }
+        if ((r = weft_garment_set_collider(c->xpbd, body_vertices)) != WEFT_OK ||
+            (r = weft_garment_set_pins(c->xpbd, c->pin_index, c->pin_world, c->across)) != WEFT_OK ||
+            (r = weft_garment_step(c->xpbd)) != WEFT_OK) {
+            c->failed_steps += r == WEFT_ERROR_NOT_FINITE;
+            return r;
+        }
+        memcpy(c->world, weft_garment_positions(c->xpbd), (size_t)c->n * 3 * sizeof(float));
+        c->pushed = weft_garment_stats(c->xpbd).pushed_vertices;
+        return WEFT_OK;
     }
     for (uint32_t q = 0; q < 3 * c->across; ++q) {
         c->pin_grid[q] = c->pin_world[q] * c->lc;
@@ -316,6 +363,12 @@ weft_result weft_sample_cape_step(weft_sample_cape *c, const weft_body *body, co
     }
     memcpy(c->world, x, (size_t)c->n * 3 * sizeof(float));
     return WEFT_OK;
+}
+
+weft_result weft_sample_cape_reference(const weft_sample_cape *c, const weft_body *body, const weft_pose *pose,
+                                       float *out)
+{
+    return weft_body_skin_points(body, pose, c->ref_rest, c->ref_weights, c->n, out);
 }
 
 uint32_t weft_sample_cape_pushed(const weft_sample_cape *c) { return c->pushed; }

@@ -58,7 +58,8 @@ typedef struct weft_avatar_sample_options {
                                  * samples/data/lod_garment.csv, else samples/data/lod.csv) */
     float crowd_mve;            /* --crowd-mve: the front row's accuracy target in cm; 0 = the best level's */
     float crowd_budget;         /* --crowd-budget: per-character ms budget for --crowd; 0 = none */
-    bool cape;                  /* add the FNOpt cape (cape.c) (default false) */
+    bool cape;                  /* add the cape (cape.c) (default false) */
+    uint32_t cape_xpbd_substeps; /* --cape-method xpbd-fast:S: the cape by fast XPBD; 0 = FNOpt (default) */
     const char *cape_model;     /* its FNOpt weights (default tools/fnopt/models/fnopt_32.safetensors) */
     weft_precision cape_precision; /* its FNO arithmetic (default fp32) */
 } weft_avatar_sample_options;
@@ -196,18 +197,32 @@ bool weft_avatar_sample_crowd_option(const char *name, const char *value, weft_a
 #if WEFT_RENDER_HAVE_SAMPLE
 #include "weft/body.h"
 
-/* The FNOpt cape (cape.c): an across x down grid cloth stepped by weft/fnopt.h, its top row
- * pinned on a curve behind the shoulders and neck of `body` (bind pose), the pins skinned with
- * the body every step; body collision through weft's constraint stage (cape.c). */
+/* The cape (cape.c): an across x down grid cloth whose top row is pinned on a curve behind the
+ * shoulders and neck of `body` (bind pose), the pins skinned with the body every step. Stepped
+ * by FNOpt (weft/fnopt.h, the learned optimizer at K = 10) with body collision through weft's
+ * constraint stage, or, for comparison on the same cloth, as a fast-XPBD garment over the same
+ * grid with the same pins and body collision. */
 typedef struct weft_sample_cape weft_sample_cape;
 
-weft_result weft_sample_cape_create(weft_context *context, const weft_body *body, const char *model_path,
-                                    weft_precision precision, uint32_t across, uint32_t down,
+typedef struct weft_sample_cape_def {
+    const char *model_path;     /* FNOpt weights (default tools/fnopt/models/fnopt_32.safetensors) */
+    weft_precision precision;   /* the FNO's arithmetic (default fp32) */
+    uint32_t across, down;      /* grid, 10..256 each (default 32 x 40) */
+    uint32_t xpbd_substeps;     /* 0 (default): FNOpt; S > 0: fast XPBD with S substeps instead */
+} weft_sample_cape_def;
+
+weft_sample_cape_def weft_sample_default_cape_def(void);
+weft_result weft_sample_cape_create(weft_context *context, const weft_body *body, const weft_sample_cape_def *def,
                                     weft_sample_cape **out_cape);
 /* One 1/60 s step with the pins at `pose`; with `body_vertices` (the body posed at `pose`) the
- * result goes through the body collision (cape.c). On failure the cape keeps its previous state. */
+ * cape collides with the body (cape.c). The XPBD cape needs body_vertices (its solver collides
+ * as it steps). On failure the cape keeps its previous state. */
 weft_result weft_sample_cape_step(weft_sample_cape *cape, const weft_body *body, const weft_pose *pose,
                                   const float *body_vertices);
+/* The cape carried rigidly by the body: every vertex skinned with the weights of its column's
+ * pin from its bind-pose layout (n * 3). The off_body reference of `weft bench mocap`. */
+weft_result weft_sample_cape_reference(const weft_sample_cape *cape, const weft_body *body, const weft_pose *pose,
+                                       float *out_positions);
 /* Cape vertices the last step's body collision moved. */
 uint32_t weft_sample_cape_pushed(const weft_sample_cape *cape);
 const float *weft_sample_cape_positions(const weft_sample_cape *cape); /* world metres */

@@ -128,6 +128,7 @@ static void test_blowup_rolls_back(void)
     def.optimizer = WEFT_FNOPT_GD;
     def.learning_rate = 1e30f; /* overflows to infinity within a few iterations */
     def.iterations = 50;
+    def.descent_guard = false; /* the guard would commit a = 0 (below) */
     weft_fnopt *f = NULL;
     CHECK_RESULT(weft_fnopt_create(ctx, &def, &f), WEFT_OK);
     if (f) {
@@ -136,6 +137,16 @@ static void test_blowup_rolls_back(void)
         CHECK_RESULT(weft_fnopt_step(f), WEFT_ERROR_NOT_FINITE);
         CHECK(memcmp(before, weft_fnopt_positions(f), sizeof before) == 0);
         CHECK_EQ_INT(weft_fnopt_get_stats(f).frame, 0);
+        weft_fnopt_destroy(f);
+    }
+    /* with the descent guard the same step commits the lowest-loss iterate, a = 0 here */
+    def.descent_guard = true;
+    f = NULL;
+    CHECK_RESULT(weft_fnopt_create(ctx, &def, &f), WEFT_OK);
+    if (f) {
+        CHECK_RESULT(weft_fnopt_step(f), WEFT_OK);
+        CHECK_EQ_INT(weft_fnopt_get_stats(f).committed_iterate, 0);
+        CHECK_EQ_INT(weft_fnopt_get_stats(f).frame, 1);
         weft_fnopt_destroy(f);
     }
     weft_context_destroy(ctx);

@@ -122,5 +122,82 @@ static void test_no_allocation_per_step(void)
     CHECK_EQ_INT(cnt.live, 0);
 }
 
-TEST_MAIN(TEST_CASE(test_each_lowers_loss), TEST_CASE(test_handles_follow_targets),
+/* One step of the 16 x 16 sheet with jumping corners (as solve()) and the given guard: the
+ * committed loss (report_loss evaluates it at the committed acceleration) and the iterate. */
+static double guarded_step(weft_context *ctx, const weft_model *model, weft_fnopt_optimizer kind, float lr,
+                           bool guard, double *first, uint32_t *committed, bool *finite)
+{
+    weft_fnopt_def def = weft_default_fnopt_def();
+    def.height = def.width = 16;
+    def.optimizer = kind;
+    def.model = model;
+    def.learning_rate = lr;
+    def.iterations = 10;
+    def.report_loss = true;
+    def.descent_guard = guard;
+    weft_fnopt *f = NULL;
+    CHECK_RESULT(weft_fnopt_create(ctx, &def, &f), WEFT_OK);
+    if (!f) {
+        return INFINITY;
+    }
+    const float *x = weft_fnopt_positions(f);
+    uint32_t idx[2] = {0, 15 * 16};
+    float t[6];
+    for (int k = 0; k < 2; ++k) {
+        for (int c = 0; c < 3; ++c) {
+            t[3 * k + c] = x[3 * idx[k] + c] + (c == 0 ? 2.0f : 0.0f);
+        }
+    }
+    CHECK_RESULT(weft_fnopt_set_handles(f, idx, t, 2), WEFT_OK);
+    *finite = weft_fnopt_step(f) == WEFT_OK;
+    weft_fnopt_stats st = weft_fnopt_get_stats(f);
+    *first = st.loss_first;
+    *committed = st.committed_iterate;
+    weft_fnopt_destroy(f);
+    return st.loss_final;
+}
+
+/* The descent guard commits the lowest-loss iterate: with a GD step size far past stability the
+ * unguarded step ends on an overshoot above the loss of a = 0 (and soon on infinity), the
+ * guarded one never does; where the last iterate is the best, the guard changes nothing. */
+static void test_descent_guard(void)
+{
+    weft_context *ctx = fnopt_test_context();
+    double first = 0.0, fin = 0.0;
+    uint32_t committed = 0;
+    bool finite = false;
+    /* lr 1: every GD iteration overshoots on this stiff sheet */
+    fin = guarded_step(ctx, NULL, WEFT_FNOPT_GD, 1.0f, false, &first, &committed, &finite);
+    printf("gd lr 1, unguarded: loss %.6g -> %.6g (finite %d, committed iterate %u)\n", first, fin, finite, committed);
+    CHECK(!finite || !(fin <= first));
+    CHECK_EQ_INT(committed, 10);
+    fin = guarded_step(ctx, NULL, WEFT_FNOPT_GD, 1.0f, true, &first, &committed, &finite);
+    printf("gd lr 1, guarded:   loss %.6g -> %.6g (committed iterate %u)\n", first, fin, committed);
+    CHECK(finite);
+    CHECK(fin <= first);
+    CHECK(committed < 10);
+    /* L-BFGS at lr 1 descends to the last iterate: same result with and without the guard */
+    double fin_off = guarded_step(ctx, NULL, WEFT_FNOPT_LBFGS, 1.0f, false, &first, &committed, &finite);
+    double fin_on = guarded_step(ctx, NULL, WEFT_FNOPT_LBFGS, 1.0f, true, &first, &committed, &finite);
+    printf("lbfgs lr 1: unguarded %.9g, guarded %.9g (committed iterate %u)\n", fin_off, fin_on, committed);
+    CHECK(finite);
+    if (committed == 10) {
+        CHECK(fin_on == fin_off);
+    } else {
+        CHECK(fin_on < fin_off);
+    }
+    /* the learned optimizer: the committed loss never exceeds the loss of a = 0 */
+    weft_model *model = NULL;
+    CHECK_RESULT(weft_model_load_file(ctx, FNOPT_MODEL_PATH, &model), WEFT_OK);
+    if (model) {
+        fin = guarded_step(ctx, model, WEFT_FNOPT_LEARNED, 0.01f, true, &first, &committed, &finite);
+        printf("learned, guarded: loss %.6g -> %.6g (committed iterate %u)\n", first, fin, committed);
+        CHECK(finite);
+        CHECK(fin <= first);
+        weft_model_destroy(model);
+    }
+    weft_context_destroy(ctx);
+}
+
+TEST_MAIN(TEST_CASE(test_each_lowers_loss), TEST_CASE(test_descent_guard), TEST_CASE(test_handles_follow_targets),
           TEST_CASE(test_no_allocation_per_step))

@@ -38,6 +38,7 @@ typedef struct fnopt_run_opts {
     float repulsion;
     bool report_loss;            /* one extra loss evaluation per step (not in ms_per_frame) */
     weft_precision precision;    /* the learned optimizer's FNO arithmetic (FP32) */
+    bool no_guard;               /* turn weft_fnopt_def.descent_guard off (the paper's rule) */
 } fnopt_run_opts;
 
 typedef struct fnopt_run_result {
@@ -47,6 +48,8 @@ typedef struct fnopt_run_result {
     double e3d;                  /* mean over frames (needs ground truth) */
     double chamfer;              /* mean over frames, m^2 (needs ground truth) */
     double loss;                 /* mean final loss per step (report_loss, else 0) */
+    double max_strain;           /* largest |length - rest| / rest of a grid edge over all frames */
+    double rejected;             /* share of steps where the descent guard committed an earlier iterate */
 } fnopt_run_result;
 
 weft_result fnopt_scene_make(const fnopt_scene_opts *o, fnopt_scene *s);

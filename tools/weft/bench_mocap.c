@@ -43,6 +43,8 @@ typedef struct mc_method {
     char label[32];
     weft_method method;
     uint32_t substeps;
+    bool fnopt;                 /* the cape's FNOpt (only the cape runs it) */
+    weft_precision precision;   /* FNOpt's arithmetic */
 } mc_method;
 
 static bool parse_method(const char *s, size_t n, mc_method *m)
@@ -55,6 +57,19 @@ static bool parse_method(const char *s, size_t n, mc_method *m)
     buf[n] = '\0';
     snprintf(m->label, sizeof m->label, "%s", buf);
     m->substeps = 0;
+    m->fnopt = false;
+    m->precision = WEFT_PRECISION_FP32;
+    static const char *const fnopt_names[] = {"fnopt", "fnopt-fp16", "fnopt-int8"};
+    for (int p = 0; p < WEFT_PRECISION_COUNT; ++p) {
+        if (!strcmp(buf, fnopt_names[p])) {
+            static const char *const labels[] = {"FNOpt fp32", "FNOpt fp16", "FNOpt int8"};
+            snprintf(m->label, sizeof m->label, "%s", labels[p]);
+            m->fnopt = true;
+            m->method = WEFT_METHOD_EXTERNAL;
+            m->precision = (weft_precision)p;
+            return true;
+        }
+    }
     if (!strcmp(buf, "lbs")) {
         m->method = WEFT_METHOD_LBS;
         return true;
@@ -287,6 +302,106 @@ static int run_cell(const mc_options *o, weft_context *ctx, const weft_body *bod
     return rc;
 }
 
+/* Share of cape vertices farther from their column's pin than 1.25 times their rest distance
+ * down the column plus 5 cm (the body pushing the cloth next to a pin out by a few centimetres is
+ * not a tear): a cape pinned along its top row can leave the body only by tearing away from its
+ * pins, so this is the cape's off_body (a swinging cape is not off). */
+static double cape_torn(const float *x, uint32_t across, uint32_t down, float units_per_metre)
+{
+    uint32_t torn = 0;
+    for (uint32_t i = 0; i < across; ++i) {
+        const float *pin = x + 3 * (size_t)i * down;
+        for (uint32_t j = 1; j < down; ++j) {
+            const float *p = x + 3 * ((size_t)i * down + j);
+            const float dx = p[0] - pin[0], dy = p[1] - pin[1], dz = p[2] - pin[2];
+            const float limit = 1.25f * (float)j / units_per_metre + 0.05f;
+            torn += dx * dx + dy * dy + dz * dz > limit * limit;
+        }
+    }
+    return (double)torn / ((double)across * down);
+}
+
+/* One (clip, cape, method) run: the render sample's cape (32 x 40, pinned behind the shoulders)
+ * stepped by FNOpt or fast XPBD. Its off_body is cape_torn's share (over 1 % in a frame: lost);
+ * inside_body as for the garments. */
+static int run_cape_cell(const mc_options *o, weft_context *ctx, const weft_body *body, const weft_clip *clip,
+                         const mc_method *m, mc_cell *cell)
+{
+    memset(cell, 0, sizeof *cell);
+    weft_sample_cape_def cd = weft_sample_default_cape_def();
+    cd.precision = m->precision;
+    cd.xpbd_substeps = m->fnopt ? 0 : m->substeps;
+    weft_sample_cape *cape = NULL;
+    if (weft_sample_cape_create(ctx, body, &cd, &cape) != WEFT_OK) {
+        fprintf(stderr, "weft bench mocap: cape (%s): %s\n", m->label, weft_last_error());
+        return 1;
+    }
+    const uint32_t n = weft_sample_cape_vertex_count(cape);
+    const uint32_t nbv = weft_body_vertex_count(body), nbt = weft_body_triangle_count(body);
+    float *bverts = malloc((size_t)nbv * 3 * sizeof(float));
+    float *carried = malloc((size_t)n * 3 * sizeof(float));
+    const uint32_t clip_frames = (uint32_t)floor((double)clip->frame_count / (double)clip->fps * 60.0);
+    const uint32_t frames = o->frames && o->frames < clip_frames ? o->frames : clip_frames;
+    double *ms = calloc(frames ? frames : 1, sizeof(double));
+    weft_wear *wear = NULL;
+    int rc = 0;
+    if (!bverts || !carried || !ms || weft_wear_create(weft_body_triangles(body), nbt, nbv, n, &wear) != WEFT_OK) {
+        fprintf(stderr, "weft bench mocap: cape setup: %s\n", weft_last_error());
+        rc = 1;
+    }
+    weft_pose bind, first, pose;
+    weft_body_bind_pose(body, &bind);
+    if (rc == 0 && weft_clip_sample(clip, 0.0, &first) != WEFT_OK) {
+        rc = 1;
+    }
+    for (uint32_t k = 0; rc == 0 && !cell->failed && k < o->settle + frames; ++k) {
+        if (k < o->settle) {
+            weft_avatar_sample_settle_pose(&bind, &first, k, o->settle, &pose);
+        } else if (weft_clip_sample(clip, (double)(k - o->settle) / 60.0, &pose) != WEFT_OK) {
+            rc = 1;
+            break;
+        }
+        if (weft_body_pose(body, &pose, bverts, NULL) != WEFT_OK) {
+            rc = 1;
+            break;
+        }
+        const double t0 = weft__now_ms();
+        weft_result r = weft_sample_cape_step(cape, body, &pose, bverts);
+        const double t1 = weft__now_ms();
+        if (r != WEFT_OK) {
+            cell->failed = true;
+            snprintf(cell->why, sizeof cell->why, "frame %u: %s", k, weft_last_error());
+            break;
+        }
+        if (k < o->settle) {
+            continue;
+        }
+        ms[k - o->settle] = t1 - t0;
+        weft_wear_frame wf;
+        const float *x = weft_sample_cape_positions(cape);
+        if (weft_sample_cape_reference(cape, body, &pose, carried) != WEFT_OK ||
+            weft_wear_measure(wear, bverts, x, carried, 1e3f, &wf) != WEFT_OK) {
+            rc = 1;
+            break;
+        }
+        wf.off_body = cape_torn(x, cd.across, cd.down, weft_sample_cape_units_per_metre(cape));
+        weft_wear_summary_add(&cell->wear, &wf);
+    }
+    if (rc != 0) {
+        fprintf(stderr, "weft bench mocap: %s\n", weft_last_error());
+    } else if (!cell->failed) {
+        cell->p50 = weft_wear_percentile(ms, frames, 50.0);
+        cell->p99 = weft_wear_percentile(ms, frames, 99.0);
+        cell->max = weft_wear_percentile(ms, frames, 100.0);
+    }
+    weft_wear_destroy(wear);
+    weft_sample_cape_destroy(cape);
+    free(bverts);
+    free(carried);
+    free(ms);
+    return rc;
+}
+
 typedef struct mc_total {
     uint32_t cells, lost, failed, cuts, ccd_over_budget, ccd_released;
     double inside_mean_sum, inside_max, ratio_max, p50_sum;
@@ -300,12 +415,15 @@ enum {
 static const cli_option k_options[] = {
     {"split", "test|train|all", OPT_SPLIT, "the clips of this split of the library (default test)"},
     {"clips", "A,B,...", OPT_CLIPS, "only these clips, by name (instead of a split)"},
-    {"garments", "tshirt,dress,skirt", OPT_GARMENTS, "the garments (default all three)"},
-    {"methods", "lbs,model,xpbd-fast:5,xpbd-fast:10,xpbd:S", OPT_METHODS,
+    {"garments", "tshirt,dress,skirt,cape", OPT_GARMENTS,
+     "the garments (default tshirt,dress,skirt); cape: the render sample's\n"
+     "32x40 cape, run only by fnopt* and xpbd-fast:S"},
+    {"methods", "lbs,model,xpbd-fast:5,xpbd-fast:10,xpbd:S,fnopt", OPT_METHODS,
      "the methods, at most 8 (default lbs,model,xpbd-fast:5,xpbd-fast:10); S:\n"
      "substeps, 1..200. xpbd:S is the reference as weft simgen runs it (parts\n"
      "within 1 cm without neighbours, up to 8 S substeps on fast frames, none\n"
-     "of the three fix-ups)"},
+     "of the three fix-ups). fnopt, fnopt-fp16, fnopt-int8: the cape by FNOpt\n"
+     "(K = 10) at that precision; the garments skip them"},
     {"frames", "N", OPT_FRAMES,
      "frames after the settle, 0..100000 (default 300; 0: every frame of each\n"
      "clip)"},
@@ -347,8 +465,8 @@ static void notes(FILE *out)
 
 static const cli_command k_command = {
     .tool = "weft bench mocap",
-    .synopsis = "weft bench mocap [--split test|train|all] [--clips A,B,...] [--garments tshirt,dress,skirt]\n"
-                "                 [--methods lbs,model,xpbd-fast:5,xpbd-fast:10,xpbd:S] [--frames N]\n"
+    .synopsis = "weft bench mocap [--split test|train|all] [--clips A,B,...] [--garments tshirt,dress,skirt,cape]\n"
+                "                 [--methods lbs,model,xpbd-fast:S,xpbd:S,fnopt] [--frames N]\n"
                 "                 [--resolution 1k|4k] [--model FILE] [--ccd on|off] [--body-parts on|off]\n"
                 "                 [--tether-cm X] [--push-cm X] [--strain-limit PCT] [--settle N]\n"
                 "                 [--md FILE [--block NAME]]",
@@ -443,7 +561,8 @@ int weft_bench_mocap(int argc, char **argv)
     for (const char *p = o.methods; *p;) {
         const size_t k = strcspn(p, ",");
         if (nm == MC_MAX_METHODS || !parse_method(p, k, &methods[nm])) {
-            fprintf(stderr, "weft bench mocap: bad method '%.*s' (lbs, model, xpbd-fast:S, xpbd:S; at most %d)\n", (int)k,
+            fprintf(stderr, "weft bench mocap: bad method '%.*s' (lbs, model, xpbd-fast:S, xpbd:S, fnopt, fnopt-fp16, "
+                    "fnopt-int8; at most %d)\n", (int)k,
                     p, MC_MAX_METHODS);
             return 2;
         }
@@ -451,7 +570,19 @@ int weft_bench_mocap(int argc, char **argv)
         p += k + (p[k] == ',');
     }
     static const weft_cloth_kind kinds[] = {WEFT_CLOTH_TSHIRT, WEFT_CLOTH_DRESS, WEFT_CLOTH_SKIRT};
-    static const char *const kind_names[] = {"tshirt", "dress", "skirt"};
+    static const char *const kind_names[] = {"tshirt", "dress", "skirt", "cape"};
+    for (const char *p = o.garments; *p;) {
+        const size_t k = strcspn(p, ",");
+        bool known = false;
+        for (int g = 0; g < 4; ++g) {
+            known |= strlen(kind_names[g]) == k && !strncmp(p, kind_names[g], k);
+        }
+        if (!known) {
+            fprintf(stderr, "weft bench mocap: unknown garment '%.*s' (tshirt, dress, skirt, cape)\n", (int)k, p);
+            return 2;
+        }
+        p += k + (p[k] == ',');
+    }
     static char clip_names[MC_MAX_CLIPS][64];
     uint32_t nclips = 0;
     if (read_clips(&o, clip_names, &nclips) != 0) {
@@ -513,13 +644,21 @@ int weft_bench_mocap(int argc, char **argv)
             rc = 1;
             break;
         }
-        for (uint32_t gk = 0; rc == 0 && gk < 3; ++gk) {
+        for (uint32_t gk = 0; rc == 0 && gk < 4; ++gk) {
             if (!in_list(o.garments, kind_names[gk])) {
                 continue;
             }
+            const bool cape = gk == 3;
             for (uint32_t k = 0; rc == 0 && k < nm; ++k) {
+                /* the cape runs FNOpt and fast XPBD; the garments every method but FNOpt */
+                const bool runs = cape ? methods[k].fnopt || methods[k].method == WEFT_METHOD_XPBD_FAST
+                                       : !methods[k].fnopt;
+                if (!runs) {
+                    continue;
+                }
                 mc_cell cell;
-                rc = run_cell(&o, ctx, body, model, clip, kinds[gk], &methods[k], &cell);
+                rc = cape ? run_cape_cell(&o, ctx, body, clip, &methods[k], &cell)
+                          : run_cell(&o, ctx, body, model, clip, kinds[gk], &methods[k], &cell);
                 if (rc != 0) {
                     break;
                 }

@@ -162,8 +162,12 @@ void fnopt_scene_free(fnopt_scene *s)
 
 static void gt_path(const fnopt_scene *s, char *buf, size_t size)
 {
-    snprintf(buf, size, "data/fnopt/gt/r%u_%s_%s_s%.2f_a%.2f_f%u_fps%.0f.f32", s->o.res, s->o.motion, s->o.handles,
-             (double)s->o.speed, (double)s->o.amplitude_m, s->frames, (double)s->o.fps);
+    char sz[32] = ""; /* the 1 m cloth keeps the names of the caches made before --size */
+    if (s->o.size_m != 1.0f) {
+        snprintf(sz, sizeof sz, "_m%.3f", (double)s->o.size_m);
+    }
+    snprintf(buf, size, "data/fnopt/gt/r%u_%s_%s_s%.2f_a%.2f_f%u_fps%.0f%s.f32", s->o.res, s->o.motion, s->o.handles,
+             (double)s->o.speed, (double)s->o.amplitude_m, s->frames, (double)s->o.fps, sz);
 }
 
 weft_result fnopt_scene_ground_truth(weft_context *ctx, const fnopt_scene *s, float **out)
@@ -419,6 +423,27 @@ static void grid_to_world(const float *g, float lc, float *w)
     w[2] = -g[1] / lc;
 }
 
+/* Largest relative length change of a horizontal or vertical grid edge (rest length 1 in grid
+ * units): the strain bound of the stability tables. */
+static double max_edge_strain(const float *x, uint32_t res)
+{
+    double worst = 0.0;
+    for (uint32_t i = 0; i < res; ++i) {
+        for (uint32_t j = 0; j < res; ++j) {
+            const float *p = x + 3 * ((size_t)i * res + j);
+            for (int e = 0; e < 2; ++e) {
+                if ((e == 0 && i + 1 == res) || (e == 1 && j + 1 == res)) {
+                    continue;
+                }
+                const float *q = e == 0 ? p + 3 * (size_t)res : p + 3;
+                double dx = (double)q[0] - p[0], dy = (double)q[1] - p[1], dz = (double)q[2] - p[2];
+                worst = fmax(worst, fabs(sqrt(dx * dx + dy * dy + dz * dz) - 1.0));
+            }
+        }
+    }
+    return worst;
+}
+
 weft_result fnopt_scene_run(weft_context *ctx, const fnopt_scene *s, const fnopt_run_opts *ro, const float *gt,
                             fnopt_run_result *res, float *positions_out)
 {
@@ -448,6 +473,7 @@ weft_result fnopt_scene_run(weft_context *ctx, const fnopt_scene *s, const fnopt
     def.repulsion = ro->repulsion;
     def.report_loss = ro->report_loss;
     def.precision = ro->precision;
+    def.descent_guard = !ro->no_guard;
     def.gravity[0] = def.gravity[1] = 0.0f;
     def.gravity[2] = -weft_fnopt_acceleration(9.81f, s->o.res, s->o.size_m, s->o.fps);
     weft_fnopt *f = NULL;
@@ -458,7 +484,7 @@ weft_result fnopt_scene_run(weft_context *ctx, const fnopt_scene *s, const fnopt
         return r;
     }
     float targets[6];
-    double ms = 0.0, e3d = 0.0, cd = 0.0, loss = 0.0;
+    double ms = 0.0, e3d = 0.0, cd = 0.0, loss = 0.0, rejected = 0.0;
     bool cd_ok = true;
     for (uint32_t fr = 0; fr < s->frames; ++fr) {
         for (uint32_t k = 0; k < s->handle_count; ++k) {
@@ -472,7 +498,9 @@ weft_result fnopt_scene_run(weft_context *ctx, const fnopt_scene *s, const fnopt
         weft_fnopt_stats st = weft_fnopt_get_stats(f);
         ms += st.step_ms;
         loss += st.loss_final;
+        rejected += st.committed_iterate < ro->iterations ? 1.0 : 0.0;
         const float *x = weft_fnopt_positions(f);
+        res->max_strain = fmax(res->max_strain, max_edge_strain(x, s->o.res));
         bool out_of_box = false;
         for (size_t v = 0; v < n; ++v) {
             grid_to_world(x + 3 * v, lc, world + 3 * v);
@@ -505,6 +533,7 @@ weft_result fnopt_scene_run(weft_context *ctx, const fnopt_scene *s, const fnopt
     uint32_t nf = res->frames ? res->frames : 1;
     res->ms_per_frame = ms / nf;
     res->loss = loss / nf;
+    res->rejected = rejected / nf;
     res->e3d = gt ? e3d / nf : NAN;
     res->chamfer = gt && cd_ok && !res->diverged ? cd / nf : NAN;
     weft_fnopt_destroy(f);
@@ -542,8 +571,8 @@ static const char *optimizer_name(weft_fnopt_optimizer o)
 static const char k_tool[] = "weft fnopt";
 
 enum {
-    OPT_RES = 1, OPT_MOTION, OPT_HANDLES, OPT_FRAMES, OPT_SPEED, OPT_AMPLITUDE, OPT_OPTIMIZER, OPT_ITERS, OPT_LR,
-    OPT_MODEL, OPT_MATERIAL, OPT_REPULSION, OPT_PRECISION, OPT_GT, OPT_LOSS, OPT_CSV, OPT_OUT,
+    OPT_RES = 1, OPT_MOTION, OPT_HANDLES, OPT_FRAMES, OPT_SPEED, OPT_AMPLITUDE, OPT_SIZE, OPT_OPTIMIZER, OPT_ITERS, OPT_LR,
+    OPT_MODEL, OPT_MATERIAL, OPT_REPULSION, OPT_PRECISION, OPT_NO_GUARD, OPT_GT, OPT_LOSS, OPT_CSV, OPT_OUT,
 };
 
 static const cli_option k_options[] = {
@@ -555,6 +584,8 @@ static const cli_option k_options[] = {
     {"frames", "F", OPT_FRAMES, "frames to run, 0..100000 (0: the whole 2.75 s trajectory at speed 1)"},
     {"speed", "S", OPT_SPEED, "trajectory speed factor, 0.01..100 (1)"},
     {"amplitude", "A", OPT_AMPLITUDE, "translation per move in metres, 0..10 (0.5)"},
+    {"size", "M", OPT_SIZE, "side of the square cloth in metres, 0.05..10 (1); gravity and handle\n"
+                            "speeds in grid units scale with (res - 1) / size"},
     {"optimizer", "O", OPT_OPTIMIZER, "learned gd adam lbfgs (learned)"},
     {"iters", "K", OPT_ITERS, "inner iterations per step, 1..10000 (10)"},
     {"lr", "X", OPT_LR, "step size of gd/adam/lbfgs, 1e-6..100 (0.01)"},
@@ -562,6 +593,7 @@ static const cli_option k_options[] = {
     {"material", "Y,S,B", OPT_MATERIAL, "energy coefficients in grid units, each 0..1e6 (1000,8,0.5)"},
     {"repulsion", "K", OPT_REPULSION, "self-repulsion weight, 0..1e6 (0)"},
     {"precision", "P", OPT_PRECISION, "fp32 fp16 int8: the learned optimizer's FNO arithmetic (fp32)"},
+    {"no-guard", NULL, OPT_NO_GUARD, "turn the descent guard off (the paper's update rule; docs/FNOPT.md)"},
     {"gt", NULL, OPT_GT, "score against the XPBD reference (e3D, Chamfer)"},
     {"loss", NULL, OPT_LOSS, "also report the mean final loss per step"},
     {"csv", "FILE", OPT_CSV, "append the result row to FILE"},
@@ -600,6 +632,9 @@ static int parse(int argc, char **argv, cli *c)
         case OPT_LOSS:
             c->run.report_loss = true;
             break;
+        case OPT_NO_GUARD:
+            c->run.no_guard = true;
+            break;
         case OPT_RES:
             if (!cli_u32(k_tool, a, v, 10, 1024, &c->scene.res)) {
                 return 2;
@@ -623,6 +658,11 @@ static int parse(int argc, char **argv, cli *c)
             break;
         case OPT_AMPLITUDE:
             if (!cli_float(k_tool, a, v, 0.0f, 10.0f, &c->scene.amplitude_m)) {
+                return 2;
+            }
+            break;
+        case OPT_SIZE:
+            if (!cli_float(k_tool, a, v, 0.05f, 10.0f, &c->scene.size_m)) {
                 return 2;
             }
             break;
@@ -687,15 +727,19 @@ static int parse(int argc, char **argv, cli *c)
 
 static void print_row(FILE *fh, const cli *c, const fnopt_scene *s, const fnopt_run_result *r)
 {
-    fprintf(fh, "%u,%s,%s,%.2f,%s,%u,%.4g,%.4g,%.4g,%.4g,%u,%d,%.3f,%.5f,%.5f,%.6g\n", c->scene.res, c->scene.motion,
-            c->scene.handles, (double)c->scene.speed, optimizer_name(c->run.optimizer), c->run.iterations,
-            (double)c->run.learning_rate, (double)c->run.Y, (double)c->run.S, (double)c->run.B, r->frames,
-            r->diverged ? 1 : 0, r->ms_per_frame, r->e3d, r->chamfer * 1e3, r->loss);
+    static const char *prec[WEFT_PRECISION_COUNT] = {"fp32", "fp16", "int8"};
+    fprintf(fh, "%u,%s,%s,%.2f,%s,%s,%d,%u,%.4g,%.4g,%.4g,%.4g,%u,%d,%.4f,%.3f,%.3f,%.5f,%.5f,%.6g\n", c->scene.res,
+            c->scene.motion, c->scene.handles, (double)c->scene.speed, optimizer_name(c->run.optimizer),
+            c->run.optimizer == WEFT_FNOPT_LEARNED ? prec[c->run.precision] : "fp32", c->run.no_guard ? 0 : 1,
+            c->run.iterations, (double)c->run.learning_rate, (double)c->run.Y, (double)c->run.S, (double)c->run.B,
+            r->frames, r->diverged ? 1 : 0, r->max_strain, r->rejected, r->ms_per_frame, r->e3d, r->chamfer * 1e3,
+            r->loss);
     (void)s;
 }
 
 static const char k_header[] =
-    "res,motion,handles,speed,optimizer,iters,lr,Y,S,B,frames,diverged,ms_per_frame,e3d,chamfer_x1e3,loss\n";
+    "res,motion,handles,speed,optimizer,precision,guard,iters,lr,Y,S,B,frames,diverged,max_strain,guard_acted,"
+    "ms_per_frame,e3d,chamfer_x1e3,loss\n";
 
 static int run_one(weft_context *ctx, cli *c, weft_model *model, fnopt_run_result *out, bool print)
 {
