@@ -27,8 +27,6 @@ struct weft_fnopt {
     fnopt_learned learned;
     float *backup;                      /* 6n: g_prev and s_prev before the step */
     float *best;                        /* 3n: the step's lowest-loss acceleration (descent guard) */
-    float *best_rec;                    /* 6n: g_prev and s_prev at that iterate (learned) */
-    float best_scale[3];
     fnopt_classic classic;
 
     weft_fnopt_stats stats;
@@ -94,7 +92,6 @@ void weft_fnopt_destroy(weft_fnopt *f)
     weft__free(ctx, f->handles, n * sizeof(uint32_t));
     weft__free(ctx, f->backup, 6 * n * sizeof(float));
     weft__free(ctx, f->best, 3 * n * sizeof(float));
-    weft__free(ctx, f->best_rec, 6 * n * sizeof(float));
     if (f->loss.mass) {
         fnopt__loss_free(ctx, &f->loss);
     }
@@ -192,9 +189,8 @@ weft_result weft_fnopt_create(weft_context *ctx, const weft_fnopt_def *def, weft
     f->handles = weft__alloc(ctx, n * sizeof(uint32_t));
     f->backup = weft__alloc(ctx, 6 * n * sizeof(float));
     f->best = weft__alloc(ctx, 3 * n * sizeof(float));
-    f->best_rec = weft__alloc(ctx, 6 * n * sizeof(float));
     if (!f->x || !f->v || !f->x_new || !f->v_new || !f->acc || !f->grad || !f->bc || !f->mask || !f->seen ||
-        !f->handles || !f->backup || !f->best || !f->best_rec) {
+        !f->handles || !f->backup || !f->best) {
         weft_fnopt_destroy(f);
         return weft__fail(WEFT_ERROR_OUT_OF_MEMORY, "%s: out of memory for the %ux%u state", fn, f->h, f->w);
     }
@@ -370,13 +366,6 @@ weft_result weft_fnopt_step(weft_fnopt *f)
             lowest = l;
             committed = k;
             memcpy(f->best, f->acc, n3 * sizeof(float));
-            if (f->optimizer == WEFT_FNOPT_LEARNED) {
-                /* the recurrent state that produced this iterate, carried into the next step
-                 * if it is committed */
-                memcpy(f->best_rec, f->learned.g_prev, n3 * sizeof(float));
-                memcpy(f->best_rec + n3, f->learned.s_prev, n3 * sizeof(float));
-                memcpy(f->best_scale, f->learned.scale, sizeof f->best_scale);
-            }
         }
         if (f->optimizer == WEFT_FNOPT_LEARNED) {
             fnopt__learned_update(&f->learned, f->grad, f->acc);
@@ -391,12 +380,9 @@ weft_result weft_fnopt_step(weft_fnopt *f)
         if (l <= lowest || !(lowest < INFINITY)) {
             committed = f->iterations;
         } else {
+            /* the optimizer's recurrent state stays where its iterations took it: restoring
+             * the state of the committed iterate measured worse (docs/FNOPT.md) */
             memcpy(f->acc, f->best, n3 * sizeof(float));
-            if (f->optimizer == WEFT_FNOPT_LEARNED) {
-                memcpy(f->learned.g_prev, f->best_rec, n3 * sizeof(float));
-                memcpy(f->learned.s_prev, f->best_rec + n3, n3 * sizeof(float));
-                memcpy(f->learned.scale, f->best_scale, sizeof f->best_scale);
-            }
         }
     }
     double final_loss = 0.0, gnorm = 0.0;
