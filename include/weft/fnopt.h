@@ -90,6 +90,14 @@ typedef struct weft_fnopt_def {
      * precision; docs/FNOPT.md). false commits the last iterate: the paper's rule (the PyTorch
      * parity goldens). */
     bool descent_guard;
+    /* LEARNED: trust region, grid units (default 0.5, half a rest edge). The learned optimizer's
+     * step is tanh(u) * scale with a scale it grows or shrinks by up to e^1 / e^-3 an iteration
+     * and carries across steps; max_step caps that scale, so no iteration moves a vertex's
+     * acceleration by more than max_step. Where the scale runs away (finer grids than the
+     * training's, where gravity and handle speeds are larger in grid units) the cap keeps the
+     * rollout on the converged solution; where it does not bind the result is unchanged.
+     * 0 turns it off (the paper's rule). docs/FNOPT.md has the measurements. */
+    float max_step;
     /* LEARNED: arithmetic of the FNO's 1x1 layers, converted from the fp32 model at creation.
      * FP16: fp16 weights, fp32 accumulation. INT8: int8 weights and per-row int8 activations in
      * the wide layers (lifting 256 -> 64, skips, projection 64 -> 64), int32 accumulation. Both run

@@ -50,6 +50,7 @@ weft_fnopt_def weft_default_fnopt_def(void)
     d.adam_beta2 = 0.999f;
     d.lbfgs_history = 10;
     d.descent_guard = true;
+    d.max_step = 0.5f;
     d.internal_cookie = WEFT_DEF_COOKIE;
     return d;
 }
@@ -136,6 +137,9 @@ weft_result weft_fnopt_create(weft_context *ctx, const weft_fnopt_def *def, weft
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "%s: iterations must be in [1, 100000] (got %u)", fn,
                           def->iterations);
     }
+    if (!(isfinite(def->max_step) && def->max_step >= 0.0f)) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "%s: max_step must be finite and >= 0", fn);
+    }
     if (def->optimizer != WEFT_FNOPT_LEARNED) {
         if (!(isfinite(def->learning_rate) && def->learning_rate > 0.0f)) {
             return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "%s: learning_rate must be finite and > 0", fn);
@@ -197,6 +201,7 @@ weft_result weft_fnopt_create(weft_context *ctx, const weft_fnopt_def *def, weft
     r = fnopt__loss_init(ctx, &f->loss, f->h, f->w);
     if (r == WEFT_OK && def->optimizer == WEFT_FNOPT_LEARNED) {
         r = fnopt__learned_init(ctx, &f->learned, &wt, f->h, f->w, def->precision);
+        f->learned.max_scale = def->max_step;
     }
     if (r == WEFT_OK && def->optimizer != WEFT_FNOPT_LEARNED) {
         r = fnopt__classic_init(ctx, &f->classic, def->optimizer, 3 * f->n, def->lbfgs_history, def->learning_rate,

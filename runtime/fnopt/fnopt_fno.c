@@ -522,6 +522,9 @@ void fnopt__learned_update(fnopt_learned *Lo, const float *grad, float *acc)
         /* the scale moves by a factor in [e^-3, e^1]; d = 0 shrinks it by e^-1 */
         float e = 2.0f * tanhf(Lo->d[c] * 0.5f) - 1.0f;
         float scale = Lo->scale[c] * expf(e);
+        if (Lo->max_scale > 0.0f && scale > Lo->max_scale) {
+            scale = Lo->max_scale; /* the trust region (weft_fnopt_def.max_step) */
+        }
         Lo->scale[c] = scale;
         float *gp = Lo->g_prev + c * n, *sp = Lo->s_prev + c * n;
         const float *u = Lo->u + c * n;

@@ -133,6 +133,7 @@ typedef struct fnopt_learned {
     fnopt_fno fno;
     float *g_prev, *s_prev;             /* [3][n] */
     float scale[3];
+    float max_scale;                    /* cap on scale (weft_fnopt_def.max_step); 0: none */
     float *z, *u;                       /* [3][n][3], [3][n] */
     float d[3];
 } fnopt_learned;

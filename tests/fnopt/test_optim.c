@@ -1,6 +1,7 @@
 /* Classical optimizers on the FNOpt loss: each lowers the loss within a step, L-BFGS beats GD
  * at equal iterations, handles land on their targets, and stepping allocates nothing. */
 #include "fnopt_test_util.h"
+#include "fnopt/fnopt_internal.h"
 
 /* One step of a 16 x 16 sheet whose two top corners jump 2 units sideways; returns the
  * final loss, fills first. */
@@ -199,5 +200,71 @@ static void test_descent_guard(void)
     weft_context_destroy(ctx);
 }
 
-TEST_MAIN(TEST_CASE(test_each_lowers_loss), TEST_CASE(test_descent_guard), TEST_CASE(test_handles_follow_targets),
+/* The trust region caps the learned optimizer's scale: with a tight max_step the scale never
+ * passes it and the steps differ from the uncapped ones; with a loose one that never binds the
+ * result is bit-identical to no cap at all. */
+static void test_trust_region(void)
+{
+    weft_context *ctx = fnopt_test_context();
+    weft_model *model = NULL;
+    CHECK_RESULT(weft_model_load_file(ctx, FNOPT_MODEL_PATH, &model), WEFT_OK);
+    const float caps[3] = {0.0f, 100.0f, 0.02f};
+    float *out[3] = {NULL, NULL, NULL};
+    float worst_scale = 0.0f;
+    for (int c = 0; c < 3 && model; ++c) {
+        weft_fnopt_def def = weft_default_fnopt_def();
+        def.height = def.width = 16;
+        def.model = model;
+        def.max_step = caps[c];
+        weft_fnopt *f = NULL;
+        CHECK_RESULT(weft_fnopt_create(ctx, &def, &f), WEFT_OK);
+        if (!f) {
+            continue;
+        }
+        const float *x = weft_fnopt_positions(f);
+        uint32_t idx[2] = {0, 15 * 16};
+        float t[6];
+        memcpy(t, x, 3 * sizeof(float));
+        memcpy(t + 3, x + 3 * idx[1], 3 * sizeof(float));
+        for (int s = 0; s < 4; ++s) {
+            t[0] += 0.5f, t[3] += 0.5f;
+            CHECK_RESULT(weft_fnopt_set_handles(f, idx, t, 2), WEFT_OK);
+            CHECK_RESULT(weft_fnopt_step(f), WEFT_OK);
+            if (c == 2) {
+                const fnopt_learned *lo = fnopt__learned_state(f);
+                for (int k = 0; lo && k < 3; ++k) {
+                    worst_scale = fmaxf(worst_scale, lo->scale[k]);
+                }
+            }
+        }
+        out[c] = malloc(16 * 16 * 3 * sizeof(float));
+        if (out[c]) {
+            memcpy(out[c], weft_fnopt_positions(f), 16 * 16 * 3 * sizeof(float));
+        }
+        weft_fnopt_destroy(f);
+    }
+    if (out[0] && out[1] && out[2]) {
+        CHECK(memcmp(out[0], out[1], 16 * 16 * 3 * sizeof(float)) == 0);
+        CHECK(memcmp(out[0], out[2], 16 * 16 * 3 * sizeof(float)) != 0);
+        printf("max_step 0.02: largest scale after 4 steps %g\n", (double)worst_scale);
+        CHECK(worst_scale <= 0.02f);
+        CHECK(worst_scale > 0.0f);
+    }
+    for (int c = 0; c < 3; ++c) {
+        free(out[c]);
+    }
+    weft_fnopt_def bad = weft_default_fnopt_def();
+    bad.height = bad.width = 16;
+    bad.optimizer = WEFT_FNOPT_GD;
+    bad.max_step = -1.0f;
+    weft_fnopt *f = NULL;
+    CHECK_RESULT(weft_fnopt_create(ctx, &bad, &f), WEFT_ERROR_INVALID_ARGUMENT);
+    bad.max_step = NAN;
+    CHECK_RESULT(weft_fnopt_create(ctx, &bad, &f), WEFT_ERROR_INVALID_ARGUMENT);
+    CHECK(f == NULL);
+    weft_model_destroy(model);
+    weft_context_destroy(ctx);
+}
+
+TEST_MAIN(TEST_CASE(test_each_lowers_loss), TEST_CASE(test_descent_guard), TEST_CASE(test_trust_region), TEST_CASE(test_handles_follow_targets),
           TEST_CASE(test_no_allocation_per_step))

@@ -95,7 +95,8 @@ static void test_per_iteration(void)
     def.gravity[1] = p[6];
     def.gravity[2] = p[7];
     def.initial_positions = x0;
-    def.descent_guard = false; /* the goldens are the paper's unguarded update rule */
+    def.descent_guard = false; /* the goldens are the paper's update rule: no guard, no trust region */
+    def.max_step = 0.0f;
     weft_fnopt *f = NULL;
     CHECK_RESULT(weft_fnopt_create(ctx, &def, &f), WEFT_OK);
     for (int s = 0; s < 2 && f; ++s) {
@@ -150,7 +151,8 @@ static void test_rollout(void)
     def.model = model;
     def.gravity[2] = p[7];
     def.initial_positions = x0;
-    def.descent_guard = false; /* the goldens are the paper's unguarded update rule */
+    def.descent_guard = false; /* the goldens are the paper's update rule: no guard, no trust region */
+    def.max_step = 0.0f;
     weft_fnopt *f = NULL;
     CHECK_RESULT(weft_fnopt_create(ctx, &def, &f), WEFT_OK);
     for (int s = 0; s < 6 && f && xs; ++s) {

@@ -4,23 +4,24 @@
 # cached in data/fnopt/gt/. Run from the repository root after building the weft CLI:
 #
 #   tools/fnopt/eval.sh build/bin/weft [table ...]
-#   tables: baselines sweep motions iters speed handles res lbfgsref
+#   tables: baselines sweep motions iters speed handles res lbfgsref resgrid
 #
 # FNOPT_MODEL=path evaluates other weights (default: the shipped ones), FNOPT_EVAL_OUT=dir
 # writes the CSVs elsewhere (default data/fnopt/eval), FNOPT_PRECISION=fp16|int8 runs the
-# learned optimizer at reduced precision.
+# learned optimizer at reduced precision, FNOPT_NO_GUARD=1 turns the descent guard off (the
+# paper's update rule).
 #
 # Then: /usr/bin/python3 tools/fnopt/tables.py data/fnopt/eval > docs tables.
 set -e
 WEFT=${1:-build/bin/weft}
 shift || true
-TABLES=${*:-"baselines sweep motions iters speed handles res lbfgsref"}
+TABLES=${*:-"baselines sweep motions iters speed handles res lbfgsref resgrid"}
 OUT=${FNOPT_EVAL_OUT:-data/fnopt/eval}
 mkdir -p "$OUT"
 # material: the best point of `weft fnopt fit` inside the training ranges (docs/FNOPT.md, "Material fit")
 MAT=${FNOPT_MATERIAL:-100,3,5}
 run() { nice -n 10 "$WEFT" fnopt run --gt --material "$MAT" ${FNOPT_MODEL:+--model "$FNOPT_MODEL"} \
-          ${FNOPT_PRECISION:+--precision "$FNOPT_PRECISION"} "$@" > /dev/null; }
+          ${FNOPT_PRECISION:+--precision "$FNOPT_PRECISION"} ${FNOPT_NO_GUARD:+--no-guard} "$@" > /dev/null; }
 
 for t in $TABLES; do
   case $t in
@@ -62,5 +63,29 @@ for t in $TABLES; do
       run --speed $s --frames 90 --optimizer lbfgs --lr 1 --iters 100 --csv $OUT/speed_lbfgs.csv
     done
     run --res 64 --frames 40 --optimizer lbfgs --lr 1 --iters 100 --csv $OUT/res_lbfgs.csv ;;
+  resgrid) # stability across resolutions (trained at 32), 40 frames each: the learned optimizer
+           # (guarded and not, three precisions), the classical ones at equal iterations and the
+           # converged solve (L-BFGS, 100 iterations) on xy; x2 speed and the handle placements at
+           # the resolutions the CPU budget allows
+    for r in 32 64 100 128; do
+      run --res $r --frames 40 --csv $OUT/resgrid.csv
+      run --res $r --frames 40 --no-guard --csv $OUT/resgrid.csv
+      run --res $r --frames 40 --precision fp16 --csv $OUT/resgrid.csv
+      run --res $r --frames 40 --precision int8 --csv $OUT/resgrid.csv
+      run --res $r --frames 40 --optimizer gd --lr 0.01 --csv $OUT/resgrid.csv
+      run --res $r --frames 40 --optimizer adam --lr 0.02 --csv $OUT/resgrid.csv
+      run --res $r --frames 40 --optimizer lbfgs --lr 1 --csv $OUT/resgrid.csv
+      run --res $r --frames 40 --optimizer lbfgs --lr 1 --iters 100 --csv $OUT/resgrid.csv
+    done
+    for r in 32 64 100; do
+      run --res $r --frames 40 --speed 2 --csv $OUT/resgrid_speed.csv
+      run --res $r --frames 40 --speed 2 --precision int8 --csv $OUT/resgrid_speed.csv
+      run --res $r --frames 40 --speed 2 --optimizer lbfgs --lr 1 --csv $OUT/resgrid_speed.csv
+      run --res $r --frames 40 --speed 2 --optimizer lbfgs --lr 1 --iters 100 --csv $OUT/resgrid_speed.csv
+      for h in diagonal middle corner-center single-middle single-center; do
+        run --res $r --frames 40 --handles $h --csv $OUT/resgrid_handles.csv
+        run --res $r --frames 40 --handles $h --optimizer lbfgs --lr 1 --iters 100 --csv $OUT/resgrid_handles.csv
+      done
+    done ;;
   esac
 done

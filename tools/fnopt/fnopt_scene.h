@@ -39,6 +39,7 @@ typedef struct fnopt_run_opts {
     bool report_loss;            /* one extra loss evaluation per step (not in ms_per_frame) */
     weft_precision precision;    /* the learned optimizer's FNO arithmetic (FP32) */
     bool no_guard;               /* turn weft_fnopt_def.descent_guard off (the paper's rule) */
+    float max_step;              /* weft_fnopt_def.max_step (0: off) */
 } fnopt_run_opts;
 
 typedef struct fnopt_run_result {

@@ -8,8 +8,9 @@ import os
 import sys
 
 COLS = [('res', 'res'), ('motion', 'motion'), ('handles', 'handles'), ('speed', 'speed'),
-        ('optimizer', 'optimizer'), ('iters', 'K'), ('lr', 'lr'), ('frames', 'frames'),
-        ('diverged', 'diverged'), ('ms_per_frame', 'ms/frame'), ('e3d', 'e3D'),
+        ('optimizer', 'optimizer'), ('precision', 'precision'), ('guard', 'guard'), ('max_step', 'max step'), ('iters', 'K'), ('lr', 'lr'),
+        ('frames', 'frames'), ('diverged', 'diverged'), ('max_strain', 'max strain'),
+        ('guard_acted', 'guard acted'), ('ms_per_frame', 'ms/frame'), ('e3d', 'e3D'),
         ('chamfer_x1e3', 'Chamfer x1e3 (m^2)')]
 
 
@@ -18,8 +19,9 @@ def table(path):
     if not rows:
         return ''
     # keep the columns that vary, plus the metrics
-    keep = [(k, h) for k, h in COLS if k in ('ms_per_frame', 'e3d', 'chamfer_x1e3', 'diverged', 'frames')
-            or len({r[k] for r in rows}) > 1]
+    # (CSVs written before the precision/guard/strain columns lack them)
+    keep = [(k, h) for k, h in COLS if k in rows[0] and (k in ('ms_per_frame', 'e3d', 'chamfer_x1e3', 'diverged', 'frames')
+            or len({r[k] for r in rows}) > 1)]
     out = ['| ' + ' | '.join(h for _, h in keep) + ' |', '|' + '---|' * len(keep)]
     for r in rows:
         out.append('| ' + ' | '.join(r[k] for k, _ in keep) + ' |')
@@ -29,7 +31,7 @@ def table(path):
 def main():
     d = sys.argv[1] if len(sys.argv) > 1 else 'data/fnopt/eval'
     for name in ['baselines', 'sweep', 'motions', 'motions_lbfgs', 'iters', 'speed', 'speed_lbfgs', 'handles',
-                 'handles_lbfgs', 'res', 'res_lbfgs']:
+                 'handles_lbfgs', 'res', 'res_lbfgs', 'resgrid', 'resgrid_speed', 'resgrid_handles']:
         p = os.path.join(d, name + '.csv')
         if os.path.exists(p):
             print(f'### {name}\n')

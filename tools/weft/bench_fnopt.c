@@ -177,7 +177,8 @@ int weft_bench_fnopt(int argc, char **argv)
                 const weft_precision prec = run < prec_count ? precs[run] : WEFT_PRECISION_FP32;
                 fnopt_run_opts ro = {.optimizer = kinds[k], .model = model, .iterations = iters,
                                      .learning_rate = kinds[k] == WEFT_FNOPT_LBFGS ? 1.0f : 0.01f,
-                                     .Y = Y, .S = S, .B = B, .precision = prec};
+                                     .Y = Y, .S = S, .B = B, .precision = prec,
+                                     .max_step = weft_default_fnopt_def().max_step};
                 fnopt_run_result r;
                 clock_t c0 = clock();
                 if (fnopt_scene_run(ctx, &s, &ro, NULL, &r, pos) != WEFT_OK) {

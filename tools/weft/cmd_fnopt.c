@@ -474,6 +474,7 @@ weft_result fnopt_scene_run(weft_context *ctx, const fnopt_scene *s, const fnopt
     def.report_loss = ro->report_loss;
     def.precision = ro->precision;
     def.descent_guard = !ro->no_guard;
+    def.max_step = ro->max_step;
     def.gravity[0] = def.gravity[1] = 0.0f;
     def.gravity[2] = -weft_fnopt_acceleration(9.81f, s->o.res, s->o.size_m, s->o.fps);
     weft_fnopt *f = NULL;
@@ -572,7 +573,7 @@ static const char k_tool[] = "weft fnopt";
 
 enum {
     OPT_RES = 1, OPT_MOTION, OPT_HANDLES, OPT_FRAMES, OPT_SPEED, OPT_AMPLITUDE, OPT_SIZE, OPT_OPTIMIZER, OPT_ITERS, OPT_LR,
-    OPT_MODEL, OPT_MATERIAL, OPT_REPULSION, OPT_PRECISION, OPT_NO_GUARD, OPT_GT, OPT_LOSS, OPT_CSV, OPT_OUT,
+    OPT_MODEL, OPT_MATERIAL, OPT_REPULSION, OPT_PRECISION, OPT_NO_GUARD, OPT_MAX_STEP, OPT_GT, OPT_LOSS, OPT_CSV, OPT_OUT,
 };
 
 static const cli_option k_options[] = {
@@ -594,6 +595,7 @@ static const cli_option k_options[] = {
     {"repulsion", "K", OPT_REPULSION, "self-repulsion weight, 0..1e6 (0)"},
     {"precision", "P", OPT_PRECISION, "fp32 fp16 int8: the learned optimizer's FNO arithmetic (fp32)"},
     {"no-guard", NULL, OPT_NO_GUARD, "turn the descent guard off (the paper's update rule; docs/FNOPT.md)"},
+    {"max-step", "X", OPT_MAX_STEP, "the learned optimizer's trust region in grid units, 0..100 (0.5; 0: off)"},
     {"gt", NULL, OPT_GT, "score against the XPBD reference (e3D, Chamfer)"},
     {"loss", NULL, OPT_LOSS, "also report the mean final loss per step"},
     {"csv", "FILE", OPT_CSV, "append the result row to FILE"},
@@ -616,7 +618,7 @@ static int parse(int argc, char **argv, cli *c)
     c->scene = (fnopt_scene_opts){.res = 32, .size_m = 1.0f, .fps = 60.0f, .speed = 1.0f, .amplitude_m = 0.5f,
                                   .motion = "xy", .handles = "corners", .frames = 0};
     c->run = (fnopt_run_opts){.optimizer = WEFT_FNOPT_LEARNED, .iterations = 10, .learning_rate = 0.01f,
-                              .Y = 1000.0f, .S = 8.0f, .B = 0.5f};
+                              .Y = 1000.0f, .S = 8.0f, .B = 0.5f, .max_step = weft_default_fnopt_def().max_step};
     c->model_path = "tools/fnopt/models/fnopt_32.safetensors";
     cli_parser p;
     cli_start(&p, &k_command, argc, argv);
@@ -634,6 +636,11 @@ static int parse(int argc, char **argv, cli *c)
             break;
         case OPT_NO_GUARD:
             c->run.no_guard = true;
+            break;
+        case OPT_MAX_STEP:
+            if (!cli_float(k_tool, a, v, 0.0f, 100.0f, &c->run.max_step)) {
+                return 2;
+            }
             break;
         case OPT_RES:
             if (!cli_u32(k_tool, a, v, 10, 1024, &c->scene.res)) {
@@ -728,9 +735,10 @@ static int parse(int argc, char **argv, cli *c)
 static void print_row(FILE *fh, const cli *c, const fnopt_scene *s, const fnopt_run_result *r)
 {
     static const char *prec[WEFT_PRECISION_COUNT] = {"fp32", "fp16", "int8"};
-    fprintf(fh, "%u,%s,%s,%.2f,%s,%s,%d,%u,%.4g,%.4g,%.4g,%.4g,%u,%d,%.4f,%.3f,%.3f,%.5f,%.5f,%.6g\n", c->scene.res,
-            c->scene.motion, c->scene.handles, (double)c->scene.speed, optimizer_name(c->run.optimizer),
+    fprintf(fh, "%u,%s,%s,%.2f,%s,%s,%d,%.3g,%u,%.4g,%.4g,%.4g,%.4g,%u,%d,%.4f,%.3f,%.3f,%.5f,%.5f,%.6g\n",
+            c->scene.res, c->scene.motion, c->scene.handles, (double)c->scene.speed, optimizer_name(c->run.optimizer),
             c->run.optimizer == WEFT_FNOPT_LEARNED ? prec[c->run.precision] : "fp32", c->run.no_guard ? 0 : 1,
+            c->run.optimizer == WEFT_FNOPT_LEARNED ? (double)c->run.max_step : 0.0,
             c->run.iterations, (double)c->run.learning_rate, (double)c->run.Y, (double)c->run.S, (double)c->run.B,
             r->frames, r->diverged ? 1 : 0, r->max_strain, r->rejected, r->ms_per_frame, r->e3d, r->chamfer * 1e3,
             r->loss);
@@ -738,7 +746,7 @@ static void print_row(FILE *fh, const cli *c, const fnopt_scene *s, const fnopt_
 }
 
 static const char k_header[] =
-    "res,motion,handles,speed,optimizer,precision,guard,iters,lr,Y,S,B,frames,diverged,max_strain,guard_acted,"
+    "res,motion,handles,speed,optimizer,precision,guard,max_step,iters,lr,Y,S,B,frames,diverged,max_strain,guard_acted,"
     "ms_per_frame,e3d,chamfer_x1e3,loss\n";
 
 static int run_one(weft_context *ctx, cli *c, weft_model *model, fnopt_run_result *out, bool print)
