@@ -8,8 +8,8 @@
 #
 # FNOPT_MODEL=path evaluates other weights (default: the shipped ones), FNOPT_EVAL_OUT=dir
 # writes the CSVs elsewhere (default data/fnopt/eval), FNOPT_PRECISION=fp16|int8 runs the
-# learned optimizer at reduced precision, FNOPT_NO_GUARD=1 turns the descent guard off (the
-# paper's update rule).
+# learned optimizer at reduced precision; FNOPT_NO_GUARD=1 turns the descent guard off and
+# FNOPT_MAX_STEP=0 the trust region (together: the paper's update rule).
 #
 # Then: /usr/bin/python3 tools/fnopt/tables.py data/fnopt/eval > docs tables.
 set -e
@@ -21,7 +21,8 @@ mkdir -p "$OUT"
 # material: the best point of `weft fnopt fit` inside the training ranges (docs/FNOPT.md, "Material fit")
 MAT=${FNOPT_MATERIAL:-100,3,5}
 run() { nice -n 10 "$WEFT" fnopt run --gt --material "$MAT" ${FNOPT_MODEL:+--model "$FNOPT_MODEL"} \
-          ${FNOPT_PRECISION:+--precision "$FNOPT_PRECISION"} ${FNOPT_NO_GUARD:+--no-guard} "$@" > /dev/null; }
+          ${FNOPT_PRECISION:+--precision "$FNOPT_PRECISION"} ${FNOPT_NO_GUARD:+--no-guard} \
+          ${FNOPT_MAX_STEP:+--max-step "$FNOPT_MAX_STEP"} "$@" > /dev/null; }
 
 for t in $TABLES; do
   case $t in
@@ -64,12 +65,12 @@ for t in $TABLES; do
     done
     run --res 64 --frames 40 --optimizer lbfgs --lr 1 --iters 100 --csv $OUT/res_lbfgs.csv ;;
   resgrid) # stability across resolutions (trained at 32), 40 frames each: the learned optimizer
-           # (guarded and not, three precisions), the classical ones at equal iterations and the
+           # (three precisions, and the paper's rule: no guard, no trust region), the classical ones at equal iterations and the
            # converged solve (L-BFGS, 100 iterations) on xy; x2 speed and the handle placements at
            # the resolutions the CPU budget allows
     for r in 32 64 100 128; do
       run --res $r --frames 40 --csv $OUT/resgrid.csv
-      run --res $r --frames 40 --no-guard --csv $OUT/resgrid.csv
+      run --res $r --frames 40 --no-guard --max-step 0 --csv $OUT/resgrid.csv
       run --res $r --frames 40 --precision fp16 --csv $OUT/resgrid.csv
       run --res $r --frames 40 --precision int8 --csv $OUT/resgrid.csv
       run --res $r --frames 40 --optimizer gd --lr 0.01 --csv $OUT/resgrid.csv

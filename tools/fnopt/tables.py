@@ -2,6 +2,7 @@
 """Markdown tables from the CSVs of tools/fnopt/eval.sh (written by `weft fnopt run --csv`).
 
     /usr/bin/python3 tools/fnopt/tables.py data/fnopt/eval
+    /usr/bin/python3 tools/fnopt/tables.py data/fnopt/eval --resgrid   (the resolution table)
 """
 import csv
 import os
@@ -28,6 +29,39 @@ def table(path):
     return '\n'.join(out)
 
 
+def pivot_resgrid(d):
+    """The resolution table of docs/FNOPT.md from resgrid.csv: one row per resolution, e3D (max
+    strain) per optimizer at 10 iterations and the converged solve."""
+    path = os.path.join(d, 'resgrid.csv')
+    if not os.path.exists(path):
+        return ''
+    rows = list(csv.DictReader(open(path)))
+    cols = [('learned fp32', lambda r: r['optimizer'] == 'learned' and r['precision'] == 'fp32' and r['guard'] == '1'),
+            ('learned fp32, paper rule', lambda r: r['optimizer'] == 'learned' and r['guard'] == '0'
+             and float(r['max_step']) == 0),
+            ('learned fp16', lambda r: r['optimizer'] == 'learned' and r['precision'] == 'fp16'),
+            ('learned int8', lambda r: r['optimizer'] == 'learned' and r['precision'] == 'int8'),
+            ('GD', lambda r: r['optimizer'] == 'gd'),
+            ('Adam', lambda r: r['optimizer'] == 'adam'),
+            ('L-BFGS', lambda r: r['optimizer'] == 'lbfgs' and r['iters'] == '10'),
+            ('L-BFGS K=100 (converged)', lambda r: r['optimizer'] == 'lbfgs' and r['iters'] == '100')]
+    out = ['| res | ' + ' | '.join(c for c, _ in cols) + ' |', '|---|' + '---|' * len(cols)]
+    for res in sorted({int(r['res']) for r in rows}):
+        cells = []
+        for _, pick in cols:
+            m = [r for r in rows if int(r['res']) == res and pick(r)]
+            if not m:
+                cells.append('')
+                continue
+            r = m[-1]
+            if r['diverged'] == '1':
+                cells.append(f"**diverged** at frame {r['frames']}")
+            else:
+                cells.append(f"{float(r['e3d']):.4f} ({float(r['max_strain']):.2f})")
+        out.append(f'| {res} | ' + ' | '.join(cells) + ' |')
+    return '\n'.join(out)
+
+
 def main():
     d = sys.argv[1] if len(sys.argv) > 1 else 'data/fnopt/eval'
     for name in ['baselines', 'sweep', 'motions', 'motions_lbfgs', 'iters', 'speed', 'speed_lbfgs', 'handles',
@@ -38,6 +72,10 @@ def main():
             print(table(p))
             print()
 
+
+if __name__ == '__main__' and len(sys.argv) > 2 and sys.argv[2] == '--resgrid':
+    print(pivot_resgrid(sys.argv[1]))
+    sys.exit(0)
 
 if __name__ == '__main__':
     main()
