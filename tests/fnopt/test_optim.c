@@ -3,21 +3,16 @@
 #include "fnopt_test_util.h"
 #include "fnopt/fnopt_internal.h"
 
-/* One step of a 16 x 16 sheet whose two top corners jump 2 units sideways; returns the
- * final loss, fills first. */
-static double solve(weft_context *ctx, weft_fnopt_optimizer kind, float lr, uint32_t iters, double *first,
-                    const float **positions, weft_fnopt **keep)
+/* One step of the 16 x 16 sheet of `def` whose two top corners jump 2 units sideways; returns
+ * the object (NULL on failure), fills *stepped with the step's result. */
+static weft_fnopt *jump_step(weft_context *ctx, weft_fnopt_def def, weft_result *stepped)
 {
-    weft_fnopt_def def = weft_default_fnopt_def();
     def.height = def.width = 16;
-    def.optimizer = kind;
-    def.learning_rate = lr;
-    def.iterations = iters;
     def.report_loss = true;
     weft_fnopt *f = NULL;
     CHECK_RESULT(weft_fnopt_create(ctx, &def, &f), WEFT_OK);
     if (!f) {
-        return INFINITY;
+        return NULL;
     }
     const float *x = weft_fnopt_positions(f);
     uint32_t idx[2] = {0, 15 * 16};
@@ -28,7 +23,24 @@ static double solve(weft_context *ctx, weft_fnopt_optimizer kind, float lr, uint
         }
     }
     CHECK_RESULT(weft_fnopt_set_handles(f, idx, t, 2), WEFT_OK);
-    CHECK_RESULT(weft_fnopt_step(f), WEFT_OK);
+    *stepped = weft_fnopt_step(f);
+    return f;
+}
+
+/* jump_step with a classical optimizer; returns the final loss, fills first. */
+static double solve(weft_context *ctx, weft_fnopt_optimizer kind, float lr, uint32_t iters, double *first,
+                    const float **positions, weft_fnopt **keep)
+{
+    weft_fnopt_def def = weft_default_fnopt_def();
+    def.optimizer = kind;
+    def.learning_rate = lr;
+    def.iterations = iters;
+    weft_result r = WEFT_OK;
+    weft_fnopt *f = jump_step(ctx, def, &r);
+    if (!f) {
+        return INFINITY;
+    }
+    CHECK_RESULT(r, WEFT_OK);
     weft_fnopt_stats s = weft_fnopt_get_stats(f);
     *first = s.loss_first;
     if (positions) {
@@ -123,34 +135,22 @@ static void test_no_allocation_per_step(void)
     CHECK_EQ_INT(cnt.live, 0);
 }
 
-/* One step of the 16 x 16 sheet with jumping corners (as solve()) and the given guard: the
- * committed loss (report_loss evaluates it at the committed acceleration) and the iterate. */
+/* jump_step at 10 iterations with the given guard: the committed loss (report_loss evaluates it
+ * at the committed acceleration) and the iterate. */
 static double guarded_step(weft_context *ctx, const weft_model *model, weft_fnopt_optimizer kind, float lr,
                            bool guard, double *first, uint32_t *committed, bool *finite)
 {
     weft_fnopt_def def = weft_default_fnopt_def();
-    def.height = def.width = 16;
     def.optimizer = kind;
     def.model = model;
     def.learning_rate = lr;
-    def.iterations = 10;
-    def.report_loss = true;
     def.descent_guard = guard;
-    weft_fnopt *f = NULL;
-    CHECK_RESULT(weft_fnopt_create(ctx, &def, &f), WEFT_OK);
+    weft_result r = WEFT_OK;
+    weft_fnopt *f = jump_step(ctx, def, &r);
     if (!f) {
         return INFINITY;
     }
-    const float *x = weft_fnopt_positions(f);
-    uint32_t idx[2] = {0, 15 * 16};
-    float t[6];
-    for (int k = 0; k < 2; ++k) {
-        for (int c = 0; c < 3; ++c) {
-            t[3 * k + c] = x[3 * idx[k] + c] + (c == 0 ? 2.0f : 0.0f);
-        }
-    }
-    CHECK_RESULT(weft_fnopt_set_handles(f, idx, t, 2), WEFT_OK);
-    *finite = weft_fnopt_step(f) == WEFT_OK;
+    *finite = r == WEFT_OK;
     weft_fnopt_stats st = weft_fnopt_get_stats(f);
     *first = st.loss_first;
     *committed = st.committed_iterate;

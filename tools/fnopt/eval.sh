@@ -78,6 +78,11 @@ for t in $TABLES; do
       run --res $r --frames 40 --optimizer lbfgs --lr 1 --csv $OUT/resgrid.csv
       run --res $r --frames 40 --optimizer lbfgs --lr 1 --iters 100 --csv $OUT/resgrid.csv
     done
+    for m in 1 0.25; do # the trust region's size at 100 x 100; 0 with and without the guard
+      run --res 100 --frames 40 --max-step $m --csv $OUT/resgrid_cap.csv
+    done
+    run --res 100 --frames 40 --max-step 0 --csv $OUT/resgrid_cap.csv
+    run --res 100 --frames 40 --max-step 0 --no-guard --csv $OUT/resgrid_cap.csv
     for r in 32 64 100; do
       run --res $r --frames 40 --speed 2 --csv $OUT/resgrid_speed.csv
       run --res $r --frames 40 --speed 2 --precision int8 --csv $OUT/resgrid_speed.csv

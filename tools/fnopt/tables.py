@@ -36,7 +36,8 @@ def pivot_resgrid(d):
     if not os.path.exists(path):
         return ''
     rows = list(csv.DictReader(open(path)))
-    cols = [('learned fp32', lambda r: r['optimizer'] == 'learned' and r['precision'] == 'fp32' and r['guard'] == '1'),
+    cols = [('learned fp32', lambda r: r['optimizer'] == 'learned' and r['precision'] == 'fp32' and r['guard'] == '1'
+             and float(r['max_step']) == 0.5),
             ('learned fp32, paper rule', lambda r: r['optimizer'] == 'learned' and r['guard'] == '0'
              and float(r['max_step']) == 0),
             ('learned fp16', lambda r: r['optimizer'] == 'learned' and r['precision'] == 'fp16'),
@@ -62,6 +63,45 @@ def pivot_resgrid(d):
     return '\n'.join(out)
 
 
+def pivot_scenes(d):
+    """x2 speed and the handle placements per resolution: learned K=10 against the converged solve,
+    e3D (max strain)."""
+    rows = []
+    for name in ('resgrid_speed.csv', 'resgrid_handles.csv'):
+        path = os.path.join(d, name)
+        if os.path.exists(path):
+            rows += list(csv.DictReader(open(path)))
+    if not rows:
+        return ''
+    res_list = sorted({int(r['res']) for r in rows})
+    scenes = []
+    for r in rows:
+        key = (r['speed'], r['handles'])
+        if key not in scenes:
+            scenes.append(key)
+    out = ['| scene | ' + ' | '.join(f'{res}: learned fp32 / int8 / converged' for res in res_list) + ' |',
+           '|---|' + '---|' * len(res_list)]
+
+    def cell(m):
+        if not m:
+            return '-'
+        r = m[-1]
+        if r['diverged'] == '1':
+            return f"**diverged** ({r['frames']})"
+        return f"{float(r['e3d']):.4f} ({float(r['max_strain']):.2f})"
+    for speed, handles in scenes:
+        label = f'x{float(speed):g} speed' if float(speed) != 1.0 else f'{handles} handles'
+        cells = []
+        for res in res_list:
+            sel = [r for r in rows if int(r['res']) == res and r['speed'] == speed and r['handles'] == handles]
+            lf = cell([r for r in sel if r['optimizer'] == 'learned' and r['precision'] == 'fp32'])
+            li = cell([r for r in sel if r['optimizer'] == 'learned' and r['precision'] == 'int8'])
+            cv = cell([r for r in sel if r['optimizer'] == 'lbfgs' and r['iters'] == '100'])
+            cells.append(f'{lf} / {li} / {cv}')
+        out.append(f'| {label} | ' + ' | '.join(cells) + ' |')
+    return '\n'.join(out)
+
+
 def main():
     d = sys.argv[1] if len(sys.argv) > 1 else 'data/fnopt/eval'
     for name in ['baselines', 'sweep', 'motions', 'motions_lbfgs', 'iters', 'speed', 'speed_lbfgs', 'handles',
@@ -75,6 +115,8 @@ def main():
 
 if __name__ == '__main__' and len(sys.argv) > 2 and sys.argv[2] == '--resgrid':
     print(pivot_resgrid(sys.argv[1]))
+    print()
+    print(pivot_scenes(sys.argv[1]))
     sys.exit(0)
 
 if __name__ == '__main__':

@@ -173,6 +173,31 @@ typedef struct mc_cell {
     uint32_t ccd_released;          /* frames where the tethers released vertices CCD held */
 } mc_cell;
 
+/* Frame k's pose (the settle frames blend from the bind pose into the clip's first pose) and
+ * the body posed there; non-zero on failure. */
+static int pose_frame(const mc_options *o, const weft_body *body, const weft_clip *clip, const weft_pose *bind,
+                      const weft_pose *first, uint32_t k, weft_pose *pose, float *bverts)
+{
+    if (k < o->settle) {
+        weft_avatar_sample_settle_pose(bind, first, k, o->settle, pose);
+    } else if (weft_clip_sample(clip, (double)(k - o->settle) / 60.0, pose) != WEFT_OK) {
+        return 1;
+    }
+    return weft_body_pose(body, pose, bverts, NULL) != WEFT_OK;
+}
+
+/* A cell's timing percentiles once its frames ran (or the error that stopped it). */
+static void cell_finish(int rc, double *ms, uint32_t frames, mc_cell *cell)
+{
+    if (rc != 0) {
+        fprintf(stderr, "weft bench mocap: %s\n", weft_last_error());
+    } else if (!cell->failed) {
+        cell->p50 = weft_wear_percentile(ms, frames, 50.0);
+        cell->p99 = weft_wear_percentile(ms, frames, 99.0);
+        cell->max = weft_wear_percentile(ms, frames, 100.0);
+    }
+}
+
 /* One (clip, garment, method) run. Returns non-zero only for setup failures. */
 static int run_cell(const mc_options *o, weft_context *ctx, const weft_body *body, weft_model *model,
                     const weft_clip *clip, weft_cloth_kind kind, const mc_method *m, mc_cell *cell)
@@ -243,14 +268,7 @@ static int run_cell(const mc_options *o, weft_context *ctx, const weft_body *bod
     }
     const uint32_t settle = o->settle;
     for (uint32_t k = 0; rc == 0 && !cell->failed && k < settle + frames; ++k) {
-        if (k < settle) {
-            weft_avatar_sample_settle_pose(&bind, &first, k, settle, &pose);
-        } else if (weft_clip_sample(clip, (double)(k - settle) / 60.0, &pose) != WEFT_OK) {
-            rc = 1;
-            break;
-        }
-        if (weft_body_pose(body, &pose, bverts, NULL) != WEFT_OK) {
-            rc = 1;
+        if ((rc = pose_frame(o, body, clip, &bind, &first, k, &pose, bverts)) != 0) {
             break;
         }
         const double t0 = weft__now_ms();
@@ -283,13 +301,7 @@ static int run_cell(const mc_options *o, weft_context *ctx, const weft_body *bod
         }
         weft_wear_summary_add(&cell->wear, &wf);
     }
-    if (rc != 0) {
-        fprintf(stderr, "weft bench mocap: %s\n", weft_last_error());
-    } else if (!cell->failed) {
-        cell->p50 = weft_wear_percentile(ms, frames, 50.0);
-        cell->p99 = weft_wear_percentile(ms, frames, 99.0);
-        cell->max = weft_wear_percentile(ms, frames, 100.0);
-    }
+    cell_finish(rc, ms, frames, cell);
     weft_garment_destroy(g);
     weft_surface_pins_destroy(band);
     free(band_targets);
@@ -355,14 +367,7 @@ static int run_cape_cell(const mc_options *o, weft_context *ctx, const weft_body
         rc = 1;
     }
     for (uint32_t k = 0; rc == 0 && !cell->failed && k < o->settle + frames; ++k) {
-        if (k < o->settle) {
-            weft_avatar_sample_settle_pose(&bind, &first, k, o->settle, &pose);
-        } else if (weft_clip_sample(clip, (double)(k - o->settle) / 60.0, &pose) != WEFT_OK) {
-            rc = 1;
-            break;
-        }
-        if (weft_body_pose(body, &pose, bverts, NULL) != WEFT_OK) {
-            rc = 1;
+        if ((rc = pose_frame(o, body, clip, &bind, &first, k, &pose, bverts)) != 0) {
             break;
         }
         const double t0 = weft__now_ms();
@@ -387,13 +392,7 @@ static int run_cape_cell(const mc_options *o, weft_context *ctx, const weft_body
         wf.off_body = cape_torn(x, cd.across, cd.down, weft_sample_cape_units_per_metre(cape));
         weft_wear_summary_add(&cell->wear, &wf);
     }
-    if (rc != 0) {
-        fprintf(stderr, "weft bench mocap: %s\n", weft_last_error());
-    } else if (!cell->failed) {
-        cell->p50 = weft_wear_percentile(ms, frames, 50.0);
-        cell->p99 = weft_wear_percentile(ms, frames, 99.0);
-        cell->max = weft_wear_percentile(ms, frames, 100.0);
-    }
+    cell_finish(rc, ms, frames, cell);
     weft_wear_destroy(wear);
     weft_sample_cape_destroy(cape);
     free(bverts);
