@@ -171,10 +171,13 @@ def main():
     ap.add_argument('--threads', type=int, default=1)
     ap.add_argument('--seed', type=int, default=1)
     ap.add_argument('--stop-at', default='', help='UTC HH:MM: checkpoint and exit at this time')
+    ap.add_argument('--max-seconds', type=float, default=0, help='checkpoint and exit this many seconds after '
+                    'the start (0: no limit); for machine windows of a fixed length')
     ap.add_argument('--export', default='', help='write safetensors here after every epoch')
     ap.add_argument('--init-from', default='', help='start from these exported weights (e.g. the shipped '
                     'tools/fnopt/models/fnopt_32.safetensors) when --out has no checkpoint yet')
     args = ap.parse_args()
+    t_start = time.time()
     torch.set_num_threads(args.threads)
     os.makedirs(args.out, exist_ok=True)
     ckpt_path = os.path.join(args.out, 'checkpoint.pt')
@@ -260,10 +263,11 @@ def main():
                 logf.flush()
                 save()
                 last_save = time.time()
-            if args.stop_at and time.strftime('%H:%M', time.gmtime()) >= args.stop_at:
+            if (args.stop_at and time.strftime('%H:%M', time.gmtime()) >= args.stop_at) or \
+                    (args.max_seconds > 0 and time.time() - t_start >= args.max_seconds):
                 logf.flush()
                 save()
-                print(f'\nstopped at {args.stop_at} UTC (epoch {epoch} batch {batch}); rerun to resume')
+                print(f'\nstopped (epoch {epoch} batch {batch}, {time.time() - t_start:.0f} s); rerun to resume')
                 return
         epoch += 1
         batch = 0
