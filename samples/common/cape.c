@@ -41,7 +41,6 @@ struct weft_sample_cape {
     uint32_t failed_steps;
     weft_garment *collide;      /* FNOpt: the body collision stage (external garment) */
     weft_garment *xpbd;         /* XPBD: the whole cape */
-    float *ref_rest, *ref_weights; /* n * 3, n * WEFT_BODY_JOINTS: the rigid reference */
     float *grid_fix, *vel_fix;  /* n * 3: corrected grid positions and velocities */
     uint32_t pushed;            /* cape vertices the last step's collision moved */
 };
@@ -53,8 +52,6 @@ void weft_sample_cape_destroy(weft_sample_cape *c)
     }
     weft_garment_destroy(c->collide);
     weft_garment_destroy(c->xpbd);
-    free(c->ref_rest);
-    free(c->ref_weights);
     free(c->grid_fix);
     free(c->vel_fix);
     weft_fnopt_destroy(c->fnopt);
@@ -145,6 +142,37 @@ static float pin_curve(const weft_body *body, const float *joints, uint32_t coun
     return total;
 }
 
+/* The FNOpt cape's optimizer (from the grid laid out in grid0) and its collision stage (gd). */
+static weft_result fnopt_setup(weft_sample_cape *c, const weft_sample_cape_def *def, const float *grid0,
+                               const weft_garment_def *gd)
+{
+    weft_result r = weft_model_load_file_as(c->ctx, def->model_path, "fnopt", &c->model);
+    if (r != WEFT_OK) {
+        return r;
+    }
+    weft_fnopt_def fd = weft_default_fnopt_def();
+    fd.height = c->across;
+    fd.width = c->down;
+    fd.initial_positions = grid0;
+    fd.model = c->model;
+    fd.precision = def->precision;
+    /* the material fitted to the XPBD reference (docs/FNOPT.md), inside the training ranges */
+    fd.stretch = 100.0f;
+    fd.shear = 3.0f;
+    fd.bend = 5.0f;
+    fd.gravity[0] = fd.gravity[2] = 0.0f;
+    fd.gravity[1] = -9.81f * c->lc / (60.0f * 60.0f); /* Y up, one step per 60 Hz frame */
+    if ((r = weft_fnopt_create(c->ctx, &fd, &c->fnopt)) != WEFT_OK) {
+        return r;
+    }
+    c->grid_fix = malloc((size_t)c->n * 3 * sizeof(float));
+    c->vel_fix = malloc((size_t)c->n * 3 * sizeof(float));
+    if (!c->grid_fix || !c->vel_fix) {
+        return WEFT_ERROR_OUT_OF_MEMORY;
+    }
+    return weft_garment_create(c->ctx, gd, &c->collide);
+}
+
 weft_sample_cape_def weft_sample_default_cape_def(void)
 {
     return (weft_sample_cape_def){.model_path = "tools/fnopt/models/fnopt_32.safetensors",
@@ -176,15 +204,13 @@ weft_result weft_sample_cape_create(weft_context *ctx, const weft_body *body, co
     c->pin_index = malloc((size_t)across * sizeof(uint32_t));
     c->world = malloc((size_t)c->n * 3 * sizeof(float));
     c->tris = malloc((size_t)c->tri_count * 3 * sizeof(uint32_t));
-    c->ref_rest = malloc((size_t)c->n * 3 * sizeof(float));
-    c->ref_weights = malloc((size_t)c->n * WEFT_BODY_JOINTS * sizeof(float));
     float *grid0 = malloc((size_t)c->n * 3 * sizeof(float));
     float joints[24 * 16];
     weft_pose bind;
     weft_body_bind_pose(body, &bind);
     weft_result r = WEFT_ERROR_OUT_OF_MEMORY;
     if (!c->pin_rest || !c->pin_weights || !c->pin_world || !c->pin_grid || !c->pin_index || !c->world || !c->tris ||
-        !c->ref_rest || !c->ref_weights || !grid0) {
+        !grid0) {
         goto fail;
     }
     if ((r = weft_body_pose(body, &bind, NULL, joints)) != WEFT_OK) {
@@ -241,13 +267,6 @@ weft_result weft_sample_cape_create(weft_context *ctx, const weft_body *body, co
     for (size_t q = 0; q < (size_t)c->n * 3; ++q) {
         c->world[q] = grid0[q] / c->lc;
     }
-    memcpy(c->ref_rest, c->world, (size_t)c->n * 3 * sizeof(float));
-    for (uint32_t i = 0; i < across; ++i) {
-        for (uint32_t j = 0; j < down; ++j) {
-            memcpy(c->ref_weights + ((size_t)i * down + j) * WEFT_BODY_JOINTS,
-                   c->pin_weights + (size_t)i * WEFT_BODY_JOINTS, WEFT_BODY_JOINTS * sizeof(float));
-        }
-    }
     /* the body collision: the cape as laid out in the bind pose against the body in it */
     weft_garment_def gd = weft_sample_body_garment_def(body, def->xpbd_substeps ? WEFT_METHOD_XPBD_FAST
                                                                                 : WEFT_METHOD_EXTERNAL,
@@ -257,38 +276,11 @@ weft_result weft_sample_cape_create(weft_context *ctx, const weft_body *body, co
     gd.ccd.enabled = false;
     if (def->xpbd_substeps) {
         weft_sample_set_substeps(&gd, def->xpbd_substeps);
-        if ((r = weft_garment_create(ctx, &gd, &c->xpbd)) != WEFT_OK) {
-            goto fail;
-        }
-        free(grid0);
-        *out = c;
-        return WEFT_OK;
+        r = weft_garment_create(ctx, &gd, &c->xpbd);
+    } else {
+        r = fnopt_setup(c, def, grid0, &gd);
     }
-    if ((r = weft_model_load_file_as(ctx, def->model_path, "fnopt", &c->model)) != WEFT_OK) {
-        goto fail;
-    }
-    weft_fnopt_def fd = weft_default_fnopt_def();
-    fd.height = across;
-    fd.width = down;
-    fd.initial_positions = grid0;
-    fd.model = c->model;
-    fd.precision = def->precision;
-    /* the material fitted to the XPBD reference (docs/FNOPT.md), inside the training ranges */
-    fd.stretch = 100.0f;
-    fd.shear = 3.0f;
-    fd.bend = 5.0f;
-    fd.gravity[0] = fd.gravity[2] = 0.0f;
-    fd.gravity[1] = -9.81f * c->lc / (60.0f * 60.0f); /* Y up, one step per 60 Hz frame */
-    if ((r = weft_fnopt_create(ctx, &fd, &c->fnopt)) != WEFT_OK) {
-        goto fail;
-    }
-    c->grid_fix = malloc((size_t)c->n * 3 * sizeof(float));
-    c->vel_fix = malloc((size_t)c->n * 3 * sizeof(float));
-    if (!c->grid_fix || !c->vel_fix) {
-        r = WEFT_ERROR_OUT_OF_MEMORY;
-        goto fail;
-    }
-    if ((r = weft_garment_create(ctx, &gd, &c->collide)) != WEFT_OK) {
+    if (r != WEFT_OK) {
         goto fail;
     }
     free(grid0);
@@ -363,12 +355,6 @@ weft_result weft_sample_cape_step(weft_sample_cape *c, const weft_body *body, co
     }
     memcpy(c->world, x, (size_t)c->n * 3 * sizeof(float));
     return WEFT_OK;
-}
-
-weft_result weft_sample_cape_reference(const weft_sample_cape *c, const weft_body *body, const weft_pose *pose,
-                                       float *out)
-{
-    return weft_body_skin_points(body, pose, c->ref_rest, c->ref_weights, c->n, out);
 }
 
 uint32_t weft_sample_cape_pushed(const weft_sample_cape *c) { return c->pushed; }

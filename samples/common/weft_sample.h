@@ -219,10 +219,6 @@ weft_result weft_sample_cape_create(weft_context *context, const weft_body *body
  * as it steps). On failure the cape keeps its previous state. */
 weft_result weft_sample_cape_step(weft_sample_cape *cape, const weft_body *body, const weft_pose *pose,
                                   const float *body_vertices);
-/* The cape carried rigidly by the body: every vertex skinned with the weights of its column's
- * pin from its bind-pose layout (n * 3). The off_body reference of `weft bench mocap`. */
-weft_result weft_sample_cape_reference(const weft_sample_cape *cape, const weft_body *body, const weft_pose *pose,
-                                       float *out_positions);
 /* Cape vertices the last step's body collision moved. */
 uint32_t weft_sample_cape_pushed(const weft_sample_cape *cape);
 const float *weft_sample_cape_positions(const weft_sample_cape *cape); /* world metres */

@@ -58,17 +58,6 @@ static void test_cape_follows_body(void)
     weft_body_bind_pose(body, &pose);
     const float *p = weft_sample_cape_positions(cape);
     const float x0 = p[0];
-    /* the rigid reference of the bind pose is the cape as laid out */
-    float *ref = malloc(sizeof(float) * 3 * across * down);
-    if (ref) {
-        CHECK_RESULT(weft_sample_cape_reference(cape, body, &pose, ref), WEFT_OK);
-        float worst = 0.0f;
-        for (uint32_t q = 0; q < 3 * across * down; ++q) {
-            worst = fmaxf(worst, fabsf(ref[q] - p[q]));
-        }
-        CHECK_MSG(worst < 1e-5f, "reference off the bind-pose layout by %g m", (double)worst);
-        free(ref);
-    }
     for (int s = 0; s < 4; ++s) {
         /* the body walks sideways 1 cm per step: the pinned top row must go with it */
         pose.translation[0] += 0.01f;

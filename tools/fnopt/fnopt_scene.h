@@ -50,7 +50,7 @@ typedef struct fnopt_run_result {
     double chamfer;              /* mean over frames, m^2 (needs ground truth) */
     double loss;                 /* mean final loss per step (report_loss, else 0) */
     double max_strain;           /* largest |length - rest| / rest of a grid edge over all frames */
-    double rejected;             /* share of steps where the descent guard committed an earlier iterate */
+    double guard_acted;          /* share of steps where the descent guard committed an earlier iterate */
 } fnopt_run_result;
 
 weft_result fnopt_scene_make(const fnopt_scene_opts *o, fnopt_scene *s);

@@ -173,6 +173,14 @@ typedef struct mc_cell {
     uint32_t ccd_released;          /* frames where the tethers released vertices CCD held */
 } mc_cell;
 
+/* Frames a cell runs after the settle: --frames, at most the clip's own length at 60 Hz (past
+ * its end a clip holds its last pose). */
+static uint32_t cell_frames(const mc_options *o, const weft_clip *clip)
+{
+    const uint32_t clip_frames = (uint32_t)floor((double)clip->frame_count / (double)clip->fps * 60.0);
+    return o->frames && o->frames < clip_frames ? o->frames : clip_frames;
+}
+
 /* Frame k's pose (the settle frames blend from the bind pose into the clip's first pose) and
  * the body posed there; non-zero on failure. */
 static int pose_frame(const mc_options *o, const weft_body *body, const weft_clip *clip, const weft_pose *bind,
@@ -219,9 +227,7 @@ static int run_cell(const mc_options *o, weft_context *ctx, const weft_body *bod
     uint8_t *parts = malloc(nbt);
     float *bverts = malloc((size_t)nbv * 3 * sizeof(float));
     float *skinned = malloc((size_t)cloth->vertex_count * 3 * sizeof(float));
-    /* at most the clip's own length at 60 Hz (past its end a clip holds its last pose) */
-    const uint32_t clip_frames = (uint32_t)floor((double)clip->frame_count / (double)clip->fps * 60.0);
-    const uint32_t frames = o->frames && o->frames < clip_frames ? o->frames : clip_frames;
+    const uint32_t frames = cell_frames(o, clip);
     double *ms = calloc(frames ? frames : 1, sizeof(double));
     weft_wear *wear = NULL;
     int rc = 0;
@@ -351,13 +357,11 @@ static int run_cape_cell(const mc_options *o, weft_context *ctx, const weft_body
     const uint32_t n = weft_sample_cape_vertex_count(cape);
     const uint32_t nbv = weft_body_vertex_count(body), nbt = weft_body_triangle_count(body);
     float *bverts = malloc((size_t)nbv * 3 * sizeof(float));
-    float *carried = malloc((size_t)n * 3 * sizeof(float));
-    const uint32_t clip_frames = (uint32_t)floor((double)clip->frame_count / (double)clip->fps * 60.0);
-    const uint32_t frames = o->frames && o->frames < clip_frames ? o->frames : clip_frames;
+    const uint32_t frames = cell_frames(o, clip);
     double *ms = calloc(frames ? frames : 1, sizeof(double));
     weft_wear *wear = NULL;
     int rc = 0;
-    if (!bverts || !carried || !ms || weft_wear_create(weft_body_triangles(body), nbt, nbv, n, &wear) != WEFT_OK) {
+    if (!bverts || !ms || weft_wear_create(weft_body_triangles(body), nbt, nbv, n, &wear) != WEFT_OK) {
         fprintf(stderr, "weft bench mocap: cape setup: %s\n", weft_last_error());
         rc = 1;
     }
@@ -384,8 +388,8 @@ static int run_cape_cell(const mc_options *o, weft_context *ctx, const weft_body
         ms[k - o->settle] = t1 - t0;
         weft_wear_frame wf;
         const float *x = weft_sample_cape_positions(cape);
-        if (weft_sample_cape_reference(cape, body, &pose, carried) != WEFT_OK ||
-            weft_wear_measure(wear, bverts, x, carried, 1e3f, &wf) != WEFT_OK) {
+        /* inside_body and the body's overlap; off_body is the cape's own (cape_torn) */
+        if (weft_wear_measure(wear, bverts, x, x, 1.0f, &wf) != WEFT_OK) {
             rc = 1;
             break;
         }
@@ -396,7 +400,6 @@ static int run_cape_cell(const mc_options *o, weft_context *ctx, const weft_body
     weft_wear_destroy(wear);
     weft_sample_cape_destroy(cape);
     free(bverts);
-    free(carried);
     free(ms);
     return rc;
 }

@@ -485,7 +485,7 @@ weft_result fnopt_scene_run(weft_context *ctx, const fnopt_scene *s, const fnopt
         return r;
     }
     float targets[6];
-    double ms = 0.0, e3d = 0.0, cd = 0.0, loss = 0.0, rejected = 0.0;
+    double ms = 0.0, e3d = 0.0, cd = 0.0, loss = 0.0, guard_acted = 0.0;
     bool cd_ok = true;
     for (uint32_t fr = 0; fr < s->frames; ++fr) {
         for (uint32_t k = 0; k < s->handle_count; ++k) {
@@ -499,7 +499,7 @@ weft_result fnopt_scene_run(weft_context *ctx, const fnopt_scene *s, const fnopt
         weft_fnopt_stats st = weft_fnopt_get_stats(f);
         ms += st.step_ms;
         loss += st.loss_final;
-        rejected += st.committed_iterate < ro->iterations ? 1.0 : 0.0;
+        guard_acted += st.committed_iterate < ro->iterations ? 1.0 : 0.0;
         const float *x = weft_fnopt_positions(f);
         res->max_strain = fmax(res->max_strain, max_edge_strain(x, s->o.res));
         bool out_of_box = false;
@@ -534,7 +534,7 @@ weft_result fnopt_scene_run(weft_context *ctx, const fnopt_scene *s, const fnopt
     uint32_t nf = res->frames ? res->frames : 1;
     res->ms_per_frame = ms / nf;
     res->loss = loss / nf;
-    res->rejected = rejected / nf;
+    res->guard_acted = guard_acted / nf;
     res->e3d = gt ? e3d / nf : NAN;
     res->chamfer = gt && cd_ok && !res->diverged ? cd / nf : NAN;
     weft_fnopt_destroy(f);
@@ -551,11 +551,12 @@ typedef struct cli {
     bool gt;
 } cli;
 
+static const char *const k_precision_names[WEFT_PRECISION_COUNT] = {"fp32", "fp16", "int8"};
+
 bool fnopt_parse_precision(const char *s, weft_precision *out)
 {
-    static const char *names[WEFT_PRECISION_COUNT] = {"fp32", "fp16", "int8"};
     for (int p = 0; p < WEFT_PRECISION_COUNT; ++p) {
-        if (strcmp(s, names[p]) == 0) {
+        if (strcmp(s, k_precision_names[p]) == 0) {
             *out = (weft_precision)p;
             return true;
         }
@@ -734,13 +735,12 @@ static int parse(int argc, char **argv, cli *c)
 
 static void print_row(FILE *fh, const cli *c, const fnopt_scene *s, const fnopt_run_result *r)
 {
-    static const char *prec[WEFT_PRECISION_COUNT] = {"fp32", "fp16", "int8"};
     fprintf(fh, "%u,%s,%s,%.2f,%s,%s,%d,%.3g,%u,%.4g,%.4g,%.4g,%.4g,%u,%d,%.4f,%.3f,%.3f,%.5f,%.5f,%.6g\n",
             c->scene.res, c->scene.motion, c->scene.handles, (double)c->scene.speed, optimizer_name(c->run.optimizer),
-            c->run.optimizer == WEFT_FNOPT_LEARNED ? prec[c->run.precision] : "fp32", c->run.no_guard ? 0 : 1,
+            c->run.optimizer == WEFT_FNOPT_LEARNED ? k_precision_names[c->run.precision] : "fp32", c->run.no_guard ? 0 : 1,
             c->run.optimizer == WEFT_FNOPT_LEARNED ? (double)c->run.max_step : 0.0,
             c->run.iterations, (double)c->run.learning_rate, (double)c->run.Y, (double)c->run.S, (double)c->run.B,
-            r->frames, r->diverged ? 1 : 0, r->max_strain, r->rejected, r->ms_per_frame, r->e3d, r->chamfer * 1e3,
+            r->frames, r->diverged ? 1 : 0, r->max_strain, r->guard_acted, r->ms_per_frame, r->e3d, r->chamfer * 1e3,
             r->loss);
     (void)s;
 }
