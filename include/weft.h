@@ -229,6 +229,19 @@ typedef enum weft_collider_crop {
     WEFT_COLLIDER_CROP_COUNT
 } weft_collider_crop;
 
+/* How a token cap (weft_garment_def.max_collider_tokens) chooses among the triangles the crop
+ * keeps when they are more than the cap. */
+typedef enum weft_collider_cap {
+    WEFT_COLLIDER_CAP_NEAREST = 0,  /* the cap's triangles nearest to the garment (see the def) */
+    WEFT_COLLIDER_CAP_SAMPLE,       /* a spatially even sample of the crop: the cap's triangles of
+                                       lowest rank in an order fixed at creation (the collider's rest
+                                       triangles along a Morton curve, bit-reversed); each kept token
+                                       stands for cropped / kept triangles and is weighted so in the
+                                       encoder's attention (a key bias of log(cropped / kept)), which
+                                       estimates the attention over the whole crop */
+    WEFT_COLLIDER_CAP_COUNT
+} weft_collider_cap;
+
 /* ---- The constraint stage ------------------------------------------------------------------
  * After the method's step, every garment runs one stage of constraints, in this order: tethers,
  * strain limit, collision (the push out of the collider), tethers again, the floor
@@ -354,10 +367,14 @@ typedef struct weft_garment_def {
      * max_collider_tokens: 0 (default) keeps every triangle the crop selects; otherwise at most
      * this many, those whose centroid is nearest to a garment vertex (exact within a quarter of
      * the margin; farther ones rank after, approximately), ties to the lower triangle index (the
-     * same set on every kernel ISA). Bounds the encoder's cost. */
+     * same set on every kernel ISA); with collider_cap WEFT_COLLIDER_CAP_SAMPLE an even sample of
+     * the crop instead, weighted in the attention (weft_collider_cap). Bounds the encoder's cost.
+     * collider_cap: WEFT_COLLIDER_CAP_NEAREST (default) or WEFT_COLLIDER_CAP_SAMPLE; the sample
+     * keeps a model's accuracy at a far smaller cap (docs/LOD.md, Collider crop). */
     float collider_crop_margin;
     weft_collider_crop collider_crop;
     uint32_t max_collider_tokens;
+    weft_collider_cap collider_cap;
 
     /* The constraint stage, in its order (see above). */
     weft_tether_def tethers;

@@ -207,6 +207,10 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
                           "weft_garment_create: collider_crop_margin %g is not a finite number >= 0 (0: the model's)",
                           (double)def->collider_crop_margin);
     }
+    if ((unsigned)def->collider_cap >= WEFT_COLLIDER_CAP_COUNT) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_garment_create: collider_cap %u is not a weft_collider_cap",
+                          (unsigned)def->collider_cap);
+    }
     if ((unsigned)def->collider_crop >= WEFT_COLLIDER_CROP_COUNT) {
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_garment_create: collider_crop %u is not a weft_collider_crop",
                           (unsigned)def->collider_crop);
@@ -338,6 +342,7 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
     g->crop_margin = def->collider_crop_margin;
     g->crop_rule = def->collider_crop;
     g->max_collider_tokens = def->max_collider_tokens;
+    g->collider_cap = def->collider_cap;
     g->strain_limit = def->strain.limit;
     g->strain_iterations = def->strain.iterations;
     g->strain_contact = def->strain.limit > 0.0f ? def->strain.contact : 0.0f;

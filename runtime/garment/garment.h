@@ -37,6 +37,7 @@ struct weft_garment {
     float crop_margin;                  /* model collider crop: metres, 0 = the model's own */
     weft_collider_crop crop_rule;
     uint32_t max_collider_tokens;       /* 0: no cap */
+    weft_collider_cap collider_cap;
     void *ccd_state;                    /* runtime/ccd world when ccd is set (weft__ccd_garment_create) */
     float *ccd_input;                   /* vertex_count * 3: x_next as CCD got it, restored when CCD
                                          * runs out of its work bound */

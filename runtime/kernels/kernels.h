@@ -53,14 +53,16 @@ typedef struct weft_kernels {
                           uint32_t ldx, uint32_t dim, float *out, uint32_t ldo, bool mean);
 
     /* Multi-head scaled dot-product attention, one head at a time:
-     * out[q][h*dh + :] = softmax(Q[q][h*dh:] . K[k][h*dh:] * scale) . V[k][h*dh:].
+     * out[q][h*dh + :] = softmax(Q[q][h*dh:] . K[k][h*dh:] * scale + key_bias[k]) . V[k][h*dh:].
      * Q is nq x (H*dh) with stride ldq, K and V are nk x (H*dh) with strides ldk, ldv.
      * mask (may be NULL): nq x nk bytes, 0 = masked out; a fully masked row yields zeros.
+     * key_bias (may be NULL: all 0): nk finite floats added to every query's score of key k after
+     * the scale, in every head; log w weighs key k as w copies of it would.
      * scratch: at least weft_attention_scratch(nq, nk) floats. Shapes the model uses range from
      * many queries x few keys (decoder) to few queries x many keys (encoder). */
     void (*attention)(const float *Q, uint32_t ldq, const float *K, uint32_t ldk, const float *V,
                       uint32_t ldv, uint32_t nq, uint32_t nk, uint32_t heads, uint32_t dh, float scale,
-                      const uint8_t *mask, float *out, uint32_t ldo, float *scratch);
+                      const uint8_t *mask, const float *key_bias, float *out, uint32_t ldo, float *scratch);
 } weft_kernels;
 
 /* Floats of scratch the attention kernel needs (the same for every level). Non-decreasing in

@@ -789,12 +789,17 @@ static void transpose_keys(const float *K, size_t ldk, size_t nk, size_t dc, flo
     transpose_block(K, ldk, nk, dc, Kt, nkp);
 }
 
-/* One row of one key block of the online softmax. s holds scaled scores for kc keys; on return
- * it holds exp(s - m_new) (0 where masked). m and l are the row's running max and sum; returns
- * the factor the row's earlier output must be multiplied by. */
-static float online_softmax_row(float *s, size_t kc, const uint8_t *mask, float *m, float *l)
+/* One row of one key block of the online softmax. s holds scaled scores for kc keys, to which
+ * bias (may be NULL) is added; on return it holds exp(s - m_new) (0 where masked). m and l are the
+ * row's running max and sum; returns the factor the row's earlier output must be multiplied by. */
+static float online_softmax_row(float *s, size_t kc, const uint8_t *mask, const float *bias, float *m, float *l)
 {
     const V ninf = v_set1(-INFINITY);
+    if (bias) {
+        for (size_t j = 0; j < kc; ++j) {
+            s[j] += bias[j];
+        }
+    }
     if (mask) {
         for (size_t j = 0; j < kc; ++j) {
             s[j] = mask[j] ? s[j] : -INFINITY;
@@ -851,7 +856,7 @@ static void scale_row(float *x, size_t n, float f)
  * row is divided by its softmax sum. Memory use is independent of nk beyond the transposed keys. */
 static void attention(const float *Q, uint32_t ldq, const float *K, uint32_t ldk, const float *Vv, uint32_t ldv,
                       uint32_t nq, uint32_t nk, uint32_t heads, uint32_t dh, float scale, const uint8_t *mask,
-                      float *out, uint32_t ldo, float *scratch)
+                      const float *key_bias, float *out, uint32_t ldo, float *scratch)
 {
     if (nq == 0 || heads == 0 || dh == 0) {
         return;
@@ -905,7 +910,8 @@ static void attention(const float *Q, uint32_t ldq, const float *K, uint32_t ldk
                 }
                 for (size_t r = 0; r < rows; ++r) {
                     const float alpha = online_softmax_row(
-                        S + r * kbp, kc, mask ? mask + (size_t)(q0 + r) * nk + k0 : NULL, &row_m[r], &row_l[r]);
+                        S + r * kbp, kc, mask ? mask + (size_t)(q0 + r) * nk + k0 : NULL,
+                        key_bias ? key_bias + k0 : NULL, &row_m[r], &row_l[r]);
                     if (k0 > 0 && alpha != 1.0f) {
                         scale_row(Ob + r * ldo, dh, alpha);
                     }

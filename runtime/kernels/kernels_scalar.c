@@ -188,7 +188,7 @@ static void csr_aggregate_scalar(const uint32_t *rowptr, const uint32_t *col, ui
 
 static void attention_scalar(const float *Q, uint32_t ldq, const float *K, uint32_t ldk, const float *V,
                              uint32_t ldv, uint32_t nq, uint32_t nk, uint32_t heads, uint32_t dh, float scale,
-                             const uint8_t *mask, float *out, uint32_t ldo, float *scratch)
+                             const uint8_t *mask, const float *key_bias, float *out, uint32_t ldo, float *scratch)
 {
     float *s = scratch; /* one row of scores */
     for (uint32_t h = 0; h < heads; ++h) {
@@ -207,6 +207,9 @@ static void attention_scalar(const float *Q, uint32_t ldq, const float *K, uint3
                     d += qv[j] * kv[j];
                 }
                 s[k] = d * scale;
+            }
+            for (uint32_t k = 0; key_bias && k < nk; ++k) {
+                s[k] = mrow && !mrow[k] ? s[k] : s[k] + key_bias[k];
             }
             softmax_row_scalar(s, nk);
             float *o = out + (size_t)q * ldo + off;

@@ -89,8 +89,9 @@ typedef struct weft_qkernels {
 
     /* Deterministic multi-head attention, bit-identical to composing the kernels above per head
      * (head h uses columns [h dh, (h + 1) dh) of Q, K, V and out):
-     *   s[i][j] = (fma chain over d = 0..dh-1 in order of Q[i][d] K[j][d], from 0) * scale,
-     *             -inf where mask[i * nk + j] == 0 (mask may be NULL);
+     *   s[i][j] = (fma chain over d = 0..dh-1 in order of Q[i][d] K[j][d], from 0) * scale
+     *             + key_bias[j] (key_bias may be NULL: no addition; log w weighs key j as w
+     *             copies of it would), -inf where mask[i * nk + j] == 0 (mask may be NULL);
      *   p = softmax_rows_det(s) (a fully masked row gives p = 0);
      *   out[i][d] = fma chain over j = 0..nk-1 in order of p[i][j] V[j][d], from 0.
      * Lanes run along 16 or 32 queries at a time, so the per-query chains are those of the
@@ -98,7 +99,7 @@ typedef struct weft_qkernels {
      * scratch: weft_qk_attention_scratch(nk, dh) floats. */
     void (*attention_det)(const float *Q, uint32_t ldq, const float *K, uint32_t ldk, const float *V, uint32_t ldv,
                           uint32_t nq, uint32_t nk, uint32_t H, uint32_t dh, float scale, const uint8_t *mask,
-                          float *out, uint32_t ldo, float *scratch);
+                          const float *key_bias, float *out, uint32_t ldo, float *scratch);
 } weft_qkernels;
 
 /* The most queries per block of attention_det (its lanes), and the floats of scratch it needs. */

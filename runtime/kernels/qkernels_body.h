@@ -778,7 +778,7 @@ static uint32_t att_pv(const float *S, const V *inv, const float *Vm, uint32_t l
 
 static void attention_det(const float *Q, uint32_t ldq, const float *K, uint32_t ldk, const float *Vm, uint32_t ldv,
                           uint32_t nq, uint32_t nk, uint32_t H, uint32_t dh, float scale, const uint8_t *mask,
-                          float *out, uint32_t ldo, float *scratch)
+                          const float *key_bias, float *out, uint32_t ldo, float *scratch)
 {
     float *S = scratch, *qt = S + (size_t)nk * QK_QB, *stage = qt + (size_t)dh * QK_QB;
     for (uint32_t h = 0; h < H; ++h) {
@@ -792,8 +792,14 @@ static void attention_det(const float *Q, uint32_t ldq, const float *K, uint32_t
             }
             V m[QK_QV], inv[QK_QV];
             att_scores(qt, K + hc, ldk, nk, dh, scale, S, m);
-            if (mask) {
-                for (uint32_t l = 0; l < nl; ++l) {
+            for (uint32_t j = 0; key_bias && j < nk; ++j) { /* every lane; idle ones are never read */
+                const V b = v_set1(key_bias[j]);
+                for (int v = 0; v < QK_QV; ++v) {
+                    v_store(S + (size_t)j * QK_QB + v * VW, v_add(v_load(S + (size_t)j * QK_QB + v * VW), b));
+                }
+            }
+            if (mask || key_bias) {
+                for (uint32_t l = 0; mask && l < nl; ++l) {
                     const uint8_t *mr = mask + (size_t)(i0 + l) * nk;
                     for (uint32_t j = 0; j < nk; ++j) {
                         if (!mr[j]) {

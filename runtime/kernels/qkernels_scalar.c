@@ -291,7 +291,7 @@ static void o_gemm_q8(uint32_t M, const int8_t *Q, uint32_t ldq, const float *qs
 /* Per head and query: the score row in scratch, then the softmax oracle, then P V in key order. */
 static void o_attention(const float *Q, uint32_t ldq, const float *K, uint32_t ldk, const float *V, uint32_t ldv,
                         uint32_t nq, uint32_t nk, uint32_t H, uint32_t dh, float scale, const uint8_t *mask,
-                        float *out, uint32_t ldo, float *scratch)
+                        const float *key_bias, float *out, uint32_t ldo, float *scratch)
 {
     for (uint32_t h = 0; h < H; ++h) {
         const size_t hc = (size_t)h * dh;
@@ -301,7 +301,14 @@ static void o_attention(const float *Q, uint32_t ldq, const float *K, uint32_t l
                 for (uint32_t d = 0; d < dh; ++d) {
                     acc = fmaf(Q[(size_t)i * ldq + hc + d], K[(size_t)j * ldk + hc + d], acc);
                 }
-                scratch[j] = mask && !mask[(size_t)i * nk + j] ? -INFINITY : acc * scale;
+                scratch[j] = acc * scale;
+            }
+            /* the bias in a pass of its own, as the SIMD kernels add it: never fused with the scale */
+            for (uint32_t j = 0; key_bias && j < nk; ++j) {
+                scratch[j] += key_bias[j];
+            }
+            for (uint32_t j = 0; mask && j < nk; ++j) {
+                scratch[j] = mask[(size_t)i * nk + j] ? scratch[j] : -INFINITY;
             }
             o_softmax(scratch, 1, nk, nk);
             for (uint32_t d = 0; d < dh; ++d) {

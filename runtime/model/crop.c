@@ -2,18 +2,89 @@
 #include "model/crop.h"
 
 #include <math.h>
+#include <stdlib.h>
 #include <string.h>
 
 #define CROP_CELLS (WEFT_CROP_GRID_MAX * WEFT_CROP_GRID_MAX * WEFT_CROP_GRID_MAX)
 #define CROP_FINE_CELLS (WEFT_CROP_FINE_MAX * WEFT_CROP_FINE_MAX * WEFT_CROP_FINE_MAX)
 
+static int cmp_u64(const void *a, const void *b)
+{
+    const uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
+    return x < y ? -1 : x > y;
+}
+
+/* Spreads the low 10 bits of v to every third bit. */
+static uint32_t morton_spread(uint32_t v)
+{
+    v &= 1023u;
+    v = (v | v << 16) & 0x030000ffu;
+    v = (v | v << 8) & 0x0300f00fu;
+    v = (v | v << 4) & 0x030c30c3u;
+    v = (v | v << 2) & 0x09249249u;
+    return v;
+}
+
+static uint32_t bit_reverse(uint32_t v, uint32_t bits)
+{
+    uint32_t r = 0;
+    for (uint32_t b = 0; b < bits; ++b) {
+        r = r << 1 | (v >> b & 1u);
+    }
+    return r;
+}
+
+/* The sample cap's order: rest centroids along a Morton curve (10 bits an axis over their box,
+ * ties by index), then that list read in bit-reversed position order. `keys` is scratch for
+ * triangle_count entries. */
+static void sample_order(weft_crop *c, const float *rest, const uint32_t *tris, uint64_t *keys)
+{
+    const uint32_t m = c->triangle_count;
+    float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
+    for (uint32_t t = 0; t < m; ++t) {
+        for (int d = 0; d < 3; ++d) {
+            const float s01 = rest[3 * (size_t)tris[3 * (size_t)t] + d] + rest[3 * (size_t)tris[3 * (size_t)t + 1] + d];
+            const float at = (s01 + rest[3 * (size_t)tris[3 * (size_t)t + 2] + d]) / 3.0f;
+            lo[d] = at < lo[d] ? at : lo[d];
+            hi[d] = at > hi[d] ? at : hi[d];
+        }
+    }
+    for (uint32_t t = 0; t < m; ++t) {
+        uint32_t code = 0;
+        for (int d = 0; d < 3; ++d) {
+            const float s01 = rest[3 * (size_t)tris[3 * (size_t)t] + d] + rest[3 * (size_t)tris[3 * (size_t)t + 1] + d];
+            const float at = (s01 + rest[3 * (size_t)tris[3 * (size_t)t + 2] + d]) / 3.0f;
+            const float extent = hi[d] - lo[d];
+            const float f = extent > 0.0f ? (at - lo[d]) / extent * 1023.0f : 0.0f;
+            const uint32_t q = !(f >= 0.0f) ? 0u : f >= 1023.0f ? 1023u : (uint32_t)f; /* NaN: 0 */
+            code |= morton_spread(q) << d;
+        }
+        keys[t] = (uint64_t)code << 32 | t;
+    }
+    qsort(keys, m, sizeof *keys, cmp_u64);
+    uint32_t bits = 0;
+    while (bits < 32 && ((uint64_t)1 << bits) < m) {
+        bits++;
+    }
+    uint32_t r = 0;
+    for (uint64_t i = 0; i < ((uint64_t)1 << bits) && r < m; ++i) {
+        const uint32_t p = bit_reverse((uint32_t)i, bits);
+        if (p < m) {
+            c->by_rank[r++] = (uint32_t)(keys[p] & 0xffffffffu);
+        }
+    }
+}
+
 weft_result weft__crop_init(weft_context *ctx, weft_crop *crop, float margin, weft_collider_crop rule,
-                            uint32_t max_tokens, uint32_t vertex_count, uint32_t triangle_count)
+                            uint32_t max_tokens, weft_collider_cap cap, uint32_t vertex_count,
+                            uint32_t triangle_count, const float *rest, const uint32_t *triangles)
 {
     memset(crop, 0, sizeof *crop);
     crop->margin = margin;
     crop->rule = rule;
     crop->max_tokens = max_tokens;
+    crop->cap = cap;
+    crop->represented = 1.0f;
     crop->vertex_count = vertex_count;
     crop->triangle_count = triangle_count;
     if (triangle_count == 0) {
@@ -23,7 +94,16 @@ weft_result weft__crop_init(weft_context *ctx, weft_crop *crop, float margin, we
     if (ok && rule == WEFT_COLLIDER_CROP_CELLS) {
         ok = (crop->cells = weft__alloc(ctx, (size_t)CROP_CELLS * 6 * sizeof(float))) != NULL;
     }
-    if (ok && max_tokens > 0 && max_tokens < triangle_count) {
+    if (ok && max_tokens > 0 && max_tokens < triangle_count && cap == WEFT_COLLIDER_CAP_SAMPLE) {
+        uint64_t *keys = weft__alloc(ctx, (size_t)triangle_count * sizeof(uint64_t));
+        ok = keys && (crop->by_rank = weft__alloc(ctx, (size_t)triangle_count * sizeof(uint32_t))) != NULL &&
+             (crop->mark = weft__alloc(ctx, (size_t)triangle_count)) != NULL;
+        if (ok) {
+            memset(crop->mark, 0, triangle_count);
+            sample_order(crop, rest, triangles, keys);
+        }
+        weft__free(ctx, keys, (size_t)triangle_count * sizeof(uint64_t));
+    } else if (ok && max_tokens > 0 && max_tokens < triangle_count) {
         ok = (crop->keys = weft__alloc(ctx, (size_t)triangle_count * sizeof(uint64_t))) != NULL &&
              (crop->fine_start = weft__alloc(ctx, ((size_t)CROP_FINE_CELLS + 1) * sizeof(uint32_t))) != NULL &&
              (crop->fine_order = weft__alloc(ctx, (size_t)vertex_count * sizeof(uint32_t))) != NULL;
@@ -42,6 +122,8 @@ void weft__crop_free(const weft_context *ctx, weft_crop *crop)
     weft__free(ctx, crop->cells, (size_t)CROP_CELLS * 6 * sizeof(float));
     weft__free(ctx, crop->fine_start, ((size_t)CROP_FINE_CELLS + 1) * sizeof(uint32_t));
     weft__free(ctx, crop->fine_order, (size_t)crop->vertex_count * sizeof(uint32_t));
+    weft__free(ctx, crop->by_rank, (size_t)crop->triangle_count * sizeof(uint32_t));
+    weft__free(ctx, crop->mark, crop->triangle_count);
     memset(crop, 0, sizeof *crop);
 }
 
@@ -248,6 +330,30 @@ uint32_t weft__crop_select(weft_crop *c, const float *x, uint32_t n, const float
         if (overlap && (!cells || near_cells(c, tl, th))) {
             c->kept[kept++] = t;
         }
+    }
+    c->represented = 1.0f;
+    if (c->by_rank && kept > c->max_tokens) {
+        /* Sample: the max_tokens cropped triangles of lowest rank, listed in index order. */
+        for (uint32_t k = 0; k < kept; ++k) {
+            c->mark[c->kept[k]] = 1;
+        }
+        for (uint32_t r = 0, taken = 0; taken < c->max_tokens; ++r) {
+            const uint32_t t = c->by_rank[r];
+            if (c->mark[t]) {
+                c->mark[t] = 2;
+                taken++;
+            }
+        }
+        uint32_t w = 0;
+        for (uint32_t k = 0; k < kept; ++k) {
+            const uint32_t t = c->kept[k];
+            if (c->mark[t] == 2) {
+                c->kept[w++] = t;
+            }
+            c->mark[t] = 0;
+        }
+        c->represented = (float)kept / (float)w;
+        return w;
     }
     if (!c->keys || kept <= c->max_tokens) {
         return kept;

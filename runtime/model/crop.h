@@ -11,7 +11,16 @@
  *          tight box of an occupied cell grown by the margin. A subset of `box`: a T-shirt's
  *          box also holds the head, hands and legs, its cells do not.
  *
- * An optional cap keeps at most max_tokens of the triangles the rule selected: the ones whose
+ * An optional cap keeps at most max_tokens of the triangles the rule selected. Two ways
+ * (weft_collider_cap):
+ *
+ *   sample   an even sample: at creation the collider's triangles are ordered by the Morton code of
+ *            their rest centroid (10 bits an axis over the rest box, ties by index), and ranked in
+ *            the bit-reversed order of that list (van der Corput), so any rank prefix strides
+ *            evenly along the curve; a step keeps the max_tokens cropped triangles of lowest rank
+ *            and sets `represented` = cropped / kept, the weight the model gives each kept token
+ *            in its attention. Integer work per frame: the same set on every ISA.
+ *   nearest  the ones whose
  * centroid is nearest to a garment vertex, ties broken by triangle index. The distance is exact
  * up to a quarter margin (a 3 x 3 x 3 block of a fine grid whose cells are at least that wide,
  * at most WEFT_CROP_FINE_MAX per axis); beyond, the block's nearest vertex, and triangles with
@@ -34,6 +43,13 @@ typedef struct weft_crop {
     float margin;                       /* metres, > 0 */
     weft_collider_crop rule;
     uint32_t max_tokens;                /* 0: no cap */
+    weft_collider_cap cap;
+    float represented;                  /* cropped triangles per kept one in the last selection: 1
+                                         * unless the sample cap dropped some */
+    /* cap sample below triangle_count: triangles by rank, and a per-triangle mark (all 0 between
+     * selections) */
+    uint32_t *by_rank;
+    uint8_t *mark;
     uint32_t vertex_count, triangle_count;
     uint32_t *kept;                     /* triangle_count: the last selection, ascending */
     /* rule cells: WEFT_CROP_GRID_MAX^3 x 6 tight boxes (lo, hi), and the last frame's grid */
@@ -49,9 +65,11 @@ typedef struct weft_crop {
 } weft_crop;
 
 /* Sizes the scratch for a garment of `vertex_count` vertices and `triangle_count` collider
- * triangles. On failure nothing is held. */
+ * triangles (`triangles` over `rest`, the collider at rest, order the sample cap). On failure
+ * nothing is held. */
 weft_result weft__crop_init(weft_context *ctx, weft_crop *crop, float margin, weft_collider_crop rule,
-                            uint32_t max_tokens, uint32_t vertex_count, uint32_t triangle_count);
+                            uint32_t max_tokens, weft_collider_cap cap, uint32_t vertex_count,
+                            uint32_t triangle_count, const float *rest, const uint32_t *triangles);
 void weft__crop_free(const weft_context *ctx, weft_crop *crop);
 
 /* Selects the triangles of the collider at t+1 (`collider`, indexed by `triangles`) to turn into

@@ -445,6 +445,8 @@ typedef struct ct_state {
     float *cfeat;                       /* M x (18F + 13) */
     float *tok;                         /* (N + M) x D: cloth tokens, then kept collider tokens */
     float *tln, *tk, *tv;               /* (N + M) x D */
+    float *key_bias;                    /* N + M: the encoder keys' log weights (0 on cloth tokens;
+                                         * log crop.represented on sampled collider tokens) */
     float *wide;                        /* max(N + M, hK) x max(2D, ffn) */
     float *wide2;                       /* hK x ffn */
     float *gcat;                        /* N x 2D */
@@ -706,14 +708,14 @@ static void norm_linear_shared(const ct_state *s, const weft_ct_norm *n, const f
  * products and the canonical softmax, fused per block of queries), so it is bit-identical on
  * every ISA; the others use the fused fp32 kernel. */
 static void ct_attention(ct_state *s, const float *Q, const float *K, const float *V, uint32_t nq, uint32_t nk,
-                         float scale, const uint8_t *mask, float *out)
+                         float scale, const uint8_t *mask, const float *key_bias, float *out)
 {
     const uint32_t D = s->c.D, H = s->c.H, dh = D / H;
     if (s->prec != WEFT_PRECISION_INT8) {
-        s->k->attention(Q, D, K, D, V, D, nq, nk, H, dh, scale, mask, out, D, s->attn_scratch);
+        s->k->attention(Q, D, K, D, V, D, nq, nk, H, dh, scale, mask, key_bias, out, D, s->attn_scratch);
         return;
     }
-    s->qk->attention_det(Q, D, K, D, V, D, nq, nk, H, dh, scale, mask, out, D, s->att_s);
+    s->qk->attention_det(Q, D, K, D, V, D, nq, nk, H, dh, scale, mask, key_bias, out, D, s->att_s);
 }
 
 static int cmp_u64(const void *a, const void *b)
@@ -1113,6 +1115,7 @@ static weft_result ct_create(weft_garment *g)
               add_buf(g, s, &s->feat, N * (6 * F + 3)) && add_buf(g, s, &s->cfeat, M * (18 * F + 13)) &&
               add_buf(g, s, &s->tok, ntok * D) && add_buf(g, s, &s->tln, ntok * D) &&
               add_buf(g, s, &s->tk, ntok * D) && add_buf(g, s, &s->tv, ntok * D) &&
+              add_buf(g, s, &s->key_bias, ntok) &&
               add_buf(g, s, &s->wide, max_sz(ntok, hk) * wide_cols) && add_buf(g, s, &s->wide2, hk * c.ffn) &&
               add_buf(g, s, &s->gcat, N * 2 * D) && add_buf(g, s, &s->z, K * D) && add_buf(g, s, &s->za, K * D) &&
               add_buf(g, s, &s->x, hk * D) && add_buf(g, s, &s->xln, hk * D) && add_buf(g, s, &s->xq, hk * D) &&
@@ -1122,6 +1125,7 @@ static weft_result ct_create(weft_garment *g)
               (!skinned || (add_buf(g, s, &s->skin_cur, N * 3) && add_buf(g, s, &s->skin_next, N * 3))) &&
               (c.prior != WEFT_CT_PRIOR_XPBD || add_buf(g, s, &s->prior_y, N * 3));
     if (ok) {
+        memset(s->key_bias, 0, max_sz(ntok, 1) * sizeof(float));
         size_t a = weft_attention_scratch((uint32_t)K, (uint32_t)ntok);
         a = max_sz(a, weft_attention_scratch((uint32_t)hk, (uint32_t)hk));
         a = max_sz(a, weft_attention_scratch((uint32_t)N, (uint32_t)K));
@@ -1141,8 +1145,8 @@ static weft_result ct_create(weft_garment *g)
     if (ok) {
         /* The garment's crop overrides the model's margin (a level-of-detail lever). */
         const float margin = g->crop_margin > 0.0f ? g->crop_margin : c.crop_margin;
-        ok = weft__crop_init(g->ctx, &s->crop, margin, g->crop_rule, g->max_collider_tokens, s->N, s->M) ==
-             WEFT_OK;
+        ok = weft__crop_init(g->ctx, &s->crop, margin, g->crop_rule, g->max_collider_tokens, g->collider_cap, s->N,
+                             s->M, g->collider_rest, g->collider_triangles) == WEFT_OK;
     }
     if (ok) {
         r = build_reduced(g, s);
@@ -1224,15 +1228,15 @@ static void gnn(ct_state *s, const weft_ct_mlp *layers, uint32_t count, float *h
 }
 
 /* x <- x + O(attn(Qp, K(LN y), V(LN y))); x <- x + FF(LN x). Qp is the precomputed or current
- * query projection (nq x D); y holds ny rows. */
+ * query projection (nq x D); y holds ny rows, weighted by key_bias (NULL: all alike). */
 static void cross_block(ct_state *s, const weft_ct_xattn *a, const float *qp, uint32_t nq, float *x, const float *y,
-                        uint32_t ny, float *yln, float *yk, float *yv, float *att, float *xln)
+                        uint32_t ny, const float *key_bias, float *yln, float *yk, float *yv, float *att, float *xln)
 {
     const uint32_t D = s->c.D, H = s->c.H, dh = D / H;
     const weft_ct_linear *kv[2] = {&a->k, &a->v};
     float *const kv_out[2] = {yk, yv};
     norm_linear_shared(s, &a->ln_kv, y, yln, ny, 2, kv, kv_out);
-    ct_attention(s, qp, yk, yv, nq, ny, 1.0f / sqrtf((float)dh), NULL, att);
+    ct_attention(s, qp, yk, yv, nq, ny, 1.0f / sqrtf((float)dh), NULL, key_bias, att);
     linear(s, nq, &a->o, att, D, x, D, WEFT_ACT_NONE, true);
     norm(s, &a->ln_ff, x, xln, nq, D, s->c.ln_eps);
     linear(s, nq, &a->ff.fc1, xln, D, s->wide, 2 * D, WEFT_ACT_GELU, false);
@@ -1337,7 +1341,17 @@ static void ct_encode(weft_garment *g, ct_state *s)
 
     /* ---- encoder: learned queries compress every token into Z_t ---- */
     memcpy(s->z, w->queries, (size_t)K * D * sizeof(float));
-    cross_block(s, &w->enc_xattn, s->enc_q, K, s->z, s->tok, N + kept, s->tln, s->tk, s->tv, s->za, s->xln);
+    /* a sampled crop: each collider token stands for crop.represented cropped triangles */
+    const float *key_bias = NULL;
+    if (kept > 0 && s->crop.represented != 1.0f) {
+        const float b = logf(s->crop.represented);
+        for (uint32_t k = 0; k < kept; ++k) {
+            s->key_bias[N + k] = b;
+        }
+        key_bias = s->key_bias;
+    }
+    cross_block(s, &w->enc_xattn, s->enc_q, K, s->z, s->tok, N + kept, key_bias, s->tln, s->tk, s->tv, s->za,
+                s->xln);
 
     /* ---- temporal transformer over the latent window (oldest first) ---- */
     const size_t frame = (size_t)K * D;
@@ -1415,7 +1429,7 @@ static void ct_temporal(const ct_state *first, ct_state *const *members, uint32_
         for (uint32_t i = 0; i < count; ++i) {
             const size_t qo = (size_t)i * nq * D, ko = (size_t)i * hk * D;
             ct_attention(members[i], st->xq + qo, st->xk + ko, st->xv + ko, nq, hk, scale,
-                         last ? NULL : members[i]->tmask, st->xa + qo);
+                         last ? NULL : members[i]->tmask, NULL, st->xa + qo);
         }
         linear(first, Q, &ly->o, st->xa, D, xr, D, WEFT_ACT_NONE, true);
         norm(first, &ly->ln2, xr, st->xln, Q, D, eps);
@@ -1538,7 +1552,7 @@ static weft_result ct_decode(weft_garment *g, ct_state *s, const float *z_next)
 
     /* ---- decoder: rest-shape queries read the predicted latents ---- */
     memcpy(s->dh, s->rest_tok, (size_t)N * D * sizeof(float));
-    cross_block(s, &w->dec_xattn, s->dec_q, N, s->dh, z_next, K, s->xln, s->xk, s->xv, s->da, s->dln);
+    cross_block(s, &w->dec_xattn, s->dec_q, N, s->dh, z_next, K, NULL, s->xln, s->xk, s->xv, s->da, s->dln);
     if (c->dec_skip) {
         const size_t n = (size_t)N * D;
         for (size_t i = 0; i < n; ++i) {

@@ -1,7 +1,7 @@
 /* Multi-head attention of every SIMD level against the scalar oracle: many queries x few keys
  * (decoder) and few queries x many keys (encoder), awkward nq/nk/heads/dh (tile tails, head
  * widths above the transposed-key chunk), strided Q/K/V/out, byte masks with fully masked rows,
- * and the scratch size from weft_attention_scratch() (guarded: overruns are caught).
+ * key biases (and log w on a key against w copies of it), and the scratch size from weft_attention_scratch() (guarded: overruns are caught).
  *
  * Tolerance: outputs are convex combinations of V rows (|V| <= 1), so an absolute bound fits:
  * ATTN_ATOL covers score rounding over dh terms and the vector exp. */
@@ -48,14 +48,23 @@ static void run_case(const kc_table *t, const attn_case *c, test_rng *rng)
             }
         }
     }
+    /* odd paddings also weigh the keys: key_bias in [-2, 2] */
+    float *bias = NULL;
+    if (c->pad % 2 && c->nk > 0) {
+        bias = (float *)malloc((size_t)c->nk * sizeof(float));
+        CHECK(bias != NULL);
+        for (uint32_t k = 0; bias && k < c->nk; ++k) {
+            bias[k] = test_rng_float(rng, -2.0f, 2.0f);
+        }
+    }
     const float scale = 1.0f / sqrtf((float)c->dh);
-    kc_oracle()->attention(Q.p, ldq, K.p, ldk, V.p, ldv, c->nq, c->nk, c->heads, c->dh, scale, mask, Oref.p, ldo,
+    kc_oracle()->attention(Q.p, ldq, K.p, ldk, V.p, ldv, c->nq, c->nk, c->heads, c->dh, scale, mask, bias, Oref.p, ldo,
                            scratch_ref.p);
-    t->k->attention(Q.p, ldq, K.p, ldk, V.p, ldv, c->nq, c->nk, c->heads, c->dh, scale, mask, Ogot.p, ldo, scratch.p);
+    t->k->attention(Q.p, ldq, K.p, ldk, V.p, ldv, c->nq, c->nk, c->heads, c->dh, scale, mask, bias, Ogot.p, ldo, scratch.p);
 
     char what[160];
-    snprintf(what, sizeof what, "attention nq=%u nk=%u heads=%u dh=%u pad=%u mask=%d", c->nq, c->nk, c->heads,
-             c->dh, c->pad, c->mask);
+    snprintf(what, sizeof what, "attention nq=%u nk=%u heads=%u dh=%u pad=%u mask=%d bias=%d", c->nq, c->nk,
+             c->heads, c->dh, c->pad, c->mask, bias != NULL);
     bool pad_ok = true, masked_zero = true;
     for (uint32_t q = 0; q < c->nq; ++q) {
         const float *g = Ogot.p + (size_t)q * ldo;
@@ -76,6 +85,7 @@ static void run_case(const kc_table *t, const attn_case *c, test_rng *rng)
     CHECK_MSG(kc_guards_intact(&Ogot), "[%s] %s: write outside out", t->name, what);
     CHECK_MSG(kc_guards_intact(&scratch), "[%s] %s: scratch overrun", t->name, what);
     free(mask);
+    free(bias);
     kc_buf *all[] = {&Q, &K, &V, &Oref, &Ogot, &scratch, &scratch_ref};
     for (size_t i = 0; i < sizeof all / sizeof all[0]; ++i) {
         kc_free(all[i]);
@@ -148,7 +158,7 @@ static void test_attention_no_keys(void)
         }
         float scratch[64];
         const float q[16] = {1.0f};
-        tabs[ti].k->attention(q, 8, NULL, 8, NULL, 8, 2, 0, 2, 4, 0.5f, NULL, out, 8, scratch);
+        tabs[ti].k->attention(q, 8, NULL, 8, NULL, 8, 2, 0, 2, 4, 0.5f, NULL, NULL, out, 8, scratch);
         bool zero = true;
         for (size_t i = 0; i < 16; ++i) {
             zero = zero && out[i] == 0.0f;
@@ -156,6 +166,47 @@ static void test_attention_no_keys(void)
         CHECK_MSG(zero, "[%s] attention with nk = 0 must give zeros", tabs[ti].name);
         CHECK(weft_attention_scratch(2, 0) <= 64);
     }
+}
+
+/* key_bias = log w weighs a key as w copies of it: 64 queries over 300 keys, each key k of the
+ * first 100 given w = 1 + k % 4 by its bias, against the same keys written out w times. */
+static void test_attention_key_weight_is_copies(void)
+{
+    enum { NQ = 64, NK = 300, H = 4, DH = 16, D = H * DH };
+    kc_table tabs[8];
+    const int nt = kc_tables(tabs);
+    test_rng rng = {77};
+    float *Q = malloc(sizeof(float) * NQ * D), *K = malloc(sizeof(float) * NK * D), *V = malloc(sizeof(float) * NK * D);
+    float *K2 = malloc(sizeof(float) * 4 * NK * D), *V2 = malloc(sizeof(float) * 4 * NK * D);
+    float *bias = malloc(sizeof(float) * NK), *a = malloc(sizeof(float) * NQ * D), *b = malloc(sizeof(float) * NQ * D);
+    float *scratch = malloc(sizeof(float) * weft_attention_scratch(NQ, 4 * NK));
+    CHECK(Q && K && V && K2 && V2 && bias && a && b && scratch);
+    if (Q && K && V && K2 && V2 && bias && a && b && scratch) {
+        kc_fill(&rng, Q, NQ * D, -1.0f, 1.0f);
+        kc_fill(&rng, K, NK * D, -1.0f, 1.0f);
+        kc_fill(&rng, V, NK * D, -1.0f, 1.0f);
+        uint32_t n2 = 0;
+        for (uint32_t k = 0; k < NK; ++k) {
+            const uint32_t w = k < 100 ? 1 + k % 4 : 1;
+            bias[k] = logf((float)w);
+            for (uint32_t c = 0; c < w; ++c, ++n2) {
+                memcpy(K2 + (size_t)n2 * D, K + (size_t)k * D, sizeof(float) * D);
+                memcpy(V2 + (size_t)n2 * D, V + (size_t)k * D, sizeof(float) * D);
+            }
+        }
+        const float scale = 0.25f;
+        for (int ti = 0; ti < nt; ++ti) {
+            tabs[ti].k->attention(Q, D, K, D, V, D, NQ, NK, H, DH, scale, NULL, bias, a, D, scratch);
+            tabs[ti].k->attention(Q, D, K2, D, V2, D, NQ, n2, H, DH, scale, NULL, NULL, b, D, scratch);
+            double worst = 0;
+            for (size_t i = 0; i < (size_t)NQ * D; ++i) {
+                worst = fmax(worst, fabs((double)a[i] - b[i]));
+            }
+            CHECK_MSG(worst <= ATTN_ATOL, "[%s] a key weighted w by log w differs from w copies by %g", tabs[ti].name,
+                      worst);
+        }
+    }
+    free(Q); free(K); free(V); free(K2); free(V2); free(bias); free(a); free(b); free(scratch);
 }
 
 /* Callers size one buffer for their largest shape; that must cover every smaller one. */
@@ -172,4 +223,4 @@ static void test_attention_scratch_monotonic(void)
 }
 
 TEST_MAIN(TEST_CASE(test_attention_scratch_monotonic), TEST_CASE(test_attention_awkward_sizes), TEST_CASE(test_attention_model_shapes),
-          TEST_CASE(test_attention_no_keys))
+          TEST_CASE(test_attention_no_keys), TEST_CASE(test_attention_key_weight_is_copies))

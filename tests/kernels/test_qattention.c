@@ -1,6 +1,6 @@
 /* The fused deterministic attention (attention_det), the model-shaped int8 / fp16 / fp32 det
  * GEMMs and the posembed batching: every variant this CPU runs must match the scalar oracle bit for bit, the
- * attention must equal its documented composition (per head: in-order Q K^T, scale, mask,
+ * attention must equal its documented composition (per head: in-order Q K^T, scale, key bias, mask,
  * softmax_rows_det, in-order P V) on every variant, and the oracle must be accurate against a
  * double-precision reference. */
 #include "test.h"
@@ -32,7 +32,7 @@ static float *rand_floats(test_rng *rng, size_t n, float lo, float hi)
  * fused kernel): keys transposed per head, gemm_det, scale / mask, softmax_rows_det, gemm_det. */
 static void composed_attention(const weft_qkernels *q, const float *Q, uint32_t ld, const float *K, const float *V,
                                uint32_t nq, uint32_t nk, uint32_t H, uint32_t dh, float scale, const uint8_t *mask,
-                               float *out, uint32_t ldo)
+                               const float *bias, float *out, uint32_t ldo)
 {
     float *kt = malloc(((size_t)dh * nk + 1) * sizeof(float));
     float *s = malloc(((size_t)nq * nk + 1) * sizeof(float));
@@ -44,7 +44,13 @@ static void composed_attention(const weft_qkernels *q, const float *Q, uint32_t 
         }
         q->gemm_det(nq, nk, dh, Q + h * dh, ld, kt, nk, NULL, s, nk, WEFT_ACT_NONE, false);
         for (size_t i = 0; i < (size_t)nq * nk; ++i) {
-            s[i] = mask && !mask[i] ? -INFINITY : s[i] * scale;
+            s[i] *= scale;
+        }
+        for (size_t i = 0; bias && i < (size_t)nq * nk; ++i) { /* a pass of its own: never fused */
+            s[i] += bias[i % nk];
+        }
+        for (size_t i = 0; mask && i < (size_t)nq * nk; ++i) {
+            s[i] = mask[i] ? s[i] : -INFINITY;
         }
         q->softmax_rows_det(s, nq, nk, nk);
         q->gemm_det(nq, dh, nk, s, nk, V + h * dh, ld, NULL, out + h * dh, ldo, WEFT_ACT_NONE, false);
@@ -88,6 +94,8 @@ static void test_attention_bit_exact_and_composed(void)
                 memset(mask + 2 * (size_t)a.nk, 0, a.nk); /* query 2 sees nothing */
             }
         }
+        /* every other case weighs its keys (key_bias in [-2, 2], as log w of w in [0.14, 7.4]) */
+        float *bias = c % 2 ? rand_floats(&rng, (size_t)a.nk + 1, -2.0f, 2.0f) : NULL;
         const float scale = 1.0f / sqrtf((float)a.dh);
         const size_t on = (size_t)a.nq * ldo;
         float *ref = malloc((on + 1) * sizeof(float)), *out = malloc((on + 1) * sizeof(float));
@@ -96,7 +104,7 @@ static void test_attention_bit_exact_and_composed(void)
         for (size_t i = 0; i < on; ++i) {
             ref[i] = 1234.5f;
         }
-        g_variants[0]->attention_det(Q, ld, K, ld, V, ld, a.nq, a.nk, a.H, a.dh, scale, mask, ref, ldo, scratch);
+        g_variants[0]->attention_det(Q, ld, K, ld, V, ld, a.nq, a.nk, a.H, a.dh, scale, mask, bias, ref, ldo, scratch);
         for (uint32_t i = 0; i < a.nq; ++i) { /* columns past the heads are never written */
             for (uint32_t d = D; d < ldo; ++d) {
                 guard_hits += ref[(size_t)i * ldo + d] != 1234.5f;
@@ -112,7 +120,7 @@ static void test_attention_bit_exact_and_composed(void)
                     for (uint32_t d = 0; d < a.dh; ++d) {
                         s += (double)Q[(size_t)i * ld + h * a.dh + d] * K[(size_t)j * ld + h * a.dh + d];
                     }
-                    p[j] = mask && !mask[(size_t)i * a.nk + j] ? -INFINITY : s * scale;
+                    p[j] = mask && !mask[(size_t)i * a.nk + j] ? -INFINITY : s * scale + (bias ? bias[j] : 0.0);
                     m = fmax(m, p[j]);
                 }
                 for (uint32_t j = 0; j < a.nk; ++j) {
@@ -132,9 +140,9 @@ static void test_attention_bit_exact_and_composed(void)
         for (uint32_t v = 0; v < g_nvariants; ++v) {
             const weft_qkernels *q = g_variants[v];
             memset(out, 0, on * sizeof(float));
-            q->attention_det(Q, ld, K, ld, V, ld, a.nq, a.nk, a.H, a.dh, scale, mask, out, ldo, scratch);
+            q->attention_det(Q, ld, K, ld, V, ld, a.nq, a.nk, a.H, a.dh, scale, mask, bias, out, ldo, scratch);
             memcpy(comp, out, on * sizeof(float));
-            composed_attention(q, Q, ld, K, V, a.nq, a.nk, a.H, a.dh, scale, mask, comp, ldo);
+            composed_attention(q, Q, ld, K, V, a.nq, a.nk, a.H, a.dh, scale, mask, bias, comp, ldo);
             for (uint32_t i = 0; i < a.nq; ++i) {
                 const size_t row = (size_t)i * ldo;
                 if (v > 0 && memcmp(out + row, ref + row, D * sizeof(float)) != 0) {
@@ -153,7 +161,7 @@ static void test_attention_bit_exact_and_composed(void)
                 CHECK(ref[2 * (size_t)ldo + d] == 0.0f);
             }
         }
-        free(Q); free(K); free(V); free(mask); free(ref); free(out); free(comp); free(scratch);
+        free(Q); free(K); free(V); free(mask); free(bias); free(ref); free(out); free(comp); free(scratch);
     }
     printf("attention_det: %u variants, oracle worst abs error vs double %.3g\n", g_nvariants, worst);
     CHECK_EQ_INT(mismatches, 0);

@@ -5,9 +5,12 @@
  *     every part of the garment;
  *   - the cap keeps the triangles nearest to a garment vertex, ties to the lower index, and
  *     agrees with a brute-force ranking on random scenes;
+ *   - the sample cap keeps cropped triangles only, spread evenly (one per Morton block of the
+ *     stride), reports the triangles each stands for, and is a no-op when the crop is under it;
  *   - through a garment: the margin and the cap change the kept token count as expected, bad
  *     values are rejected with nothing created, the step allocates nothing, and a capped int8
- *     garment gives the same bits at every kernel ISA the CPU has. */
+ *     garment gives the same bits at every kernel ISA the CPU has (either cap); a sample cap above
+ *     the crop gives the uncapped garment's bits. */
 #include "model/crop.h"
 #include "sheet_floor_scene.h"
 #include "test.h"
@@ -79,7 +82,7 @@ static void test_box_matches_training_rule(void)
     static uint32_t tris[3 * NT];
     test_rng r = {0x9e3779b97f4a7c15ull};
     weft_crop crop;
-    CHECK_RESULT(weft__crop_init(ctx, &crop, 0.15f, WEFT_COLLIDER_CROP_BOX, 0, N, NT), WEFT_OK);
+    CHECK_RESULT(weft__crop_init(ctx, &crop, 0.15f, WEFT_COLLIDER_CROP_BOX, 0, WEFT_COLLIDER_CAP_NEAREST, N, NT, NULL, NULL), WEFT_OK);
     uint32_t total = 0;
     for (int scene = 0; scene < 20; ++scene) {
         random_scene(&r, x, N, c, NC, tris, NT);
@@ -119,8 +122,8 @@ static void test_cells_drop_the_empty_middle(void)
                        3.0f,  3.0f,  3.0f,  3.02f, 3.0f,  3.0f,  3.0f,  3.02f, 3.0f}; /* 3 */
     const uint32_t tris[] = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11};
     weft_crop box, cells;
-    CHECK_RESULT(weft__crop_init(ctx, &box, 0.1f, WEFT_COLLIDER_CROP_BOX, 0, 8, 4), WEFT_OK);
-    CHECK_RESULT(weft__crop_init(ctx, &cells, 0.1f, WEFT_COLLIDER_CROP_CELLS, 0, 8, 4), WEFT_OK);
+    CHECK_RESULT(weft__crop_init(ctx, &box, 0.1f, WEFT_COLLIDER_CROP_BOX, 0, WEFT_COLLIDER_CAP_NEAREST, 8, 4, NULL, NULL), WEFT_OK);
+    CHECK_RESULT(weft__crop_init(ctx, &cells, 0.1f, WEFT_COLLIDER_CROP_CELLS, 0, WEFT_COLLIDER_CAP_NEAREST, 8, 4, NULL, NULL), WEFT_OK);
     CHECK_EQ_INT(weft__crop_select(&box, x, 8, c, tris), 3);
     CHECK(box.kept[0] == 0 && box.kept[1] == 1 && box.kept[2] == 2);
     CHECK_EQ_INT(weft__crop_select(&cells, x, 8, c, tris), 2);
@@ -133,8 +136,8 @@ static void test_cells_drop_the_empty_middle(void)
     static float rx[3 * N], rc[3 * NC];
     static uint32_t rt[3 * NT];
     test_rng r = {12345};
-    CHECK_RESULT(weft__crop_init(ctx, &box, 0.12f, WEFT_COLLIDER_CROP_BOX, 0, N, NT), WEFT_OK);
-    CHECK_RESULT(weft__crop_init(ctx, &cells, 0.12f, WEFT_COLLIDER_CROP_CELLS, 0, N, NT), WEFT_OK);
+    CHECK_RESULT(weft__crop_init(ctx, &box, 0.12f, WEFT_COLLIDER_CROP_BOX, 0, WEFT_COLLIDER_CAP_NEAREST, N, NT, NULL, NULL), WEFT_OK);
+    CHECK_RESULT(weft__crop_init(ctx, &cells, 0.12f, WEFT_COLLIDER_CROP_CELLS, 0, WEFT_COLLIDER_CAP_NEAREST, N, NT, NULL, NULL), WEFT_OK);
     uint32_t fewer = 0;
     for (int scene = 0; scene < 20; ++scene) {
         random_scene(&r, rx, N, rc, NC, rt, NT);
@@ -185,7 +188,8 @@ static void test_cap_nearest_then_index(void)
     for (size_t i = 0; i < sizeof cases / sizeof cases[0]; ++i) {
         for (int rule = 0; rule < 2; ++rule) {
             weft_crop crop;
-            CHECK_RESULT(weft__crop_init(ctx, &crop, 0.15f, (weft_collider_crop)rule, cases[i].cap, 4, NT), WEFT_OK);
+            CHECK_RESULT(weft__crop_init(ctx, &crop, 0.15f, (weft_collider_crop)rule,
+                                         cases[i].cap, WEFT_COLLIDER_CAP_NEAREST, 4, NT, NULL, NULL), WEFT_OK);
             const uint32_t n = weft__crop_select(&crop, x, 4, c, tris);
             bool same = n == cases[i].count;
             for (uint32_t k = 0; same && k < n; ++k) {
@@ -227,7 +231,7 @@ static void test_cap_matches_brute_force(void)
             }
         }
         weft_crop crop;
-        CHECK_RESULT(weft__crop_init(ctx, &crop, 0.15f, WEFT_COLLIDER_CROP_BOX, CAP, N, NT), WEFT_OK);
+        CHECK_RESULT(weft__crop_init(ctx, &crop, 0.15f, WEFT_COLLIDER_CROP_BOX, CAP, WEFT_COLLIDER_CAP_NEAREST, N, NT, NULL, NULL), WEFT_OK);
         const uint32_t n = weft__crop_select(&crop, x, N, c, tris);
         CHECK_EQ_INT(n, CAP);
         /* Brute force over every triangle (all are in the grown box). */
@@ -269,6 +273,71 @@ static void test_cap_matches_brute_force(void)
             CHECK(k == 0 || crop.kept[k] > crop.kept[k - 1]); /* ascending */
         }
         CHECK_MSG(agree == CAP, "scene %d: %u of %u kept triangles are the brute-force nearest", scene, agree, CAP);
+        weft__crop_free(ctx, &crop);
+    }
+    weft_context_destroy(ctx);
+}
+
+/* The sample cap on a 64 x 64 grid of small triangles in the plane y = 0, the collider at rest
+ * (ascending index is row-major): every cap keeps that many triangles of the crop, in ascending
+ * order, with represented = cropped / kept; a cap of 64 keeps one triangle in each 8 x 8 block
+ * (a Morton block of 64 positions is one 8 x 8 block here, and the first 64 ranks stride the
+ * curve by 64); a garment over one quarter of the grid crops it, and the sample stays inside. */
+static void test_cap_sample_even(void)
+{
+    weft_context *ctx = ctx_make(WEFT_ISA_AUTO);
+    CHECK(ctx != NULL);
+    enum { G = 64, NT = G * G };
+    static float c[9 * NT];
+    static uint32_t tris[3 * NT];
+    for (uint32_t t = 0; t < NT; ++t) {
+        const float x0 = 0.01f * (float)(t % G), z0 = 0.01f * (float)(t / G);
+        const float v[9] = {x0, 0.0f, z0, x0 + 0.008f, 0.0f, z0, x0, 0.0f, z0 + 0.008f};
+        memcpy(c + 9 * t, v, sizeof v);
+        for (int k = 0; k < 3; ++k) {
+            tris[3 * t + k] = 3 * t + (uint32_t)k;
+        }
+    }
+    /* a garment spanning the whole grid: the box crop keeps every triangle */
+    const float whole[] = {0.0f, 0.0f, 0.0f, 0.64f, 0.0f, 0.64f};
+    static const uint32_t caps[] = {1, 64, 1000, NT - 1, NT, NT + 5};
+    for (size_t i = 0; i < sizeof caps / sizeof caps[0]; ++i) {
+        weft_crop crop;
+        CHECK_RESULT(weft__crop_init(ctx, &crop, 0.05f, WEFT_COLLIDER_CROP_BOX, caps[i], WEFT_COLLIDER_CAP_SAMPLE, 2,
+                                     NT, c, tris),
+                     WEFT_OK);
+        const uint32_t want = caps[i] < NT ? caps[i] : NT;
+        const uint32_t n = weft__crop_select(&crop, whole, 2, c, tris);
+        CHECK_MSG(n == want, "cap %u: %u kept", caps[i], n);
+        bool ascending = true;
+        for (uint32_t k = 1; k < n; ++k) {
+            ascending = ascending && crop.kept[k] > crop.kept[k - 1];
+        }
+        CHECK(ascending);
+        CHECK_MSG(crop.represented == (float)NT / (float)want, "cap %u: represented %g", caps[i],
+                  (double)crop.represented);
+        if (caps[i] == 64) {
+            uint32_t per_block[64] = {0};
+            for (uint32_t k = 0; k < n; ++k) {
+                const uint32_t t = crop.kept[k];
+                per_block[(t / G) / 8 * 8 + (t % G) / 8]++;
+            }
+            bool one_each = true;
+            for (int b = 0; b < 64; ++b) {
+                one_each = one_each && per_block[b] == 1;
+            }
+            CHECK_MSG(one_each, "cap 64: not one triangle in each 8 x 8 block");
+        }
+        /* a garment over x, z <= 0.245 (margin 5 cm): the box keeps the 30 x 30 triangles x0, z0 <= 0.29 */
+        const float quarter[] = {0.0f, 0.0f, 0.0f, 0.245f, 0.0f, 0.245f};
+        const uint32_t nq = weft__crop_select(&crop, quarter, 2, c, tris);
+        const uint32_t inq = 30 * 30;
+        bool inside = true;
+        for (uint32_t k = 0; k < nq; ++k) {
+            inside = inside && crop.kept[k] % G < 30 && crop.kept[k] / G < 30;
+        }
+        CHECK_MSG(inside && nq == (caps[i] < inq ? caps[i] : inq), "cap %u over a quarter: %u kept", caps[i], nq);
+        CHECK(crop.represented == (caps[i] < inq ? (float)inq / (float)caps[i] : 1.0f));
         weft__crop_free(ctx, &crop);
     }
     weft_context_destroy(ctx);
@@ -355,6 +424,11 @@ static void test_garment_token_counts(void)
     CHECK_EQ_INT(first_tokens(ctx, &s, &d), 7);
     d.max_collider_tokens = own + 100;
     CHECK_EQ_INT(first_tokens(ctx, &s, &d), own);
+    d.collider_cap = WEFT_COLLIDER_CAP_SAMPLE;
+    CHECK_EQ_INT(first_tokens(ctx, &s, &d), own);
+    d.max_collider_tokens = 7;
+    CHECK_EQ_INT(first_tokens(ctx, &s, &d), 7);
+    d.collider_cap = WEFT_COLLIDER_CAP_NEAREST;
     /* Cells on a flat sheet: every cell is occupied, so nothing in the box is far from it. */
     d.max_collider_tokens = 0;
     d.collider_crop = WEFT_COLLIDER_CROP_CELLS;
@@ -392,6 +466,10 @@ static void test_bad_values_rejected(void)
     weft_garment *g = NULL;
     CHECK_RESULT(weft_garment_create(ctx, &d, &g), WEFT_ERROR_INVALID_ARGUMENT);
     CHECK(g == NULL && strstr(weft_last_error(), "collider_crop") != NULL);
+    d = scene_def(&s, m);
+    d.collider_cap = WEFT_COLLIDER_CAP_COUNT;
+    CHECK_RESULT(weft_garment_create(ctx, &d, &g), WEFT_ERROR_INVALID_ARGUMENT);
+    CHECK(g == NULL && strstr(weft_last_error(), "collider_cap") != NULL);
     weft_model_destroy(m);
     weft_context_destroy(ctx);
 }
@@ -427,9 +505,10 @@ static void test_step_allocates_nothing(void)
     }
     static scene s;
     scene_make(&s);
-    for (int rule = 0; rule < 2; ++rule) {
+    for (int rule = 0; rule < 4; ++rule) {
         weft_garment_def d = scene_def(&s, m);
-        d.collider_crop = (weft_collider_crop)rule;
+        d.collider_crop = (weft_collider_crop)(rule & 1);
+        d.collider_cap = rule & 2 ? WEFT_COLLIDER_CAP_SAMPLE : WEFT_COLLIDER_CAP_NEAREST;
         d.collider_crop_margin = 0.1f;
         d.max_collider_tokens = 20;
         weft_garment *g = NULL;
@@ -449,7 +528,7 @@ static void test_step_allocates_nothing(void)
 
 /* int8 is bit-exact across ISAs; with a cap and the cells rule it must stay so (the kept set is
  * chosen by exact integer keys in scalar code). */
-static void test_capped_int8_same_bits_every_isa(void)
+static void capped_int8_same_bits(weft_collider_cap cap)
 {
     static scene s;
     scene_make(&s);
@@ -469,6 +548,7 @@ static void test_capped_int8_same_bits_every_isa(void)
         d.collider_crop = WEFT_COLLIDER_CROP_CELLS;
         d.collider_crop_margin = 0.12f;
         d.max_collider_tokens = 25;
+        d.collider_cap = cap;
         weft_garment *g = NULL;
         CHECK_RESULT(weft_garment_create(ctx, &d, &g), WEFT_OK);
         for (int f = 0; g && f < 3; ++f) {
@@ -481,7 +561,8 @@ static void test_capped_int8_same_bits_every_isa(void)
                 memcpy(ref, x, sizeof ref);
                 have_ref = true;
             } else {
-                CHECK_MSG(memcmp(ref, x, sizeof ref) == 0, "isa %s differs from the first", weft_isa_name(isas[k]));
+                CHECK_MSG(memcmp(ref, x, sizeof ref) == 0, "cap %d: isa %s differs from the first", (int)cap,
+                          weft_isa_name(isas[k]));
             }
         }
         weft_garment_destroy(g);
@@ -491,8 +572,45 @@ static void test_capped_int8_same_bits_every_isa(void)
     CHECK(have_ref);
 }
 
+static void test_capped_int8_same_bits_every_isa(void)
+{
+    capped_int8_same_bits(WEFT_COLLIDER_CAP_NEAREST);
+    capped_int8_same_bits(WEFT_COLLIDER_CAP_SAMPLE);
+}
+
+/* A sample cap the crop never reaches weighs nothing: the uncapped garment's bits, int8 and fp32. */
+static void test_sample_cap_above_crop_is_uncapped(void)
+{
+    static scene s;
+    scene_make(&s);
+    weft_context *ctx = ctx_make(WEFT_ISA_AUTO);
+    weft_model *m = NULL;
+    CHECK_RESULT(weft_model_load_file(ctx, GAME, &m), WEFT_OK);
+    for (int p = 0; m && p < 2; ++p) {
+        float out[2][3 * 64];
+        for (int v = 0; v < 2; ++v) {
+            weft_garment_def d = scene_def(&s, m);
+            d.precision = p ? WEFT_PRECISION_INT8 : WEFT_PRECISION_FP32;
+            d.max_collider_tokens = v ? s.nft : 0;
+            d.collider_cap = WEFT_COLLIDER_CAP_SAMPLE;
+            weft_garment *g = NULL;
+            CHECK_RESULT(weft_garment_create(ctx, &d, &g), WEFT_OK);
+            for (int f = 0; g && f < 3; ++f) {
+                CHECK_RESULT(weft_garment_set_collider(g, s.floor), WEFT_OK);
+                CHECK_RESULT(weft_garment_step(g), WEFT_OK);
+            }
+            memcpy(out[v], g ? weft_garment_positions(g) : s.rest, sizeof out[v]);
+            weft_garment_destroy(g);
+        }
+        CHECK_MSG(memcmp(out[0], out[1], sizeof out[0]) == 0, "precision %d: a cap above the crop changed bits", p);
+    }
+    weft_model_destroy(m);
+    weft_context_destroy(ctx);
+}
+
 TEST_MAIN(TEST_CASE(test_box_matches_training_rule), TEST_CASE(test_cells_drop_the_empty_middle),
           TEST_CASE(test_cap_nearest_then_index), TEST_CASE(test_cap_matches_brute_force),
           TEST_CASE(test_garment_token_counts),
           TEST_CASE(test_bad_values_rejected), TEST_CASE(test_step_allocates_nothing),
-          TEST_CASE(test_capped_int8_same_bits_every_isa))
+          TEST_CASE(test_capped_int8_same_bits_every_isa), TEST_CASE(test_cap_sample_even),
+          TEST_CASE(test_sample_cap_above_crop_is_uncapped))

@@ -60,7 +60,7 @@ static void run_job(const bench_job *j)
     case JOB_ATTN: {
         const uint32_t width = j->c * j->d;
         j->k->attention(j->x, width, j->w, width, j->z, width, j->a, j->b, j->c, j->d, 1.0f / sqrtf((float)j->d),
-                        NULL, j->y, width, j->scratch);
+                        NULL, NULL, j->y, width, j->scratch);
         break;
     }
     case JOB_LAYERNORM:

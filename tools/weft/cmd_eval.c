@@ -59,6 +59,7 @@ typedef struct eval_opts {
     float crop_margin;                  /* m, 0: the model's own */
     weft_collider_crop crop;
     uint32_t max_collider_tokens;
+    weft_collider_cap collider_cap;
     float tether;                       /* m, 0: no tethers */
     float strain_limit;                 /* fraction, 0: off */
     float strain_contact;               /* metres, 0: off (weft_garment_def.strain.contact) */
@@ -521,6 +522,7 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
     d.collider_crop_margin = o->crop_margin;
     d.collider_crop = o->crop;
     d.max_collider_tokens = o->max_collider_tokens;
+    d.collider_cap = o->collider_cap;
     d.rest_positions = up ? sim_rest : s.rest;
     d.vertex_count = SV;
     d.triangles = up ? sim_faces : s.faces;
@@ -822,7 +824,7 @@ static int cmp_str(const void *a, const void *b) { return strcmp(*(char *const *
 
 enum {
     OPT_SEQ = 1, OPT_MODEL, OPT_METHOD, OPT_PRECISION, OPT_CCD, OPT_CCD_ITERATIONS, OPT_SPLIT, OPT_FRAMES, OPT_JSON,
-    OPT_CROP_CM, OPT_CROP, OPT_MAX_COLLIDER_TOKENS, OPT_TETHER_CM, OPT_STRAIN_LIMIT, OPT_STRAIN_CONTACT_CM,
+    OPT_CROP_CM, OPT_CROP, OPT_MAX_COLLIDER_TOKENS, OPT_TOKEN_CAP, OPT_TETHER_CM, OPT_STRAIN_LIMIT, OPT_STRAIN_CONTACT_CM,
     OPT_SIM_MESH, OPT_TIME_LIMIT, OPT_PUSH_CM, OPT_PUSH_DEPTH_CM, OPT_WRITE_POS, OPT_PINS,
 };
 
@@ -844,6 +846,10 @@ static const cli_option k_options[] = {
      "the model's collider crop: box (default, as the model was trained) or\n"
      "cells (finer: within the margin of the occupied cells of a coarse grid)"},
     {"max-collider-tokens", "N", OPT_MAX_COLLIDER_TOKENS, "keep at most N collider triangles (0..4294967295, 0: all)"},
+    {"token-cap", "nearest|sample", OPT_TOKEN_CAP,
+     "how --max-collider-tokens chooses: nearest (default: the triangles nearest\n"
+     "the garment) or sample (an even sample of the crop, weighted in the\n"
+     "attention; weft_collider_cap)"},
     {"tether-cm", "X", OPT_TETHER_CM,
      "tethers to the skinned garment, radius X cm, 0..1000 (0 on vertices\n"
      "pinned at the start)"},
@@ -892,7 +898,8 @@ static const cli_command k_command = {
     .synopsis = "weft eval --seq DIR [--model M] [--method model|lbs|xpbd:S|xpbd-fast:S]\n"
                 "          [--precision fp32|fp16|int8] [--ccd on|off] [--ccd-iterations N]\n"
                 "          [--split train|val|test] [--frames N] [--json] [--crop-cm X] [--crop box|cells]\n"
-                "          [--max-collider-tokens N] [--tether-cm X] [--strain-limit PCT]\n"
+                "          [--max-collider-tokens N] [--token-cap nearest|sample] [--tether-cm X]\n"
+                "          [--strain-limit PCT]\n"
                 "          [--strain-contact-cm X] [--sim-mesh DIR] [--time-limit S] [--push-cm X]\n"
                 "          [--push-depth-cm X] [--write-pos DIR] [--pins xpbd|all]",
     .about = "Scores a method's rollout against simgen sequences (MVE, collisions, timing).",
@@ -1042,6 +1049,13 @@ int weft_cmd_eval(int argc, char **argv)
             if (!cli_u32(k_tool, a, v, 0, UINT32_MAX, &o.max_collider_tokens)) {
                 return 2;
             }
+            break;
+        case OPT_TOKEN_CAP:
+            if (strcmp(v, "nearest") != 0 && strcmp(v, "sample") != 0) {
+                fprintf(stderr, "weft eval: --token-cap takes nearest or sample\n");
+                return 2;
+            }
+            o.collider_cap = strcmp(v, "sample") == 0 ? WEFT_COLLIDER_CAP_SAMPLE : WEFT_COLLIDER_CAP_NEAREST;
             break;
         case OPT_CCD:
             if (strcmp(v, "on") != 0 && strcmp(v, "off") != 0) {
