@@ -801,6 +801,10 @@ static weft_garment_def worn_def_on(const weft_sample_collider *col, const float
     d.tethers.distance = WEFT_WORN_TETHER_CM / 100.0f;
     d.collision.push = WEFT_WORN_PUSH_CM / 100.0f;
     d.strain.limit = method == WEFT_METHOD_MODEL ? WEFT_WORN_STRAIN_PCT / 100.0f : 0.0f;
+    if (method == WEFT_METHOD_MODEL) {
+        d.max_collider_tokens = WEFT_WORN_COLLIDER_TOKENS;
+        d.collider_cap = WEFT_COLLIDER_CAP_SAMPLE;
+    }
     if (method == WEFT_METHOD_XPBD) {
         /* The reference runs as weft simgen runs it on real motion (docs/REFSIM.md, Real motion):
          * the body parts within 1 cm of each vertex at rest, without their neighbours, and none of

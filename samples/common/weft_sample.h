@@ -151,7 +151,9 @@ weft_garment_def weft_sample_body_garment_def(const weft_body *body, weft_method
  * body parts from weft_body_triangle_parts written into `parts` (weft_body_triangle_count(body)
  * bytes, kept by the caller until the garment is created; NULL: no parts), the floor y = 0
  * (collision.ground), no CCD, an 8 cm max
- * distance, a 0.5 cm push, and a 10 % strain limit for the learned model. The reference XPBD
+ * distance, a 0.5 cm push, and for the learned model a 10 % strain limit and at most
+ * WEFT_WORN_COLLIDER_TOKENS collider tokens, an even sample of its crop (WEFT_COLLIDER_CAP_SAMPLE;
+ * docs/LOD.md, Collider crop). The reference XPBD
  * (WEFT_METHOD_XPBD) gets simgen's recipe instead: parts within 1 cm without their neighbours, no
  * max distance, no push, and up to WEFT_REFERENCE_SUBSTEP_FACTOR times its substeps on fast
  * frames. Callers override fields after it (the sample's options). Fails only when the parts
@@ -159,6 +161,7 @@ weft_garment_def weft_sample_body_garment_def(const weft_body *body, weft_method
 #define WEFT_WORN_TETHER_CM 8.0f
 #define WEFT_WORN_PUSH_CM 0.5f
 #define WEFT_WORN_STRAIN_PCT 10.0f
+#define WEFT_WORN_COLLIDER_TOKENS 1024u
 weft_result weft_sample_worn_def(const weft_body *body, const weft_cloth_mesh *cloth, weft_method method, uint8_t *parts,
                                  weft_garment_def *out);
 /* Sets def->substeps to `substeps` (0 keeps the def's). The reference XPBD runs as `weft simgen`
