@@ -1,17 +1,21 @@
 /* weft bench frame: what a worn garment costs a game per frame, split by stage.
  *
  * The default avatar wears the T-shirt with the worn-garment recipe of the render sample (body
- * parts, an 8 cm max distance, a 0.5 cm push, a 10 % strain limit for the learned model, no CCD),
- * is settled from the bind pose into each motion over 30 frames, and is stepped --frames frames
- * by each method at each resolution, one thread. Per cell the medians of: posing the body (the
- * game's own skinning, listed for scale), the whole cloth step, and its parts from
- * weft_step_stats: the method, the constraint stage, CCD. Then the ratios that matter for a
- * game budget, each from medians of this one run: learned int8 over fast XPBD-10, int8 over
- * fp32, the whole step over the game's XPBD-10 (target 1/20). A step that fails makes the bench
- * exit non-zero and write no table. */
+ * parts, an 8 cm max distance, a 0.5 cm push, a 10 % strain limit and 1024 sampled collider
+ * tokens for the learned model, no CCD), is settled from the bind pose into each motion over 30
+ * frames, and is stepped --frames frames by each method at each resolution, one thread. A
+ * resolution D@S simulates the garment at S and draws it at D through a weft_mesh_map (the render
+ * sample's default for the learned model at 4k: 4k@1k). Per cell the medians of: posing the body
+ * (the game's own skinning, listed for scale), the whole cloth step (with the map), and its parts
+ * from weft_step_stats: the method, the constraint stage, CCD, and the map. Then the ratios that
+ * matter for a game budget, each from medians of this one run: learned int8 over fast XPBD-10
+ * (same resolution item; for D@S also against fast XPBD-10 stepping D itself when that item ran),
+ * int8 over fp32, the network's share. A step that fails makes the bench exit non-zero and write
+ * no table. */
 #define _POSIX_C_SOURCE 200809L
 #include "weft.h"
 #include "weft/body.h"
+#include "weft/lod.h"
 #include "support_bench.h"
 #include "support_cli.h"
 #include "core/core.h"
@@ -29,6 +33,7 @@ const char weft_bench_frame_help[] =
 
 #define FR_SETTLE 30
 #define FR_MAX 8
+#define FR_MAX_RES 8
 
 typedef struct fr_method {
     char label[40];
@@ -38,7 +43,7 @@ typedef struct fr_method {
 } fr_method;
 
 typedef struct fr_cell {
-    double pose, step, method, constraints, ccd; /* medians, ms */
+    double pose, step, method, constraints, ccd, map; /* medians, ms; step includes the map */
 } fr_cell;
 
 static bool parse_method(const char *item, size_t n, fr_method *m)
@@ -95,27 +100,66 @@ static double median(double *v, uint32_t n)
 }
 
 /* One (motion, resolution, method) run. Returns 0, or 1 with the reason printed. */
+/* A resolution item: "D" (simulate and draw D) or "D@S" (simulate S, draw D through a mesh map). */
+static bool parse_resolution(const char *item, weft_cloth_resolution *drawn, weft_cloth_resolution *simulated)
+{
+    char d[16];
+    const char *at = strchr(item, '@');
+    const size_t n = at ? (size_t)(at - item) : strlen(item);
+    if (n == 0 || n >= sizeof d) {
+        return false;
+    }
+    memcpy(d, item, n);
+    d[n] = '\0';
+    if (weft_cloth_resolution_from_name(d, drawn) != WEFT_OK) {
+        return false;
+    }
+    *simulated = *drawn;
+    return !at || (weft_cloth_resolution_from_name(at + 1, simulated) == WEFT_OK && *simulated != *drawn);
+}
+
 static int run_cell(weft_context *ctx, weft_body *body, const weft_sample_motion *mo, const char *resolution,
                     const fr_method *m, weft_model *model, uint32_t frames, fr_cell *out)
 {
-    weft_cloth_def cdef = weft_default_cloth_def(WEFT_CLOTH_TSHIRT);
-    if (weft_cloth_resolution_from_name(resolution, &cdef.resolution) != WEFT_OK) {
-        fprintf(stderr, "weft bench frame: --resolutions: %s is not 1k, 4k, 16k or 40k\n", resolution);
+    weft_cloth_def cdef = weft_default_cloth_def(WEFT_CLOTH_TSHIRT), ddef = cdef;
+    if (!parse_resolution(resolution, &ddef.resolution, &cdef.resolution)) {
+        fprintf(stderr, "weft bench frame: --resolutions: %s is not R or R@S (R, S: 1k, 4k, 16k, 40k; S not R)\n",
+                resolution);
         return 1;
     }
-    weft_cloth_mesh *cloth = NULL;
-    if (weft_cloth_create(ctx, &cdef, body, &cloth) != WEFT_OK) {
+    const bool mapped = ddef.resolution != cdef.resolution;
+    weft_cloth_mesh *cloth = NULL, *drawn = NULL;
+    weft_mesh_map *map = NULL;
+    if (weft_cloth_create(ctx, &cdef, body, &cloth) != WEFT_OK ||
+        (mapped && weft_cloth_create(ctx, &ddef, body, &drawn) != WEFT_OK)) {
         fprintf(stderr, "weft bench frame: garment: %s\n", weft_last_error());
+        weft_cloth_destroy(cloth);
         return 1;
+    }
+    if (mapped) {
+        weft_mesh_map_def md = weft_default_mesh_map_def();
+        md.from_rest_positions = cloth->positions;
+        md.from_vertex_count = cloth->vertex_count;
+        md.from_triangles = cloth->triangles;
+        md.from_triangle_count = cloth->triangle_count;
+        md.to_rest_positions = drawn->positions;
+        md.to_vertex_count = drawn->vertex_count;
+        if (weft_mesh_map_create(ctx, &md, &map) != WEFT_OK) {
+            fprintf(stderr, "weft bench frame: mesh map %s: %s\n", resolution, weft_last_error());
+            weft_cloth_destroy(drawn);
+            weft_cloth_destroy(cloth);
+            return 1;
+        }
     }
     const uint32_t nbv = weft_body_vertex_count(body);
     uint8_t *parts = malloc(weft_body_triangle_count(body));
     float *bverts = malloc((size_t)nbv * 3 * sizeof(float));
-    double *t[5];
-    for (int k = 0; k < 5; ++k) {
+    float *dverts = mapped ? malloc((size_t)drawn->vertex_count * 3 * sizeof(float)) : NULL;
+    double *t[6];
+    for (int k = 0; k < 6; ++k) {
         t[k] = calloc(frames, sizeof(double));
     }
-    int rc = parts && bverts && t[0] && t[1] && t[2] && t[3] && t[4] ? 0 : 1;
+    int rc = parts && bverts && (!mapped || dverts) && t[0] && t[1] && t[2] && t[3] && t[4] && t[5] ? 0 : 1;
     weft_garment *g = NULL;
     weft_garment_def d;
     if (rc == 0 && weft_sample_worn_def(body, cloth, m->method, parts, &d) != WEFT_OK) {
@@ -151,14 +195,21 @@ static int run_cell(weft_context *ctx, weft_body *body, const weft_sample_motion
             rc = 1;
             break;
         }
+        const double t2 = weft__now_ms();
+        if (mapped && weft_mesh_map_apply(map, weft_garment_positions(g), dverts) != WEFT_OK) {
+            rc = 1;
+            break;
+        }
+        const double t3 = weft__now_ms();
         if (k >= FR_SETTLE) {
             const weft_step_stats st = weft_garment_stats(g);
             const uint32_t i = k - FR_SETTLE;
             t[0][i] = t1 - t0;
-            t[1][i] = st.step_ms;
+            t[1][i] = st.step_ms + (t3 - t2);
             t[2][i] = st.method_ms;
             t[3][i] = st.constraints_ms;
             t[4][i] = st.ccd_ms;
+            t[5][i] = t3 - t2;
         }
     }
     if (rc != 0) {
@@ -169,13 +220,17 @@ static int run_cell(weft_context *ctx, weft_body *body, const weft_sample_motion
         out->method = median(t[2], frames);
         out->constraints = median(t[3], frames);
         out->ccd = median(t[4], frames);
+        out->map = median(t[5], frames);
     }
     weft_garment_destroy(g);
-    for (int k = 0; k < 5; ++k) {
+    for (int k = 0; k < 6; ++k) {
         free(t[k]);
     }
     free(parts);
     free(bverts);
+    free(dverts);
+    weft_mesh_map_destroy(map);
+    weft_cloth_destroy(drawn);
     weft_cloth_destroy(cloth);
     return rc;
 }
@@ -328,9 +383,10 @@ static const cli_option k_options[] = {
     {"motions", "walk,mocap:CLIP,...", OPT_MOTIONS,
      "the motions, comma-separated (default: the procedural walk and the mocap\n"
      "clip walk_cmu07_01)"},
-    {"resolutions", "1k,4k", OPT_RESOLUTIONS,
-     "the T-shirt's resolutions, comma-separated: 1k, 4k, 16k, 40k\n"
-     "(default 1k,4k)"},
+    {"resolutions", "R,D@S,...", OPT_RESOLUTIONS,
+     "the T-shirt's resolutions, comma-separated, at most 8: R (1k, 4k, 16k,\n"
+     "40k) steps that mesh; D@S steps S and draws D through a mesh map, as\n"
+     "the render sample draws a learned 4k garment (default 1k,4k,4k@1k)"},
     {"methods", "M,...", OPT_METHODS,
      "at most 8 of model:int8|fp16|fp32 (the shipped garment model at that\n"
      "precision), xpbd-fast:S, xpbd:S (S substeps, 1..1000), lbs (default\n"
@@ -345,14 +401,15 @@ static const cli_option k_options[] = {
 
 static const cli_command k_command = {
     .tool = "weft bench frame",
-    .synopsis = "weft bench frame [--motions walk,mocap:CLIP,...] [--resolutions 1k,4k]\n"
+    .synopsis = "weft bench frame [--motions walk,mocap:CLIP,...] [--resolutions 1k,4k,4k@1k]\n"
                 "                 [--methods model:int8,model:fp16,model:fp32,xpbd-fast:5,xpbd-fast:10,lbs]\n"
                 "                 [--frames N] [--crowd N] [--md FILE]",
     .about = "What a worn garment costs a game per frame, split by stage: the default avatar wears the T-shirt\n"
              "(the render sample's worn-garment recipe), settles into each motion over 30 frames and is\n"
              "stepped --frames frames by each method at each resolution, one thread. Per cell the medians\n"
-             "of posing the body, the whole cloth step, the method, the constraint stage and CCD; then the\n"
-             "ratios learned int8 / fast XPBD-10, int8 / fp32 and the network's share of the int8 step.\n"
+             "of posing the body, the whole cloth step, the method, the constraint stage, CCD and the mesh\n"
+             "map (D@S); then the ratios learned int8 / fast XPBD-10 (for D@S also against fast XPBD-10\n"
+             "stepping D), int8 / fp32 and the network's share of the int8 step.\n"
              "Run from the repository root (the shipped models are read from tools/train/models).",
     .options = k_options,
     .notes = NULL,
@@ -360,7 +417,7 @@ static const cli_command k_command = {
 
 int weft_bench_frame(int argc, char **argv)
 {
-    const char *motions = "walk,mocap:walk_cmu07_01", *resolutions = "1k,4k", *md = NULL;
+    const char *motions = "walk,mocap:walk_cmu07_01", *resolutions = "1k,4k,4k@1k", *md = NULL;
     const char *methods_text = "model:int8,model:fp16,model:fp32,xpbd-fast:5,xpbd-fast:10,lbs";
     uint32_t frames = 60, crowd = 64;
     cli_parser parser;
@@ -443,8 +500,8 @@ int weft_bench_frame(int argc, char **argv)
     snprintf(line, sizeof line,
              "`weft bench frame --motions %s --resolutions %s --methods %s --frames %u --crowd %u` (%s; one thread; "
              "medians of %u frames; ms)\n\n"
-             "| motion | garment | method | body posing | whole cloth step | method | constraints | CCD |\n"
-             "|---|---|---|---:|---:|---:|---:|---:|\n",
+             "| motion | garment | method | body posing | whole cloth step | method | constraints | CCD | mesh map |\n"
+             "|---|---|---|---:|---:|---:|---:|---:|---:|\n",
              motions, resolutions, methods_text, frames, crowd, weft_config_string(), frames);
     table = rc == 0 ? bench_append(table, &len, &cap, line) : NULL;
     char ratios[4096] = "";
@@ -456,8 +513,25 @@ int weft_bench_frame(int argc, char **argv)
             rc = 1;
             break;
         }
+        fr_cell all[FR_MAX_RES][FR_MAX];
+        char names[FR_MAX_RES][16];
+        uint32_t nres = 0;
         for (uint32_t ri = 0; rc == 0 && list_item(resolutions, ri, res, sizeof res); ++ri) {
-            fr_cell cells[FR_MAX];
+            if (ri == FR_MAX_RES) {
+                fprintf(stderr, "weft bench frame: at most %d resolutions\n", FR_MAX_RES);
+                rc = 2;
+                break;
+            }
+            fr_cell *cells = all[ri];
+            snprintf(names[ri], sizeof names[ri], "%s", res);
+            nres = ri + 1;
+            char garment[48];
+            const char *at = strchr(res, '@');
+            if (at) {
+                snprintf(garment, sizeof garment, "T-shirt %.*s (%s simulated)", (int)(at - res), res, at + 1);
+            } else {
+                snprintf(garment, sizeof garment, "T-shirt %s", res);
+            }
             for (uint32_t k = 0; rc == 0 && k < nm; ++k) {
                 rc = run_cell(ctx, body, &mo, res, &methods[k],
                               methods[k].method == WEFT_METHOD_MODEL ? models[methods[k].precision] : NULL, frames,
@@ -465,9 +539,9 @@ int weft_bench_frame(int argc, char **argv)
                 if (rc != 0) {
                     break;
                 }
-                snprintf(line, sizeof line, "| %s | T-shirt %s | %s | %.2f | %.2f | %.2f | %.2f | %.2f |\n", motion_spec,
-                         res, methods[k].label, cells[k].pose, cells[k].step, cells[k].method, cells[k].constraints,
-                         cells[k].ccd);
+                snprintf(line, sizeof line, "| %s | %s | %s | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f |\n", motion_spec,
+                         garment, methods[k].label, cells[k].pose, cells[k].step, cells[k].method, cells[k].constraints,
+                         cells[k].ccd, cells[k].map);
                 fputs(line, stdout);
                 fflush(stdout);
                 table = bench_append(table, &len, &cap, line);
@@ -476,6 +550,10 @@ int weft_bench_frame(int argc, char **argv)
             if (rc != 0) {
                 break;
             }
+        }
+        for (uint32_t ri = 0; rc == 0 && ri < nres; ++ri) {
+            const fr_cell *cells = all[ri];
+            const char *res_name = names[ri];
             /* ratios of medians of this run, where both sides were measured */
             int i8 = -1, f32 = -1, x10 = -1;
             for (uint32_t k = 0; k < nm; ++k) {
@@ -487,10 +565,20 @@ int weft_bench_frame(int argc, char **argv)
                     x10 = (int)k;
                 }
             }
+            /* D@S: also against fast XPBD-10 stepping D itself, when that item ran */
+            double x10_drawn = 0.0;
+            const char *at = strchr(res_name, '@');
+            for (uint32_t rj = 0; at && rj < nres && x10 >= 0; ++rj) {
+                if (strlen(names[rj]) == (size_t)(at - res_name) && !strncmp(names[rj], res_name, strlen(names[rj]))) {
+                    x10_drawn = all[rj][x10].step;
+                }
+            }
             char r[512];
-            int w = snprintf(r, sizeof r, "| %s | T-shirt %s |", motion_spec, res);
+            int w = snprintf(r, sizeof r, "| %s | T-shirt %s |", motion_spec, res_name);
             w += snprintf(r + w, sizeof r - (size_t)w, i8 >= 0 && x10 >= 0 ? " %.2f (target <= 0.05) |" : " - |",
                           i8 >= 0 && x10 >= 0 ? cells[i8].step / cells[x10].step : 0.0);
+            w += snprintf(r + w, sizeof r - (size_t)w, i8 >= 0 && x10_drawn > 0.0 ? " %.3f |" : " - |",
+                          i8 >= 0 && x10_drawn > 0.0 ? cells[i8].step / x10_drawn : 0.0);
             w += snprintf(r + w, sizeof r - (size_t)w, i8 >= 0 && f32 >= 0 ? " %.2f |" : " - |",
                           i8 >= 0 && f32 >= 0 ? cells[i8].step / cells[f32].step : 0.0);
             snprintf(r + w, sizeof r - (size_t)w, i8 >= 0 ? " %.0f %% |\n" : " - |\n",
@@ -501,8 +589,9 @@ int weft_bench_frame(int argc, char **argv)
     }
     if (rc == 0 && table) {
         table = bench_append(table, &len, &cap,
-                             "\n| motion | garment | learned int8 / fast XPBD-10 (whole step) | int8 / fp32 | network "
-                             "share of the int8 step |\n|---|---|---:|---:|---:|\n");
+                             "\n| motion | garment | learned int8 / fast XPBD-10 (whole step) | ... / fast XPBD-10 "
+                             "stepping the drawn mesh | int8 / fp32 | network share of the int8 step |\n"
+                             "|---|---|---:|---:|---:|---:|\n");
         table = table ? bench_append(table, &len, &cap, ratios) : NULL;
         rc = table ? 0 : 1;
         if (table) {

@@ -34,7 +34,7 @@ const char weft_bench_mocap_help[] = "garments on the mocap library's clips: gar
 
 typedef struct mc_options {
     const char *split, *clips, *garments, *methods, *model, *md, *block, *resolution, *csv;
-    uint32_t frames, settle;
+    uint32_t frames, settle, tokens;
     bool ccd, parts;
     float tether_cm, push_cm, strain_pct;
 } mc_options;
@@ -251,6 +251,7 @@ static int run_cell(const mc_options *o, weft_context *ctx, const weft_body *bod
             d.collision.push = o->push_cm / 100.0f;
             d.strain.limit = m->method == WEFT_METHOD_MODEL ? o->strain_pct / 100.0f : 0.0f;
         }
+        d.max_collider_tokens = o->tokens; /* the recipe's sample cap, or the whole crop (0) */
         if (rc == 0 && weft_garment_create(ctx, &d, &g) != WEFT_OK) {
             fprintf(stderr, "weft bench mocap: %s: %s\n", m->label, weft_last_error());
             rc = 1;
@@ -411,7 +412,7 @@ typedef struct mc_total {
 
 enum {
     OPT_SPLIT = 1, OPT_CLIPS, OPT_GARMENTS, OPT_METHODS, OPT_FRAMES, OPT_SETTLE, OPT_RESOLUTION, OPT_MODEL, OPT_CCD,
-    OPT_BODY_PARTS, OPT_TETHER_CM, OPT_PUSH_CM, OPT_STRAIN_LIMIT, OPT_MD, OPT_BLOCK, OPT_CSV,
+    OPT_BODY_PARTS, OPT_TETHER_CM, OPT_PUSH_CM, OPT_STRAIN_LIMIT, OPT_COLLIDER_TOKENS, OPT_MD, OPT_BLOCK, OPT_CSV,
 };
 
 static const cli_option k_options[] = {
@@ -441,6 +442,9 @@ static const cli_option k_options[] = {
     {"tether-cm", "X", OPT_TETHER_CM, "the max distance to the skinned garment, 0..1000 cm (default below)"},
     {"push-cm", "X", OPT_PUSH_CM, "the collider push, 0..10 cm (default below)"},
     {"strain-limit", "PCT", OPT_STRAIN_LIMIT, "the learned model's strain limit, 0..1000 % (default below)"},
+    {"collider-tokens", "N", OPT_COLLIDER_TOKENS,
+     "the learned model's collider tokens: an even, weighted sample of its crop\n"
+     "of at most N, 0..1000000 (0: the whole crop; default below)"},
     {"md", "FILE", OPT_MD,
      "write the table into FILE between <!-- mocap-table --> markers\n"
      "(docs/STABILITY_MOCAP.md)"},
@@ -460,9 +464,11 @@ static void notes(FILE *out)
             "Defaults: the test split, all three garments, lbs,model,xpbd-fast:5,xpbd-fast:10, 300 frames\n"
             "(0: every frame of each clip) after %d settle frames blending from the bind pose into the clip's\n"
             "first pose (--settle N, 1..1000), 1k, the shipped int8 garment model, and the worn-garment recipe\n"
-            "of the render sample: body parts on, CCD off, a max distance of %g cm, a push of %g cm and a\n"
-            "strain limit of %g %% for the learned model (the xpbd:S reference keeps simgen's recipe).\n",
-            MC_SETTLE, (double)WEFT_WORN_TETHER_CM, (double)WEFT_WORN_PUSH_CM, (double)WEFT_WORN_STRAIN_PCT);
+            "of the render sample: body parts on, CCD off, a max distance of %g cm, a push of %g cm, and for\n"
+            "the learned model a strain limit of %g %% and %u collider tokens (the xpbd:S reference keeps\n"
+            "simgen's recipe).\n",
+            MC_SETTLE, (double)WEFT_WORN_TETHER_CM, (double)WEFT_WORN_PUSH_CM, (double)WEFT_WORN_STRAIN_PCT,
+            WEFT_WORN_COLLIDER_TOKENS);
 }
 
 static const cli_command k_command = {
@@ -470,7 +476,8 @@ static const cli_command k_command = {
     .synopsis = "weft bench mocap [--split test|train|all] [--clips A,B,...] [--garments tshirt,dress,skirt,cape]\n"
                 "                 [--methods lbs,model,xpbd-fast:S,xpbd:S,fnopt] [--frames N]\n"
                 "                 [--resolution 1k|4k] [--model FILE] [--ccd on|off] [--body-parts on|off]\n"
-                "                 [--tether-cm X] [--push-cm X] [--strain-limit PCT] [--settle N]\n"
+                "                 [--tether-cm X] [--push-cm X] [--strain-limit PCT] [--collider-tokens N]\n"
+                "                 [--settle N]\n"
                 "                 [--md FILE [--block NAME]]",
     .about = "Garments on the mocap library's clips (samples/mocap/clips.csv), per method, clip and garment:\n"
              "garments lost, inside the body, ms p50/p99/max, on one thread.",
@@ -483,7 +490,7 @@ int weft_bench_mocap(int argc, char **argv)
     mc_options o = {.split = "test", .garments = "tshirt,dress,skirt", .methods = "lbs,model,xpbd-fast:5,xpbd-fast:10",
                     .model = "tools/train/models/garment.int8.safetensors", .resolution = "1k", .frames = 300, .settle = MC_SETTLE,
                     .ccd = false, .parts = true, .tether_cm = WEFT_WORN_TETHER_CM, .push_cm = WEFT_WORN_PUSH_CM,
-                    .strain_pct = WEFT_WORN_STRAIN_PCT, .block = "mocap-table"};
+                    .strain_pct = WEFT_WORN_STRAIN_PCT, .tokens = WEFT_WORN_COLLIDER_TOKENS, .block = "mocap-table"};
     cli_parser parser;
     cli_start(&parser, &k_command, argc, argv);
     const char *v;
@@ -530,6 +537,11 @@ int weft_bench_mocap(int argc, char **argv)
             break;
         case OPT_SETTLE:
             if (!cli_u32(k_command.tool, a, v, 1, 1000, &o.settle)) {
+                return 2;
+            }
+            break;
+        case OPT_COLLIDER_TOKENS:
+            if (!cli_u32(k_command.tool, a, v, 0, 1000000, &o.tokens)) {
                 return 2;
             }
             break;
@@ -619,11 +631,11 @@ int weft_bench_mocap(int argc, char **argv)
     }
     snprintf(line, sizeof line,
              "`weft bench mocap --split %s --frames %u%s --resolution %s --methods %s --garments %s --ccd %s --body-parts "
-             "%s --tether-cm %g --push-cm %g --strain-limit %g` (%s)\n\n"
+             "%s --tether-cm %g --push-cm %g --strain-limit %g --collider-tokens %u` (%s)\n\n"
              "| clip | garment | method | lost | worst off_body %% | inside_body mean / max %% | body_self_overlap "
              "mean / max %% | ms p50 / p99 / max | max / p50 |\n|---|---|---|---|---:|---:|---:|---:|---:|\n",
              o.split, o.frames, settle_arg, o.resolution, o.methods, o.garments, o.ccd ? "on" : "off", o.parts ? "on" : "off",
-             (double)o.tether_cm, (double)o.push_cm, (double)o.strain_pct, weft_config_string());
+             (double)o.tether_cm, (double)o.push_cm, (double)o.strain_pct, o.tokens, weft_config_string());
     fputs(line, stdout); /* the command and the table's head, as the page gets them */
     table = bench_append(table, &len, &cap, line);
     mc_total totals[MC_MAX_METHODS];
