@@ -674,13 +674,20 @@ static uint32_t hold_on_ground(weft_garment *g)
     return held;
 }
 
-/* The tethers' skinned positions at t+1, then the clamp. */
-static weft_result apply_tethers(weft_garment *g)
+/* The tethers' skinned positions at t+1 (`skinned`: the method's, the same binding on the same
+ * collider; NULL: evaluated here), then the clamp. */
+static weft_result apply_tethers(weft_garment *g, const float *skinned)
 {
-    weft_result r = geo_skin_eval(g->skin, g->collider_triangles, g->collider_next, "weft_garment_step: tethers",
-                               g->tether_target);
-    if (r != WEFT_OK) {
-        return r;
+    if (skinned) {
+        if (skinned != g->tether_target) {
+            memcpy(g->tether_target, skinned, (size_t)g->vertex_count * 3 * sizeof(float));
+        }
+    } else {
+        weft_result r = geo_skin_eval(g->skin, g->collider_triangles, g->collider_next, "weft_garment_step: tethers",
+                                      g->tether_target);
+        if (r != WEFT_OK) {
+            return r;
+        }
     }
     g->stats.tether_vertices_clamped = clamp_tethers(g);
     return WEFT_OK;
@@ -698,6 +705,8 @@ weft_result weft__garment_skin_create(const weft_garment *g, const char *who, ge
 weft_result weft__garment_finish_step(weft_garment *g)
 {
     const double t0 = weft__now_ms();
+    const float *skinned = g->skinned_next;
+    g->skinned_next = NULL;
     g->stats.collider_cut = false;
     size_t bad = weft__first_outside(g->x_next, (size_t)g->vertex_count * 3);
     if (bad != SIZE_MAX) {
@@ -715,7 +724,7 @@ weft_result weft__garment_finish_step(weft_garment *g)
         }
     }
     if (g->tether_radius) {
-        weft_result r = apply_tethers(g);
+        weft_result r = apply_tethers(g, skinned);
         if (r != WEFT_OK) {
             return r;
         }

@@ -47,6 +47,10 @@ struct weft_garment {
     struct geo_skin *skin;
     float *tether_radius;               /* vertex_count radii (uniform ones expanded); NULL: no tethers */
     float *tether_target;               /* vertex_count * 3 scratch: skinned positions at t+1 */
+    /* This step's garment skinned by `skin` onto collider_next, when the method computed it on the
+     * way (the learned model's skinned prior, LBS: they share `skin`); the tethers take it instead
+     * of evaluating the binding again. Every weft__garment_finish_step consumes and clears it. */
+    const float *skinned_next;
     float cut_distance;                 /* collider jump that resets the cloth (metres); 0: off */
     bool cut_pending;                   /* weft_garments_step: cut in this call's first pass */
 

@@ -323,8 +323,11 @@ uint32_t weft__crop_select(weft_crop *c, const float *x, uint32_t n, const float
         float tl[3], th[3];
         bool overlap = true;
         for (int d = 0; d < 3 && overlap; ++d) {
-            tl[d] = fminf(fminf(p[0][d], p[1][d]), p[2][d]);
-            th[d] = fmaxf(fmaxf(p[0][d], p[1][d]), p[2][d]);
+            /* selects, not fminf/fmaxf (library calls here); the collider is finite (set_collider) */
+            const float a = p[0][d], b = p[1][d], e = p[2][d];
+            const float lo2 = a < b ? a : b, hi2 = a < b ? b : a;
+            tl[d] = e < lo2 ? e : lo2;
+            th[d] = e > hi2 ? e : hi2;
             overlap = tl[d] <= ghi[d] && th[d] >= glo[d];
         }
         if (overlap && (!cells || near_cells(c, tl, th))) {

@@ -459,6 +459,7 @@ typedef struct ct_state {
      * S_t, S_{t+1} (N x 3). NULL for the other priors. */
     geo_skin *skin;
     float *skin_cur, *skin_next;
+    bool skin_shared;                   /* skin is the garment's (g->skin), not owned */
     /* The xpbd prior: an XPBD garment on the same meshes (no CCD), restarted from this garment's
      * state every step, and its result Y (N x 3). NULL for the other priors. */
     weft_garment *prior_sim;
@@ -810,7 +811,9 @@ static void ct_destroy(weft_garment *g)
         g->method_state = NULL;
         return;
     }
-    geo_skin_destroy(g->ctx, s->skin);
+    if (!s->skin_shared) {
+        geo_skin_destroy(g->ctx, s->skin);
+    }
     weft_garment_destroy(s->prior_sim);
     for (uint32_t i = 0; i < s->buf_count; ++i) {
         weft__free(g->ctx, *s->bufs[i].ptr, s->bufs[i].floats * sizeof(float));
@@ -1169,8 +1172,12 @@ static weft_result ct_create(weft_garment *g)
         ct_destroy(g);
         return r;
     }
-    /* g->x is still the initial state here, as in lbs_create. */
-    if (skinned && (r = weft__garment_skin_create(g, "method 'model' (skinned prior)", &s->skin)) != WEFT_OK) {
+    /* g->x is still the initial state here, as in lbs_create; the garment's own binding (tethers,
+     * cuts) is made from the same state, so the prior shares it and hands S_{t+1} to the tethers. */
+    if (skinned && g->skin) {
+        s->skin = g->skin;
+        s->skin_shared = true;
+    } else if (skinned && (r = weft__garment_skin_create(g, "method 'model' (skinned prior)", &s->skin)) != WEFT_OK) {
         ct_destroy(g);
         return r;
     }
@@ -1518,6 +1525,7 @@ static weft_result ct_output(weft_garment *g, ct_state *s)
         if (r != WEFT_OK) {
             return r;
         }
+        g->skinned_next = s->skin_shared ? s->skin_next : NULL; /* the tethers' targets */
     }
     if (c->prior == WEFT_CT_PRIOR_GRASP) {
         grasp_output(g, s);
