@@ -200,7 +200,8 @@ static void test_attention_key_weight_is_copies(void)
             tabs[ti].k->attention(Q, D, K2, D, V2, D, NQ, n2, H, DH, scale, NULL, NULL, b, D, scratch);
             double worst = 0;
             for (size_t i = 0; i < (size_t)NQ * D; ++i) {
-                worst = fmax(worst, fabs((double)a[i] - b[i]));
+                const double e = fabs((double)a[i] - b[i]);
+                worst = e > worst ? e : worst;
             }
             CHECK_MSG(worst <= ATTN_ATOL, "[%s] a key weighted w by log w differs from w copies by %g", tabs[ti].name,
                       worst);
