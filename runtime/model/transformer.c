@@ -425,6 +425,8 @@ typedef struct ct_state {
     void *arena;
     size_t arena_bytes;
     uint32_t N, M;                      /* cloth vertices, collider triangles */
+    uint32_t Mk;                        /* the most collider tokens a step keeps: M, or the token
+                                         * cap below it; the token buffers are sized for N + Mk */
     weft_crop crop;                     /* which collider triangles become tokens (model/crop.h) */
     uint32_t *rowptr, *col;             /* CSR mesh adjacency (both directions) */
     size_t col_count;
@@ -442,12 +444,12 @@ typedef struct ct_state {
     /* scratch */
     float *xc;                          /* max(N, 3) x 3 centred points */
     float *feat;                        /* N x (6F + 3) */
-    float *cfeat;                       /* M x (18F + 13) */
-    float *tok;                         /* (N + M) x D: cloth tokens, then kept collider tokens */
-    float *tln, *tk, *tv;               /* (N + M) x D */
-    float *key_bias;                    /* N + M: the encoder keys' log weights (0 on cloth tokens;
+    float *cfeat;                       /* Mk x (18F + 13) */
+    float *tok;                         /* (N + Mk) x D: cloth tokens, then kept collider tokens */
+    float *tln, *tk, *tv;               /* (N + Mk) x D */
+    float *key_bias;                    /* N + Mk: the encoder keys' log weights (0 on cloth tokens;
                                          * log crop.represented on sampled collider tokens) */
-    float *wide;                        /* max(N + M, hK) x max(2D, ffn) */
+    float *wide;                        /* max(N + Mk, hK) x max(2D, ffn) */
     float *wide2;                       /* hK x ffn */
     float *gcat;                        /* N x 2D */
     float *z, *za;                      /* K x D latent, attention out */
@@ -1109,7 +1111,9 @@ static weft_result ct_create(weft_garment *g)
     s->M = g->collider_triangle_count;
     g->method_state = s;
 
-    const size_t N = s->N, M = s->M, D = c.D, K = c.K, F = c.nfreq, hk = (size_t)c.history * c.K;
+    /* a token cap bounds the kept triangles (either rule keeps at most the cap) */
+    s->Mk = g->max_collider_tokens > 0 && g->max_collider_tokens < s->M ? g->max_collider_tokens : s->M;
+    const size_t N = s->N, M = s->Mk, D = c.D, K = c.K, F = c.nfreq, hk = (size_t)c.history * c.K;
     const size_t ntok = N + M;
     const size_t wide_cols = max_sz(2 * D, c.ffn);
     bool ok = add_buf(g, s, &s->rest_tok, N * D) && add_buf(g, s, &s->dec_q, N * D) &&
@@ -1712,7 +1716,7 @@ weft_result weft__ct_set_observer(weft_garment *g, weft_ct_observer_fn *fn, void
         for (uint32_t i = 0; i < n; ++i) {
             width = max_sz(width, max_sz(lin[i]->in, lin[i]->out));
         }
-        const size_t rows = max_sz(max_sz((size_t)s->N + s->M, (size_t)s->c.history * s->c.K), 1);
+        const size_t rows = max_sz(max_sz((size_t)s->N + s->Mk, (size_t)s->c.history * s->c.K), 1);
         const size_t floats = rows * width;
         float *in = weft__alloc(g->ctx, floats * sizeof(float));
         float *out = weft__alloc(g->ctx, floats * sizeof(float));
