@@ -119,7 +119,7 @@ static bool parse_resolution(const char *item, weft_cloth_resolution *drawn, wef
 }
 
 static int run_cell(weft_context *ctx, weft_body *body, const weft_sample_motion *mo, const char *resolution,
-                    const fr_method *m, weft_model *model, uint32_t frames, fr_cell *out)
+                    const fr_method *m, weft_model *model, uint32_t frames, uint32_t tokens, fr_cell *out)
 {
     weft_cloth_def cdef = weft_default_cloth_def(WEFT_CLOTH_TSHIRT), ddef = cdef;
     if (!parse_resolution(resolution, &ddef.resolution, &cdef.resolution)) {
@@ -168,6 +168,7 @@ static int run_cell(weft_context *ctx, weft_body *body, const weft_sample_motion
     if (rc == 0) {
         d.model = model;
         d.precision = m->precision;
+        d.max_collider_tokens = tokens; /* the recipe's sample cap, or the whole crop (0) */
         weft_sample_set_substeps(&d, m->substeps);
         if (weft_garment_create(ctx, &d, &g) != WEFT_OK) {
             rc = 1;
@@ -268,7 +269,8 @@ typedef struct fr_crowd {
 /* n characters wearing instances of one asset of the learned int8 T-shirt at 1k, each on the
  * motion shifted by 0.137 s per character, settled over FR_SETTLE frames, then `frames` frames of
  * weft_garments_step over all of them (posing excluded). Returns 0, or 1 with the reason printed. */
-static int run_crowd(weft_body *body, const weft_sample_motion *mo, uint32_t n, uint32_t frames, fr_crowd *out)
+static int run_crowd(weft_body *body, const weft_sample_motion *mo, uint32_t n, uint32_t frames, uint32_t tokens,
+                     fr_crowd *out)
 {
     weft_context_def cd = weft_default_context_def();
     cd.allocator.alloc = crowd_alloc;
@@ -295,6 +297,7 @@ static int run_crowd(weft_body *body, const weft_sample_motion *mo, uint32_t n, 
     if (rc == 0) {
         d.model = model;
         d.precision = WEFT_PRECISION_INT8;
+        d.max_collider_tokens = tokens;
         weft_garment *own = NULL;
         const size_t b0 = g_crowd_live;
         rc = weft_garment_create(ctx, &d, &own) == WEFT_OK ? 0 : 1;
@@ -377,7 +380,7 @@ static bool list_item(const char *list, uint32_t index, char *buf, size_t cap)
     return true;
 }
 
-enum { OPT_MOTIONS = 1, OPT_RESOLUTIONS, OPT_METHODS, OPT_FRAMES, OPT_CROWD, OPT_MD };
+enum { OPT_MOTIONS = 1, OPT_RESOLUTIONS, OPT_METHODS, OPT_FRAMES, OPT_CROWD, OPT_TOKENS, OPT_MD };
 
 static const cli_option k_options[] = {
     {"motions", "walk,mocap:CLIP,...", OPT_MOTIONS,
@@ -395,6 +398,9 @@ static const cli_option k_options[] = {
     {"crowd", "N", OPT_CROWD,
      "also N characters wearing instances of one garment asset (learned int8, T-shirt 1k,\nfirst motion) against "
      "one: ms and memory per character; 0 = off,\n2..1024 (default 64)"},
+    {"collider-tokens", "N", OPT_TOKENS,
+     "the learned model's collider tokens: an even, weighted sample of its crop\n"
+     "of at most N, 0..1000000 (0: the whole crop; default 1024, the recipe's)"},
     {"md", "FILE", OPT_MD, "write the table into FILE between <!-- frame-table --> markers\n(docs/MODEL_BENCH.md)"},
     {0},
 };
@@ -403,7 +409,7 @@ static const cli_command k_command = {
     .tool = "weft bench frame",
     .synopsis = "weft bench frame [--motions walk,mocap:CLIP,...] [--resolutions 1k,4k,4k@1k]\n"
                 "                 [--methods model:int8,model:fp16,model:fp32,xpbd-fast:5,xpbd-fast:10,lbs]\n"
-                "                 [--frames N] [--crowd N] [--md FILE]",
+                "                 [--frames N] [--crowd N] [--collider-tokens N] [--md FILE]",
     .about = "What a worn garment costs a game per frame, split by stage: the default avatar wears the T-shirt\n"
              "(the render sample's worn-garment recipe), settles into each motion over 30 frames and is\n"
              "stepped --frames frames by each method at each resolution, one thread. Per cell the medians\n"
@@ -419,7 +425,7 @@ int weft_bench_frame(int argc, char **argv)
 {
     const char *motions = "walk,mocap:walk_cmu07_01", *resolutions = "1k,4k,4k@1k", *md = NULL;
     const char *methods_text = "model:int8,model:fp16,model:fp32,xpbd-fast:5,xpbd-fast:10,lbs";
-    uint32_t frames = 60, crowd = 64;
+    uint32_t frames = 60, crowd = 64, tokens = WEFT_WORN_COLLIDER_TOKENS;
     cli_parser parser;
     cli_start(&parser, &k_command, argc, argv);
     const char *v;
@@ -441,6 +447,11 @@ int weft_bench_frame(int argc, char **argv)
             break;
         case OPT_FRAMES:
             if (!cli_u32(k_command.tool, cli_name(&k_command, id), v, 1, 100000, &frames)) {
+                return 2;
+            }
+            break;
+        case OPT_TOKENS:
+            if (!cli_u32(k_command.tool, cli_name(&k_command, id), v, 0, 1000000, &tokens)) {
                 return 2;
             }
             break;
@@ -498,11 +509,11 @@ int weft_bench_frame(int argc, char **argv)
     size_t len = 0, cap = 0;
     char line[1024];
     snprintf(line, sizeof line,
-             "`weft bench frame --motions %s --resolutions %s --methods %s --frames %u --crowd %u` (%s; one thread; "
-             "medians of %u frames; ms)\n\n"
+             "`weft bench frame --motions %s --resolutions %s --methods %s --frames %u --crowd %u --collider-tokens %u` "
+             "(%s; one thread; medians of %u frames; ms)\n\n"
              "| motion | garment | method | body posing | whole cloth step | method | constraints | CCD | mesh map |\n"
              "|---|---|---|---:|---:|---:|---:|---:|---:|\n",
-             motions, resolutions, methods_text, frames, crowd, weft_config_string(), frames);
+             motions, resolutions, methods_text, frames, crowd, tokens, weft_config_string(), frames);
     table = rc == 0 ? bench_append(table, &len, &cap, line) : NULL;
     char ratios[4096] = "";
     char motion_spec[128], res[16];
@@ -535,7 +546,7 @@ int weft_bench_frame(int argc, char **argv)
             for (uint32_t k = 0; rc == 0 && k < nm; ++k) {
                 rc = run_cell(ctx, body, &mo, res, &methods[k],
                               methods[k].method == WEFT_METHOD_MODEL ? models[methods[k].precision] : NULL, frames,
-                              &cells[k]);
+                              tokens, &cells[k]);
                 if (rc != 0) {
                     break;
                 }
@@ -607,8 +618,8 @@ int weft_bench_frame(int argc, char **argv)
             fprintf(stderr, "weft bench frame: crowd motion: %s\n", weft_last_error());
             rc = 1;
         } else {
-            rc = run_crowd(body, &mo, 1, frames, &one);
-            rc = rc == 0 ? run_crowd(body, &mo, crowd, frames, &many) : rc;
+            rc = run_crowd(body, &mo, 1, frames, tokens, &one);
+            rc = rc == 0 ? run_crowd(body, &mo, crowd, frames, tokens, &many) : rc;
             weft_sample_motion_free(&mo);
         }
         if (rc == 0) {
