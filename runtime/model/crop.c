@@ -77,7 +77,8 @@ static void sample_order(weft_crop *c, const float *rest, const uint32_t *tris, 
 
 weft_result weft__crop_init(weft_context *ctx, weft_crop *crop, float margin, weft_collider_crop rule,
                             uint32_t max_tokens, weft_collider_cap cap, uint32_t vertex_count,
-                            uint32_t triangle_count, const float *rest, const uint32_t *triangles)
+                            uint32_t triangle_count, uint32_t collider_vertex_count, const float *rest,
+                            const uint32_t *triangles)
 {
     memset(crop, 0, sizeof *crop);
     crop->margin = margin;
@@ -87,10 +88,12 @@ weft_result weft__crop_init(weft_context *ctx, weft_crop *crop, float margin, we
     crop->represented = 1.0f;
     crop->vertex_count = vertex_count;
     crop->triangle_count = triangle_count;
+    crop->collider_vertex_count = collider_vertex_count;
     if (triangle_count == 0) {
         return WEFT_OK;
     }
-    bool ok = (crop->kept = weft__alloc(ctx, (size_t)triangle_count * sizeof(uint32_t))) != NULL;
+    bool ok = (crop->kept = weft__alloc(ctx, (size_t)triangle_count * sizeof(uint32_t))) != NULL &&
+              (crop->side = weft__alloc(ctx, collider_vertex_count ? collider_vertex_count : 1)) != NULL;
     if (ok && rule == WEFT_COLLIDER_CROP_CELLS) {
         ok = (crop->cells = weft__alloc(ctx, (size_t)CROP_CELLS * 6 * sizeof(float))) != NULL;
     }
@@ -118,6 +121,7 @@ weft_result weft__crop_init(weft_context *ctx, weft_crop *crop, float margin, we
 void weft__crop_free(const weft_context *ctx, weft_crop *crop)
 {
     weft__free(ctx, crop->kept, (size_t)crop->triangle_count * sizeof(uint32_t));
+    weft__free(ctx, crop->side, crop->collider_vertex_count ? crop->collider_vertex_count : 1);
     weft__free(ctx, crop->keys, (size_t)crop->triangle_count * sizeof(uint64_t));
     weft__free(ctx, crop->cells, (size_t)CROP_CELLS * 6 * sizeof(float));
     weft__free(ctx, crop->fine_start, ((size_t)CROP_FINE_CELLS + 1) * sizeof(uint32_t));
@@ -316,23 +320,34 @@ uint32_t weft__crop_select(weft_crop *c, const float *x, uint32_t n, const float
         glo[d] = lo[d] - c->margin;
         ghi[d] = hi[d] + c->margin;
     }
+    /* The box test by vertex: a triangle's box misses the grown box on an axis exactly when its
+     * three corners are all below it or all above it (min <= hi fails iff every corner > hi), so
+     * one byte of side bits a collider vertex and an AND of three bytes a triangle decide it. */
+    for (uint32_t v = 0; v < c->collider_vertex_count; ++v) {
+        const float *p = cn + 3 * (size_t)v;
+        c->side[v] = (uint8_t)((p[0] < glo[0]) | (p[0] > ghi[0]) << 1 | (p[1] < glo[1]) << 2 | (p[1] > ghi[1]) << 3 |
+                               (p[2] < glo[2]) << 4 | (p[2] > ghi[2]) << 5);
+    }
     uint32_t kept = 0;
     for (uint32_t t = 0; t < c->triangle_count; ++t) {
         const uint32_t *tri = tris + 3 * (size_t)t;
-        const float *p[3] = {cn + 3 * (size_t)tri[0], cn + 3 * (size_t)tri[1], cn + 3 * (size_t)tri[2]};
-        float tl[3], th[3];
-        bool overlap = true;
-        for (int d = 0; d < 3 && overlap; ++d) {
-            /* selects, not fminf/fmaxf (library calls here); the collider is finite (set_collider) */
-            const float a = p[0][d], b = p[1][d], e = p[2][d];
-            const float lo2 = a < b ? a : b, hi2 = a < b ? b : a;
-            tl[d] = e < lo2 ? e : lo2;
-            th[d] = e > hi2 ? e : hi2;
-            overlap = tl[d] <= ghi[d] && th[d] >= glo[d];
+        if (c->side[tri[0]] & c->side[tri[1]] & c->side[tri[2]]) {
+            continue;
         }
-        if (overlap && (!cells || near_cells(c, tl, th))) {
-            c->kept[kept++] = t;
+        if (cells) {
+            const float *p[3] = {cn + 3 * (size_t)tri[0], cn + 3 * (size_t)tri[1], cn + 3 * (size_t)tri[2]};
+            float tl[3], th[3];
+            for (int d = 0; d < 3; ++d) {
+                const float a = p[0][d], b = p[1][d], e = p[2][d];
+                const float lo2 = a < b ? a : b, hi2 = a < b ? b : a;
+                tl[d] = e < lo2 ? e : lo2;
+                th[d] = e > hi2 ? e : hi2;
+            }
+            if (!near_cells(c, tl, th)) {
+                continue;
+            }
         }
+        c->kept[kept++] = t;
     }
     c->represented = 1.0f;
     if (c->by_rank && kept > c->max_tokens) {

@@ -50,8 +50,10 @@ typedef struct weft_crop {
      * selections) */
     uint32_t *by_rank;
     uint8_t *mark;
-    uint32_t vertex_count, triangle_count;
+    uint32_t vertex_count, triangle_count, collider_vertex_count;
     uint32_t *kept;                     /* triangle_count: the last selection, ascending */
+    uint8_t *side;                      /* collider_vertex_count: per axis, bit 2d set below the
+                                         * grown box, bit 2d + 1 above it (the box test by bits) */
     /* rule cells: WEFT_CROP_GRID_MAX^3 x 6 tight boxes (lo, hi), and the last frame's grid */
     float *cells;
     uint32_t dims[3];
@@ -65,15 +67,17 @@ typedef struct weft_crop {
 } weft_crop;
 
 /* Sizes the scratch for a garment of `vertex_count` vertices and `triangle_count` collider
- * triangles (`triangles` over `rest`, the collider at rest, order the sample cap). On failure
- * nothing is held. */
+ * triangles over `collider_vertex_count` vertices (`triangles` over `rest`, the collider at rest,
+ * order the sample cap; only read for it). On failure nothing is held. */
 weft_result weft__crop_init(weft_context *ctx, weft_crop *crop, float margin, weft_collider_crop rule,
                             uint32_t max_tokens, weft_collider_cap cap, uint32_t vertex_count,
-                            uint32_t triangle_count, const float *rest, const uint32_t *triangles);
+                            uint32_t triangle_count, uint32_t collider_vertex_count, const float *rest,
+                            const uint32_t *triangles);
 void weft__crop_free(const weft_context *ctx, weft_crop *crop);
 
-/* Selects the triangles of the collider at t+1 (`collider`, indexed by `triangles`) to turn into
- * tokens for the garment at `x` (`vertex_count` points); fills crop->kept and returns the count. */
+/* Selects the triangles of the collider at t+1 (`collider`, indexed by `triangles`; finite, as
+ * weft_garment_set_collider checks) to turn into tokens for the garment at `x` (`vertex_count`
+ * points); fills crop->kept and returns the count. */
 uint32_t weft__crop_select(weft_crop *crop, const float *x, uint32_t vertex_count, const float *collider,
                            const uint32_t *triangles);
 

@@ -1153,7 +1153,7 @@ static weft_result ct_create(weft_garment *g)
         /* The garment's crop overrides the model's margin (a level-of-detail lever). */
         const float margin = g->crop_margin > 0.0f ? g->crop_margin : c.crop_margin;
         ok = weft__crop_init(g->ctx, &s->crop, margin, g->crop_rule, g->max_collider_tokens, g->collider_cap, s->N,
-                             s->M, g->collider_rest, g->collider_triangles) == WEFT_OK;
+                             s->M, g->collider_vertex_count, g->collider_rest, g->collider_triangles) == WEFT_OK;
     }
     if (ok) {
         r = build_reduced(g, s);

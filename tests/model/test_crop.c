@@ -82,7 +82,7 @@ static void test_box_matches_training_rule(void)
     static uint32_t tris[3 * NT];
     test_rng r = {0x9e3779b97f4a7c15ull};
     weft_crop crop;
-    CHECK_RESULT(weft__crop_init(ctx, &crop, 0.15f, WEFT_COLLIDER_CROP_BOX, 0, WEFT_COLLIDER_CAP_NEAREST, N, NT, NULL, NULL), WEFT_OK);
+    CHECK_RESULT(weft__crop_init(ctx, &crop, 0.15f, WEFT_COLLIDER_CROP_BOX, 0, WEFT_COLLIDER_CAP_NEAREST, N, NT, NC, NULL, NULL), WEFT_OK);
     uint32_t total = 0;
     for (int scene = 0; scene < 20; ++scene) {
         random_scene(&r, x, N, c, NC, tris, NT);
@@ -122,8 +122,8 @@ static void test_cells_drop_the_empty_middle(void)
                        3.0f,  3.0f,  3.0f,  3.02f, 3.0f,  3.0f,  3.0f,  3.02f, 3.0f}; /* 3 */
     const uint32_t tris[] = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11};
     weft_crop box, cells;
-    CHECK_RESULT(weft__crop_init(ctx, &box, 0.1f, WEFT_COLLIDER_CROP_BOX, 0, WEFT_COLLIDER_CAP_NEAREST, 8, 4, NULL, NULL), WEFT_OK);
-    CHECK_RESULT(weft__crop_init(ctx, &cells, 0.1f, WEFT_COLLIDER_CROP_CELLS, 0, WEFT_COLLIDER_CAP_NEAREST, 8, 4, NULL, NULL), WEFT_OK);
+    CHECK_RESULT(weft__crop_init(ctx, &box, 0.1f, WEFT_COLLIDER_CROP_BOX, 0, WEFT_COLLIDER_CAP_NEAREST, 8, 4, 12, NULL, NULL), WEFT_OK);
+    CHECK_RESULT(weft__crop_init(ctx, &cells, 0.1f, WEFT_COLLIDER_CROP_CELLS, 0, WEFT_COLLIDER_CAP_NEAREST, 8, 4, 12, NULL, NULL), WEFT_OK);
     CHECK_EQ_INT(weft__crop_select(&box, x, 8, c, tris), 3);
     CHECK(box.kept[0] == 0 && box.kept[1] == 1 && box.kept[2] == 2);
     CHECK_EQ_INT(weft__crop_select(&cells, x, 8, c, tris), 2);
@@ -136,8 +136,8 @@ static void test_cells_drop_the_empty_middle(void)
     static float rx[3 * N], rc[3 * NC];
     static uint32_t rt[3 * NT];
     test_rng r = {12345};
-    CHECK_RESULT(weft__crop_init(ctx, &box, 0.12f, WEFT_COLLIDER_CROP_BOX, 0, WEFT_COLLIDER_CAP_NEAREST, N, NT, NULL, NULL), WEFT_OK);
-    CHECK_RESULT(weft__crop_init(ctx, &cells, 0.12f, WEFT_COLLIDER_CROP_CELLS, 0, WEFT_COLLIDER_CAP_NEAREST, N, NT, NULL, NULL), WEFT_OK);
+    CHECK_RESULT(weft__crop_init(ctx, &box, 0.12f, WEFT_COLLIDER_CROP_BOX, 0, WEFT_COLLIDER_CAP_NEAREST, N, NT, NC, NULL, NULL), WEFT_OK);
+    CHECK_RESULT(weft__crop_init(ctx, &cells, 0.12f, WEFT_COLLIDER_CROP_CELLS, 0, WEFT_COLLIDER_CAP_NEAREST, N, NT, NC, NULL, NULL), WEFT_OK);
     uint32_t fewer = 0;
     for (int scene = 0; scene < 20; ++scene) {
         random_scene(&r, rx, N, rc, NC, rt, NT);
@@ -189,7 +189,7 @@ static void test_cap_nearest_then_index(void)
         for (int rule = 0; rule < 2; ++rule) {
             weft_crop crop;
             CHECK_RESULT(weft__crop_init(ctx, &crop, 0.15f, (weft_collider_crop)rule,
-                                         cases[i].cap, WEFT_COLLIDER_CAP_NEAREST, 4, NT, NULL, NULL), WEFT_OK);
+                                         cases[i].cap, WEFT_COLLIDER_CAP_NEAREST, 4, NT, 3 * NT, NULL, NULL), WEFT_OK);
             const uint32_t n = weft__crop_select(&crop, x, 4, c, tris);
             bool same = n == cases[i].count;
             for (uint32_t k = 0; same && k < n; ++k) {
@@ -231,7 +231,7 @@ static void test_cap_matches_brute_force(void)
             }
         }
         weft_crop crop;
-        CHECK_RESULT(weft__crop_init(ctx, &crop, 0.15f, WEFT_COLLIDER_CROP_BOX, CAP, WEFT_COLLIDER_CAP_NEAREST, N, NT, NULL, NULL), WEFT_OK);
+        CHECK_RESULT(weft__crop_init(ctx, &crop, 0.15f, WEFT_COLLIDER_CROP_BOX, CAP, WEFT_COLLIDER_CAP_NEAREST, N, NT, 3 * NT, NULL, NULL), WEFT_OK);
         const uint32_t n = weft__crop_select(&crop, x, N, c, tris);
         CHECK_EQ_INT(n, CAP);
         /* Brute force over every triangle (all are in the grown box). */
@@ -304,7 +304,7 @@ static void test_cap_sample_even(void)
     for (size_t i = 0; i < sizeof caps / sizeof caps[0]; ++i) {
         weft_crop crop;
         CHECK_RESULT(weft__crop_init(ctx, &crop, 0.05f, WEFT_COLLIDER_CROP_BOX, caps[i], WEFT_COLLIDER_CAP_SAMPLE, 2,
-                                     NT, c, tris),
+                                     NT, 3 * NT, c, tris),
                      WEFT_OK);
         const uint32_t want = caps[i] < NT ? caps[i] : NT;
         const uint32_t n = weft__crop_select(&crop, whole, 2, c, tris);
