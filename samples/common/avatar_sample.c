@@ -43,6 +43,7 @@ void weft_avatar_sample_default_options(weft_avatar_sample_options *o)
     o->body_parts = true;
     o->ccd = false;
     o->push_cm = -1.0f;
+    o->collider_tokens = -1;
     o->out_dir = "avatar_frames";
     o->frames = 120;
     o->settle_frames = 30;
@@ -63,6 +64,7 @@ void weft_avatar_sample_default_options(weft_avatar_sample_options *o)
 enum {
     OPT_MOTION = 1, OPT_JOINT_MAP, OPT_AVATAR, OPT_AVATAR_JOINT_MAP, OPT_GARMENT, OPT_RESOLUTION,
     OPT_SIM_RESOLUTION, OPT_METHOD, OPT_MODEL, OPT_PRECISION, OPT_TETHER_CM, OPT_STRAIN_LIMIT, OPT_PUSH_CM,
+    OPT_COLLIDER_TOKENS,
     OPT_BODY_PARTS, OPT_CCD, OPT_EXPORT, OPT_FRAMES, OPT_SETTLE, OPT_OUT, OPT_SIZE, OPT_SHEET, OPT_YAW, OPT_PITCH,
     OPT_SPEED, OPT_START, OPT_DETERMINISTIC, OPT_NO_FRAMES, OPT_CAPE, OPT_CAPE_MODEL, OPT_CAPE_PRECISION, OPT_CAPE_METHOD,
     OPT_CROWD, OPT_LOD_TABLE, OPT_CROWD_MVE, OPT_CROWD_BUDGET,
@@ -118,6 +120,10 @@ const weft_sample_option weft_avatar_sample_option_table[] = {
      "push garment cloth inside the body (up to 2 cm) or nearer than X cm to\n"
      "X cm in front of it, 0..10 (default 0.5, off for xpbd; 0: off;\n"
      "docs/CCD.md, Collider push)"},
+    {"collider-tokens", "N", OPT_COLLIDER_TOKENS,
+     "the learned model sees at most N collider triangles, an even sample of\n"
+     "its crop weighted in its attention, 0..1000000 (default 1024; 0: the\n"
+     "whole crop; docs/LOD.md, The sample cap)"},
     {"body-parts", "on|off", OPT_BODY_PARTS,
      "garment vertices collide only with the body parts they lie against at\n"
      "rest (each triangle's dominant bone; default on; docs/CCD.md, Body\n"
@@ -340,6 +346,14 @@ bool weft_avatar_sample_apply(int id, const char *v, weft_avatar_sample_options 
         return parse_float(v, 0.0f, 1000.0f, &o->strain_pct);
     case OPT_PUSH_CM:
         return parse_float(v, 0.0f, 10.0f, &o->push_cm);
+    case OPT_COLLIDER_TOKENS: {
+        uint32_t n = 0;
+        if (!parse_u32(v, 0, 1000000, &n)) {
+            return false;
+        }
+        o->collider_tokens = n;
+        return true;
+    }
     case OPT_EXPORT:
         o->export_dir = v;
         return true;
@@ -974,6 +988,9 @@ weft_result weft_avatar_sample_garment_create_on(const weft_avatar_sample_option
         gdef.strain.limit = strain_pct / 100.0f;
         const float push_cm = o->push_cm >= 0.0f ? o->push_cm : gdef.collision.push * 100.0f;
         gdef.collision.push = push_cm / 100.0f;
+        if (o->collider_tokens >= 0) {
+            gdef.max_collider_tokens = (uint32_t)o->collider_tokens;
+        }
         gdef.ccd.enabled = o->ccd;
         weft_result r = weft_garment_create(ctx, &gdef, out_garment);
         if (r != WEFT_OK) {

@@ -38,6 +38,9 @@ typedef struct weft_avatar_sample_options {
                                    for the learned model, none for XPBD; 0: none */
     float push_cm;              /* collider push in cm (weft_garment_def.collision.push); < 0 (default):
                                    0.5, none for the reference XPBD; 0: off */
+    int64_t collider_tokens;    /* the learned model's sampled collider tokens
+                                   (weft_garment_def.max_collider_tokens); < 0 (default):
+                                   WEFT_WORN_COLLIDER_TOKENS; 0: the whole crop */
     bool body_parts;            /* the body collision by parts (weft_garment_def.collision.triangle_parts from
                                    weft_body_triangle_parts) (default true) */
     bool ccd;                   /* the CCD post-process (weft_garment_def.ccd) (default false) */
