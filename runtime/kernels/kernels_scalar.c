@@ -209,7 +209,7 @@ static void attention_scalar(const float *Q, uint32_t ldq, const float *K, uint3
                 s[k] = d * scale;
             }
             for (uint32_t k = 0; key_bias && k < nk; ++k) {
-                s[k] = mrow && !mrow[k] ? s[k] : s[k] + key_bias[k];
+                s[k] += key_bias[k]; /* -inf (masked) stays -inf */
             }
             softmax_row_scalar(s, nk);
             float *o = out + (size_t)q * ldo + off;

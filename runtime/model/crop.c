@@ -34,6 +34,16 @@ static uint32_t bit_reverse(uint32_t v, uint32_t bits)
     return r;
 }
 
+/* Centroid of triangle `tri` over `pos`, in separate statements (no fused multiply-add may
+ * change it on any target: the keys built from it must be the same on every ISA). */
+static void tri_centroid(const float *pos, const uint32_t *tri, float out[3])
+{
+    for (int d = 0; d < 3; ++d) {
+        const float s01 = pos[3 * (size_t)tri[0] + d] + pos[3 * (size_t)tri[1] + d];
+        out[d] = (s01 + pos[3 * (size_t)tri[2] + d]) / 3.0f;
+    }
+}
+
 /* The sample cap's order: rest centroids along a Morton curve (10 bits an axis over their box,
  * ties by index), then that list read in bit-reversed position order. `keys` is scratch for
  * triangle_count entries. */
@@ -42,20 +52,20 @@ static void sample_order(weft_crop *c, const float *rest, const uint32_t *tris, 
     const uint32_t m = c->triangle_count;
     float lo[3] = {INFINITY, INFINITY, INFINITY}, hi[3] = {-INFINITY, -INFINITY, -INFINITY};
     for (uint32_t t = 0; t < m; ++t) {
+        float at[3];
+        tri_centroid(rest, tris + 3 * (size_t)t, at);
         for (int d = 0; d < 3; ++d) {
-            const float s01 = rest[3 * (size_t)tris[3 * (size_t)t] + d] + rest[3 * (size_t)tris[3 * (size_t)t + 1] + d];
-            const float at = (s01 + rest[3 * (size_t)tris[3 * (size_t)t + 2] + d]) / 3.0f;
-            lo[d] = at < lo[d] ? at : lo[d];
-            hi[d] = at > hi[d] ? at : hi[d];
+            lo[d] = at[d] < lo[d] ? at[d] : lo[d];
+            hi[d] = at[d] > hi[d] ? at[d] : hi[d];
         }
     }
     for (uint32_t t = 0; t < m; ++t) {
+        float at[3];
+        tri_centroid(rest, tris + 3 * (size_t)t, at);
         uint32_t code = 0;
         for (int d = 0; d < 3; ++d) {
-            const float s01 = rest[3 * (size_t)tris[3 * (size_t)t] + d] + rest[3 * (size_t)tris[3 * (size_t)t + 1] + d];
-            const float at = (s01 + rest[3 * (size_t)tris[3 * (size_t)t + 2] + d]) / 3.0f;
             const float extent = hi[d] - lo[d];
-            const float f = extent > 0.0f ? (at - lo[d]) / extent * 1023.0f : 0.0f;
+            const float f = extent > 0.0f ? (at[d] - lo[d]) / extent * 1023.0f : 0.0f;
             const uint32_t q = !(f >= 0.0f) ? 0u : f >= 1023.0f ? 1023u : (uint32_t)f; /* NaN: 0 */
             code |= morton_spread(q) << d;
         }
@@ -84,7 +94,6 @@ weft_result weft__crop_init(weft_context *ctx, weft_crop *crop, float margin, we
     crop->margin = margin;
     crop->rule = rule;
     crop->max_tokens = max_tokens;
-    crop->cap = cap;
     crop->represented = 1.0f;
     crop->vertex_count = vertex_count;
     crop->triangle_count = triangle_count;
@@ -379,12 +388,8 @@ uint32_t weft__crop_select(weft_crop *c, const float *x, uint32_t n, const float
     /* Over the cap: rank by the centroid's distance to the nearest garment vertex. */
     build_fine(c, x, n, lo, hi);
     for (uint32_t k = 0; k < kept; ++k) {
-        const uint32_t *tri = tris + 3 * (size_t)c->kept[k];
         float at[3];
-        for (int d = 0; d < 3; ++d) {
-            const float s01 = cn[3 * (size_t)tri[0] + d] + cn[3 * (size_t)tri[1] + d];
-            at[d] = (s01 + cn[3 * (size_t)tri[2] + d]) / 3.0f;
-        }
+        tri_centroid(cn, tris + 3 * (size_t)c->kept[k], at);
         const float d2 = nearest_vertex_d2(c, x, at);
         uint32_t bits;
         memcpy(&bits, &d2, sizeof bits); /* non-negative floats order as their bit patterns */

@@ -43,7 +43,6 @@ typedef struct weft_crop {
     float margin;                       /* metres, > 0 */
     weft_collider_crop rule;
     uint32_t max_tokens;                /* 0: no cap */
-    weft_collider_cap cap;
     float represented;                  /* cropped triangles per kept one in the last selection: 1
                                          * unless the sample cap dropped some */
     /* cap sample below triangle_count: triangles by rank, and a per-triangle mark (all 0 between
