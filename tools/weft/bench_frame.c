@@ -99,34 +99,46 @@ static double median(double *v, uint32_t n)
     return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
 }
 
-/* One (motion, resolution, method) run. Returns 0, or 1 with the reason printed. */
 /* A resolution item: "D" (simulate and draw D) or "D@S" (simulate S, draw D through a mesh map). */
-static bool parse_resolution(const char *item, weft_cloth_resolution *drawn, weft_cloth_resolution *simulated)
+typedef struct fr_res {
+    char name[16];                      /* as given: "4k", "4k@1k" */
+    char garment[48];                   /* the table's garment column */
+    weft_cloth_resolution drawn, simulated;
+} fr_res;
+
+static bool parse_resolution(const char *item, fr_res *r)
 {
     char d[16];
     const char *at = strchr(item, '@');
     const size_t n = at ? (size_t)(at - item) : strlen(item);
-    if (n == 0 || n >= sizeof d) {
+    if (n == 0 || n >= sizeof d || strlen(item) >= sizeof r->name) {
         return false;
     }
     memcpy(d, item, n);
     d[n] = '\0';
-    if (weft_cloth_resolution_from_name(d, drawn) != WEFT_OK) {
+    if (weft_cloth_resolution_from_name(d, &r->drawn) != WEFT_OK) {
         return false;
     }
-    *simulated = *drawn;
-    return !at || (weft_cloth_resolution_from_name(at + 1, simulated) == WEFT_OK && *simulated != *drawn);
+    r->simulated = r->drawn;
+    if (at && (weft_cloth_resolution_from_name(at + 1, &r->simulated) != WEFT_OK || r->simulated == r->drawn)) {
+        return false;
+    }
+    snprintf(r->name, sizeof r->name, "%s", item);
+    if (at) {
+        snprintf(r->garment, sizeof r->garment, "T-shirt %s (%s simulated)", d, at + 1);
+    } else {
+        snprintf(r->garment, sizeof r->garment, "T-shirt %s", d);
+    }
+    return true;
 }
 
-static int run_cell(weft_context *ctx, weft_body *body, const weft_sample_motion *mo, const char *resolution,
+/* One (motion, resolution, method) run. Returns 0, or 1 with the reason printed. */
+static int run_cell(weft_context *ctx, weft_body *body, const weft_sample_motion *mo, const fr_res *res,
                     const fr_method *m, weft_model *model, uint32_t frames, uint32_t tokens, fr_cell *out)
 {
     weft_cloth_def cdef = weft_default_cloth_def(WEFT_CLOTH_TSHIRT), ddef = cdef;
-    if (!parse_resolution(resolution, &ddef.resolution, &cdef.resolution)) {
-        fprintf(stderr, "weft bench frame: --resolutions: %s is not R or R@S (R, S: 1k, 4k, 16k, 40k; S not R)\n",
-                resolution);
-        return 1;
-    }
+    cdef.resolution = res->simulated;
+    ddef.resolution = res->drawn;
     const bool mapped = ddef.resolution != cdef.resolution;
     weft_cloth_mesh *cloth = NULL, *drawn = NULL;
     weft_mesh_map *map = NULL;
@@ -145,7 +157,7 @@ static int run_cell(weft_context *ctx, weft_body *body, const weft_sample_motion
         md.to_rest_positions = drawn->positions;
         md.to_vertex_count = drawn->vertex_count;
         if (weft_mesh_map_create(ctx, &md, &map) != WEFT_OK) {
-            fprintf(stderr, "weft bench frame: mesh map %s: %s\n", resolution, weft_last_error());
+            fprintf(stderr, "weft bench frame: mesh map %s: %s\n", res->name, weft_last_error());
             weft_cloth_destroy(drawn);
             weft_cloth_destroy(cloth);
             return 1;
@@ -214,7 +226,7 @@ static int run_cell(weft_context *ctx, weft_body *body, const weft_sample_motion
         }
     }
     if (rc != 0) {
-        fprintf(stderr, "weft bench frame: %s at %s: %s\n", m->label, resolution, weft_last_error());
+        fprintf(stderr, "weft bench frame: %s at %s: %s\n", m->label, res->name, weft_last_error());
     } else {
         out->pose = median(t[0], frames);
         out->step = median(t[1], frames);
@@ -485,6 +497,31 @@ int weft_bench_frame(int argc, char **argv)
         fprintf(stderr, "weft bench frame: --methods is empty\n");
         return 2;
     }
+    fr_res res[FR_MAX_RES];
+    uint32_t nres = 0;
+    for (uint32_t k = 0; list_item(resolutions, k, item, sizeof item); ++k) {
+        if (nres == FR_MAX_RES || !parse_resolution(item, &res[nres])) {
+            fprintf(stderr, "weft bench frame: --resolutions: %s is not R or R@S (R, S: 1k, 4k, 16k, 40k; S not R; "
+                            "at most %d items)\n", item, FR_MAX_RES);
+            return 2;
+        }
+        ++nres;
+    }
+    if (nres == 0) {
+        fprintf(stderr, "weft bench frame: --resolutions is empty\n");
+        return 2;
+    }
+    /* the columns of the ratios: learned int8 and fp32, fast XPBD-10 (-1 where not run) */
+    int i8 = -1, f32 = -1, x10 = -1;
+    for (uint32_t k = 0; k < nm; ++k) {
+        if (methods[k].method == WEFT_METHOD_MODEL && methods[k].precision == WEFT_PRECISION_INT8) {
+            i8 = (int)k;
+        } else if (methods[k].method == WEFT_METHOD_MODEL && methods[k].precision == WEFT_PRECISION_FP32) {
+            f32 = (int)k;
+        } else if (methods[k].method == WEFT_METHOD_XPBD_FAST && methods[k].substeps == 10) {
+            x10 = (int)k;
+        }
+    }
     weft_context_def cd = weft_default_context_def();
     weft_context *ctx = NULL;
     weft_body *body = NULL;
@@ -516,7 +553,7 @@ int weft_bench_frame(int argc, char **argv)
              motions, resolutions, methods_text, frames, crowd, tokens, weft_config_string(), frames);
     table = rc == 0 ? bench_append(table, &len, &cap, line) : NULL;
     char ratios[4096] = "";
-    char motion_spec[128], res[16];
+    char motion_spec[128];
     for (uint32_t mi = 0; rc == 0 && table && list_item(motions, mi, motion_spec, sizeof motion_spec); ++mi) {
         weft_sample_motion mo;
         if (weft_sample_motion_load(ctx, body, motion_spec, 1.0f, false, &mo) != WEFT_OK) {
@@ -525,33 +562,17 @@ int weft_bench_frame(int argc, char **argv)
             break;
         }
         fr_cell all[FR_MAX_RES][FR_MAX];
-        char names[FR_MAX_RES][16];
-        uint32_t nres = 0;
-        for (uint32_t ri = 0; rc == 0 && list_item(resolutions, ri, res, sizeof res); ++ri) {
-            if (ri == FR_MAX_RES) {
-                fprintf(stderr, "weft bench frame: at most %d resolutions\n", FR_MAX_RES);
-                rc = 2;
-                break;
-            }
+        for (uint32_t ri = 0; rc == 0 && ri < nres; ++ri) {
             fr_cell *cells = all[ri];
-            snprintf(names[ri], sizeof names[ri], "%s", res);
-            nres = ri + 1;
-            char garment[48];
-            const char *at = strchr(res, '@');
-            if (at) {
-                snprintf(garment, sizeof garment, "T-shirt %.*s (%s simulated)", (int)(at - res), res, at + 1);
-            } else {
-                snprintf(garment, sizeof garment, "T-shirt %s", res);
-            }
             for (uint32_t k = 0; rc == 0 && k < nm; ++k) {
-                rc = run_cell(ctx, body, &mo, res, &methods[k],
+                rc = run_cell(ctx, body, &mo, &res[ri], &methods[k],
                               methods[k].method == WEFT_METHOD_MODEL ? models[methods[k].precision] : NULL, frames,
                               tokens, &cells[k]);
                 if (rc != 0) {
                     break;
                 }
                 snprintf(line, sizeof line, "| %s | %s | %s | %.2f | %.2f | %.2f | %.2f | %.2f | %.2f |\n", motion_spec,
-                         garment, methods[k].label, cells[k].pose, cells[k].step, cells[k].method, cells[k].constraints,
+                         res[ri].garment, methods[k].label, cells[k].pose, cells[k].step, cells[k].method, cells[k].constraints,
                          cells[k].ccd, cells[k].map);
                 fputs(line, stdout);
                 fflush(stdout);
@@ -563,29 +584,17 @@ int weft_bench_frame(int argc, char **argv)
             }
         }
         for (uint32_t ri = 0; rc == 0 && ri < nres; ++ri) {
-            const fr_cell *cells = all[ri];
-            const char *res_name = names[ri];
             /* ratios of medians of this run, where both sides were measured */
-            int i8 = -1, f32 = -1, x10 = -1;
-            for (uint32_t k = 0; k < nm; ++k) {
-                if (methods[k].method == WEFT_METHOD_MODEL && methods[k].precision == WEFT_PRECISION_INT8) {
-                    i8 = (int)k;
-                } else if (methods[k].method == WEFT_METHOD_MODEL && methods[k].precision == WEFT_PRECISION_FP32) {
-                    f32 = (int)k;
-                } else if (methods[k].method == WEFT_METHOD_XPBD_FAST && methods[k].substeps == 10) {
-                    x10 = (int)k;
-                }
-            }
+            const fr_cell *cells = all[ri];
             /* D@S: also against fast XPBD-10 stepping D itself, when that item ran */
             double x10_drawn = 0.0;
-            const char *at = strchr(res_name, '@');
-            for (uint32_t rj = 0; at && rj < nres && x10 >= 0; ++rj) {
-                if (strlen(names[rj]) == (size_t)(at - res_name) && !strncmp(names[rj], res_name, strlen(names[rj]))) {
+            for (uint32_t rj = 0; res[ri].simulated != res[ri].drawn && rj < nres && x10 >= 0; ++rj) {
+                if (res[rj].simulated == res[rj].drawn && res[rj].drawn == res[ri].drawn) {
                     x10_drawn = all[rj][x10].step;
                 }
             }
             char r[512];
-            int w = snprintf(r, sizeof r, "| %s | T-shirt %s |", motion_spec, res_name);
+            int w = snprintf(r, sizeof r, "| %s | T-shirt %s |", motion_spec, res[ri].name);
             w += snprintf(r + w, sizeof r - (size_t)w, i8 >= 0 && x10 >= 0 ? " %.2f (target <= 0.05) |" : " - |",
                           i8 >= 0 && x10 >= 0 ? cells[i8].step / cells[x10].step : 0.0);
             w += snprintf(r + w, sizeof r - (size_t)w, i8 >= 0 && x10_drawn > 0.0 ? " %.3f |" : " - |",
