@@ -243,9 +243,10 @@ typedef enum weft_collider_cap {
 } weft_collider_cap;
 
 /* ---- The constraint stage ------------------------------------------------------------------
- * After the method's step, every garment runs one stage of constraints, in this order: tethers,
- * strain limit, collision (the push out of the collider), tethers again, the floor
- * (collision.ground), then the optional CCD pass and the tethers' last clamp after it. Each
+ * After the method's step, every garment runs one stage of constraints, in this order: tethers
+ * and attachments, strain limit, collision (the push out of the collider), tethers again, the
+ * floor (collision.ground), then the optional CCD pass and the tethers' and attachments' last
+ * clamp after it. Each
  * constraint has its own small def inside weft_garment_def, off unless set (CCD: on).
  * Cuts (collision.cut_distance) replace the whole step. Body parts (collision.triangle_parts)
  * also filter the collider contacts of both XPBD methods. docs/WEAR.md, docs/CCD.md. */
@@ -263,6 +264,23 @@ typedef struct weft_tether_def {
     float distance;                     /* metres, one radius for every vertex; 0 (default) = off; finite, >= 0 */
     const float *distances;             /* optional vertex_count radii (finite, >= 0) replacing distance */
 } weft_tether_def;
+
+/* Long-range attachments (every method; game cloth's "tethers to the pins", LRA). Each vertex
+ * stays within (1 + slack) x its rest distance from its anchor: the pinned vertex nearest to it
+ * along the rest shape's edges (the shortest edge path, at least the straight distance). The
+ * clamp moves a vertex farther than that from its anchor's target back onto the sphere, after
+ * the method's step and after CCD; the push between them has the last word over it (a vertex
+ * it moves may end up to push_depth + push past its bound, outside the collider rather than
+ * pulled into it). A pinned cloth (a cape, a flag, a curtain) then cannot be stretched away from
+ * its pins however fast they move, in O(vertices) a step with no iteration.
+ * Anchors follow the pins: when weft_garment_set_pins is given a different vertex list they are
+ * found again (a shortest-path search over the edges, no allocation; same list, no work).
+ * Vertices with no pin in their piece of cloth, and every vertex while nothing is pinned, are
+ * left alone. Needs no collider. */
+typedef struct weft_attachment_def {
+    bool enabled;                       /* default false */
+    float slack;                        /* default 0.1; in [0, 10] when enabled */
+} weft_attachment_def;
 
 /* Strain limit (every method). Edges longer than (1 + limit) x their rest length are shortened
  * by `iterations` Gauss-Seidel sweeps, each end moving half (pinned vertices and radius-0 tethers
@@ -378,6 +396,7 @@ typedef struct weft_garment_def {
 
     /* The constraint stage, in its order (see above). */
     weft_tether_def tethers;
+    weft_attachment_def attachments;
     weft_strain_limit_def strain;
     weft_collision_def collision;
     weft_ccd_def ccd;
@@ -396,6 +415,7 @@ typedef struct weft_step_stats {
     uint32_t collider_tokens;           /* collider triangles the last model step turned into tokens */
     uint32_t tether_vertices_clamped;   /* tether clamps in the last step (a vertex clamped in both
                                          * passes counts twice) */
+    uint32_t attachment_vertices_clamped; /* attachment clamps in the last step (counted as tethers) */
     uint32_t strain_limited_edges;      /* edges over the strain limit before limiting, last step */
     uint32_t pushed_vertices;           /* vertices the collider push moved in the last step */
     uint32_t ccd_let_out;               /* with the push and CCD: vertices that began the step inside
@@ -410,8 +430,9 @@ typedef struct weft_step_stats {
                                          * (docs/CCD.md, *Work bound*) */
     bool collider_cut;                  /* the last step was a cut (collision.cut_distance) */
     uint32_t ground_vertices;           /* vertices the floor (collision.ground) held in the last step */
-    uint32_t ccd_released;              /* with tethers and CCD: vertices CCD held farther than their
-                                         * radius, released onto it after CCD (not certified) */
+    uint32_t ccd_released;              /* with tethers or attachments and CCD: vertices CCD held
+                                         * beyond their radius or attachment limit, released onto it
+                                         * after CCD (not certified) */
 } weft_step_stats;
 
 WEFT_API weft_garment_def weft_default_garment_def(void);

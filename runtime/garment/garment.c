@@ -17,6 +17,7 @@ weft_garment_def weft_default_garment_def(void)
     def.ccd.enabled = true;
     def.ccd.iterations = 16;
     def.strain.iterations = 8;
+    def.attachments.slack = 0.1f;
     def.collision.push_depth = 0.02f;
     def.collision.part_margin = 0.03f;
     def.collision.part_neighbours = true;
@@ -116,6 +117,7 @@ static void free_state(weft_garment *g)
     weft__free(ctx, g->x_next, nv3);
     weft__free(ctx, g->pin_indices, (size_t)g->vertex_count * sizeof(uint32_t));
     weft__free(ctx, g->pin_targets, nv3);
+    weft__attach_free_state(g);
 }
 
 /* Allocates the state buffers free_state frees (sizes from g's counts); false when one fails. */
@@ -129,7 +131,7 @@ static bool alloc_state(weft_garment *g)
     g->x_next = weft__alloc(ctx, nv3);
     g->pin_indices = weft__alloc(ctx, (size_t)g->vertex_count * sizeof(uint32_t));
     g->pin_targets = weft__alloc(ctx, nv3);
-    bool ok = g->x && g->x_prev && g->x_next && g->pin_indices && g->pin_targets;
+    bool ok = g->x && g->x_prev && g->x_next && g->pin_indices && g->pin_targets && weft__attach_alloc_state(g);
     if (ok && g->collider_vertex_count > 0) {
         g->collider_prev = weft__alloc(ctx, nc3);
         g->collider_next = weft__alloc(ctx, nc3);
@@ -153,6 +155,7 @@ static void free_buffers(weft_garment *g)
         weft__free(ctx, g->tether_radius, (size_t)g->vertex_count * sizeof(float));
         weft__free(ctx, g->tether_target, nv3);
         weft__strain_destroy(g);
+        weft__attach_destroy(g);
         weft__near_destroy(g);
         weft__parts_destroy(g);
     }
@@ -231,6 +234,10 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
     if (def->ccd.enabled && (def->ccd.iterations == 0 || def->ccd.iterations > 64)) {
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_garment_create: ccd.iterations %u outside [1, 64]",
                           def->ccd.iterations);
+    }
+    if (def->attachments.enabled && !(def->attachments.slack >= 0.0f && def->attachments.slack <= 10.0f)) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_garment_create: attachments.slack %g is not in [0, 10]",
+                          (double)def->attachments.slack);
     }
     if (!(def->strain.limit >= 0.0f && def->strain.limit <= 10.0f)) {
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
@@ -343,6 +350,7 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
     g->crop_rule = def->collider_crop;
     g->max_collider_tokens = def->max_collider_tokens;
     g->collider_cap = def->collider_cap;
+    g->attach_slack = def->attachments.slack;
     g->strain_limit = def->strain.limit;
     g->strain_iterations = def->strain.iterations;
     g->strain_contact = def->strain.limit > 0.0f ? def->strain.contact : 0.0f;
@@ -390,6 +398,11 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
         for (uint32_t i = 0; i < def->vertex_count; ++i) {
             g->tether_radius[i] = def->tethers.distances ? def->tethers.distances[i] : def->tethers.distance;
         }
+    }
+    if (def->attachments.enabled &&
+        ((r = weft__attach_create(g)) != WEFT_OK || !weft__attach_alloc_state(g))) {
+        free_buffers(g);
+        return r != WEFT_OK ? r : WEFT_ERROR_OUT_OF_MEMORY;
     }
     g->cut_distance = def->collider_vertex_count > 0 ? def->collision.cut_distance : 0.0f;
     if (tethers || g->cut_distance > 0.0f) {
@@ -497,7 +510,8 @@ weft_result weft_garment_asset_instance(weft_garment_asset *asset, weft_garment 
     g->asset = asset;
     g->method_state = NULL;
     g->x = g->x_prev = g->x_next = g->collider_prev = g->collider_next = g->pin_targets = NULL;
-    g->pin_indices = NULL;
+    g->pin_indices = g->attach_pin = g->attach_heap = g->attach_where = NULL;
+    g->attach_limit = NULL;
     const size_t nv3 = (size_t)p->vertex_count * 3 * sizeof(float);
     const size_t nc3 = (size_t)p->collider_vertex_count * 3 * sizeof(float);
     if (!alloc_state(g)) {
@@ -621,11 +635,16 @@ weft_result weft_garment_set_pins(weft_garment *g, const uint32_t *vertex_indice
     if (r != WEFT_OK) {
         return r;
     }
+    const bool moved = count != g->pin_count ||
+                       (count > 0 && memcmp(g->pin_indices, vertex_indices, (size_t)count * sizeof(uint32_t)) != 0);
     if (count > 0) { /* count 0 clears; the pointers may then be NULL */
         memcpy(g->pin_indices, vertex_indices, (size_t)count * sizeof(uint32_t));
         memcpy(g->pin_targets, target_positions, (size_t)count * 3 * sizeof(float));
     }
     g->pin_count = count;
+    if (moved) {
+        weft__attach_anchor(g); /* the attachments' anchors for the new list (no-op when off) */
+    }
     return WEFT_OK;
 }
 
@@ -729,6 +748,7 @@ weft_result weft__garment_finish_step(weft_garment *g)
             return r;
         }
     }
+    g->stats.attachment_vertices_clamped = weft__attach_clamp(g);
     if (g->near_inside && g->ccd_state) {
         /* Cloth the previous step left inside the collider may leave it: CCD skips its collider
          * contacts this step (it would stop the way out as a crossing); the push puts it outside. */
@@ -744,18 +764,21 @@ weft_result weft__garment_finish_step(weft_garment *g)
     }
     if (g->tether_radius && (g->strain_limit > 0.0f || g->push_thickness > 0.0f)) {
         /* The strain limit and the push may carry a vertex past its radius again: the max distance
-         * is what keeps a garment on its wearer, so it has the last word before CCD. */
+         * is what keeps a garment on its wearer, so it has the last word before CCD. The
+         * attachments do not: a cloth swinging from its pins is held out of the body by the push,
+         * which moves a vertex at most push_depth + push past its attachment. */
         g->stats.tether_vertices_clamped += clamp_tethers(g);
     }
     g->stats.ground_vertices = g->ground ? hold_on_ground(g) : 0;
     const double t1 = weft__now_ms();
     weft__ccd_postprocess_garment(g); /* sweeps x -> x_next against the collider and itself */
-    if (g->tether_radius && g->ccd_state) {
+    if (g->ccd_state) {
         /* The max distance outranks CCD: a vertex CCD held back farther than its radius (cloth
          * caught where the body overlaps itself, which the body then drags off) is released onto
          * its sphere, uncertified for this step; the next step lets it out of the body (the push)
-         * instead of holding it there. docs/CCD.md, *Tethers over CCD*. */
-        g->stats.ccd_released = clamp_tethers(g);
+         * instead of holding it there. docs/CCD.md, *Tethers over CCD*. The attachments too. */
+        g->stats.ccd_released = g->tether_radius ? clamp_tethers(g) : 0;
+        g->stats.ccd_released += weft__attach_clamp(g);
     }
     g->stats.constraints_ms = t1 - t0;
     g->stats.ccd_ms = weft__now_ms() - t1;

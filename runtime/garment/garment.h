@@ -51,6 +51,16 @@ struct weft_garment {
      * way (the learned model's skinned prior, LBS: they share `skin`); the tethers take it instead
      * of evaluating the binding again. Every weft__garment_finish_step consumes and clears it. */
     const float *skinned_next;
+    /* Long-range attachments (attach.c), when the def enables them. The asset's: the rest edge
+     * graph (CSR) and the slack. The instance's: each vertex's anchor and limit for the pins in
+     * pin_indices (found again by set_pins when the list changes) and the search's scratch. */
+    float attach_slack;
+    uint32_t *attach_start;             /* vertex_count + 1; NULL: attachments off */
+    uint32_t *attach_next;              /* the neighbours of each vertex */
+    float *attach_length;               /* their rest distances */
+    uint32_t *attach_pin;               /* vertex_count: pin slot of the anchor, UINT32_MAX: none */
+    float *attach_limit;                /* vertex_count: (1 + slack) x rest path length */
+    uint32_t *attach_heap, *attach_where; /* vertex_count each: the search's heap and positions */
     float cut_distance;                 /* collider jump that resets the cloth (metres); 0: off */
     bool cut_pending;                   /* weft_garments_step: cut in this call's first pass */
 
@@ -153,6 +163,17 @@ weft_result weft__check_cloth_topology(const weft_context *ctx, const char *what
 weft_result weft__strain_create(weft_garment *g);
 void weft__strain_destroy(weft_garment *g);
 void weft__strain_limit(weft_garment *g);
+
+/* Long-range attachments (attach.c). create builds the asset's edge graph (g->rest, triangles);
+ * alloc_state/free_state the instance's anchors and scratch (nothing when attachments are off);
+ * anchor finds every vertex's anchor among pin_indices[0, pin_count); clamp applies the limit to
+ * x_next and returns how many vertices moved. */
+weft_result weft__attach_create(weft_garment *g);
+void weft__attach_destroy(weft_garment *g);
+bool weft__attach_alloc_state(weft_garment *g);
+void weft__attach_free_state(weft_garment *g);
+void weft__attach_anchor(weft_garment *g);
+uint32_t weft__attach_clamp(weft_garment *g);
 
 /* Collider proximity and push (near.c). create makes the tree when strain_contact or
  * push_thickness asks for it; refit moves it to the collider at t+1 (once per step). */

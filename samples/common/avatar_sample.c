@@ -1530,10 +1530,11 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
            sums[1] / n, sums[2] / n, sums[3] / n);
     if (s.wear) {
         printf("wear: garment %s (%u of %u frames over 1 %% of vertices farther than %.0f cm from the skinned "
-               "garment; worst %.1f %%); inside_body mean %.1f %%, max %.1f %%; body_self_overlap mean %.1f %%, max %.1f %%\n",
+               "garment; worst %.1f %%); inside_body mean %.1f %%, max %.1f %% (%.1f %% where the body is clear); "
+               "body_self_overlap mean %.1f %%, max %.1f %%\n",
                wear.frames_off ? "LOST" : "kept", wear.frames_off, wear.frames, 100.0 * off_distance,
-               100.0 * wear.off_body_max, 100.0 * wear.inside_mean, 100.0 * wear.inside_max, 100.0 * wear.overlap_mean,
-               100.0 * wear.overlap_max);
+               100.0 * wear.off_body_max, 100.0 * wear.inside_mean, 100.0 * wear.inside_max,
+               100.0 * wear.inside_clear_max, 100.0 * wear.overlap_mean, 100.0 * wear.overlap_max);
         const double p50 = weft_wear_percentile(s.cloth_ms, o->frames, 50.0);
         const double p99 = weft_wear_percentile(s.cloth_ms, o->frames, 99.0);
         const double pmax = weft_wear_percentile(s.cloth_ms, o->frames, 100.0);

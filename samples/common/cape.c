@@ -8,9 +8,10 @@
  * self-repulsion). The cape gets it from weft's constraint stage: after each FNOpt step its
  * positions go through an external garment (WEFT_METHOD_EXTERNAL, weft_garment_constrain) whose
  * collision pushes cloth inside the body (up to 5 cm deep) or nearer than 1 cm to 1 cm in front
- * of it; where that moved the cloth, the corrected positions (and the velocities by the same
- * correction) go back into the optimizer. The XPBD cape is a weft_garment over the same grid
- * with the same pins, collider and collision distances. */
+ * of it, and its attachments keep every vertex within 1.1 times its rest distance down the cape
+ * from its pin; where that moved the cloth, the corrected positions (and the velocities by the
+ * same correction) go back into the optimizer. The XPBD cape is a weft_garment over the same grid
+ * with the same pins, collider, collision distances and attachments. */
 #include "weft_sample.h"
 
 #if WEFT_RENDER_HAVE_SAMPLE
@@ -25,6 +26,7 @@
 #define CAPE_OFFSET_M 0.035f    /* pins this far outside the skin (bind pose) */
 #define CAPE_PUSH_M 0.01f      /* body collision: cloth kept this far in front of the skin */
 #define CAPE_PUSH_DEPTH_M 0.05f /* and pushed out from up to this deep inside it */
+#define CAPE_SLACK 0.1f        /* attachments: no vertex farther from its pin than 1.1 x its rest path */
 #define CAPE_TILT_RAD 0.03f     /* initial lean of the hanging cloth away from the back: small, a large one swings the cape into the body */
 
 struct weft_sample_cape {
@@ -274,6 +276,8 @@ weft_result weft_sample_cape_create(weft_context *ctx, const weft_body *body, co
     gd.collision.push = CAPE_PUSH_M;
     gd.collision.push_depth = CAPE_PUSH_DEPTH_M;
     gd.ccd.enabled = false;
+    gd.attachments.enabled = true;
+    gd.attachments.slack = CAPE_SLACK;
     if (def->xpbd_substeps) {
         weft_sample_set_substeps(&gd, def->xpbd_substeps);
         r = weft_garment_create(ctx, &gd, &c->xpbd);
@@ -340,7 +344,7 @@ weft_result weft_sample_cape_step(weft_sample_cape *c, const weft_body *body, co
     }
     const weft_step_stats st = weft_garment_stats(c->collide);
     const float *x = weft_garment_positions(c->collide);
-    if (st.pushed_vertices == 0 && !st.collider_cut) {
+    if (st.pushed_vertices == 0 && st.attachment_vertices_clamped == 0 && !st.collider_cut) {
         return WEFT_OK;
     }
     /* the correction goes back into the optimizer, positions and velocities alike */

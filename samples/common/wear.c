@@ -7,6 +7,8 @@
 #include <string.h>
 
 #define WEAR_GRID 64
+#define WEAR_CLEAR_M 0.05f    /* inside_clear: no buried body vertex within this distance */
+#define WEAR_HASH 4096u       /* buckets of the buried vertices' hash grid (cells of WEAR_CLEAR_M) */
 
 struct weft_wear {
     const uint32_t *tris;
@@ -17,6 +19,9 @@ struct weft_wear {
     size_t capacity;
     float *normals;           /* nbv * 3: area-weighted vertex normals (self overlap) */
     float *probe;             /* nbv * 3 */
+    uint32_t *hash_start;     /* WEAR_HASH + 1: buried body vertices by cell (inside_clear) */
+    uint32_t *hash_verts;     /* nbv */
+    uint8_t *buried;          /* nbv */
 };
 
 weft_result weft_wear_create(const uint32_t *body_triangles, uint32_t body_triangle_count, uint32_t body_vertex_count,
@@ -38,7 +43,11 @@ weft_result weft_wear_create(const uint32_t *body_triangles, uint32_t body_trian
     w->cell_tris = malloc(w->capacity * sizeof(uint32_t));
     w->normals = malloc((size_t)body_vertex_count * 3 * sizeof(float));
     w->probe = malloc((size_t)body_vertex_count * 3 * sizeof(float));
-    if (!w->cell_start || !w->cell_tris || !w->normals || !w->probe) {
+    w->hash_start = malloc((WEAR_HASH + 1) * sizeof(uint32_t));
+    w->hash_verts = malloc((size_t)body_vertex_count * sizeof(uint32_t));
+    w->buried = malloc(body_vertex_count);
+    if (!w->cell_start || !w->cell_tris || !w->normals || !w->probe || !w->hash_start || !w->hash_verts ||
+        !w->buried) {
         weft_wear_destroy(w);
         return WEFT_ERROR_OUT_OF_MEMORY;
     }
@@ -53,6 +62,9 @@ void weft_wear_destroy(weft_wear *w)
         free(w->cell_tris);
         free(w->normals);
         free(w->probe);
+        free(w->hash_start);
+        free(w->hash_verts);
+        free(w->buried);
         free(w);
     }
 }
@@ -179,6 +191,73 @@ static int winding(const weft_wear *w, const float *body, const float *p)
     return wn;
 }
 
+/* The hash bucket of integer cell (i, j, k). */
+static uint32_t hash_cell(int32_t i, int32_t j, int32_t k)
+{
+    const uint32_t h = (uint32_t)i * 73856093u ^ (uint32_t)j * 19349663u ^ (uint32_t)k * 83492791u;
+    return h % WEAR_HASH;
+}
+
+static void cell_of(const float *p, int32_t c[3])
+{
+    for (int a = 0; a < 3; ++a) {
+        c[a] = (int32_t)floorf(p[a] / WEAR_CLEAR_M);
+    }
+}
+
+/* The buried body vertices (w->buried) into the hash grid. */
+static void hash_buried(weft_wear *w, const float *body)
+{
+    memset(w->hash_start, 0, (WEAR_HASH + 1) * sizeof(uint32_t));
+    for (int pass = 0; pass < 2; ++pass) {
+        for (uint32_t v = 0; v < w->nbv; ++v) {
+            if (!w->buried[v]) {
+                continue;
+            }
+            int32_t c[3];
+            cell_of(body + 3 * (size_t)v, c);
+            const uint32_t h = hash_cell(c[0], c[1], c[2]);
+            if (pass == 0) {
+                w->hash_start[h + 1]++;
+            } else {
+                w->hash_verts[w->hash_start[h]++] = v;
+            }
+        }
+        if (pass == 0) {
+            for (uint32_t h = 0; h < WEAR_HASH; ++h) {
+                w->hash_start[h + 1] += w->hash_start[h];
+            }
+        }
+    }
+    for (uint32_t h = WEAR_HASH; h > 0; --h) {
+        w->hash_start[h] = w->hash_start[h - 1];
+    }
+    w->hash_start[0] = 0;
+}
+
+/* Whether a buried body vertex lies within WEAR_CLEAR_M of p. */
+static bool near_buried(const weft_wear *w, const float *body, const float *p)
+{
+    int32_t c[3];
+    cell_of(p, c);
+    const float r2 = WEAR_CLEAR_M * WEAR_CLEAR_M;
+    for (int32_t di = -1; di <= 1; ++di) {
+        for (int32_t dj = -1; dj <= 1; ++dj) {
+            for (int32_t dk = -1; dk <= 1; ++dk) {
+                const uint32_t h = hash_cell(c[0] + di, c[1] + dj, c[2] + dk);
+                for (uint32_t s = w->hash_start[h]; s < w->hash_start[h + 1]; ++s) {
+                    const float *q = body + 3 * (size_t)w->hash_verts[s];
+                    const float e[3] = {q[0] - p[0], q[1] - p[1], q[2] - p[2]};
+                    if (e[0] * e[0] + e[1] * e[1] + e[2] * e[2] <= r2) {
+                        return true;
+                    }
+                }
+            }
+        }
+    }
+    return false;
+}
+
 weft_result weft_wear_measure(weft_wear *w, const float *body, const float *garment, const float *skinned,
                               float off_distance, weft_wear_frame *out)
 {
@@ -189,14 +268,7 @@ weft_result weft_wear_measure(weft_wear *w, const float *body, const float *garm
     if (r != WEFT_OK) {
         return r;
     }
-    uint32_t off = 0, inside = 0, buried = 0;
-    const float d2 = off_distance * off_distance;
-    for (uint32_t i = 0; i < w->ngv; ++i) {
-        const float *x = garment + 3 * (size_t)i, *s = skinned + 3 * (size_t)i;
-        const float e[3] = {x[0] - s[0], x[1] - s[1], x[2] - s[2]};
-        off += e[0] * e[0] + e[1] * e[1] + e[2] * e[2] > d2;
-        inside += winding(w, body, x) > 0;
-    }
+    uint32_t off = 0, inside = 0, clear = 0, buried = 0;
     memset(w->normals, 0, (size_t)w->nbv * 3 * sizeof(float));
     for (uint32_t t = 0; t < w->nt; ++t) {
         const uint32_t *tri = w->tris + 3 * (size_t)t;
@@ -217,11 +289,24 @@ weft_result weft_wear_measure(weft_wear *w, const float *body, const float *garm
         for (int k = 0; k < 3; ++k) {
             q[k] = body[3 * (size_t)v + k] + n[k] * s;
         }
-        buried += winding(w, body, q) > 0;
+        w->buried[v] = winding(w, body, q) > 0;
+        buried += w->buried[v];
+    }
+    hash_buried(w, body);
+    const float d2 = off_distance * off_distance;
+    for (uint32_t i = 0; i < w->ngv; ++i) {
+        const float *x = garment + 3 * (size_t)i, *s = skinned + 3 * (size_t)i;
+        const float e[3] = {x[0] - s[0], x[1] - s[1], x[2] - s[2]};
+        off += e[0] * e[0] + e[1] * e[1] + e[2] * e[2] > d2;
+        if (winding(w, body, x) > 0) {
+            inside++;
+            clear += !near_buried(w, body, x);
+        }
     }
     out->off_body = w->ngv ? (double)off / w->ngv : 0.0;
     out->inside_body = w->ngv ? (double)inside / w->ngv : 0.0;
     out->body_self_overlap = (double)buried / w->nbv;
+    out->inside_clear = w->ngv ? (double)clear / w->ngv : 0.0;
     return WEFT_OK;
 }
 
@@ -234,6 +319,8 @@ void weft_wear_summary_add(weft_wear_summary *s, const weft_wear_frame *f)
     s->inside_max = f->inside_body > s->inside_max ? f->inside_body : s->inside_max;
     s->overlap_mean += (f->body_self_overlap - s->overlap_mean) / s->frames;
     s->overlap_max = f->body_self_overlap > s->overlap_max ? f->body_self_overlap : s->overlap_max;
+    s->inside_clear_mean += (f->inside_clear - s->inside_clear_mean) / s->frames;
+    s->inside_clear_max = f->inside_clear > s->inside_clear_max ? f->inside_clear : s->inside_clear_max;
 }
 
 static int cmp_double(const void *a, const void *b)

@@ -10,6 +10,10 @@
  *                      overlapping parts once and is exact for any closed, outward-wound body.
  *   body_self_overlap  share of body vertices inside the body once moved 2 mm out along their
  *                      normal: how much of the character is buried in another of its parts.
+ *   inside_clear       share of garment vertices inside the body with no buried body vertex
+ *                      (as body_self_overlap counts them) within 5 cm: cloth inside the body
+ *                      where the body does not overlap itself, which no rule about overlapping
+ *                      parts explains.
  *
  * The winding number is counted along a vertical ray from each point: every body triangle whose
  * XZ projection holds the point and which lies above it adds +1 when it faces up (the ray
@@ -26,6 +30,7 @@ typedef struct weft_wear_frame {
     double off_body;            /* share, 0..1 */
     double inside_body;         /* share, 0..1 */
     double body_self_overlap;   /* share, 0..1 */
+    double inside_clear;        /* share, 0..1 (<= inside_body) */
 } weft_wear_frame;
 
 /* body_triangles: the body's closed, outward-wound mesh; garment_vertex_count: the garment
@@ -45,6 +50,7 @@ typedef struct weft_wear_summary {
     double off_body_max;
     double inside_mean, inside_max;
     double overlap_mean, overlap_max;
+    double inside_clear_mean, inside_clear_max;
 } weft_wear_summary;
 void weft_wear_summary_add(weft_wear_summary *s, const weft_wear_frame *f);
 

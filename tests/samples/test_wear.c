@@ -1,6 +1,7 @@
 /* Wear measures (samples/common/wear.c): on two overlapping closed boxes, a point inside both
  * counts once, points outside count zero, the winding number is right at random points against a
- * box oracle, the buried corners of one box count as body overlap and nothing else does, and
+ * box oracle, the buried corners of one box count as body overlap and nothing else does, points
+ * inside within 5 cm of a buried corner are not inside_clear and the other inside points are, and
  * off_body counts vertices beyond the distance from their skinned twins. */
 #include "../xpbd/scene.h"
 #include "test.h"
@@ -28,16 +29,30 @@ static void test_inside_counts_the_union_once(void)
         }
         expect_inside += in_box(pts[i], k_a_lo, k_a_hi) || in_box(pts[i], k_b_lo, k_b_hi);
     }
-    /* one point in both boxes, one in neither */
-    const float both[3] = {0.8f, 0.5f, 0.5f}, neither[3] = {1.3f, 0.9f, 0.9f};
+    /* one point in both boxes, one in neither, one inside 2 cm from a buried corner */
+    const float both[3] = {0.8f, 0.5f, 0.5f}, neither[3] = {1.3f, 0.9f, 0.9f}, by_corner[3] = {0.61f, 0.31f, 0.69f};
     memcpy(pts[0], both, sizeof both);
     memcpy(pts[1], neither, sizeof neither);
+    memcpy(pts[4], by_corner, sizeof by_corner);
     memcpy(skinned[0], both, sizeof both);
     memcpy(skinned[1], neither, sizeof neither);
+    memcpy(skinned[4], by_corner, sizeof by_corner);
     expect_inside = 0;
+    uint32_t expect_clear = 0, near_corner = 0;
     for (int i = 0; i < N; ++i) {
-        expect_inside += in_box(pts[i], k_a_lo, k_a_hi) || in_box(pts[i], k_b_lo, k_b_hi);
+        const bool in = in_box(pts[i], k_a_lo, k_a_hi) || in_box(pts[i], k_b_lo, k_b_hi);
+        /* the buried body vertices: box b's corners at x = 0.6 */
+        bool near = false;
+        for (int c = 0; c < 4; ++c) {
+            const float q[3] = {0.6f, c & 1 ? 0.7f : 0.3f, c & 2 ? 0.7f : 0.3f};
+            const float e[3] = {q[0] - pts[i][0], q[1] - pts[i][1], q[2] - pts[i][2]};
+            near = near || e[0] * e[0] + e[1] * e[1] + e[2] * e[2] <= 0.05f * 0.05f;
+        }
+        expect_inside += in;
+        expect_clear += in && !near;
+        near_corner += in && near;
     }
+    CHECK(near_corner >= 1);
     skinned[2][0] += 0.2f; /* 20 cm off its skinned twin */
     skinned[3][1] -= 0.05f; /* 5 cm */
     weft_wear *w = NULL;
@@ -45,6 +60,7 @@ static void test_inside_counts_the_union_once(void)
     weft_wear_frame f;
     CHECK_RESULT(weft_wear_measure(w, body.pos, &pts[0][0], &skinned[0][0], 0.1f, &f), WEFT_OK);
     CHECK_NEAR(f.inside_body, (double)expect_inside / N, 1e-12);
+    CHECK_NEAR(f.inside_clear, (double)expect_clear / N, 1e-12);
     CHECK_NEAR(f.off_body, 1.0 / N, 1e-12);
     /* box b's four corners at x = 0.6 lie inside box a; its other four and all of a's do not */
     CHECK_NEAR(f.body_self_overlap, 4.0 / 16.0, 1e-12);

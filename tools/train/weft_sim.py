@@ -26,6 +26,10 @@ class _TetherDef(ctypes.Structure):
     _fields_ = [("distance", ctypes.c_float), ("distances", ctypes.c_void_p)]
 
 
+class _AttachmentDef(ctypes.Structure):
+    _fields_ = [("enabled", ctypes.c_bool), ("slack", ctypes.c_float)]
+
+
 class _StrainLimitDef(ctypes.Structure):
     _fields_ = [("limit", ctypes.c_float), ("iterations", ctypes.c_uint32), ("contact", ctypes.c_float)]
 
@@ -66,7 +70,9 @@ class _GarmentDef(ctypes.Structure):
         ("collider_crop_margin", ctypes.c_float),
         ("collider_crop", ctypes.c_int),
         ("max_collider_tokens", ctypes.c_uint32),
+        ("collider_cap", ctypes.c_int),
         ("tethers", _TetherDef),
+        ("attachments", _AttachmentDef),
         ("strain", _StrainLimitDef),
         ("collision", _CollisionDef),
         ("ccd", _CcdDef),

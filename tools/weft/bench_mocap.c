@@ -407,7 +407,7 @@ static int run_cape_cell(const mc_options *o, weft_context *ctx, const weft_body
 
 typedef struct mc_total {
     uint32_t cells, lost, failed, cuts, ccd_over_budget, ccd_released;
-    double inside_mean_sum, inside_max, ratio_max, p50_sum;
+    double inside_mean_sum, inside_max, clear_max, ratio_max, p50_sum;
 } mc_total;
 
 enum {
@@ -632,8 +632,9 @@ int weft_bench_mocap(int argc, char **argv)
     snprintf(line, sizeof line,
              "`weft bench mocap --split %s --frames %u%s --resolution %s --methods %s --garments %s --ccd %s --body-parts "
              "%s --tether-cm %g --push-cm %g --strain-limit %g --collider-tokens %u` (%s)\n\n"
-             "| clip | garment | method | lost | worst off_body %% | inside_body mean / max %% | body_self_overlap "
-             "mean / max %% | ms p50 / p99 / max | max / p50 |\n|---|---|---|---|---:|---:|---:|---:|---:|\n",
+             "| clip | garment | method | lost | worst off_body %% | inside_body mean / max %% | inside_clear max %% | "
+             "body_self_overlap mean / max %% | ms p50 / p99 / max | max / p50 |\n"
+             "|---|---|---|---|---:|---:|---:|---:|---:|---:|\n",
              o.split, o.frames, settle_arg, o.resolution, o.methods, o.garments, o.ccd ? "on" : "off", o.parts ? "on" : "off",
              (double)o.tether_cm, (double)o.push_cm, (double)o.strain_pct, o.tokens, weft_config_string());
     fputs(line, stdout); /* the command and the table's head, as the page gets them */
@@ -644,7 +645,7 @@ int weft_bench_mocap(int argc, char **argv)
     size_t csv_len = 0, csv_cap = 0;
     csv = bench_append(csv, &csv_len, &csv_cap,
                        "clip,garment,method,lost,worst_off_body_pct,inside_body_mean_pct,inside_body_max_pct,"
-                       "body_self_overlap_mean_pct,body_self_overlap_max_pct,ms_p50,ms_p99,ms_max\n");
+                       "body_self_overlap_mean_pct,body_self_overlap_max_pct,ms_p50,ms_p99,ms_max,inside_clear_max_pct\n");
     int rc = table && csv ? 0 : 1;
     for (uint32_t c = 0; rc == 0 && c < nclips; ++c) {
         char spec[128], path[1024];
@@ -680,13 +681,14 @@ int weft_bench_mocap(int argc, char **argv)
                 t->cells++;
                 if (cell.failed) {
                     t->failed++;
-                    snprintf(line, sizeof line, "| %.63s | %s | %s | failed: %.159s | | | | | |\n", clip_names[c],
+                    snprintf(line, sizeof line, "| %.63s | %s | %s | failed: %.159s | | | | | | |\n", clip_names[c],
                              kind_names[gk], methods[k].label, cell.why);
                 } else {
                     const weft_wear_summary *w = &cell.wear;
                     t->lost += w->frames_off > 0;
                     t->inside_mean_sum += w->inside_mean;
                     t->inside_max = w->inside_max > t->inside_max ? w->inside_max : t->inside_max;
+                    t->clear_max = w->inside_clear_max > t->clear_max ? w->inside_clear_max : t->clear_max;
                     const double ratio = cell.p50 > 0.0 ? cell.max / cell.p50 : 0.0;
                     t->ratio_max = ratio > t->ratio_max ? ratio : t->ratio_max;
                     t->p50_sum += cell.p50;
@@ -694,15 +696,17 @@ int weft_bench_mocap(int argc, char **argv)
                     t->ccd_over_budget += cell.ccd_over_budget;
                     t->ccd_released += cell.ccd_released;
                     snprintf(line, sizeof line,
-                             "| %.63s | %s | %.31s | %s | %.1f | %.1f / %.1f | %.1f / %.1f | %.2f / %.2f / %.2f | %.1f |\n",
+                             "| %.63s | %s | %.31s | %s | %.1f | %.1f / %.1f | %.1f | %.1f / %.1f | %.2f / %.2f / %.2f | "
+                             "%.1f |\n",
                              clip_names[c], kind_names[gk], methods[k].label, w->frames_off ? "**lost**" : "no",
                              100.0 * w->off_body_max, 100.0 * w->inside_mean, 100.0 * w->inside_max,
-                             100.0 * w->overlap_mean, 100.0 * w->overlap_max, cell.p50, cell.p99, cell.max, ratio);
+                             100.0 * w->inside_clear_max, 100.0 * w->overlap_mean, 100.0 * w->overlap_max, cell.p50, cell.p99, cell.max, ratio);
                     char row[512];
-                    snprintf(row, sizeof row, "%.63s,%s,%.31s,%d,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f\n",
+                    snprintf(row, sizeof row, "%.63s,%s,%.31s,%d,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f\n",
                              clip_names[c], kind_names[gk], methods[k].label, w->frames_off > 0,
                              100.0 * w->off_body_max, 100.0 * w->inside_mean, 100.0 * w->inside_max,
-                             100.0 * w->overlap_mean, 100.0 * w->overlap_max, cell.p50, cell.p99, cell.max);
+                             100.0 * w->overlap_mean, 100.0 * w->overlap_max, cell.p50, cell.p99, cell.max,
+                             100.0 * w->inside_clear_max);
                     csv = bench_append(csv, &csv_len, &csv_cap, row);
                     if (!csv) {
                         rc = 1;
@@ -720,14 +724,16 @@ int weft_bench_mocap(int argc, char **argv)
     if (rc == 0) {
         table = bench_append(table, &len, &cap,
                              "\n| method | cells | garments lost | failed | inside_body mean of means / worst frame % | "
-                             "worst max / p50 | mean p50 ms | cut frames | CCD over budget | CCD released |\n"
-                             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+                             "inside_clear worst frame % | worst max / p50 | mean p50 ms | cut frames | CCD over budget | "
+                             "CCD released |\n"
+                             "|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
         for (uint32_t k = 0; table && k < nm; ++k) {
             const mc_total *t = &totals[k];
             const uint32_t ok_cells = t->cells - t->failed;
-            snprintf(line, sizeof line, "| %s | %u | %u | %u | %.1f / %.1f | %.1f | %.2f | %u | %u | %u |\n",
+            snprintf(line, sizeof line, "| %s | %u | %u | %u | %.1f / %.1f | %.1f | %.1f | %.2f | %u | %u | %u |\n",
                      methods[k].label, t->cells, t->lost, t->failed,
-                     ok_cells ? 100.0 * t->inside_mean_sum / ok_cells : 0.0, 100.0 * t->inside_max, t->ratio_max,
+                     ok_cells ? 100.0 * t->inside_mean_sum / ok_cells : 0.0, 100.0 * t->inside_max,
+                     100.0 * t->clear_max, t->ratio_max,
                      ok_cells ? t->p50_sum / ok_cells : 0.0, t->cuts, t->ccd_over_budget, t->ccd_released);
             fputs(line, stdout);
             table = bench_append(table, &len, &cap, line);

@@ -769,6 +769,8 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
         w->overlap_mean = (w->overlap_mean * n0 + a.wear.overlap_mean * n1) / (n0 + n1);
         w->inside_max = fmax(w->inside_max, a.wear.inside_max);
         w->overlap_max = fmax(w->overlap_max, a.wear.overlap_max);
+        w->inside_clear_mean = (w->inside_clear_mean * n0 + a.wear.inside_clear_mean * n1) / (n0 + n1);
+        w->inside_clear_max = fmax(w->inside_clear_max, a.wear.inside_clear_max);
         w->off_body_max = fmax(w->off_body_max, a.wear.off_body_max);
         w->frames_off += a.wear.frames_off;
         w->frames += a.wear.frames;
@@ -1162,9 +1164,9 @@ int weft_cmd_eval(int argc, char **argv)
         snprintf(wear_json, sizeof wear_json,
                  "{\"sequences\": %u, \"garments_lost\": %u, \"frames_off_body\": %u, \"off_body_max\": %.6g, "
                  "\"inside_body_mean\": %.6g, \"inside_body_max\": %.6g, \"body_self_overlap_mean\": %.6g, "
-                 "\"body_self_overlap_max\": %.6g}",
+                 "\"body_self_overlap_max\": %.6g, \"inside_clear_mean\": %.6g, \"inside_clear_max\": %.6g}",
                  total.worn_sequences, total.lost_sequences, w->frames_off, w->off_body_max, w->inside_mean,
-                 w->inside_max, w->overlap_mean, w->overlap_max);
+                 w->inside_max, w->overlap_mean, w->overlap_max, w->inside_clear_mean, w->inside_clear_max);
         snprintf(wear_text, sizeof wear_text,
                  "; worn: %u of %u garments lost, inside_body mean %.1f%% max %.1f%%, body_self_overlap mean %.1f%%",
                  total.lost_sequences, total.worn_sequences, 100.0 * w->inside_mean, 100.0 * w->inside_max,
