@@ -43,6 +43,7 @@ void weft_avatar_sample_default_options(weft_avatar_sample_options *o)
     o->body_parts = true;
     o->ccd = false;
     o->push_cm = -1.0f;
+    o->push_depth_cm = -1.0f;
     o->collider_tokens = -1;
     o->out_dir = "avatar_frames";
     o->frames = 120;
@@ -64,6 +65,7 @@ void weft_avatar_sample_default_options(weft_avatar_sample_options *o)
 enum {
     OPT_MOTION = 1, OPT_JOINT_MAP, OPT_AVATAR, OPT_AVATAR_JOINT_MAP, OPT_GARMENT, OPT_RESOLUTION,
     OPT_SIM_RESOLUTION, OPT_METHOD, OPT_MODEL, OPT_PRECISION, OPT_TETHER_CM, OPT_STRAIN_LIMIT, OPT_PUSH_CM,
+    OPT_PUSH_DEPTH_CM,
     OPT_COLLIDER_TOKENS,
     OPT_BODY_PARTS, OPT_CCD, OPT_EXPORT, OPT_FRAMES, OPT_SETTLE, OPT_OUT, OPT_SIZE, OPT_SHEET, OPT_YAW, OPT_PITCH,
     OPT_SPEED, OPT_START, OPT_DETERMINISTIC, OPT_NO_FRAMES, OPT_CAPE, OPT_CAPE_MODEL, OPT_CAPE_PRECISION, OPT_CAPE_METHOD,
@@ -117,9 +119,10 @@ const weft_sample_option weft_avatar_sample_option_table[] = {
      "shorten garment edges stretched over PCT % after each step, 0..1000\n"
      "(0: off; default 10 for the learned model, off for xpbd)"},
     {"push-cm", "X", OPT_PUSH_CM,
-     "push garment cloth inside the body (up to 2 cm) or nearer than X cm to\n"
-     "X cm in front of it, 0..10 (default 0.5, off for xpbd; 0: off;\n"
+     "push garment cloth inside the body (up to --push-depth-cm) or nearer than\n"
+     "X cm to X cm in front of it, 0..10 (default 0.5, off for xpbd; 0: off;\n"
      "docs/CCD.md, Collider push)"},
+    {"push-depth-cm", "X", OPT_PUSH_DEPTH_CM, "the deepest cloth the push moves out, 0..50 (default 3)"},
     {"collider-tokens", "N", OPT_COLLIDER_TOKENS,
      "the learned model sees at most N collider triangles, an even sample of\n"
      "its crop weighted in its attention, 0..1000000 (default 1024; 0: the\n"
@@ -346,6 +349,8 @@ bool weft_avatar_sample_apply(int id, const char *v, weft_avatar_sample_options 
         return parse_float(v, 0.0f, 1000.0f, &o->strain_pct);
     case OPT_PUSH_CM:
         return parse_float(v, 0.0f, 10.0f, &o->push_cm);
+    case OPT_PUSH_DEPTH_CM:
+        return parse_float(v, 0.0f, 50.0f, &o->push_depth_cm);
     case OPT_COLLIDER_TOKENS: {
         uint32_t n = 0;
         if (!parse_u32(v, 0, 1000000, &n)) {
@@ -814,6 +819,7 @@ static weft_garment_def worn_def_on(const weft_sample_collider *col, const float
     d.ccd.enabled = false;
     d.tethers.distance = WEFT_WORN_TETHER_CM / 100.0f;
     d.collision.push = WEFT_WORN_PUSH_CM / 100.0f;
+    d.collision.push_depth = WEFT_WORN_PUSH_DEPTH_CM / 100.0f;
     d.strain.limit = method == WEFT_METHOD_MODEL ? WEFT_WORN_STRAIN_PCT / 100.0f : 0.0f;
     if (method == WEFT_METHOD_MODEL) {
         d.max_collider_tokens = WEFT_WORN_COLLIDER_TOKENS;
@@ -988,6 +994,9 @@ weft_result weft_avatar_sample_garment_create_on(const weft_avatar_sample_option
         gdef.strain.limit = strain_pct / 100.0f;
         const float push_cm = o->push_cm >= 0.0f ? o->push_cm : gdef.collision.push * 100.0f;
         gdef.collision.push = push_cm / 100.0f;
+        if (o->push_depth_cm >= 0.0f) {
+            gdef.collision.push_depth = o->push_depth_cm / 100.0f;
+        }
         if (o->collider_tokens >= 0) {
             gdef.max_collider_tokens = (uint32_t)o->collider_tokens;
         }

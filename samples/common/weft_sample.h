@@ -38,6 +38,8 @@ typedef struct weft_avatar_sample_options {
                                    for the learned model, none for XPBD; 0: none */
     float push_cm;              /* collider push in cm (weft_garment_def.collision.push); < 0 (default):
                                    0.5, none for the reference XPBD; 0: off */
+    float push_depth_cm;        /* deepest cloth the push moves out, cm (collision.push_depth); < 0
+                                   (default): WEFT_WORN_PUSH_DEPTH_CM */
     int64_t collider_tokens;    /* the learned model's sampled collider tokens
                                    (weft_garment_def.max_collider_tokens); < 0 (default):
                                    WEFT_WORN_COLLIDER_TOKENS; 0: the whole crop */
@@ -154,7 +156,7 @@ weft_garment_def weft_sample_body_garment_def(const weft_body *body, weft_method
  * body parts from weft_body_triangle_parts written into `parts` (weft_body_triangle_count(body)
  * bytes, kept by the caller until the garment is created; NULL: no parts), the floor y = 0
  * (collision.ground), no CCD, an 8 cm max
- * distance, a 0.5 cm push, and for the learned model a 10 % strain limit and at most
+ * distance, a 0.5 cm push from up to 3 cm deep, and for the learned model a 10 % strain limit and at most
  * WEFT_WORN_COLLIDER_TOKENS collider tokens, an even sample of its crop (WEFT_COLLIDER_CAP_SAMPLE;
  * docs/LOD.md, Collider crop). The reference XPBD
  * (WEFT_METHOD_XPBD) gets simgen's recipe instead: parts within 1 cm without their neighbours, no
@@ -163,6 +165,7 @@ weft_garment_def weft_sample_body_garment_def(const weft_body *body, weft_method
  * cannot be made. */
 #define WEFT_WORN_TETHER_CM 8.0f
 #define WEFT_WORN_PUSH_CM 0.5f
+#define WEFT_WORN_PUSH_DEPTH_CM 3.0f
 #define WEFT_WORN_STRAIN_PCT 10.0f
 #define WEFT_WORN_COLLIDER_TOKENS 1024u
 weft_result weft_sample_worn_def(const weft_body *body, const weft_cloth_mesh *cloth, weft_method method, uint8_t *parts,

@@ -1,8 +1,9 @@
 /* `weft bench chart --quick` on the committed sample sequence: the run succeeds, and chart.csv
  * (beside CHART.md, which links it) holds an LBS row and an XPBD row with finite, plausible
- * numbers for the frames asked for, and the real-motion panel's LBS row (one library walk). A
+ * numbers for the frames asked for, the real-motion panel's LBS row (one library walk) and the cape
+ * panel's FNOpt and fast XPBD-10 rows (the render sample's cape on the walk), none lost. A
  * run that fails writes nothing.
- * argv: weft binary, data folder, output folder. Exits 77 (skipped) without a sample sequence. */
+ * argv: weft binary, data folder, output folder, FNOpt weights. Exits 77 (skipped) without a sample sequence. */
 #define _POSIX_C_SOURCE 200809L /* posix_spawn, stat */
 #include "test.h"
 
@@ -11,7 +12,7 @@
 #include <stdbool.h>
 #include <sys/stat.h>
 
-static const char *g_exe, *g_data, *g_out;
+static const char *g_exe, *g_data, *g_out, *g_fnopt;
 
 /* Field `col` (0-based) of a CSV line into out. */
 static void field(const char *line, int col, char *out, size_t cap)
@@ -31,7 +32,7 @@ static void field(const char *line, int col, char *out, size_t cap)
 static void chart_quick_rows(void)
 {
     const char *argv[] = {g_exe, "bench", "chart", "--data", g_data, "--split", "all", "--quick", "--frames", "4",
-                          "--xpbd", "5", "--no-fnopt", "--no-plot", "--out", g_out, NULL};
+                          "--xpbd", "5", "--no-fnopt", "--no-plot", "--fnopt-model", g_fnopt, "--out", g_out, NULL};
     CHECK_EQ_INT(tool_run(argv, NULL), 0);
     char path[1024];
     snprintf(path, sizeof path, "%s/chart.csv", g_out);
@@ -44,8 +45,21 @@ static void chart_quick_rows(void)
     CHECK(fgets(line, sizeof line, f) != NULL);
     static const char header[] = "scenario,method,family,precision,ccd,sequences,frames,mve_cm,";
     CHECK(strncmp(line, header, sizeof header - 1) == 0);
-    int lbs = 0, xpbd = 0, mocap = 0;
+    int lbs = 0, xpbd = 0, mocap = 0, cape = 0;
     while (fgets(line, sizeof line, f)) {
+        if (strncmp(line, "cape,FNOpt fp32,fnopt,", 22) == 0 || strncmp(line, "cape,XPBD-fast-10,", 18) == 0) {
+            /* the cape's panel: FNOpt and the fast XPBD on the same cape, scored like real motion */
+            char inside[64], lost[16], ms[64];
+            field(line, 9, ms, sizeof ms);
+            field(line, 17, inside, sizeof inside);
+            field(line, 18, lost, sizeof lost);
+            const double x = strtod(inside, NULL), t = strtod(ms, NULL);
+            CHECK_MSG(inside[0] && isfinite(x) && x >= 0.0 && x <= 100.0, "cape inside_body '%s'", inside);
+            CHECK_MSG(isfinite(t) && t > 0.0, "cape ms/frame '%s'", ms);
+            CHECK_MSG(strcmp(lost, "0") == 0, "cape lost on the walk: '%s'", lost);
+            ++cape;
+            continue;
+        }
         if (strncmp(line, "mocap,LBS,", 10) == 0) {
             /* the real-motion panel: no MVE, the share of cloth inside the body (column 17) */
             char inside[64], lost[16];
@@ -79,6 +93,7 @@ static void chart_quick_rows(void)
     CHECK_EQ_INT(lbs, 1);
     CHECK_EQ_INT(xpbd, 1);
     CHECK_EQ_INT(mocap, 1);
+    CHECK_EQ_INT(cape, 2);
     snprintf(path, sizeof path, "%s/CHART.md", g_out);
     f = fopen(path, "r");
     CHECK_MSG(f != NULL, "cannot open %s", path);
@@ -90,6 +105,7 @@ static void chart_quick_rows(void)
         CHECK_MSG(n > 0, "%s is empty", path);
         /* With --out other than docs the CSV stays beside the page, which links it. */
         CHECK_MSG(strstr(text, "Raw numbers: [chart.csv](chart.csv).") != NULL, "%s does not link chart.csv", path);
+        CHECK_MSG(strstr(text, "## cape (real motion)") != NULL, "%s has no cape panel", path);
     }
 }
 
@@ -132,13 +148,14 @@ static void chart_rejects_bad_input(void)
 
 int main(int argc, char **argv)
 {
-    if (argc < 4) {
-        fprintf(stderr, "usage: %s WEFT DATA OUT\n", argv[0]);
+    if (argc < 5) {
+        fprintf(stderr, "usage: %s WEFT DATA OUT FNOPT_WEIGHTS\n", argv[0]);
         return 1;
     }
     g_exe = argv[1];
     g_data = argv[2];
     g_out = argv[3];
+    g_fnopt = argv[4];
     char meta[1024];
     struct stat st;
     snprintf(meta, sizeof meta, "%s/sample_seq/meta.json", g_data);

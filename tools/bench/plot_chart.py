@@ -122,8 +122,8 @@ def overlap(a, b):
 
 def draw_panel(ax, sc, rows):
     """Draws one scenario; returns the labels still to place, as (ms, error, text, colour)."""
-    fn = any(r["family"] == "fnopt" for r in rows)
-    mocap = sc == "mocap"
+    mocap = sc in ("mocap", "cape")  # real motion: no ground truth, the share inside the body
+    fn = not mocap and any(r["family"] == "fnopt" for r in rows)
     ekey = "e3d" if fn else "inside_body_pct" if mocap else "mve_cm"
     pts, unscored_nan, unscored_none = [], 0, 0
     for r in rows:
@@ -134,7 +134,8 @@ def draw_panel(ax, sc, rows):
             pts.append((ms, err, r))
         else:
             unscored_none += 1
-    ax.set_title("real motion (mocap test clips)" if mocap else sc, fontsize=10, fontweight="bold")
+    ax.set_title("cape on real motion (mocap test clips)" if sc == "cape" else
+                 "real motion (mocap test clips)" if mocap else sc, fontsize=10, fontweight="bold")
     ax.set_xscale("log")
     ax.set_xlabel("ms per frame (log)", fontsize=FONT, loc="right")
     ax.set_ylabel("e3D vs XPBD reference (relative)" if fn else "cloth inside the body (%)" if mocap
@@ -339,7 +340,7 @@ def main():
     if not scenarios:
         raise SystemExit("plot_chart.py: no rows in " + args.csv)
     # the simulation scenarios first, then real motion, then the FNOpt grid (another metric)
-    scenarios.sort(key=lambda sc: (sc == "fnopt-grid", sc == "mocap"))
+    scenarios.sort(key=lambda sc: (sc == "fnopt-grid", sc in ("mocap", "cape"), sc == "cape"))
     n = len(scenarios)
     ncols = 1 if n == 1 else 2 if n in (2, 4) else 3
     nrows = math.ceil(n / ncols)

@@ -82,9 +82,15 @@ typedef struct chart_opts {
 } chart_opts;
 
 /* The real-motion panel's methods: each shipped method at its defaults (`weft bench mocap`). */
-#define CHART_MOCAP_METHODS "lbs,model,xpbd-fast:5,xpbd-fast:10"
-#define CHART_MOCAP_METHODS_CLASSIC "lbs,xpbd-fast:5,xpbd-fast:10" /* without a shipped model */
+#define CHART_MOCAP_METHODS "lbs,model,xpbd-fast:5,xpbd-fast:10,fnopt"
+#define CHART_MOCAP_METHODS_CLASSIC "lbs,xpbd-fast:5,xpbd-fast:10,fnopt" /* without a shipped model */
 #define CHART_MOCAP_SCENARIO "mocap"
+/* The render sample's cape on the same clips: FNOpt and the fast XPBD on one 32 x 40 grid. */
+#define CHART_CAPE_SCENARIO "cape"
+#define CHART_MOCAP_GARMENTS "tshirt,dress,skirt,cape"
+#define CHART_MOCAP_GARMENTS_ONLY "tshirt,dress,skirt" /* without the FNOpt weights */
+#define CHART_MOCAP_METHODS_GARMENTS "lbs,model,xpbd-fast:5,xpbd-fast:10"
+#define CHART_MOCAP_METHODS_GARMENTS_CLASSIC "lbs,xpbd-fast:5,xpbd-fast:10"
 
 enum {
     OPT_DATA = 1, OPT_SPLIT, OPT_MODELS, OPT_FRAMES, OPT_OUT, OPT_CSV_DIR, OPT_MAX_SEQS, OPT_XPBD, OPT_XPBD_FAST,
@@ -114,7 +120,9 @@ static const cli_option k_options[] = {
      "frames per clip and garment of the real-motion panel, 1..100000 (default 150;\n"
      "--quick: 30)"},
     {"mocap-clips", "A,B,...", OPT_MOCAP_CLIPS, "its clips (default: the mocap library's test split; --quick: walk_cmu07_01)"},
-    {"mocap-garments", "LIST", OPT_MOCAP_GARMENTS, "its garments (default tshirt,dress,skirt; --quick: tshirt)"},
+    {"mocap-garments", "LIST", OPT_MOCAP_GARMENTS,
+     "its garments (default " CHART_MOCAP_GARMENTS "; --quick: tshirt,cape); the cape is its\n"
+     "own panel (FNOpt and the fast XPBD on the render sample's cape)"},
     {0},
 };
 
@@ -126,22 +134,28 @@ static const cli_command k_command = {
              "(or `weft fnopt run --gt`) run; writes OUT/CHART.md, OUT/img/chart.png and the CSV behind them.\n"
              "The real-motion panel runs `weft bench mocap` (" CHART_MOCAP_METHODS ", each at its\n"
              "defaults, on the library's test clips): there is no ground truth on real motion, so its error\n"
-             "axis is the share of cloth inside the body, and lost garments are counted.\n"
+             "axis is the share of cloth inside the body, and lost garments are counted. The render sample's\n"
+             "cape on the same clips is a panel of its own: FNOpt (K = 10) beside the fast XPBD on one grid.\n"
              "A run that fails (a child that cannot start, crashes or reports an error) fails the whole\n"
              "benchmark: nothing is written from partial results.",
     .options = k_options,
 };
 
-static bool is_mocap(const chart_row *r) { return strcmp(r->scenario, CHART_MOCAP_SCENARIO) == 0; }
+/* A row of the real-motion panels (the garments' or the cape's): scored by inside_body. */
+static bool is_mocap(const chart_row *r)
+{
+    return strcmp(r->scenario, CHART_MOCAP_SCENARIO) == 0 || strcmp(r->scenario, CHART_CAPE_SCENARIO) == 0;
+}
+static bool is_cape(const chart_row *r) { return strcmp(r->scenario, CHART_CAPE_SCENARIO) == 0; }
 
-/* The panel's error: e3D for FNOpt, inside_body % on real motion, MVE elsewhere. */
+/* The panel's error: inside_body % on real motion, e3D for FNOpt's grid scenes, MVE elsewhere. */
 static double row_error(const chart_row *r, const chart_method *m)
 {
     uint32_t w = r->frames;
     if (w == 0) {
         return NAN;
     }
-    return strcmp(m->family, "fnopt") == 0 ? r->e3d_w / w : is_mocap(r) ? r->inside_w / w : r->mve_w / w;
+    return is_mocap(r) ? r->inside_w / w : strcmp(m->family, "fnopt") == 0 ? r->e3d_w / w : r->mve_w / w;
 }
 
 static bool row_valid(const chart_row *r, const chart_method *m)
@@ -241,6 +255,10 @@ static int mocap_method(chart_method *methods, size_t *nm, const char *name)
         snprintf(label, sizeof label, "garment %.8s", name + 6);
         snprintf(family, sizeof family, "model");
         snprintf(precision, sizeof precision, "%.7s", name + 6);
+    } else if (strncmp(name, "FNOpt ", 6) == 0) { /* the cape's FNOpt, "FNOpt fp32" */
+        snprintf(label, sizeof label, "%.90s", name);
+        snprintf(family, sizeof family, "fnopt");
+        snprintf(precision, sizeof precision, "%.7s", name + 6);
     } else if (sscanf(name, "xpbd-fast:%u", &S) == 1) {
         snprintf(label, sizeof label, "XPBD-fast-%u", S);
         snprintf(family, sizeof family, "xpbd-fast");
@@ -276,6 +294,16 @@ static int mocap_method(chart_method *methods, size_t *nm, const char *name)
  * per-cell CSV read back into one row per method (means over the cells, weighted by frames). The
  * child's CSV is kept as csv_cells (the per-cell table behind the panel). False (reported) when
  * the child fails or a cell is missing. */
+/* The garments the real-motion run puts on: --mocap-garments, else the defaults (the cape only
+ * with its FNOpt weights). */
+static const char *mocap_garments(const chart_opts *o, bool cape)
+{
+    return o->mocap_garments ? o->mocap_garments
+           : o->quick        ? (cape ? "tshirt,cape" : "tshirt")
+           : cape            ? CHART_MOCAP_GARMENTS
+                             : CHART_MOCAP_GARMENTS_ONLY;
+}
+
 static const char k_mocap_header[] = "clip,garment,method,lost,worst_off_body_pct,inside_body_mean_pct,";
 
 static bool run_mocap(const char *exe, const chart_opts *o, const char *csv_cells, chart_method *methods, size_t *nm,
@@ -286,9 +314,17 @@ static bool run_mocap(const char *exe, const chart_opts *o, const char *csv_cell
     /* The learned row is the shipped worn-garment model of --models, in int8 (its default). */
     snprintf(model, sizeof model, "%s/garment.int8.safetensors", o->models);
     const bool learned = bench_file_exists(model);
+    /* The cape panel needs the FNOpt weights; without them the garments' panel runs alone. */
+    const bool cape = bench_file_exists(o->fnopt_model);
     const char *method_list = learned ? CHART_MOCAP_METHODS : CHART_MOCAP_METHODS_CLASSIC;
+    if (!cape) {
+        method_list = learned ? CHART_MOCAP_METHODS_GARMENTS : CHART_MOCAP_METHODS_GARMENTS_CLASSIC;
+    }
+    const char *garments = mocap_garments(o, cape);
     if (!learned) {
         snprintf(skipped, skipped_cap, "real motion, learned model: no `%.200s`", model);
+    } else if (!cape) {
+        snprintf(skipped, skipped_cap, "the cape on real motion: no FNOpt weights `%.200s`", o->fnopt_model);
     }
     const char *argv[20];
     int n = 0;
@@ -304,7 +340,11 @@ static bool run_mocap(const char *exe, const chart_opts *o, const char *csv_cell
         argv[n++] = model;
     }
     argv[n++] = "--garments";
-    argv[n++] = o->mocap_garments ? o->mocap_garments : "tshirt,dress,skirt";
+    argv[n++] = garments;
+    if (cape) {
+        argv[n++] = "--fnopt-model";
+        argv[n++] = o->fnopt_model;
+    }
     if (o->mocap_clips) {
         argv[n++] = "--clips";
         argv[n++] = o->mocap_clips;
@@ -313,7 +353,7 @@ static bool run_mocap(const char *exe, const chart_opts *o, const char *csv_cell
     argv[n++] = csv_cells;
     argv[n] = NULL;
     printf("real motion: weft bench mocap --frames %s --methods %s --garments %s%s%s --csv %s\n", frames,
-           method_list, o->mocap_garments ? o->mocap_garments : "tshirt,dress,skirt", o->mocap_clips ? " --clips " : "",
+           method_list, garments, o->mocap_clips ? " --clips " : "",
            o->mocap_clips ? o->mocap_clips : "", csv_cells);
     fflush(stdout);
     char *out = NULL, why[240];
@@ -347,7 +387,8 @@ static bool run_mocap(const char *exe, const chart_opts *o, const char *csv_cell
             return false;
         }
         const int k = mocap_method(methods, nm, method);
-        chart_row *r = k >= 0 ? find_row(rows, nrows, row_cap, CHART_MOCAP_SCENARIO, k) : NULL;
+        const char *scenario = strcmp(garment, "cape") == 0 ? CHART_CAPE_SCENARIO : CHART_MOCAP_SCENARIO;
+        chart_row *r = k >= 0 ? find_row(rows, nrows, row_cap, scenario, k) : NULL;
         if (!r) {
             fprintf(stderr, "weft bench chart: too many methods or rows; nothing written\n");
             fclose(f);
@@ -455,8 +496,19 @@ static bool write_outputs(const chart_opts *o, const chart_method *methods, cons
         }
         bool fn = strcmp(methods[rows[pass].method].family, "fnopt") == 0;
         const bool mo = is_mocap(&rows[pass]);
-        fprintf(f, "## %s\n\n", mo ? "mocap (real motion)" : sc);
-        if (mo) {
+        fprintf(f, "## %s\n\n", is_cape(&rows[pass]) ? "cape (real motion)" : mo ? "mocap (real motion)" : sc);
+        if (is_cape(&rows[pass])) {
+            fprintf(f, "The render sample's cape (a 32 x 40 grid pinned along its top row behind the shoulders; "
+                       "docs/FNOPT.md, *The cape on the avatar*) on the same clips, %u frames each after the "
+                       "30-frame settle: FNOpt (K = 10 iterations a frame, the shipped weights) and the fast XPBD "
+                       "step the same grid with the same pins, body collision and attachments (`weft bench mocap "
+                       "--garments cape`, cells in [chart_mocap.csv](%s)). The error is the share of cape vertices "
+                       "inside the body; a cape is lost when more than 1 %% of its vertices are torn from their "
+                       "pins (farther than 1.25 times their rest distance plus 5 cm). ms/frame is the mean of the "
+                       "cells' median step.\n\n",
+                    o->mocap_frames, mocap_link);
+            fprintf(f, "| method | cells | capes lost | inside_body %% | ms/frame |\n|---|---|---|---|---|\n");
+        } else if (mo) {
             fprintf(f, "The mocap library's clips (%s), garments %s, %u frames each after a 30-frame settle, "
                        "every method at its defaults (the worn-garment recipe, CCD off): `weft bench mocap`, "
                        "per-cell numbers in [chart_mocap.csv](%s). There is no ground truth on real motion, so "
@@ -464,8 +516,8 @@ static bool write_outputs(const chart_opts *o, const chart_method *methods, cons
                        "beside the garments lost (a frame with over 1 %% of the vertices farther than 10 cm, "
                        "25 cm for skirts and dresses, from the skinned garment; docs/STABILITY_MOCAP.md). ms/frame "
                        "is the mean of the cells' median step.\n\n",
-                    o->mocap_clips ? o->mocap_clips : "the test split", o->mocap_garments ? o->mocap_garments
-                                                                                          : "tshirt, dress, skirt",
+                    o->mocap_clips ? o->mocap_clips : "the test split",
+                    mocap_garments(o, bench_file_exists(o->fnopt_model)),
                     o->mocap_frames, mocap_link);
             fprintf(f, "| method | cells | garments lost | inside_body %% | ms/frame |\n|---|---|---|---|---|\n");
         } else if (fn) {
@@ -618,7 +670,6 @@ int weft_bench_chart(int argc, char **argv)
         o.max_seqs = o.max_seqs ? o.max_seqs : 2;
         o.mocap_frames = o.mocap_frames ? o.mocap_frames : 30;
         o.mocap_clips = o.mocap_clips ? o.mocap_clips : "walk_cmu07_01";
-        o.mocap_garments = o.mocap_garments ? o.mocap_garments : "tshirt";
     }
     o.mocap_frames = o.mocap_frames ? o.mocap_frames : 150;
     char exe[1024];

@@ -34,9 +34,10 @@ const char weft_bench_mocap_help[] = "garments on the mocap library's clips: gar
 
 typedef struct mc_options {
     const char *split, *clips, *garments, *methods, *model, *md, *block, *resolution, *csv;
+    const char *fnopt_model;    /* the cape's FNOpt weights (NULL: the render sample's default) */
     uint32_t frames, settle, tokens;
     bool ccd, parts;
-    float tether_cm, push_cm, strain_pct;
+    float tether_cm, push_cm, push_depth_cm, strain_pct;
 } mc_options;
 
 typedef struct mc_method {
@@ -249,6 +250,7 @@ static int run_cell(const mc_options *o, weft_context *ctx, const weft_body *bod
         if (m->method != WEFT_METHOD_XPBD) { /* the reference keeps simgen's recipe (weft_sample_worn_def) */
             d.tethers.distance = o->tether_cm / 100.0f;
             d.collision.push = o->push_cm / 100.0f;
+            d.collision.push_depth = o->push_depth_cm / 100.0f;
             d.strain.limit = m->method == WEFT_METHOD_MODEL ? o->strain_pct / 100.0f : 0.0f;
         }
         d.max_collider_tokens = o->tokens; /* the recipe's sample cap, or the whole crop (0) */
@@ -349,6 +351,9 @@ static int run_cape_cell(const mc_options *o, weft_context *ctx, const weft_body
     memset(cell, 0, sizeof *cell);
     weft_sample_cape_def cd = weft_sample_default_cape_def();
     cd.precision = m->precision;
+    if (o->fnopt_model) {
+        cd.model_path = o->fnopt_model;
+    }
     cd.xpbd_substeps = m->fnopt ? 0 : m->substeps;
     weft_sample_cape *cape = NULL;
     if (weft_sample_cape_create(ctx, body, &cd, &cape) != WEFT_OK) {
@@ -412,7 +417,7 @@ typedef struct mc_total {
 
 enum {
     OPT_SPLIT = 1, OPT_CLIPS, OPT_GARMENTS, OPT_METHODS, OPT_FRAMES, OPT_SETTLE, OPT_RESOLUTION, OPT_MODEL, OPT_CCD,
-    OPT_BODY_PARTS, OPT_TETHER_CM, OPT_PUSH_CM, OPT_STRAIN_LIMIT, OPT_COLLIDER_TOKENS, OPT_MD, OPT_BLOCK, OPT_CSV,
+    OPT_BODY_PARTS, OPT_TETHER_CM, OPT_PUSH_CM, OPT_PUSH_DEPTH_CM, OPT_STRAIN_LIMIT, OPT_FNOPT_MODEL, OPT_COLLIDER_TOKENS, OPT_MD, OPT_BLOCK, OPT_CSV,
 };
 
 static const cli_option k_options[] = {
@@ -437,10 +442,13 @@ static const cli_option k_options[] = {
     {"model", "FILE", OPT_MODEL,
      "the learned model (default the shipped int8 garment model,\n"
      "tools/train/models/garment.int8.safetensors)"},
+    {"fnopt-model", "FILE", OPT_FNOPT_MODEL,
+     "the cape's FNOpt weights (default tools/fnopt/models/fnopt_32.safetensors)"},
     {"ccd", "on|off", OPT_CCD, "the CCD post-process (default off)"},
     {"body-parts", "on|off", OPT_BODY_PARTS, "the body parts of the worn-garment recipe (default on)"},
     {"tether-cm", "X", OPT_TETHER_CM, "the max distance to the skinned garment, 0..1000 cm (default below)"},
     {"push-cm", "X", OPT_PUSH_CM, "the collider push, 0..10 cm (default below)"},
+    {"push-depth-cm", "X", OPT_PUSH_DEPTH_CM, "the deepest cloth the push moves out, 0..50 cm (default below)"},
     {"strain-limit", "PCT", OPT_STRAIN_LIMIT, "the learned model's strain limit, 0..1000 % (default below)"},
     {"collider-tokens", "N", OPT_COLLIDER_TOKENS,
      "the learned model's collider tokens: an even, weighted sample of its crop\n"
@@ -464,10 +472,11 @@ static void notes(FILE *out)
             "Defaults: the test split, all three garments, lbs,model,xpbd-fast:5,xpbd-fast:10, 300 frames\n"
             "(0: every frame of each clip) after %d settle frames blending from the bind pose into the clip's\n"
             "first pose (--settle N, 1..1000), 1k, the shipped int8 garment model, and the worn-garment recipe\n"
-            "of the render sample: body parts on, CCD off, a max distance of %g cm, a push of %g cm, and for\n"
-            "the learned model a strain limit of %g %% and %u collider tokens (the xpbd:S reference keeps\n"
-            "simgen's recipe).\n",
-            MC_SETTLE, (double)WEFT_WORN_TETHER_CM, (double)WEFT_WORN_PUSH_CM, (double)WEFT_WORN_STRAIN_PCT,
+            "of the render sample: body parts on, CCD off, a max distance of %g cm, a push of %g cm from up\n"
+            "to %g cm deep, and for the learned model a strain limit of %g %% and %u collider tokens (the\n"
+            "xpbd:S reference keeps simgen's recipe).\n",
+            MC_SETTLE, (double)WEFT_WORN_TETHER_CM, (double)WEFT_WORN_PUSH_CM, (double)WEFT_WORN_PUSH_DEPTH_CM,
+            (double)WEFT_WORN_STRAIN_PCT,
             WEFT_WORN_COLLIDER_TOKENS);
 }
 
@@ -475,8 +484,10 @@ static const cli_command k_command = {
     .tool = "weft bench mocap",
     .synopsis = "weft bench mocap [--split test|train|all] [--clips A,B,...] [--garments tshirt,dress,skirt,cape]\n"
                 "                 [--methods lbs,model,xpbd-fast:S,xpbd:S,fnopt] [--frames N]\n"
-                "                 [--resolution 1k|4k] [--model FILE] [--ccd on|off] [--body-parts on|off]\n"
-                "                 [--tether-cm X] [--push-cm X] [--strain-limit PCT] [--collider-tokens N]\n"
+                "                 [--resolution 1k|4k] [--model FILE] [--fnopt-model FILE] [--ccd on|off]\n"
+                "                 [--body-parts on|off]\n"
+                "                 [--tether-cm X] [--push-cm X] [--push-depth-cm X] [--strain-limit PCT]\n"
+                "                 [--collider-tokens N]\n"
                 "                 [--settle N]\n"
                 "                 [--md FILE [--block NAME]]",
     .about = "Garments on the mocap library's clips (samples/mocap/clips.csv), per method, clip and garment:\n"
@@ -490,6 +501,7 @@ int weft_bench_mocap(int argc, char **argv)
     mc_options o = {.split = "test", .garments = "tshirt,dress,skirt", .methods = "lbs,model,xpbd-fast:5,xpbd-fast:10",
                     .model = "tools/train/models/garment.int8.safetensors", .resolution = "1k", .frames = 300, .settle = MC_SETTLE,
                     .ccd = false, .parts = true, .tether_cm = WEFT_WORN_TETHER_CM, .push_cm = WEFT_WORN_PUSH_CM,
+                    .push_depth_cm = WEFT_WORN_PUSH_DEPTH_CM,
                     .strain_pct = WEFT_WORN_STRAIN_PCT, .tokens = WEFT_WORN_COLLIDER_TOKENS, .block = "mocap-table"};
     cli_parser parser;
     cli_start(&parser, &k_command, argc, argv);
@@ -515,6 +527,9 @@ int weft_bench_mocap(int argc, char **argv)
             break;
         case OPT_MODEL:
             o.model = v;
+            break;
+        case OPT_FNOPT_MODEL:
+            o.fnopt_model = v;
             break;
         case OPT_CSV:
             o.csv = v;
@@ -552,9 +567,14 @@ int weft_bench_mocap(int argc, char **argv)
             break;
         case OPT_TETHER_CM:
         case OPT_PUSH_CM:
+        case OPT_PUSH_DEPTH_CM:
         case OPT_STRAIN_LIMIT: {
-            float *dst = id == OPT_TETHER_CM ? &o.tether_cm : (id == OPT_PUSH_CM ? &o.push_cm : &o.strain_pct);
-            if (!cli_float(k_command.tool, a, v, 0.0f, id == OPT_PUSH_CM ? 10.0f : 1000.0f, dst)) {
+            float *dst = id == OPT_TETHER_CM ? &o.tether_cm
+                         : id == OPT_PUSH_CM  ? &o.push_cm
+                         : id == OPT_PUSH_DEPTH_CM ? &o.push_depth_cm
+                                                   : &o.strain_pct;
+            const float hi = id == OPT_PUSH_CM ? 10.0f : id == OPT_PUSH_DEPTH_CM ? 50.0f : 1000.0f;
+            if (!cli_float(k_command.tool, a, v, 0.0f, hi, dst)) {
                 return 2;
             }
             break;
@@ -631,12 +651,13 @@ int weft_bench_mocap(int argc, char **argv)
     }
     snprintf(line, sizeof line,
              "`weft bench mocap --split %s --frames %u%s --resolution %s --methods %s --garments %s --ccd %s --body-parts "
-             "%s --tether-cm %g --push-cm %g --strain-limit %g --collider-tokens %u` (%s)\n\n"
+             "%s --tether-cm %g --push-cm %g --push-depth-cm %g --strain-limit %g --collider-tokens %u` (%s)\n\n"
              "| clip | garment | method | lost | worst off_body %% | inside_body mean / max %% | inside_clear max %% | "
              "body_self_overlap mean / max %% | ms p50 / p99 / max | max / p50 |\n"
              "|---|---|---|---|---:|---:|---:|---:|---:|---:|\n",
              o.split, o.frames, settle_arg, o.resolution, o.methods, o.garments, o.ccd ? "on" : "off", o.parts ? "on" : "off",
-             (double)o.tether_cm, (double)o.push_cm, (double)o.strain_pct, o.tokens, weft_config_string());
+             (double)o.tether_cm, (double)o.push_cm, (double)o.push_depth_cm, (double)o.strain_pct, o.tokens,
+             weft_config_string());
     fputs(line, stdout); /* the command and the table's head, as the page gets them */
     table = bench_append(table, &len, &cap, line);
     mc_total totals[MC_MAX_METHODS];
