@@ -415,7 +415,8 @@ typedef struct weft_step_stats {
     uint32_t collider_tokens;           /* collider triangles the last model step turned into tokens */
     uint32_t tether_vertices_clamped;   /* tether clamps in the last step (a vertex clamped in both
                                          * passes counts twice) */
-    uint32_t attachment_vertices_clamped; /* attachment clamps in the last step (counted as tethers) */
+    uint32_t attachment_vertices_clamped; /* vertices the attachments moved after the last method step
+                                         * (their clamp after CCD counts in ccd_released) */
     uint32_t strain_limited_edges;      /* edges over the strain limit before limiting, last step */
     uint32_t pushed_vertices;           /* vertices the collider push moved in the last step */
     uint32_t ccd_let_out;               /* with the push and CCD: vertices that began the step inside
