@@ -5,63 +5,50 @@
  * vertices. The edge path is never shorter than the straight rest distance, so a cloth at rest
  * is never moved. */
 #include "garment/garment.h"
+#include "geometry/geometry.h"
 
 #include <math.h>
-#include <stdlib.h>
-#include <string.h>
 
 #define ATTACH_NONE UINT32_MAX
 
-static int cmp_u64(const void *a, const void *b)
-{
-    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
-    return x < y ? -1 : (x > y ? 1 : 0);
-}
-
 weft_result weft__attach_create(weft_garment *g)
 {
-    /* every directed edge (a, b) of every triangle as the key a << 32 | b, sorted: grouped by a */
-    const size_t n = (size_t)g->triangle_count * 6;
-    uint64_t *keys = weft__alloc(g->ctx, n * sizeof *keys);
-    if (!keys) {
-        return WEFT_ERROR_OUT_OF_MEMORY;
+    /* the rest mesh's edges (geometry's topology, validated at creation), as a CSR graph */
+    geo_topo topo;
+    weft_result r = geo_topo_create(g->ctx, &topo, g->triangles, g->triangle_count, g->vertex_count, NULL);
+    if (r != WEFT_OK) {
+        return r;
     }
-    for (size_t t = 0; t < g->triangle_count; ++t) {
-        const uint32_t *tri = g->triangles + 3 * t;
-        for (int k = 0; k < 3; ++k) {
-            const uint64_t a = tri[k], b = tri[(k + 1) % 3];
-            keys[6 * t + 2 * (size_t)k] = a << 32 | b;
-            keys[6 * t + 2 * (size_t)k + 1] = b << 32 | a;
-        }
-    }
-    qsort(keys, n, sizeof *keys, cmp_u64);
-    size_t m = 0;
-    for (size_t i = 0; i < n; ++i) {
-        if (i == 0 || keys[i] != keys[i - 1]) {
-            keys[m++] = keys[i];
-        }
-    }
+    const size_t m = (size_t)topo.edge_count * 2; /* each edge from both ends */
     g->attach_start = weft__alloc(g->ctx, ((size_t)g->vertex_count + 1) * sizeof(uint32_t));
     g->attach_next = weft__alloc(g->ctx, m * sizeof(uint32_t));
     g->attach_length = weft__alloc(g->ctx, m * sizeof(float));
     if (!g->attach_start || !g->attach_next || !g->attach_length) {
-        weft__free(g->ctx, keys, n * sizeof *keys);
+        geo_topo_destroy(g->ctx, &topo);
         weft__attach_destroy(g);
         return WEFT_ERROR_OUT_OF_MEMORY;
     }
-    memset(g->attach_start, 0, ((size_t)g->vertex_count + 1) * sizeof(uint32_t));
-    for (size_t i = 0; i < m; ++i) {
-        const uint32_t a = (uint32_t)(keys[i] >> 32), b = (uint32_t)keys[i];
-        g->attach_start[a + 1]++;
-        g->attach_next[i] = b;
-        const float *p = g->rest + 3 * (size_t)a, *q = g->rest + 3 * (size_t)b;
-        const float d[3] = {q[0] - p[0], q[1] - p[1], q[2] - p[2]};
-        g->attach_length[i] = sqrtf(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    for (uint32_t e = 0; e < topo.edge_count; ++e) { /* degrees, then starts */
+        g->attach_start[topo.edges[2 * (size_t)e] + 1]++;
+        g->attach_start[topo.edges[2 * (size_t)e + 1] + 1]++;
     }
     for (uint32_t v = 0; v < g->vertex_count; ++v) {
         g->attach_start[v + 1] += g->attach_start[v];
     }
-    weft__free(g->ctx, keys, n * sizeof *keys);
+    for (uint32_t e = 0; e < topo.edge_count; ++e) { /* fill, each start advancing to the next */
+        const uint32_t a = topo.edges[2 * (size_t)e], b = topo.edges[2 * (size_t)e + 1];
+        const float *p = g->rest + 3 * (size_t)a, *q = g->rest + 3 * (size_t)b;
+        const float d[3] = {q[0] - p[0], q[1] - p[1], q[2] - p[2]};
+        const float len = sqrtf(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+        const uint32_t sa = g->attach_start[a]++, sb = g->attach_start[b]++;
+        g->attach_next[sa] = b, g->attach_length[sa] = len;
+        g->attach_next[sb] = a, g->attach_length[sb] = len;
+    }
+    for (uint32_t v = g->vertex_count; v > 0; --v) { /* shift the advanced starts back */
+        g->attach_start[v] = g->attach_start[v - 1];
+    }
+    g->attach_start[0] = 0;
+    geo_topo_destroy(g->ctx, &topo);
     return WEFT_OK;
 }
 
@@ -211,18 +198,8 @@ uint32_t weft__attach_clamp(weft_garment *g)
         if (k == ATTACH_NONE) {
             continue;
         }
-        float *x = g->x_next + 3 * (size_t)i;
-        const float *a = g->pin_targets + 3 * (size_t)k;
-        const float d[3] = {x[0] - a[0], x[1] - a[1], x[2] - a[2]};
-        const float len = sqrtf(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-        const float limit = g->attach_limit[i];
-        if (len > limit) {
-            const float s = limit / len; /* len > limit >= 0 */
-            for (int c = 0; c < 3; ++c) {
-                x[c] = a[c] + d[c] * s;
-            }
-            clamped++;
-        }
+        clamped += weft__clamp_to_sphere(g->x_next + 3 * (size_t)i, g->pin_targets + 3 * (size_t)k,
+                                         g->attach_limit[i]);
     }
     return clamped;
 }

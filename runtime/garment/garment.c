@@ -635,15 +635,17 @@ weft_result weft_garment_set_pins(weft_garment *g, const uint32_t *vertex_indice
     if (r != WEFT_OK) {
         return r;
     }
-    const bool moved = count != g->pin_count ||
-                       (count > 0 && memcmp(g->pin_indices, vertex_indices, (size_t)count * sizeof(uint32_t)) != 0);
+    /* the attachments' anchors follow the pinned vertex list: found again only when it changes */
+    const bool moved = g->attach_pin && (count != g->pin_count ||
+                                         (count > 0 && memcmp(g->pin_indices, vertex_indices,
+                                                              (size_t)count * sizeof(uint32_t)) != 0));
     if (count > 0) { /* count 0 clears; the pointers may then be NULL */
         memcpy(g->pin_indices, vertex_indices, (size_t)count * sizeof(uint32_t));
         memcpy(g->pin_targets, target_positions, (size_t)count * 3 * sizeof(float));
     }
     g->pin_count = count;
     if (moved) {
-        weft__attach_anchor(g); /* the attachments' anchors for the new list (no-op when off) */
+        weft__attach_anchor(g);
     }
     return WEFT_OK;
 }
@@ -654,18 +656,8 @@ static uint32_t clamp_tethers(weft_garment *g)
 {
     uint32_t clamped = 0;
     for (uint32_t i = 0; i < g->vertex_count; ++i) {
-        float *x = g->x_next + 3 * (size_t)i;
-        const float *t = g->tether_target + 3 * (size_t)i;
-        const float d[3] = {x[0] - t[0], x[1] - t[1], x[2] - t[2]};
-        const float len = sqrtf(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-        const float radius = g->tether_radius[i];
-        if (len > radius) {
-            const float s = radius / len; /* len > radius >= 0, so len > 0 */
-            for (int k = 0; k < 3; ++k) {
-                x[k] = t[k] + d[k] * s;
-            }
-            ++clamped;
-        }
+        clamped += weft__clamp_to_sphere(g->x_next + 3 * (size_t)i, g->tether_target + 3 * (size_t)i,
+                                         g->tether_radius[i]);
     }
     for (uint32_t k = 0; k < g->pin_count; ++k) {
         memcpy(g->x_next + 3 * (size_t)g->pin_indices[k], g->pin_targets + 3 * (size_t)k, 3 * sizeof(float));

@@ -6,6 +6,7 @@
 
 #include "core/core.h"
 
+#include <math.h>
 #include <stdatomic.h>
 
 typedef struct weft_method_ops weft_method_ops;
@@ -163,6 +164,22 @@ weft_result weft__check_cloth_topology(const weft_context *ctx, const char *what
 weft_result weft__strain_create(weft_garment *g);
 void weft__strain_destroy(weft_garment *g);
 void weft__strain_limit(weft_garment *g);
+
+/* Moves x onto the sphere of `radius` (>= 0) around c when it lies farther out; returns whether it
+ * moved. The max-distance clamp of the tethers and the attachments. */
+static inline bool weft__clamp_to_sphere(float *x, const float *c, float radius)
+{
+    const float d[3] = {x[0] - c[0], x[1] - c[1], x[2] - c[2]};
+    const float len = sqrtf(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+    if (!(len > radius)) {
+        return false;
+    }
+    const float s = radius / len; /* len > radius >= 0, so len > 0 */
+    for (int k = 0; k < 3; ++k) {
+        x[k] = c[k] + d[k] * s;
+    }
+    return true;
+}
 
 /* Long-range attachments (attach.c). create builds the asset's edge graph (g->rest, triangles);
  * alloc_state/free_state the instance's anchors and scratch (nothing when attachments are off);
