@@ -40,7 +40,7 @@ void weft_avatar_sample_default_options(weft_avatar_sample_options *o)
     o->precision = WEFT_PRECISION_INT8;
     o->tether_cm = -1.0f;
     o->strain_pct = -1.0f;
-    o->body_parts = true;
+    o->body_parts = -1;
     o->ccd = false;
     o->push_cm = -1.0f;
     o->push_depth_cm = -1.0f;
@@ -127,10 +127,10 @@ const weft_sample_option weft_avatar_sample_option_table[] = {
      "the learned model sees at most N collider triangles, an even sample of\n"
      "its crop weighted in its attention, 0..1000000 (default 1024; 0: the\n"
      "whole crop; docs/LOD.md, The sample cap)"},
-    {"body-parts", "on|off", OPT_BODY_PARTS,
+    {"body-parts", "auto|on|off", OPT_BODY_PARTS,
      "garment vertices collide only with the body parts they lie against at\n"
-     "rest (each triangle's dominant bone; default on; docs/CCD.md, Body\n"
-     "parts)"},
+     "rest (each triangle's dominant bone; docs/CCD.md, Body parts); default\n"
+     "auto: on where CCD runs and for the reference XPBD"},
     {"ccd", "on|off", OPT_CCD,
      "the CCD post-process after each step (default off: its cost is\n"
      "unbounded where the body overlaps itself; docs/CCD.md, Body parts)"},
@@ -363,11 +363,20 @@ bool weft_avatar_sample_apply(int id, const char *v, weft_avatar_sample_options 
         o->export_dir = v;
         return true;
     case OPT_BODY_PARTS:
+        if (strcmp(v, "auto") == 0) {
+            o->body_parts = -1;
+            return true;
+        }
+        if (strcmp(v, "on") != 0 && strcmp(v, "off") != 0) {
+            return false;
+        }
+        o->body_parts = strcmp(v, "on") == 0;
+        return true;
     case OPT_CCD:
         if (strcmp(v, "on") != 0 && strcmp(v, "off") != 0) {
             return false;
         }
-        *(id == OPT_CCD ? &o->ccd : &o->body_parts) = strcmp(v, "on") == 0;
+        o->ccd = strcmp(v, "on") == 0;
         return true;
     case OPT_FRAMES:
         return parse_u32(v, 1, 100000, &o->frames);
@@ -800,6 +809,11 @@ weft_garment_def weft_sample_body_garment_def(const weft_body *body, weft_method
     return d;
 }
 
+bool weft_sample_parts_on(int mode, weft_method method, bool ccd)
+{
+    return mode >= 0 ? mode != 0 : (method == WEFT_METHOD_XPBD || ccd);
+}
+
 /* The worn-garment recipe on any collider (weft_sample_worn_def's fields). */
 static weft_garment_def worn_def_on(const weft_sample_collider *col, const float *positions, uint32_t vertex_count,
                                     const uint32_t *triangles, uint32_t triangle_count, weft_method method)
@@ -814,7 +828,7 @@ static weft_garment_def worn_def_on(const weft_sample_collider *col, const float
     d.collider_vertex_count = col->vertex_count;
     d.collider_triangles = col->triangles;
     d.collider_triangle_count = col->triangle_count;
-    d.collision.triangle_parts = col->triangle_parts;
+    d.collision.triangle_parts = weft_sample_parts_on(-1, method, false) ? col->triangle_parts : NULL;
     d.collision.ground = true; /* the floor the sample draws, y = 0 */
     d.ccd.enabled = false;
     d.tethers.distance = WEFT_WORN_TETHER_CM / 100.0f;
@@ -907,8 +921,8 @@ weft_result weft_avatar_sample_garment_create(const weft_avatar_sample_options *
                                               weft_model **out_model, weft_garment **out_garment, char *label,
                                               size_t label_cap)
 {
-    uint8_t *parts = o->body_parts ? malloc(weft_body_triangle_count(body)) : NULL;
-    if (o->body_parts && !parts) {
+    uint8_t *parts = o->body_parts != 0 ? malloc(weft_body_triangle_count(body)) : NULL;
+    if (o->body_parts != 0 && !parts) {
         *out_model = NULL;
         *out_garment = NULL;
         return WEFT_ERROR_OUT_OF_MEMORY;
@@ -974,9 +988,7 @@ weft_result weft_avatar_sample_garment_create_on(const weft_avatar_sample_option
         if (want_auto ? (order[m].method == WEFT_METHOD_MODEL && !*out_model) : strcmp(base, order[m].name) != 0) {
             continue;
         }
-        weft_sample_collider col = *collider;
-        col.triangle_parts = o->body_parts ? collider->triangle_parts : NULL;
-        weft_garment_def gdef = worn_def_on(&col, positions, vertex_count, triangles, triangle_count, order[m].method);
+        weft_garment_def gdef = worn_def_on(collider, positions, vertex_count, triangles, triangle_count, order[m].method);
         gdef.model = *out_model;
         gdef.precision = o->precision;
         if (*out_model && order[m].method == WEFT_METHOD_MODEL) {
@@ -1001,6 +1013,8 @@ weft_result weft_avatar_sample_garment_create_on(const weft_avatar_sample_option
             gdef.max_collider_tokens = (uint32_t)o->collider_tokens;
         }
         gdef.ccd.enabled = o->ccd;
+        gdef.collision.triangle_parts =
+            weft_sample_parts_on(o->body_parts, order[m].method, o->ccd) ? collider->triangle_parts : NULL;
         weft_result r = weft_garment_create(ctx, &gdef, out_garment);
         if (r != WEFT_OK) {
             fprintf(stderr, "avatar_render: method %s unavailable: %s\n", order[m].name, weft_last_error());

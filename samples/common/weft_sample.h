@@ -43,8 +43,9 @@ typedef struct weft_avatar_sample_options {
     int64_t collider_tokens;    /* the learned model's sampled collider tokens
                                    (weft_garment_def.max_collider_tokens); < 0 (default):
                                    WEFT_WORN_COLLIDER_TOKENS; 0: the whole crop */
-    bool body_parts;            /* the body collision by parts (weft_garment_def.collision.triangle_parts from
-                                   weft_body_triangle_parts) (default true) */
+    int body_parts;             /* the body collision by parts (weft_garment_def.collision.triangle_parts from
+                                   weft_body_triangle_parts): 1 on, 0 off, < 0 (default) auto, as
+                                   weft_sample_parts_on decides */
     bool ccd;                   /* the CCD post-process (weft_garment_def.ccd) (default false) */
     const char *export_dir;     /* --export DIR: garment.obj + garment.pc2, body.obj + body.pc2 over the
                                    rendered frames (samples/common/pc2.h); NULL (default): none */
@@ -154,7 +155,8 @@ weft_garment_def weft_sample_body_garment_def(const weft_body *body, weft_method
                                               uint32_t vertex_count, const uint32_t *triangles, uint32_t triangle_count);
 /* The worn-garment recipe (docs/WEAR.md) for `method`: the cloth mesh on the body as collider,
  * body parts from weft_body_triangle_parts written into `parts` (weft_body_triangle_count(body)
- * bytes, kept by the caller until the garment is created; NULL: no parts), the floor y = 0
+ * bytes, kept by the caller until the garment is created; NULL: no parts) and used where
+ * weft_sample_parts_on(-1, method, false) says (the reference only), the floor y = 0
  * (collision.ground), no CCD, an 8 cm max
  * distance, a 0.5 cm push from up to 3 cm deep, and for the learned model a 10 % strain limit and at most
  * WEFT_WORN_COLLIDER_TOKENS collider tokens, an even sample of its crop (WEFT_COLLIDER_CAP_SAMPLE;
@@ -170,6 +172,11 @@ weft_garment_def weft_sample_body_garment_def(const weft_body *body, weft_method
 #define WEFT_WORN_COLLIDER_TOKENS 1024u
 weft_result weft_sample_worn_def(const weft_body *body, const weft_cloth_mesh *cloth, weft_method method, uint8_t *parts,
                                  weft_garment_def *out);
+/* Whether a worn garment collides by body parts: `mode` 1 on, 0 off; < 0 (auto) for the reference
+ * XPBD (simgen's recipe) and wherever CCD runs, where the parts keep CCD from trapping cloth between
+ * two overlapping body parts; with CCD off the push moves cloth to the nearest body surface, and
+ * the whole body keeps less cloth inside it (docs/WEAR.md, Body parts and the push). */
+bool weft_sample_parts_on(int mode, weft_method method, bool ccd);
 /* Sets def->substeps to `substeps` (0 keeps the def's). The reference XPBD runs as `weft simgen`
  * runs it: frames whose body moves fast near the cloth get up to WEFT_REFERENCE_SUBSTEP_FACTOR
  * times the substeps (substeps_max; docs/REFSIM.md, Fast colliders), or a walking body outruns its

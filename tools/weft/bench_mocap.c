@@ -36,7 +36,8 @@ typedef struct mc_options {
     const char *split, *clips, *garments, *methods, *model, *md, *block, *resolution, *csv;
     const char *fnopt_model;    /* the cape's FNOpt weights (NULL: the render sample's default) */
     uint32_t frames, settle, tokens;
-    bool ccd, parts;
+    bool ccd;
+    int parts; /* 1 on, 0 off, -1 auto (weft_sample_parts_on) */
     float tether_cm, push_cm, push_depth_cm, strain_pct;
 } mc_options;
 
@@ -240,13 +241,14 @@ static int run_cell(const mc_options *o, weft_context *ctx, const weft_body *bod
     weft_garment *g = NULL;
     if (rc == 0) {
         weft_garment_def d;
-        if (weft_sample_worn_def(body, cloth, m->method, o->parts ? parts : NULL, &d) != WEFT_OK) {
+        if (weft_sample_worn_def(body, cloth, m->method, parts, &d) != WEFT_OK) {
             rc = 1;
         }
         d.model = m->method == WEFT_METHOD_MODEL ? model : NULL;
         d.precision = WEFT_PRECISION_INT8;
         weft_sample_set_substeps(&d, m->substeps);
         d.ccd.enabled = o->ccd;
+        d.collision.triangle_parts = weft_sample_parts_on(o->parts, m->method, o->ccd) ? parts : NULL;
         if (m->method != WEFT_METHOD_XPBD) { /* the reference keeps simgen's recipe (weft_sample_worn_def) */
             d.tethers.distance = o->tether_cm / 100.0f;
             d.collision.push = o->push_cm / 100.0f;
@@ -445,7 +447,9 @@ static const cli_option k_options[] = {
     {"fnopt-model", "FILE", OPT_FNOPT_MODEL,
      "the cape's FNOpt weights (default tools/fnopt/models/fnopt_32.safetensors)"},
     {"ccd", "on|off", OPT_CCD, "the CCD post-process (default off)"},
-    {"body-parts", "on|off", OPT_BODY_PARTS, "the body parts of the worn-garment recipe (default on)"},
+    {"body-parts", "auto|on|off", OPT_BODY_PARTS,
+     "collision by body parts (default auto: on where CCD runs and for the\n"
+     "xpbd:S reference, off otherwise)"},
     {"tether-cm", "X", OPT_TETHER_CM, "the max distance to the skinned garment, 0..1000 cm (default below)"},
     {"push-cm", "X", OPT_PUSH_CM, "the collider push, 0..10 cm (default below)"},
     {"push-depth-cm", "X", OPT_PUSH_DEPTH_CM, "the deepest cloth the push moves out, 0..50 cm (default below)"},
@@ -472,9 +476,9 @@ static void notes(FILE *out)
             "Defaults: the test split, all three garments, lbs,model,xpbd-fast:5,xpbd-fast:10, 300 frames\n"
             "(0: every frame of each clip) after %d settle frames blending from the bind pose into the clip's\n"
             "first pose (--settle N, 1..1000), 1k, the shipped int8 garment model, and the worn-garment recipe\n"
-            "of the render sample: body parts on, CCD off, a max distance of %g cm, a push of %g cm from up\n"
-            "to %g cm deep, and for the learned model a strain limit of %g %% and %u collider tokens (the\n"
-            "xpbd:S reference keeps simgen's recipe).\n",
+            "of the render sample: CCD off, the whole body as collider (no parts), a max distance of %g cm, a\n"
+            "push of %g cm from up to %g cm deep, and for the learned model a strain limit of %g %% and %u\n"
+            "collider tokens (the xpbd:S reference keeps simgen's recipe, body parts included).\n",
             MC_SETTLE, (double)WEFT_WORN_TETHER_CM, (double)WEFT_WORN_PUSH_CM, (double)WEFT_WORN_PUSH_DEPTH_CM,
             (double)WEFT_WORN_STRAIN_PCT,
             WEFT_WORN_COLLIDER_TOKENS);
@@ -485,7 +489,7 @@ static const cli_command k_command = {
     .synopsis = "weft bench mocap [--split test|train|all] [--clips A,B,...] [--garments tshirt,dress,skirt,cape]\n"
                 "                 [--methods lbs,model,xpbd-fast:S,xpbd:S,fnopt] [--frames N]\n"
                 "                 [--resolution 1k|4k] [--model FILE] [--fnopt-model FILE] [--ccd on|off]\n"
-                "                 [--body-parts on|off]\n"
+                "                 [--body-parts auto|on|off]\n"
                 "                 [--tether-cm X] [--push-cm X] [--push-depth-cm X] [--strain-limit PCT]\n"
                 "                 [--collider-tokens N]\n"
                 "                 [--settle N]\n"
@@ -500,7 +504,7 @@ int weft_bench_mocap(int argc, char **argv)
 {
     mc_options o = {.split = "test", .garments = "tshirt,dress,skirt", .methods = "lbs,model,xpbd-fast:5,xpbd-fast:10",
                     .model = "tools/train/models/garment.int8.safetensors", .resolution = "1k", .frames = 300, .settle = MC_SETTLE,
-                    .ccd = false, .parts = true, .tether_cm = WEFT_WORN_TETHER_CM, .push_cm = WEFT_WORN_PUSH_CM,
+                    .ccd = false, .parts = -1, .tether_cm = WEFT_WORN_TETHER_CM, .push_cm = WEFT_WORN_PUSH_CM,
                     .push_depth_cm = WEFT_WORN_PUSH_DEPTH_CM,
                     .strain_pct = WEFT_WORN_STRAIN_PCT, .tokens = WEFT_WORN_COLLIDER_TOKENS, .block = "mocap-table"};
     cli_parser parser;
@@ -561,9 +565,12 @@ int weft_bench_mocap(int argc, char **argv)
             }
             break;
         case OPT_CCD:
-        case OPT_BODY_PARTS:
             ok = !strcmp(v, "on") || !strcmp(v, "off");
-            *(id == OPT_CCD ? &o.ccd : &o.parts) = !strcmp(v, "on");
+            o.ccd = !strcmp(v, "on");
+            break;
+        case OPT_BODY_PARTS:
+            ok = !strcmp(v, "on") || !strcmp(v, "off") || !strcmp(v, "auto");
+            o.parts = !strcmp(v, "auto") ? -1 : !strcmp(v, "on");
             break;
         case OPT_TETHER_CM:
         case OPT_PUSH_CM:
@@ -655,7 +662,8 @@ int weft_bench_mocap(int argc, char **argv)
              "| clip | garment | method | lost | worst off_body %% | inside_body mean / max %% | inside_clear max %% | "
              "body_self_overlap mean / max %% | ms p50 / p99 / max | max / p50 |\n"
              "|---|---|---|---|---:|---:|---:|---:|---:|---:|\n",
-             o.split, o.frames, settle_arg, o.resolution, o.methods, o.garments, o.ccd ? "on" : "off", o.parts ? "on" : "off",
+             o.split, o.frames, settle_arg, o.resolution, o.methods, o.garments, o.ccd ? "on" : "off",
+             o.parts < 0 ? "auto" : o.parts ? "on" : "off",
              (double)o.tether_cm, (double)o.push_cm, (double)o.push_depth_cm, (double)o.strain_pct, o.tokens,
              weft_config_string());
     fputs(line, stdout); /* the command and the table's head, as the page gets them */
