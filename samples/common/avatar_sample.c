@@ -122,7 +122,7 @@ const weft_sample_option weft_avatar_sample_option_table[] = {
      "push garment cloth inside the body (up to --push-depth-cm) or nearer than\n"
      "X cm to X cm in front of it, 0..10 (default 0.5, off for xpbd; 0: off;\n"
      "docs/CCD.md, Collider push)"},
-    {"push-depth-cm", "X", OPT_PUSH_DEPTH_CM, "the deepest cloth the push moves out, 0..50 (default 3)"},
+    {"push-depth-cm", "X", OPT_PUSH_DEPTH_CM, "the deepest cloth the push moves out, 0..50 (default 6)"},
     {"collider-tokens", "N", OPT_COLLIDER_TOKENS,
      "the learned model sees at most N collider triangles, an even sample of\n"
      "its crop weighted in its attention, 0..1000000 (default 1024; 0: the\n"

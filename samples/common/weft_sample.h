@@ -158,7 +158,7 @@ weft_garment_def weft_sample_body_garment_def(const weft_body *body, weft_method
  * bytes, kept by the caller until the garment is created; NULL: no parts) and used where
  * weft_sample_parts_on(-1, method, false) says (the reference only), the floor y = 0
  * (collision.ground), no CCD, an 8 cm max
- * distance, a 0.5 cm push from up to 3 cm deep, and for the learned model a 10 % strain limit and at most
+ * distance, a 0.5 cm push from up to 6 cm deep, and for the learned model a 10 % strain limit and at most
  * WEFT_WORN_COLLIDER_TOKENS collider tokens, an even sample of its crop (WEFT_COLLIDER_CAP_SAMPLE;
  * docs/LOD.md, Collider crop). The reference XPBD
  * (WEFT_METHOD_XPBD) gets simgen's recipe instead: parts within 1 cm without their neighbours, no
@@ -167,7 +167,7 @@ weft_garment_def weft_sample_body_garment_def(const weft_body *body, weft_method
  * cannot be made. */
 #define WEFT_WORN_TETHER_CM 8.0f
 #define WEFT_WORN_PUSH_CM 0.5f
-#define WEFT_WORN_PUSH_DEPTH_CM 3.0f
+#define WEFT_WORN_PUSH_DEPTH_CM 6.0f
 #define WEFT_WORN_STRAIN_PCT 10.0f
 #define WEFT_WORN_COLLIDER_TOKENS 1024u
 weft_result weft_sample_worn_def(const weft_body *body, const weft_cloth_mesh *cloth, weft_method method, uint8_t *parts,

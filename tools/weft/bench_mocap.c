@@ -651,20 +651,21 @@ int weft_bench_mocap(int argc, char **argv)
     }
     char *table = NULL;
     size_t len = 0, cap = 0;
-    char line[1024];
+    char line[4096];
     char settle_arg[32] = "";
     if (o.settle != MC_SETTLE) {
         snprintf(settle_arg, sizeof settle_arg, " --settle %u", o.settle);
     }
     snprintf(line, sizeof line,
-             "`weft bench mocap --split %s --frames %u%s --resolution %s --methods %s --garments %s --ccd %s --body-parts "
-             "%s --tether-cm %g --push-cm %g --push-depth-cm %g --strain-limit %g --collider-tokens %u` (%s)\n\n"
+             "`weft bench mocap --split %s%s%s --frames %u%s --resolution %s --methods %s --garments %s --ccd %s --body-parts "
+             "%s --tether-cm %g --push-cm %g --push-depth-cm %g --strain-limit %g --collider-tokens %u` "
+             "(%s)\n\n"
              "| clip | garment | method | lost | worst off_body %% | inside_body mean / max %% | inside_clear max %% | "
              "body_self_overlap mean / max %% | ms p50 / p99 / max | max / p50 |\n"
              "|---|---|---|---|---:|---:|---:|---:|---:|---:|\n",
-             o.split, o.frames, settle_arg, o.resolution, o.methods, o.garments, o.ccd ? "on" : "off",
-             o.parts < 0 ? "auto" : o.parts ? "on" : "off",
-             (double)o.tether_cm, (double)o.push_cm, (double)o.push_depth_cm, (double)o.strain_pct, o.tokens,
+             o.split, o.clips ? " --clips " : "", o.clips ? o.clips : "", o.frames, settle_arg, o.resolution, o.methods,
+             o.garments, o.ccd ? "on" : "off", o.parts < 0 ? "auto" : o.parts ? "on" : "off", (double)o.tether_cm,
+             (double)o.push_cm, (double)o.push_depth_cm, (double)o.strain_pct, o.tokens,
              weft_config_string());
     fputs(line, stdout); /* the command and the table's head, as the page gets them */
     table = bench_append(table, &len, &cap, line);
