@@ -1,7 +1,8 @@
 /* `weft bench chart --quick` on the committed sample sequence: the run succeeds, and chart.csv
  * (beside CHART.md, which links it) holds an LBS row and an XPBD row with finite, plausible
  * numbers for the frames asked for, the real-motion panel's LBS row (one library walk) and the cape
- * panel's FNOpt and fast XPBD-10 rows (the render sample's cape on the walk), none lost. A
+ * panel's FNOpt and fast XPBD-10 rows (the render sample's cape on the walk), none lost; the
+ * FNOpt grid scene's learned row (xy, read from `weft fnopt run`'s CSV by its column names). A
  * run that fails writes nothing.
  * argv: weft binary, data folder, output folder, FNOpt weights. Exits 77 (skipped) without a sample sequence. */
 #define _POSIX_C_SOURCE 200809L /* posix_spawn, stat */
@@ -111,6 +112,44 @@ static void chart_quick_rows(void)
 
 /* A run that fails (here a model file that does not load) fails the benchmark, and nothing is
  * written from the partial results: no CSV, no page, no figure. */
+/* The FNOpt grid scene alone (no real motion): its learned row has the frames asked for, a
+ * finite e3D and a time. */
+static void chart_fnopt_rows(void)
+{
+    char out[1024];
+    snprintf(out, sizeof out, "%s/fnopt", g_out);
+    mkdir(out, 0777);
+    const char *argv[] = {g_exe,  "bench", "chart", "--data", g_data, "--split", "all", "--quick", "--frames", "3",
+                          "--xpbd", "5", "--xpbd-fast", "5", "--no-mocap", "--no-plot", "--fnopt-model", g_fnopt,
+                          "--out", out, NULL};
+    CHECK_EQ_INT(tool_run(argv, NULL), 0);
+    char path[1100];
+    snprintf(path, sizeof path, "%s/chart.csv", out);
+    FILE *f = fopen(path, "r");
+    CHECK_MSG(f != NULL, "cannot open %s", path);
+    if (!f) {
+        return;
+    }
+    char line[2048];
+    int learned = 0;
+    while (fgets(line, sizeof line, f)) {
+        if (strncmp(line, "fnopt-grid,FNOpt,fnopt,", 23) != 0) {
+            continue;
+        }
+        char frames[32], e3d[64], ms[64];
+        field(line, 6, frames, sizeof frames);
+        field(line, 8, e3d, sizeof e3d);
+        field(line, 9, ms, sizeof ms);
+        const double e = strtod(e3d, NULL), t = strtod(ms, NULL);
+        CHECK_MSG(strcmp(frames, "3") == 0, "FNOpt frames '%s', want 3", frames);
+        CHECK_MSG(e3d[0] && isfinite(e) && e > 0.0 && e < 1.0, "FNOpt e3d '%s'", e3d);
+        CHECK_MSG(isfinite(t) && t > 0.0, "FNOpt ms/frame '%s'", ms);
+        ++learned;
+    }
+    fclose(f);
+    CHECK_EQ_INT(learned, 1);
+}
+
 static void chart_refuses_partial_results(void)
 {
     char models[1024], bad_model[1100], out[1024], path[1200];
@@ -164,7 +203,7 @@ int main(int argc, char **argv)
         return 77;
     }
     mkdir(g_out, 0777);
-    static const test_case_ cases[] = {TEST_CASE(chart_quick_rows), TEST_CASE(chart_refuses_partial_results),
-                                             TEST_CASE(chart_rejects_bad_input)};
+    static const test_case_ cases[] = {TEST_CASE(chart_quick_rows), TEST_CASE(chart_fnopt_rows),
+                                       TEST_CASE(chart_refuses_partial_results), TEST_CASE(chart_rejects_bad_input)};
     return test_run_(cases, sizeof cases / sizeof cases[0], 1, argv);
 }

@@ -215,20 +215,44 @@ static bool run_fnopt(const char *exe, const chart_opts *o, const chart_method *
     argv[n] = NULL;
     char *out = NULL, why[240];
     int rc = bench_spawn(argv, &out, why, sizeof why);
-    const char *row = out ? strstr(out, "\n") : NULL; /* skip the header line */
-    unsigned res = 0, iters = 0, fr = 0;
+    /* The columns by their header names, so that a column added to `weft fnopt run` does not shift
+     * what is read: frames, diverged, ms_per_frame and e3d. */
+    unsigned fr = 0;
     int diverged = 0;
     double ms = NAN, e3d = NAN;
-    char mo[64], ha[64], opt[32];
-    double speed, lr, Y, S, B, ch, loss;
-    bool ok = rc == 0 && row &&
-              sscanf(row + 1, "%u,%63[^,],%63[^,],%lf,%31[^,],%u,%lf,%lf,%lf,%lf,%u,%d,%lf,%lf,%lf,%lf", &res, mo, ha,
-                     &speed, opt, &iters, &lr, &Y, &S, &B, &fr, &diverged, &ms, &e3d, &ch, &loss) == 16;
+    int found = 0;
+    const char *row = out ? strchr(out, '\n') : NULL;
+    if (rc == 0 && row) {
+        const char *h = out, *v = row + 1;
+        while (h < row && *v && *v != '\n') {
+            const size_t hn = strcspn(h, ",\n"), vn = strcspn(v, ",\n");
+            char val[64];
+            snprintf(val, sizeof val, "%.*s", (int)(vn < sizeof val ? vn : sizeof val - 1), v);
+            char *end = NULL;
+            if (hn == 6 && strncmp(h, "frames", 6) == 0) {
+                const unsigned long x = strtoul(val, &end, 10);
+                fr = (unsigned)x;
+                found += end != val && *end == '\0';
+            } else if (hn == 8 && strncmp(h, "diverged", 8) == 0) {
+                diverged = (int)strtol(val, &end, 10);
+                found += end != val && *end == '\0';
+            } else if (hn == 12 && strncmp(h, "ms_per_frame", 12) == 0) {
+                ms = strtod(val, &end);
+                found += end != val && *end == '\0';
+            } else if (hn == 3 && strncmp(h, "e3d", 3) == 0) {
+                e3d = strtod(val, &end);
+                found += end != val && *end == '\0';
+            }
+            h += hn + (h[hn] == ',');
+            v += vn + (v[vn] == ',');
+        }
+    }
+    const bool ok = found == 4;
     free(out);
     r->sequences++;
     if (!ok) {
         bench_sanitize(why);
-        add_note(r, why[0] ? why : "fnopt printed no result row");
+        add_note(r, why[0] ? why : "fnopt printed no row with frames, diverged, ms_per_frame and e3d");
         return false;
     }
     if (diverged || !isfinite(e3d)) {
