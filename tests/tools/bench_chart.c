@@ -30,15 +30,23 @@ static void field(const char *line, int col, char *out, size_t cap)
     out[n] = '\0';
 }
 
+/* Runs the chart (argv), which must succeed, and opens the chart.csv it wrote into `out`; NULL
+ * after a failed check. */
+static FILE *run_chart(const char *const *argv, const char *out)
+{
+    CHECK_EQ_INT(tool_run(argv, NULL), 0);
+    char path[1100];
+    snprintf(path, sizeof path, "%s/chart.csv", out);
+    FILE *f = fopen(path, "r");
+    CHECK_MSG(f != NULL, "cannot open %s", path);
+    return f;
+}
+
 static void chart_quick_rows(void)
 {
     const char *argv[] = {g_exe, "bench", "chart", "--data", g_data, "--split", "all", "--quick", "--frames", "4",
                           "--xpbd", "5", "--no-fnopt", "--no-plot", "--fnopt-model", g_fnopt, "--out", g_out, NULL};
-    CHECK_EQ_INT(tool_run(argv, NULL), 0);
-    char path[1024];
-    snprintf(path, sizeof path, "%s/chart.csv", g_out);
-    FILE *f = fopen(path, "r");
-    CHECK_MSG(f != NULL, "cannot open %s", path);
+    FILE *f = run_chart(argv, g_out);
     if (!f) {
         return;
     }
@@ -122,11 +130,7 @@ static void chart_fnopt_rows(void)
     const char *argv[] = {g_exe,  "bench", "chart", "--data", g_data, "--split", "all", "--quick", "--frames", "3",
                           "--xpbd", "5", "--xpbd-fast", "5", "--no-mocap", "--no-plot", "--fnopt-model", g_fnopt,
                           "--out", out, NULL};
-    CHECK_EQ_INT(tool_run(argv, NULL), 0);
-    char path[1100];
-    snprintf(path, sizeof path, "%s/chart.csv", out);
-    FILE *f = fopen(path, "r");
-    CHECK_MSG(f != NULL, "cannot open %s", path);
+    FILE *f = run_chart(argv, out);
     if (!f) {
         return;
     }
