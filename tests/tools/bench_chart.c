@@ -103,6 +103,7 @@ static void chart_quick_rows(void)
     CHECK_EQ_INT(xpbd, 1);
     CHECK_EQ_INT(mocap, 1);
     CHECK_EQ_INT(cape, 2);
+    char path[1100];
     snprintf(path, sizeof path, "%s/CHART.md", g_out);
     f = fopen(path, "r");
     CHECK_MSG(f != NULL, "cannot open %s", path);
@@ -118,8 +119,6 @@ static void chart_quick_rows(void)
     }
 }
 
-/* A run that fails (here a model file that does not load) fails the benchmark, and nothing is
- * written from the partial results: no CSV, no page, no figure. */
 /* The FNOpt grid scene alone (no real motion): its learned row has the frames asked for, a
  * finite e3D and a time. */
 static void chart_fnopt_rows(void)
@@ -154,6 +153,8 @@ static void chart_fnopt_rows(void)
     CHECK_EQ_INT(learned, 1);
 }
 
+/* A run that fails (here a model file that does not load) fails the benchmark, and nothing is
+ * written from the partial results: no CSV, no page, no figure. */
 static void chart_refuses_partial_results(void)
 {
     char models[1024], bad_model[1100], out[1024], path[1200];
