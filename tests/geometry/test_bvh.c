@@ -2,7 +2,9 @@
  * whose box meets the query box, and the index-limited query (used for each unordered self pair
  * once) reports exactly those with a higher index, in the same order, so switching between them
  * cannot change the solver's contact order. The self traversal reports every pair of primitives
- * whose boxes meet exactly once. */
+ * whose boxes meet exactly once. The nearest-primitive search finds the least (distance, index)
+ * triangle that brute force finds, on the binary tree and on its four-wide view alike, for trees
+ * of one leaf up to hundreds, after a build and after a refit to moved positions. */
 #include "test.h"
 #include "geometry/geometry.h"
 
@@ -167,4 +169,98 @@ static void test_self_pairs_cover_meeting_boxes(void)
     weft_context_destroy(ctx);
 }
 
-TEST_MAIN(TEST_CASE(test_query_above_matches_filtered_query), TEST_CASE(test_self_pairs_cover_meeting_boxes))
+
+typedef struct nearest_hit {
+    const double *pos, *p;
+    const uint32_t *tris;
+    double d2;
+    uint32_t tri;
+} nearest_hit;
+
+/* The least (distance, index): the same answer in any visit order. */
+static bool visit_nearest(uint32_t t, void *user)
+{
+    nearest_hit *h = user;
+    const uint32_t *v = h->tris + 3 * (size_t)t;
+    double bary[3];
+    const double d2 = geo_point_triangle_sq(h->p, h->pos + 3 * (size_t)v[0], h->pos + 3 * (size_t)v[1],
+                                            h->pos + 3 * (size_t)v[2], bary);
+    if (d2 < h->d2 || (d2 == h->d2 && h->tri != UINT32_MAX && t < h->tri)) {
+        h->d2 = d2;
+        h->tri = t;
+    }
+    return true;
+}
+
+/* Searches q with a bound of r^2 on the tree as it is, and checks the brute-force answer. */
+static void check_nearest(const geo_bvh *bvh, const double *pos, const uint32_t *tris, uint32_t nt, const double q[3],
+                          double r, uint32_t *found)
+{
+    nearest_hit tree = {.pos = pos, .p = q, .tris = tris, .d2 = r * r, .tri = UINT32_MAX};
+    CHECK(geo_bvh_nearest(bvh, q, &tree.d2, visit_nearest, &tree));
+    nearest_hit brute = {.pos = pos, .p = q, .tris = tris, .d2 = r * r, .tri = UINT32_MAX};
+    for (uint32_t t = 0; t < nt; ++t) {
+        visit_nearest(t, &brute);
+    }
+    CHECK_MSG(tree.tri == brute.tri && tree.d2 == brute.d2, "nearest: tree %u (%g), brute force %u (%g)", tree.tri,
+              tree.d2, brute.tri, brute.d2);
+    *found += brute.tri != UINT32_MAX;
+}
+
+static void test_nearest_matches_brute_force(void)
+{
+    weft_context_def cd = weft_default_context_def();
+    weft_context *ctx = NULL;
+    CHECK_RESULT(weft_context_create(&cd, &ctx), WEFT_OK);
+    enum { NT = 600 };
+    static double pos[3 * NV], moved[3 * NV];
+    static uint32_t tris[3 * NT];
+    static const uint32_t counts[] = {1, 3, 4, 5, 8, 9, 17, 100, NT};
+    uint64_t st = 4242;
+    uint32_t found = 0;
+    for (size_t c = 0; c < sizeof counts / sizeof counts[0]; ++c) {
+        const uint32_t nt = counts[c];
+        for (int i = 0; i < 3 * NV; ++i) {
+            pos[i] = rnd(&st);
+            moved[i] = pos[i] + 0.05 * (rnd(&st) - 0.5);
+        }
+        for (uint32_t t = 0; t < nt; ++t) { /* small triangles: a random vertex and two near it */
+            const uint32_t a = (uint32_t)(rnd(&st) * (NV - 2));
+            tris[3 * t] = a, tris[3 * t + 1] = a + 1, tris[3 * t + 2] = a + 2;
+        }
+        for (int wide = 0; wide < 2; ++wide) {
+            geo_bvh bvh;
+            CHECK_RESULT(geo_bvh_create(ctx, &bvh, tris, nt, 3), WEFT_OK);
+            geo_bvh_build(&bvh, pos);
+            geo_bvh_refit(&bvh, pos, NULL, 0.0);
+            if (wide) {
+                CHECK_RESULT(geo_bvh_wide_create(ctx, &bvh), WEFT_OK);
+                CHECK(bvh.wide != NULL && bvh.wide_count >= 1);
+            }
+            for (int step = 0; step < 2; ++step) {
+                const double *now = step ? moved : pos;
+                if (step) {
+                    geo_bvh_refit(&bvh, moved, NULL, 0.0);
+                }
+                for (int k = 0; k < 40; ++k) {
+                    const double q[3] = {1.2 * rnd(&st) - 0.1, 1.2 * rnd(&st) - 0.1, 1.2 * rnd(&st) - 0.1};
+                    check_nearest(&bvh, now, tris, nt, q, k % 4 == 0 ? 0.05 : 2.0, &found);
+                }
+            }
+            if (wide) { /* a rebuild keeps the view's layout; the refit after it its boxes */
+                geo_bvh_build(&bvh, moved);
+                geo_bvh_refit(&bvh, moved, NULL, 0.0);
+                for (int k = 0; k < 20; ++k) {
+                    const double q[3] = {rnd(&st), rnd(&st), rnd(&st)};
+                    check_nearest(&bvh, moved, tris, nt, q, 2.0, &found);
+                }
+            }
+            geo_bvh_destroy(ctx, &bvh);
+        }
+    }
+    CHECK(found > 500); /* most searches find a triangle within their bound */
+    weft_context_destroy(ctx);
+}
+
+TEST_MAIN(TEST_CASE(test_query_above_matches_filtered_query), TEST_CASE(test_self_pairs_cover_meeting_boxes),
+          TEST_CASE(test_nearest_matches_brute_force))
