@@ -123,7 +123,8 @@ static void mark_contacts(weft_garment *g)
     for (uint32_t v = 0; v < g->vertex_count; ++v) {
         const float *x = g->x_next + 3 * (size_t)v;
         const double p[3] = {x[0], x[1], x[2]};
-        if (weft__near_nearest_in(g, p, g->strain_contact, UINT32_MAX, weft__part_mask(g, v), &hit) &&
+        const uint32_t seed = g->near_last ? g->near_last[v] : UINT32_MAX; /* the push's last answer */
+        if (weft__near_nearest_in(g, p, g->strain_contact, seed, weft__part_mask(g, v), &hit) &&
             away_direction(g, p, &hit, g->strain_normal + 3 * (size_t)v)) {
             g->strain_fixed[v] |= 4;
         }
