@@ -114,7 +114,7 @@ const weft_sample_option weft_avatar_sample_option_table[] = {
     {"precision", "P", OPT_PRECISION, "fp32 | fp16 | int8: the model's arithmetic (default int8)"},
     {"tether-cm", "X", OPT_TETHER_CM,
      "tether every garment vertex within X cm of its skinned position,\n"
-     "0..1000 (default 8, off for xpbd; 0: off)"},
+     "0..1000 (default 8, skirts 16, dresses 12, off for xpbd; 0: off)"},
     {"strain-limit", "PCT", OPT_STRAIN_LIMIT,
      "shorten garment edges stretched over PCT % after each step, 0..1000\n"
      "(0: off; default 10 for the learned model, off for xpbd)"},
@@ -814,9 +814,17 @@ bool weft_sample_parts_on(int mode, weft_method method, bool ccd)
     return mode >= 0 ? mode != 0 : (method == WEFT_METHOD_XPBD || ccd);
 }
 
-/* The worn-garment recipe on any collider (weft_sample_worn_def's fields). */
-static weft_garment_def worn_def_on(const weft_sample_collider *col, const float *positions, uint32_t vertex_count,
-                                    const uint32_t *triangles, uint32_t triangle_count, weft_method method)
+float weft_sample_worn_tether_cm(weft_cloth_kind kind)
+{
+    return kind == WEFT_CLOTH_SKIRT ? WEFT_WORN_TETHER_SKIRT_CM
+                                    : (kind == WEFT_CLOTH_DRESS ? WEFT_WORN_TETHER_DRESS_CM : WEFT_WORN_TETHER_CM);
+}
+
+/* The worn-garment recipe on any collider (weft_sample_worn_def's fields); kind WEFT_CLOTH_COUNT:
+ * a garment of the user's (an OBJ). */
+static weft_garment_def worn_def_on(const weft_sample_collider *col, weft_cloth_kind kind, const float *positions,
+                                    uint32_t vertex_count, const uint32_t *triangles, uint32_t triangle_count,
+                                    weft_method method)
 {
     weft_garment_def d = weft_default_garment_def();
     d.method = method;
@@ -831,7 +839,7 @@ static weft_garment_def worn_def_on(const weft_sample_collider *col, const float
     d.collision.triangle_parts = weft_sample_parts_on(-1, method, false) ? col->triangle_parts : NULL;
     d.collision.ground = true; /* the floor the sample draws, y = 0 */
     d.ccd.enabled = false;
-    d.tethers.distance = WEFT_WORN_TETHER_CM / 100.0f;
+    d.tethers.distance = weft_sample_worn_tether_cm(kind) / 100.0f;
     d.collision.push = WEFT_WORN_PUSH_CM / 100.0f;
     d.collision.push_depth = WEFT_WORN_PUSH_DEPTH_CM / 100.0f;
     d.strain.limit = method == WEFT_METHOD_MODEL ? WEFT_WORN_STRAIN_PCT / 100.0f : 0.0f;
@@ -912,7 +920,8 @@ weft_result weft_sample_worn_def(const weft_body *body, const weft_cloth_mesh *c
     }
     const weft_sample_collider col = {weft_body_rest_vertices(body), weft_body_vertex_count(body),
                                       weft_body_triangles(body), weft_body_triangle_count(body), parts};
-    *out = worn_def_on(&col, cloth->positions, cloth->vertex_count, cloth->triangles, cloth->triangle_count, method);
+    *out = worn_def_on(&col, cloth->kind, cloth->positions, cloth->vertex_count, cloth->triangles,
+                       cloth->triangle_count, method);
     return WEFT_OK;
 }
 
@@ -931,7 +940,7 @@ weft_result weft_avatar_sample_garment_create(const weft_avatar_sample_options *
     const weft_sample_collider col = {weft_body_rest_vertices(body), weft_body_vertex_count(body),
                                       weft_body_triangles(body), weft_body_triangle_count(body), parts};
     if (r == WEFT_OK) {
-        r = weft_avatar_sample_garment_create_on(o, ctx, &col, cloth->positions, cloth->vertex_count, cloth->triangles,
+        r = weft_avatar_sample_garment_create_on(o, ctx, &col, cloth->kind, cloth->positions, cloth->vertex_count, cloth->triangles,
                                                  cloth->triangle_count, out_model, out_garment, label, label_cap);
     } else {
         *out_model = NULL;
@@ -942,7 +951,8 @@ weft_result weft_avatar_sample_garment_create(const weft_avatar_sample_options *
 }
 
 weft_result weft_avatar_sample_garment_create_on(const weft_avatar_sample_options *o, weft_context *ctx,
-                                                 const weft_sample_collider *collider, const float *positions,
+                                                 const weft_sample_collider *collider, weft_cloth_kind kind,
+                                                 const float *positions,
                                                  uint32_t vertex_count, const uint32_t *triangles,
                                                  uint32_t triangle_count, weft_model **out_model,
                                                  weft_garment **out_garment, char *label, size_t label_cap)
@@ -988,7 +998,8 @@ weft_result weft_avatar_sample_garment_create_on(const weft_avatar_sample_option
         if (want_auto ? (order[m].method == WEFT_METHOD_MODEL && !*out_model) : strcmp(base, order[m].name) != 0) {
             continue;
         }
-        weft_garment_def gdef = worn_def_on(collider, positions, vertex_count, triangles, triangle_count, order[m].method);
+        weft_garment_def gdef =
+            worn_def_on(collider, kind, positions, vertex_count, triangles, triangle_count, order[m].method);
         gdef.model = *out_model;
         gdef.precision = o->precision;
         if (*out_model && order[m].method == WEFT_METHOD_MODEL) {
@@ -997,7 +1008,8 @@ weft_result weft_avatar_sample_garment_create_on(const weft_avatar_sample_option
             gdef.strain.limit = deployed != weft_default_garment_def().strain.limit ? deployed : gdef.strain.limit;
         }
         weft_sample_set_substeps(&gdef, substeps);
-        /* The options override the worn-garment recipe: --tether-cm (8, 0 turns it off),
+        /* The options override the worn-garment recipe: --tether-cm (8; skirts 16, dresses 12;
+         * 0 turns it off),
          * --strain-limit (10 % for the learned model), --push-cm (0.5), --ccd; the reference
          * XPBD's recipe has none of the three. */
         float tether_cm = o->tether_cm >= 0.0f ? o->tether_cm : gdef.tethers.distance * 100.0f;
@@ -1238,7 +1250,8 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
         } else {
             with_parts.triangle_parts = avatar_parts;
         }
-        weft_result gr = weft_avatar_sample_garment_create_on(o, s.ctx, &with_parts, gm_rest, gm_nv, gm_tris, gm_nt,
+        weft_result gr = weft_avatar_sample_garment_create_on(o, s.ctx, &with_parts, WEFT_CLOTH_COUNT, gm_rest, gm_nv,
+                                                              gm_tris, gm_nt,
                                                               &s.model, &s.garment, method_label, sizeof method_label);
         free(avatar_parts);
         if (gr != WEFT_OK) {

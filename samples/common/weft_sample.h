@@ -32,8 +32,8 @@ typedef struct weft_avatar_sample_options {
                                    garment model for `precision`, tools/train/models/garment[.fp16|.int8].safetensors */
     weft_precision precision;   /* the model's arithmetic (default int8) */
     float tether_cm;            /* tether radius in cm (weft_garment_def.tethers.distance); < 0 (default):
-                                   8 cm, the worn-garment recipe's max distance (none for the reference
-                                   XPBD); 0: none */
+                                   the worn-garment recipe's max distance, weft_sample_worn_tether_cm
+                                   (none for the reference XPBD); 0: none */
     float strain_pct;           /* strain limit in % (weft_garment_def.strain.limit); < 0 (default): 10 %
                                    for the learned model, none for XPBD; 0: none */
     float push_cm;              /* collider push in cm (weft_garment_def.collision.push); < 0 (default):
@@ -142,9 +142,12 @@ typedef struct weft_sample_collider {
     uint32_t triangle_count;
     const uint8_t *triangle_parts;
 } weft_sample_collider;
-/* weft_avatar_sample_garment_create on any collider and garment mesh (a user's character and OBJ). */
+/* weft_avatar_sample_garment_create on any collider and garment mesh (a user's character and OBJ);
+ * `kind` picks the recipe's max distance (weft_sample_worn_tether_cm; WEFT_CLOTH_COUNT: the user's
+ * own garment, the T-shirt's). */
 weft_result weft_avatar_sample_garment_create_on(const weft_avatar_sample_options *o, weft_context *ctx,
-                                                 const weft_sample_collider *collider, const float *positions,
+                                                 const weft_sample_collider *collider, weft_cloth_kind kind,
+                                                 const float *positions,
                                                  uint32_t vertex_count, const uint32_t *triangles,
                                                  uint32_t triangle_count, weft_model **out_model,
                                                  weft_garment **out_garment, char *label, size_t label_cap);
@@ -157,8 +160,8 @@ weft_garment_def weft_sample_body_garment_def(const weft_body *body, weft_method
  * body parts from weft_body_triangle_parts written into `parts` (weft_body_triangle_count(body)
  * bytes, kept by the caller until the garment is created; NULL: no parts) and used where
  * weft_sample_parts_on(-1, method, false) says (the reference only), the floor y = 0
- * (collision.ground), no CCD, an 8 cm max
- * distance, a 0.5 cm push from up to 6 cm deep, and for the learned model a 10 % strain limit and at most
+ * (collision.ground), no CCD, a max distance of weft_sample_worn_tether_cm(cloth->kind), a 0.5 cm
+ * push from up to 6 cm deep, and for the learned model a 10 % strain limit and at most
  * WEFT_WORN_COLLIDER_TOKENS collider tokens, an even sample of its crop (WEFT_COLLIDER_CAP_SAMPLE;
  * docs/LOD.md, Collider crop). The reference XPBD
  * (WEFT_METHOD_XPBD) gets simgen's recipe instead: parts within 1 cm without their neighbours, no
@@ -166,12 +169,19 @@ weft_garment_def weft_sample_body_garment_def(const weft_body *body, weft_method
  * frames. Callers override fields after it (the sample's options). Fails only when the parts
  * cannot be made. */
 #define WEFT_WORN_TETHER_CM 8.0f
+#define WEFT_WORN_TETHER_SKIRT_CM 16.0f
+#define WEFT_WORN_TETHER_DRESS_CM 12.0f
 #define WEFT_WORN_PUSH_CM 0.5f
 #define WEFT_WORN_PUSH_DEPTH_CM 6.0f
 #define WEFT_WORN_STRAIN_PCT 10.0f
 #define WEFT_WORN_COLLIDER_TOKENS 1024u
 weft_result weft_sample_worn_def(const weft_body *body, const weft_cloth_mesh *cloth, weft_method method, uint8_t *parts,
                                  weft_garment_def *out);
+/* The recipe's max distance for a garment kind, in cm: WEFT_WORN_TETHER_SKIRT_CM for skirts and
+ * WEFT_WORN_TETHER_DRESS_CM for dresses, whose hems swing wide of the skinned hem (held closer, a
+ * hem a thigh kicks up through is held inside it; the dress's longer hem, let farther, leaves the
+ * body), WEFT_WORN_TETHER_CM otherwise (docs/WEAR.md, The max distance). */
+float weft_sample_worn_tether_cm(weft_cloth_kind kind);
 /* Whether a worn garment collides by body parts: `mode` 1 on, 0 off; < 0 (auto) for the reference
  * XPBD (simgen's recipe) and wherever CCD runs, where the parts keep CCD from trapping cloth between
  * two overlapping body parts; with CCD off the push moves cloth to the nearest body surface, and

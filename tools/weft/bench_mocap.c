@@ -250,7 +250,9 @@ static int run_cell(const mc_options *o, weft_context *ctx, const weft_body *bod
         d.ccd.enabled = o->ccd;
         d.collision.triangle_parts = weft_sample_parts_on(o->parts, m->method, o->ccd) ? parts : NULL;
         if (m->method != WEFT_METHOD_XPBD) { /* the reference keeps simgen's recipe (weft_sample_worn_def) */
-            d.tethers.distance = o->tether_cm / 100.0f;
+            if (o->tether_cm >= 0.0f) { /* else the recipe's for the garment kind */
+                d.tethers.distance = o->tether_cm / 100.0f;
+            }
             d.collision.push = o->push_cm / 100.0f;
             d.collision.push_depth = o->push_depth_cm / 100.0f;
             d.strain.limit = m->method == WEFT_METHOD_MODEL ? o->strain_pct / 100.0f : 0.0f;
@@ -450,7 +452,8 @@ static const cli_option k_options[] = {
     {"body-parts", "auto|on|off", OPT_BODY_PARTS,
      "collision by body parts (default auto: on where CCD runs and for the\n"
      "xpbd:S reference, off otherwise)"},
-    {"tether-cm", "X", OPT_TETHER_CM, "the max distance to the skinned garment, 0..1000 cm (default below)"},
+    {"tether-cm", "X", OPT_TETHER_CM, "the max distance to the skinned garment for every garment, 0..1000 cm\n"
+     "(default: the recipe's for each garment, below)"},
     {"push-cm", "X", OPT_PUSH_CM, "the collider push, 0..10 cm (default below)"},
     {"push-depth-cm", "X", OPT_PUSH_DEPTH_CM, "the deepest cloth the push moves out, 0..50 cm (default below)"},
     {"strain-limit", "PCT", OPT_STRAIN_LIMIT, "the learned model's strain limit, 0..1000 % (default below)"},
@@ -476,10 +479,11 @@ static void notes(FILE *out)
             "Defaults: the test split, all three garments, lbs,model,xpbd-fast:5,xpbd-fast:10, 300 frames\n"
             "(0: every frame of each clip) after %d settle frames blending from the bind pose into the clip's\n"
             "first pose (--settle N, 1..1000), 1k, the shipped int8 garment model, and the worn-garment recipe\n"
-            "of the render sample: CCD off, the whole body as collider (no parts), a max distance of %g cm, a\n"
-            "push of %g cm from up to %g cm deep, and for the learned model a strain limit of %g %% and %u\n"
-            "collider tokens (the xpbd:S reference keeps simgen's recipe, body parts included).\n",
-            MC_SETTLE, (double)WEFT_WORN_TETHER_CM, (double)WEFT_WORN_PUSH_CM, (double)WEFT_WORN_PUSH_DEPTH_CM,
+            "of the render sample: CCD off, the whole body as collider (no parts), a max distance of %g cm (skirts\n"
+            "%g, dresses %g), a push of %g cm from up to %g cm deep, and for the learned model a strain limit\n"
+            "of %g %% and %u collider tokens (the xpbd:S reference keeps simgen's recipe, body parts included).\n",
+            MC_SETTLE, (double)WEFT_WORN_TETHER_CM, (double)WEFT_WORN_TETHER_SKIRT_CM,
+            (double)WEFT_WORN_TETHER_DRESS_CM, (double)WEFT_WORN_PUSH_CM, (double)WEFT_WORN_PUSH_DEPTH_CM,
             (double)WEFT_WORN_STRAIN_PCT,
             WEFT_WORN_COLLIDER_TOKENS);
 }
@@ -504,7 +508,7 @@ int weft_bench_mocap(int argc, char **argv)
 {
     mc_options o = {.split = "test", .garments = "tshirt,dress,skirt", .methods = "lbs,model,xpbd-fast:5,xpbd-fast:10",
                     .model = "tools/train/models/garment.int8.safetensors", .resolution = "1k", .frames = 300, .settle = MC_SETTLE,
-                    .ccd = false, .parts = -1, .tether_cm = WEFT_WORN_TETHER_CM, .push_cm = WEFT_WORN_PUSH_CM,
+                    .ccd = false, .parts = -1, .tether_cm = -1.0f, .push_cm = WEFT_WORN_PUSH_CM,
                     .push_depth_cm = WEFT_WORN_PUSH_DEPTH_CM,
                     .strain_pct = WEFT_WORN_STRAIN_PCT, .tokens = WEFT_WORN_COLLIDER_TOKENS, .block = "mocap-table"};
     cli_parser parser;
@@ -652,19 +656,22 @@ int weft_bench_mocap(int argc, char **argv)
     char *table = NULL;
     size_t len = 0, cap = 0;
     char line[4096];
-    char settle_arg[32] = "";
+    char settle_arg[32] = "", tether_arg[32] = "";
+    if (o.tether_cm >= 0.0f) {
+        snprintf(tether_arg, sizeof tether_arg, " --tether-cm %g", (double)o.tether_cm);
+    }
     if (o.settle != MC_SETTLE) {
         snprintf(settle_arg, sizeof settle_arg, " --settle %u", o.settle);
     }
     snprintf(line, sizeof line,
              "`weft bench mocap --split %s%s%s --frames %u%s --resolution %s --methods %s --garments %s --ccd %s --body-parts "
-             "%s --tether-cm %g --push-cm %g --push-depth-cm %g --strain-limit %g --collider-tokens %u` "
+             "%s%s --push-cm %g --push-depth-cm %g --strain-limit %g --collider-tokens %u` "
              "(%s)\n\n"
              "| clip | garment | method | lost | worst off_body %% | inside_body mean / max %% | inside_clear max %% | "
              "body_self_overlap mean / max %% | ms p50 / p99 / max | max / p50 |\n"
              "|---|---|---|---|---:|---:|---:|---:|---:|---:|\n",
              o.split, o.clips ? " --clips " : "", o.clips ? o.clips : "", o.frames, settle_arg, o.resolution, o.methods,
-             o.garments, o.ccd ? "on" : "off", o.parts < 0 ? "auto" : o.parts ? "on" : "off", (double)o.tether_cm,
+             o.garments, o.ccd ? "on" : "off", o.parts < 0 ? "auto" : o.parts ? "on" : "off", tether_arg,
              (double)o.push_cm, (double)o.push_depth_cm, (double)o.strain_pct, o.tokens,
              weft_config_string());
     fputs(line, stdout); /* the command and the table's head, as the page gets them */
