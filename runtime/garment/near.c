@@ -102,10 +102,6 @@ weft_result weft__near_create(weft_garment *g)
         g->near_cpos[i] = g->collider_rest[i];
     }
     geo_bvh_build(g->near_tree, g->near_cpos);
-    if ((r = geo_bvh_wide_create(g->ctx, g->near_tree)) != WEFT_OK) {
-        weft__near_destroy(g);
-        return r;
-    }
     if (fast && g->push_thickness <= 0.0f && (r = make_adjacency(g)) != WEFT_OK) { /* the pseudonormals */
         weft__near_destroy(g);
         return r;
@@ -188,21 +184,8 @@ static bool visit_near(uint32_t t, void *user)
     }
     const uint32_t *tri = q->g->collider_triangles + 3 * (size_t)t;
     const double *c = q->g->near_cpos;
-    const double *a = c + 3 * (size_t)tri[0], *b = c + 3 * (size_t)tri[1], *e = c + 3 * (size_t)tri[2];
-    /* The triangle's box is no farther than the triangle: a box beyond the best so far (with a
-     * margin for the rounding of either distance) cannot hold the answer, nor a tie. */
-    double box2 = 0.0;
-    for (int k = 0; k < 3; ++k) {
-        const double ab_lo = a[k] < b[k] ? a[k] : b[k], ab_hi = a[k] < b[k] ? b[k] : a[k];
-        const double lo = e[k] < ab_lo ? e[k] : ab_lo, hi = e[k] > ab_hi ? e[k] : ab_hi;
-        const double gap = q->p[k] < lo ? lo - q->p[k] : (q->p[k] > hi ? q->p[k] - hi : 0.0);
-        box2 += gap * gap;
-    }
-    if (box2 > q->hit->d2 * (1.0 + 1e-9)) {
-        return true;
-    }
     double bary[3];
-    double d2 = geo_point_triangle_sq(q->p, a, b, e, bary);
+    double d2 = geo_point_triangle_sq(q->p, c + 3 * (size_t)tri[0], c + 3 * (size_t)tri[1], c + 3 * (size_t)tri[2], bary);
     /* the least (distance, triangle index): the same answer in any visit order */
     if (d2 < q->hit->d2 || (d2 == q->hit->d2 && q->hit->tri != UINT32_MAX && t < q->hit->tri)) {
         q->hit->d2 = d2;

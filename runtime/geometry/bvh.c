@@ -6,8 +6,6 @@
 
 #define XBVH_LEAF 4u
 
-static uint32_t wide_collapse(geo_bvh *bvh, geo_bvh_wide *wide);
-
 weft_result geo_bvh_create(const weft_context *ctx, geo_bvh *bvh, const uint32_t *prim_verts, uint32_t prim_count,
                         uint32_t arity)
 {
@@ -31,7 +29,6 @@ weft_result geo_bvh_create(const weft_context *ctx, geo_bvh *bvh, const uint32_t
 
 void geo_bvh_destroy(const weft_context *ctx, geo_bvh *bvh)
 {
-    weft__free(ctx, bvh->wide, (size_t)bvh->wide_count * sizeof(geo_bvh_wide));
     size_t max_nodes = 2 * (size_t)bvh->prim_count;
     weft__free(ctx, bvh->order, bvh->prim_count * sizeof(uint32_t));
     weft__free(ctx, bvh->nodes, max_nodes * sizeof(geo_bvh_node));
@@ -124,92 +121,6 @@ void geo_bvh_build(geo_bvh *bvh, const double *pos)
         stack[sp++] = left, stack[sp++] = begin, stack[sp++] = split;
         stack[sp++] = left + 1, stack[sp++] = split, stack[sp++] = end;
     }
-    if (bvh->wide) {
-        /* The median split gives the same shape for the same count: the view keeps its size; its
-         * boxes come with the next refit. */
-        wide_collapse(bvh, bvh->wide);
-    }
-}
-
-/* The binary nodes under binary interior node n that one wide node holds: its children, each
- * interior one opened once more while lanes are free (grandchildren of a balanced tree). */
-static uint32_t wide_lanes(const geo_bvh *bvh, uint32_t n, uint32_t lanes[4])
-{
-    uint32_t count = 2;
-    lanes[0] = bvh->nodes[n].left;
-    lanes[1] = bvh->nodes[n].left + 1;
-    for (uint32_t i = 0, end = count; i < end && count < 4; ++i) {
-        const geo_bvh_node *c = &bvh->nodes[lanes[i]];
-        if (c->count == 0) {
-            lanes[count++] = c->left + 1;
-            lanes[i] = c->left;
-        }
-    }
-    return count;
-}
-
-/* Lays the wide nodes out from the binary tree (wide == NULL: counts them). The root's wide node
- * is 0; a binary root that is a leaf gets one lane. Uses the build stack. */
-static uint32_t wide_collapse(geo_bvh *bvh, geo_bvh_wide *wide)
-{
-    if (bvh->node_count == 0) {
-        return 0;
-    }
-    uint32_t *stack = bvh->build_stack, sp = 0, count = 1;
-    stack[sp++] = 0, stack[sp++] = 0; /* (wide node, binary node) */
-    while (sp > 0) {
-        const uint32_t n = stack[--sp], w = stack[--sp];
-        uint32_t lanes[4], used = 1;
-        if (bvh->nodes[n].count > 0) {
-            lanes[0] = n; /* the root is a leaf */
-        } else {
-            used = wide_lanes(bvh, n, lanes);
-        }
-        for (uint32_t l = 0; l < 4; ++l) {
-            uint32_t child = UINT32_MAX;
-            if (l < used) {
-                if (bvh->nodes[lanes[l]].count > 0) {
-                    child = GEO_BVH_WIDE_LEAF | lanes[l];
-                } else {
-                    child = count++;
-                    stack[sp++] = child, stack[sp++] = lanes[l];
-                }
-            }
-            if (wide) {
-                wide[w].src[l] = l < used ? lanes[l] : UINT32_MAX;
-                wide[w].child[l] = child;
-                for (int a = 0; a < 3; ++a) {
-                    wide[w].lo[a][l] = DBL_MAX;
-                    wide[w].hi[a][l] = -DBL_MAX;
-                }
-            }
-        }
-    }
-    return count;
-}
-
-weft_result geo_bvh_wide_create(const weft_context *ctx, geo_bvh *bvh)
-{
-    if (bvh->wide || bvh->node_count == 0 || bvh->prim_count >= GEO_BVH_WIDE_LEAF / 2) {
-        return WEFT_OK; /* made already, nothing to hold, or past the leaf flag (binary walk) */
-    }
-    const uint32_t count = wide_collapse(bvh, NULL);
-    bvh->wide = weft__alloc(ctx, (size_t)count * sizeof(geo_bvh_wide));
-    if (!bvh->wide) {
-        return WEFT_ERROR_OUT_OF_MEMORY;
-    }
-    bvh->wide_count = count;
-    wide_collapse(bvh, bvh->wide);
-    for (uint32_t w = 0; w < count; ++w) { /* the boxes the binary tree has now */
-        for (uint32_t l = 0; l < 4; ++l) {
-            const uint32_t s = bvh->wide[w].src[l];
-            for (int a = 0; s != UINT32_MAX && a < 3; ++a) {
-                bvh->wide[w].lo[a][l] = bvh->nodes[s].lo[a];
-                bvh->wide[w].hi[a][l] = bvh->nodes[s].hi[a];
-            }
-        }
-    }
-    return WEFT_OK;
 }
 
 void geo_bvh_refit(geo_bvh *bvh, const double *pos0, const double *pos1, double pad)
@@ -249,16 +160,6 @@ void geo_bvh_refit(geo_bvh *bvh, const double *pos0, const double *pos1, double 
             nd->hi[a] = hi[a];
         }
         nd->max_prim = max_prim;
-    }
-    for (uint32_t w = 0; w < bvh->wide_count; ++w) {
-        geo_bvh_wide *wn = &bvh->wide[w];
-        for (uint32_t l = 0; l < 4; ++l) {
-            const uint32_t s = wn->src[l];
-            for (int a = 0; s != UINT32_MAX && a < 3; ++a) {
-                wn->lo[a][l] = bvh->nodes[s].lo[a];
-                wn->hi[a][l] = bvh->nodes[s].hi[a];
-            }
-        }
     }
 }
 
@@ -314,69 +215,10 @@ static inline double box_d2(const geo_bvh_node *nd, const double p[3])
     return d2;
 }
 
-/* geo_bvh_nearest on the wide view: the four lanes' distances in one pass (no branches, so the
- * compiler may vectorise it), the lanes within the bound pushed farthest first. */
-static bool nearest_wide(const geo_bvh *bvh, const double p[3], const double *bound_d2, geo_bvh_visit_fn *fn,
-                         void *user)
-{
-    uint32_t stack[128]; /* 3 a level and one: a wide level is at least one binary level (at most 32) */
-    double dist[128];
-    uint32_t sp = 0;
-    stack[sp] = 0;
-    dist[sp++] = 0.0;
-    while (sp > 0) {
-        --sp;
-        if (dist[sp] > *bound_d2) {
-            continue; /* farther than the best found since it was pushed */
-        }
-        const uint32_t ref = stack[sp];
-        if (ref & GEO_BVH_WIDE_LEAF) {
-            const geo_bvh_node *nd = &bvh->nodes[ref & ~GEO_BVH_WIDE_LEAF];
-            for (uint32_t s = nd->left; s < nd->left + nd->count; ++s) {
-                if (!fn(bvh->order[s], user)) {
-                    return false;
-                }
-            }
-            continue;
-        }
-        const geo_bvh_wide *w = &bvh->wide[ref];
-        double d[4] = {0.0, 0.0, 0.0, 0.0};
-        for (int a = 0; a < 3; ++a) {
-            for (int l = 0; l < 4; ++l) {
-                const double below = w->lo[a][l] - p[a], above = p[a] - w->hi[a][l];
-                double e = below > above ? below : above;
-                e = e > 0.0 ? e : 0.0;
-                d[l] += e * e;
-            }
-        }
-        /* the lanes within the bound, nearest last (on top of the stack) */
-        uint32_t order[4], n = 0;
-        const double bound = *bound_d2;
-        for (uint32_t l = 0; l < 4; ++l) {
-            if (w->child[l] == UINT32_MAX || d[l] > bound) {
-                continue;
-            }
-            uint32_t i = n++;
-            for (; i > 0 && d[order[i - 1]] < d[l]; --i) {
-                order[i] = order[i - 1];
-            }
-            order[i] = l;
-        }
-        for (uint32_t i = 0; i < n; ++i) {
-            stack[sp] = w->child[order[i]];
-            dist[sp++] = d[order[i]];
-        }
-    }
-    return true;
-}
-
 bool geo_bvh_nearest(const geo_bvh *bvh, const double p[3], const double *bound_d2, geo_bvh_visit_fn *fn, void *user)
 {
     if (bvh->node_count == 0) {
         return true;
-    }
-    if (bvh->wide) {
-        return nearest_wide(bvh, p, bound_d2, fn, user);
     }
     uint32_t stack[128];
     double dist[128];

@@ -55,23 +55,12 @@ typedef struct geo_bvh_node {
     uint32_t max_prim; /* largest primitive index below (set by refit) */
 } geo_bvh_node;
 
-/* Four boxes of the binary tree side by side (its node's grandchildren, or children where those
- * are leaves), for geo_bvh_nearest: half the levels, and the four distances in one pass. */
-typedef struct geo_bvh_wide {
-    double lo[3][4], hi[3][4]; /* per axis, per lane; an empty lane never meets a point */
-    uint32_t src[4];           /* the binary node each lane mirrors (UINT32_MAX: empty) */
-    uint32_t child[4];         /* a wide node, or GEO_BVH_WIDE_LEAF | the binary leaf */
-} geo_bvh_wide;
-#define GEO_BVH_WIDE_LEAF 0x80000000u
-
 typedef struct geo_bvh {
     uint32_t prim_count, node_count, arity;
     const uint32_t *prim_verts;  /* prim_count * arity, not owned */
     uint32_t *order;             /* leaf slot -> primitive */
     geo_bvh_node *nodes;
     uint32_t *build_stack;
-    geo_bvh_wide *wide;          /* NULL unless geo_bvh_wide_create made it */
-    uint32_t wide_count;
 } geo_bvh;
 
 weft_result geo_bvh_create(const weft_context *ctx, geo_bvh *bvh, const uint32_t *prim_verts, uint32_t prim_count,
@@ -79,12 +68,8 @@ weft_result geo_bvh_create(const weft_context *ctx, geo_bvh *bvh, const uint32_t
 void geo_bvh_destroy(const weft_context *ctx, geo_bvh *bvh);
 /* Rebuilds the hierarchy for the current positions (no allocation). */
 void geo_bvh_build(geo_bvh *bvh, const double *pos);
-/* Recomputes boxes: union over pos0 and (if not NULL) pos1, inflated by pad (the wide view's too). */
+/* Recomputes boxes: union over pos0 and (if not NULL) pos1, inflated by pad. */
 void geo_bvh_refit(geo_bvh *bvh, const double *pos0, const double *pos1, double pad);
-/* Adds the four-wide view geo_bvh_nearest walks (after geo_bvh_build; build and refit keep it
- * current; destroy frees it). Optional: without it the nearest search walks the binary tree,
- * with the same answer. */
-weft_result geo_bvh_wide_create(const weft_context *ctx, geo_bvh *bvh);
 /* Calls fn(prim, user) for every primitive whose box overlaps [lo, hi]. Returns false if fn
  * asked to stop. */
 typedef bool geo_bvh_visit_fn(uint32_t prim, void *user);

@@ -3,8 +3,8 @@
  * once) reports exactly those with a higher index, in the same order, so switching between them
  * cannot change the solver's contact order. The self traversal reports every pair of primitives
  * whose boxes meet exactly once. The nearest-primitive search finds the least (distance, index)
- * triangle that brute force finds, on the binary tree and on its four-wide view alike, for trees
- * of one leaf up to hundreds, after a build and after a refit to moved positions. */
+ * triangle that brute force finds, for trees of one leaf up to hundreds, after a build, after a
+ * refit to moved positions and after a rebuild. */
 #include "test.h"
 #include "geometry/geometry.h"
 
@@ -228,37 +228,29 @@ static void test_nearest_matches_brute_force(void)
             const uint32_t a = (uint32_t)(rnd(&st) * (NV - 2));
             tris[3 * t] = a, tris[3 * t + 1] = a + 1, tris[3 * t + 2] = a + 2;
         }
-        for (int wide = 0; wide < 2; ++wide) {
-            geo_bvh bvh;
-            CHECK_RESULT(geo_bvh_create(ctx, &bvh, tris, nt, 3), WEFT_OK);
-            geo_bvh_build(&bvh, pos);
-            geo_bvh_refit(&bvh, pos, NULL, 0.0);
-            if (wide) {
-                CHECK_RESULT(geo_bvh_wide_create(ctx, &bvh), WEFT_OK);
-                CHECK(bvh.wide != NULL && bvh.wide_count >= 1);
-            }
-            for (int step = 0; step < 2; ++step) {
-                const double *now = step ? moved : pos;
-                if (step) {
-                    geo_bvh_refit(&bvh, moved, NULL, 0.0);
-                }
-                for (int k = 0; k < 40; ++k) {
-                    const double q[3] = {1.2 * rnd(&st) - 0.1, 1.2 * rnd(&st) - 0.1, 1.2 * rnd(&st) - 0.1};
-                    check_nearest(&bvh, now, tris, nt, q, k % 4 == 0 ? 0.05 : 2.0, &found);
-                }
-            }
-            if (wide) { /* a rebuild keeps the view's layout; the refit after it its boxes */
-                geo_bvh_build(&bvh, moved);
+        geo_bvh bvh;
+        CHECK_RESULT(geo_bvh_create(ctx, &bvh, tris, nt, 3), WEFT_OK);
+        geo_bvh_build(&bvh, pos);
+        geo_bvh_refit(&bvh, pos, NULL, 0.0);
+        for (int step = 0; step < 2; ++step) {
+            const double *now = step ? moved : pos;
+            if (step) {
                 geo_bvh_refit(&bvh, moved, NULL, 0.0);
-                for (int k = 0; k < 20; ++k) {
-                    const double q[3] = {rnd(&st), rnd(&st), rnd(&st)};
-                    check_nearest(&bvh, moved, tris, nt, q, 2.0, &found);
-                }
             }
-            geo_bvh_destroy(ctx, &bvh);
+            for (int k = 0; k < 40; ++k) {
+                const double q[3] = {1.2 * rnd(&st) - 0.1, 1.2 * rnd(&st) - 0.1, 1.2 * rnd(&st) - 0.1};
+                check_nearest(&bvh, now, tris, nt, q, k % 4 == 0 ? 0.05 : 2.0, &found);
+            }
         }
+        geo_bvh_build(&bvh, moved); /* a rebuild on the moved positions */
+        geo_bvh_refit(&bvh, moved, NULL, 0.0);
+        for (int k = 0; k < 20; ++k) {
+            const double q[3] = {rnd(&st), rnd(&st), rnd(&st)};
+            check_nearest(&bvh, moved, tris, nt, q, 2.0, &found);
+        }
+        geo_bvh_destroy(ctx, &bvh);
     }
-    CHECK(found > 500); /* most searches find a triangle within their bound */
+    CHECK(found > 250); /* most searches find a triangle within their bound */
     weft_context_destroy(ctx);
 }
 
