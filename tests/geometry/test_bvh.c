@@ -169,7 +169,6 @@ static void test_self_pairs_cover_meeting_boxes(void)
     weft_context_destroy(ctx);
 }
 
-
 typedef struct nearest_hit {
     const double *pos, *p;
     const uint32_t *tris;
