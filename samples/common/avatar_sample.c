@@ -940,8 +940,9 @@ weft_result weft_avatar_sample_garment_create(const weft_avatar_sample_options *
     const weft_sample_collider col = {weft_body_rest_vertices(body), weft_body_vertex_count(body),
                                       weft_body_triangles(body), weft_body_triangle_count(body), parts};
     if (r == WEFT_OK) {
-        r = weft_avatar_sample_garment_create_on(o, ctx, &col, cloth->kind, cloth->positions, cloth->vertex_count, cloth->triangles,
-                                                 cloth->triangle_count, out_model, out_garment, label, label_cap);
+        r = weft_avatar_sample_garment_create_on(o, ctx, &col, cloth->kind, cloth->positions, cloth->vertex_count,
+                                                 cloth->triangles, cloth->triangle_count, out_model, out_garment,
+                                                 label, label_cap);
     } else {
         *out_model = NULL;
         *out_garment = NULL;
@@ -1251,8 +1252,8 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
             with_parts.triangle_parts = avatar_parts;
         }
         weft_result gr = weft_avatar_sample_garment_create_on(o, s.ctx, &with_parts, WEFT_CLOTH_COUNT, gm_rest, gm_nv,
-                                                              gm_tris, gm_nt,
-                                                              &s.model, &s.garment, method_label, sizeof method_label);
+                                                              gm_tris, gm_nt, &s.model, &s.garment, method_label,
+                                                              sizeof method_label);
         free(avatar_parts);
         if (gr != WEFT_OK) {
             sample_free(&s);
