@@ -301,6 +301,10 @@ typedef struct weft_strain_limit_def {
  *   that came in through the far side, are left alone: past half a limb the nearest surface is
  *   the wrong one. With CCD on, cloth that starts the step inside is let out (CCD skips its
  *   collider contacts that step). Pinned vertices and radius-0 tethers are not moved.
+ *   Clearance: a vertex found outside is searched for again only once its own move and the
+ *   collider's since then (bounded patch by patch) could have brought it within `push`; until
+ *   then it stays outside and is not moved, even where the pseudonormal of a self-intersecting
+ *   collider would call it inside (stats.push_searched counts the searches).
  * triangle_parts: a partition of the collider's triangles into parts (e.g. each triangle's
  *   dominant bone, weft_body_triangle_parts in weft/body.h). Each garment vertex then collides
  *   only with the parts it lies against in the initial state (those within part_margin of its
@@ -419,6 +423,9 @@ typedef struct weft_step_stats {
                                          * (their clamp after CCD counts in ccd_released) */
     uint32_t strain_limited_edges;      /* edges over the strain limit before limiting, last step */
     uint32_t pushed_vertices;           /* vertices the collider push moved in the last step */
+    uint32_t push_searched;             /* vertices the push searched the collider for in the last
+                                         * step; the others were kept clear by the collider's motion
+                                         * bound (collision.push, *clearance*) */
     uint32_t ccd_let_out;               /* with the push and CCD: vertices that began the step inside
                                          * the collider (within collision.push_depth), whose collider
                                          * contacts CCD skipped so they could leave it */

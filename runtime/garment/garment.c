@@ -118,6 +118,7 @@ static void free_state(weft_garment *g)
     weft__free(ctx, g->pin_indices, (size_t)g->vertex_count * sizeof(uint32_t));
     weft__free(ctx, g->pin_targets, nv3);
     weft__attach_free_state(g);
+    weft__near_free_state(g);
 }
 
 /* Allocates the state buffers free_state frees (sizes from g's counts); false when one fails. */
@@ -131,7 +132,8 @@ static bool alloc_state(weft_garment *g)
     g->x_next = weft__alloc(ctx, nv3);
     g->pin_indices = weft__alloc(ctx, (size_t)g->vertex_count * sizeof(uint32_t));
     g->pin_targets = weft__alloc(ctx, nv3);
-    bool ok = g->x && g->x_prev && g->x_next && g->pin_indices && g->pin_targets && weft__attach_alloc_state(g);
+    bool ok = g->x && g->x_prev && g->x_next && g->pin_indices && g->pin_targets && weft__attach_alloc_state(g) &&
+              weft__near_alloc_state(g);
     if (ok && g->collider_vertex_count > 0) {
         g->collider_prev = weft__alloc(ctx, nc3);
         g->collider_next = weft__alloc(ctx, nc3);
@@ -424,6 +426,10 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
     if ((r = weft__near_create(g)) != WEFT_OK) {
         free_buffers(g);
         return r;
+    }
+    if (!weft__near_alloc_state(g)) { /* the push's clearance, made once the push is known */
+        free_buffers(g);
+        return WEFT_ERROR_OUT_OF_MEMORY;
     }
     r = weft__ccd_garment_create(g);
     if (r != WEFT_OK) {

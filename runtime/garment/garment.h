@@ -89,6 +89,26 @@ struct weft_garment {
     uint8_t *near_skip;                 /* push: vertex_count, 1 glued, | 2 pinned this step */
     uint8_t *near_inside;               /* push with CCD: vertex_count, inside the collider at t */
     uint32_t *near_last;                /* push: per vertex, its last nearest collider triangle (a seed) */
+    /* The push's clearance (near.c, *Clearance*): the collider's triangles in up to 64 clusters
+     * (subtrees of near_tree), whose motion each step bounds how near a vertex can have come. */
+    uint32_t near_kcount;               /* clusters */
+    uint32_t *near_knode;               /* near_kcount: the cluster's node in near_tree */
+    uint8_t *near_ktri;                 /* collider_triangle_count: the triangle's cluster */
+    uint64_t *near_kvert;               /* collider_vertex_count: the clusters of the triangles around it */
+    double *near_kinv;                  /* near_kcount: 1 / the cluster's vertex count */
+    double *near_kmove;                 /* scratch: near_kcount x 4 (mean move, spread about it) */
+    float *near_kreach;                 /* scratch: near_kcount x (near_kcount + 1): cluster k's reach
+                                         * seen from cluster h (row h), and row h's largest */
+    float *near_kbox;                   /* scratch: the clusters' boxes at t+1, 6 x 64 (SoA) */
+    /* ... and each instance's own (weft__near_alloc_state). */
+    float *near_cref;                   /* collider_vertex_count * 3: the collider at the last push */
+    float *near_at;                     /* vertex_count * 3: each vertex at the last push */
+    float *near_clear;                  /* vertex_count * 2: lower bounds on the distance to the
+                                         * near clusters and to the rest; 0: query */
+    uint64_t *near_kmask;               /* vertex_count: its near clusters */
+    uint8_t *near_home;                 /* vertex_count: the cluster of its nearest triangle */
+    bool near_primed;                   /* near_cref holds the collider of a push */
+    bool near_search_all;               /* every vertex searched every step: the clearance's oracle */
 
     /* Body parts (parts.c); all NULL when the def gave no collision.triangle_parts. */
     uint32_t *part_mask;                /* vertex_count: the parts each cloth vertex collides with */
@@ -189,6 +209,9 @@ weft_result weft__attach_create(weft_garment *g);
 void weft__attach_destroy(weft_garment *g);
 bool weft__attach_alloc_state(weft_garment *g);
 void weft__attach_free_state(weft_garment *g);
+/* The push's per-instance clearance state (near.c); no-ops when the push is off. */
+bool weft__near_alloc_state(weft_garment *g);
+void weft__near_free_state(weft_garment *g);
 void weft__attach_anchor(weft_garment *g);
 uint32_t weft__attach_clamp(weft_garment *g);
 

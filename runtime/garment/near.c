@@ -75,6 +75,109 @@ static weft_result make_adjacency(weft_garment *g)
     return WEFT_OK;
 }
 
+/* Clearance clusters: the subtrees of near_tree six levels down (or shallower leaves), at most
+ * 64, each a patch of the collider that stays together as the body moves. */
+enum { CLUSTER_DEPTH = 6, CLUSTER_MAX = 64 };
+
+static uint32_t gather_clusters(const geo_bvh *t, uint32_t node, uint32_t depth, uint32_t *out, uint32_t k)
+{
+    if (t->nodes[node].count > 0 || depth == CLUSTER_DEPTH) {
+        out[k] = node;
+        return k + 1;
+    }
+    k = gather_clusters(t, t->nodes[node].left, depth + 1, out, k);
+    return gather_clusters(t, t->nodes[node].left + 1, depth + 1, out, k);
+}
+
+static void mark_cluster(const geo_bvh *t, uint32_t node, uint8_t id, uint8_t *ktri)
+{
+    const geo_bvh_node *nd = &t->nodes[node];
+    if (nd->count > 0) {
+        for (uint32_t i = nd->left; i < nd->left + nd->count; ++i) {
+            ktri[t->order[i]] = id;
+        }
+        return;
+    }
+    mark_cluster(t, nd->left, id, ktri);
+    mark_cluster(t, nd->left + 1, id, ktri);
+}
+
+static weft_result make_clusters(weft_garment *g)
+{
+    const uint32_t nt = g->collider_triangle_count, nc = g->collider_vertex_count;
+    uint32_t nodes[CLUSTER_MAX];
+    const uint32_t k = gather_clusters(g->near_tree, 0, 0, nodes, 0);
+    g->near_kcount = k;
+    g->near_knode = weft__alloc(g->ctx, k * sizeof(uint32_t));
+    g->near_ktri = weft__alloc(g->ctx, nt);
+    g->near_kvert = weft__alloc(g->ctx, (size_t)nc * sizeof(uint64_t));
+    g->near_kinv = weft__alloc(g->ctx, k * sizeof(double));
+    g->near_kmove = weft__alloc(g->ctx, (size_t)k * 4 * sizeof(double));
+    g->near_kreach = weft__alloc(g->ctx, (size_t)k * (k + 1) * sizeof(float));
+    g->near_kbox = weft__alloc(g->ctx, 6 * CLUSTER_MAX * sizeof(float));
+    if (!g->near_knode || !g->near_ktri || !g->near_kvert || !g->near_kinv || !g->near_kmove || !g->near_kreach ||
+        !g->near_kbox) {
+        return WEFT_ERROR_OUT_OF_MEMORY;
+    }
+    memcpy(g->near_knode, nodes, k * sizeof(uint32_t));
+    for (uint32_t c = 0; c < k; ++c) {
+        mark_cluster(g->near_tree, nodes[c], (uint8_t)c, g->near_ktri);
+    }
+    memset(g->near_kvert, 0, (size_t)nc * sizeof(uint64_t));
+    for (uint32_t t = 0; t < nt; ++t) {
+        for (int j = 0; j < 3; ++j) {
+            g->near_kvert[g->collider_triangles[3 * (size_t)t + j]] |= UINT64_C(1) << g->near_ktri[t];
+        }
+    }
+    for (uint32_t c = 0; c < k; ++c) {
+        g->near_kinv[c] = 0.0;
+    }
+    for (uint32_t v = 0; v < nc; ++v) {
+        for (uint64_t m = g->near_kvert[v]; m; m &= m - 1) {
+            g->near_kinv[__builtin_ctzll(m)] += 1.0;
+        }
+    }
+    for (uint32_t c = 0; c < k; ++c) {
+        g->near_kinv[c] = g->near_kinv[c] > 0.0 ? 1.0 / g->near_kinv[c] : 0.0;
+    }
+    return WEFT_OK;
+}
+
+bool weft__near_alloc_state(weft_garment *g)
+{
+    g->near_cref = g->near_at = g->near_clear = NULL;
+    g->near_kmask = NULL;
+    g->near_home = NULL;
+    g->near_primed = false;
+    if (!g->near_skip) {
+        return true;
+    }
+    const size_t nv = g->vertex_count;
+    g->near_cref = weft__alloc(g->ctx, (size_t)g->collider_vertex_count * 3 * sizeof(float));
+    g->near_at = weft__alloc(g->ctx, nv * 3 * sizeof(float));
+    g->near_clear = weft__alloc(g->ctx, nv * 2 * sizeof(float));
+    g->near_kmask = weft__alloc(g->ctx, nv * sizeof(uint64_t));
+    g->near_home = weft__alloc(g->ctx, nv);
+    if (!g->near_cref || !g->near_at || !g->near_clear || !g->near_kmask || !g->near_home) {
+        return false;
+    }
+    memset(g->near_clear, 0, nv * 2 * sizeof(float));
+    return true;
+}
+
+void weft__near_free_state(weft_garment *g)
+{
+    const size_t nv = g->vertex_count;
+    weft__free(g->ctx, g->near_cref, (size_t)g->collider_vertex_count * 3 * sizeof(float));
+    weft__free(g->ctx, g->near_at, nv * 3 * sizeof(float));
+    weft__free(g->ctx, g->near_clear, nv * 2 * sizeof(float));
+    weft__free(g->ctx, g->near_kmask, nv * sizeof(uint64_t));
+    weft__free(g->ctx, g->near_home, nv);
+    g->near_cref = g->near_at = g->near_clear = NULL;
+    g->near_kmask = NULL;
+    g->near_home = NULL;
+}
+
 weft_result weft__near_create(weft_garment *g)
 {
     const bool fast = g->method == WEFT_METHOD_XPBD_FAST; /* its collider projection (xpbd_solver.c) */
@@ -118,6 +221,10 @@ weft_result weft__near_create(weft_garment *g)
             g->near_skip[v] = g->tether_radius && g->tether_radius[v] == 0.0f; /* glued for good */
             g->near_last[v] = UINT32_MAX;
         }
+        if ((r = make_clusters(g)) != WEFT_OK) {
+            weft__near_destroy(g);
+            return r;
+        }
         if (g->ccd) {
             g->near_inside = weft__alloc(g->ctx, g->vertex_count);
             if (!g->near_inside) {
@@ -143,6 +250,22 @@ void weft__near_destroy(weft_garment *g)
     weft__free(g->ctx, g->near_skip, g->vertex_count);
     weft__free(g->ctx, g->near_inside, g->vertex_count);
     weft__free(g->ctx, g->near_last, (size_t)g->vertex_count * sizeof(uint32_t));
+    const size_t k = g->near_kcount;
+    weft__free(g->ctx, g->near_knode, k * sizeof(uint32_t));
+    weft__free(g->ctx, g->near_ktri, g->collider_triangle_count);
+    weft__free(g->ctx, g->near_kvert, (size_t)g->collider_vertex_count * sizeof(uint64_t));
+    weft__free(g->ctx, g->near_kinv, k * sizeof(double));
+    weft__free(g->ctx, g->near_kmove, k * 4 * sizeof(double));
+    weft__free(g->ctx, g->near_kreach, k * (k + 1) * sizeof(float));
+    weft__free(g->ctx, g->near_kbox, 6 * CLUSTER_MAX * sizeof(float));
+    g->near_kcount = 0;
+    g->near_knode = NULL;
+    g->near_ktri = NULL;
+    g->near_kvert = NULL;
+    g->near_kinv = NULL;
+    g->near_kmove = NULL;
+    g->near_kreach = NULL;
+    g->near_kbox = NULL;
     g->near_tree = NULL;
     g->near_cpos = NULL;
     g->near_across = NULL;
@@ -349,26 +472,211 @@ uint32_t weft__near_mark_inside(weft_garment *g)
     return count;
 }
 
+/* Clearance. A vertex found outside the collider at distance d stays outside and farther than
+ * d - (how far it moved) - (how far the surface moved) from it, both moves taken relative to
+ * one common translation (distances do not change under one). Each step the clusters' mean move
+ * r_k and their spread m_k about it (the largest |move - r_k| of their vertices) bound the
+ * surface's move relative to the vertex's home cluster h: m_k + |r_k - r_h| for a triangle of
+ * cluster k. A vertex keeps two lower bounds, on its distance to its near clusters (those within
+ * d + CLEAR_MARGIN when it was found) and to all others, lowers both by that step's bound, and is
+ * searched again only when one falls to the push thickness: before that no collider point is
+ * near enough to push it, so skipping the search changes nothing. */
+#define CLEAR_MARGIN 0.01
+#define CLEAR_ROUND 1e-6 /* metres given away each step for rounding */
+
+static inline double dist3(const double a[3], const double b[3])
+{
+    const double d[3] = {a[0] - b[0], a[1] - b[1], a[2] - b[2]};
+    return sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
+}
+
+/* The clusters' moves since the last push (near_kmove) and each cluster's reach as seen from
+ * each home cluster (near_kreach); then near_cref takes the collider at t+1. */
+static void cluster_moves(weft_garment *g)
+{
+    const uint32_t k = g->near_kcount, nc = g->collider_vertex_count;
+    double *mv = g->near_kmove;
+    memset(mv, 0, (size_t)k * 4 * sizeof(double));
+    for (uint32_t v = 0; v < nc; ++v) {
+        const double *c = g->near_cpos + 3 * (size_t)v;
+        const float *c0 = g->near_cref + 3 * (size_t)v;
+        const double d[3] = {c[0] - c0[0], c[1] - c0[1], c[2] - c0[2]};
+        for (uint64_t m = g->near_kvert[v]; m; m &= m - 1) {
+            double *r = mv + 4 * (size_t)__builtin_ctzll(m);
+            r[0] += d[0], r[1] += d[1], r[2] += d[2];
+        }
+    }
+    for (uint32_t c = 0; c < k; ++c) {
+        for (int j = 0; j < 3; ++j) {
+            mv[4 * (size_t)c + j] *= g->near_kinv[c];
+        }
+    }
+    for (uint32_t v = 0; v < nc; ++v) {
+        const double *c = g->near_cpos + 3 * (size_t)v;
+        float *c0 = g->near_cref + 3 * (size_t)v;
+        const double d[3] = {c[0] - c0[0], c[1] - c0[1], c[2] - c0[2]};
+        for (uint64_t m = g->near_kvert[v]; m; m &= m - 1) {
+            double *r = mv + 4 * (size_t)__builtin_ctzll(m);
+            const double e[3] = {d[0] - r[0], d[1] - r[1], d[2] - r[2]};
+            const double e2 = e[0] * e[0] + e[1] * e[1] + e[2] * e[2];
+            r[3] = e2 > r[3] ? e2 : r[3];
+        }
+        c0[0] = (float)c[0], c0[1] = (float)c[1], c0[2] = (float)c[2];
+    }
+    for (uint32_t c = 0; c < k; ++c) {
+        mv[4 * (size_t)c + 3] = sqrt(mv[4 * (size_t)c + 3]);
+    }
+    for (uint32_t h = 0; h < k; ++h) {
+        float *row = g->near_kreach + (size_t)h * (k + 1);
+        double most = 0.0;
+        for (uint32_t c = 0; c < k; ++c) {
+            const double reach = mv[4 * (size_t)c + 3] + dist3(mv + 4 * (size_t)c, mv + 4 * (size_t)h) + CLEAR_ROUND;
+            row[c] = (float)reach;
+            most = reach > most ? reach : most;
+        }
+        row[k] = (float)most;
+    }
+}
+
+static double rest_clearance(const weft_garment *g, uint64_t mask, const double p[3]);
+
+/* True when v's clearance, lowered by this step's moves, still keeps it farther than thick
+ * from the collider (no search needed). */
+static bool still_clear(weft_garment *g, uint32_t v, const double p[3], double thick)
+{
+    float *cl = g->near_clear + 2 * (size_t)v;
+    if (!(cl[0] > 0.0f)) {
+        return false;
+    }
+    const uint32_t k = g->near_kcount, h = g->near_home[v];
+    const double *r = g->near_kmove + 4 * (size_t)h;
+    float *at = g->near_at + 3 * (size_t)v;
+    const double moved[3] = {p[0] - at[0] - r[0], p[1] - at[1] - r[1], p[2] - at[2] - r[2]};
+    const double self = sqrt(moved[0] * moved[0] + moved[1] * moved[1] + moved[2] * moved[2]) + CLEAR_ROUND;
+    const float *row = g->near_kreach + (size_t)h * (k + 1);
+    double near = 0.0;
+    for (uint64_t m = g->near_kmask[v]; m; m &= m - 1) {
+        const double reach = row[__builtin_ctzll(m)];
+        near = reach > near ? reach : near;
+    }
+    const double a = (double)cl[0] - self - near;
+    double b = (double)cl[1] - self - row[k];
+    if (a > thick && !(b > thick)) {
+        b = rest_clearance(g, g->near_kmask[v], p); /* the far clusters' boxes, now */
+    }
+    at[0] = (float)p[0], at[1] = (float)p[1], at[2] = (float)p[2];
+    if (a > thick && b > thick) {
+        cl[0] = (float)a; /* rounds to nearest: CLEAR_ROUND covers it */
+        cl[1] = (float)b;
+        return true;
+    }
+    cl[0] = 0.0f;
+    return false;
+}
+
+/* The clusters' boxes at t+1 in near_kbox (lo x, y, z, hi x, y, z; CLUSTER_MAX each), rounded
+ * outward to float. */
+static void cluster_boxes(weft_garment *g)
+{
+    float *b = g->near_kbox;
+    for (uint32_t c = 0; c < g->near_kcount; ++c) {
+        const geo_bvh_node *nd = &g->near_tree->nodes[g->near_knode[c]];
+        for (int a = 0; a < 3; ++a) {
+            float lo = (float)nd->lo[a], hi = (float)nd->hi[a];
+            lo = (double)lo > nd->lo[a] ? nextafterf(lo, -INFINITY) : lo;
+            hi = (double)hi < nd->hi[a] ? nextafterf(hi, INFINITY) : hi;
+            b[a * CLUSTER_MAX + c] = lo;
+            b[(3 + a) * CLUSTER_MAX + c] = hi;
+        }
+    }
+}
+
+/* Squared distances from p to every cluster's box. */
+static void cluster_d2(const weft_garment *g, const double p[3], float d2[CLUSTER_MAX])
+{
+    const float *b = g->near_kbox;
+    const float px = (float)p[0], py = (float)p[1], pz = (float)p[2]; /* p is a float position */
+    const uint32_t k = g->near_kcount;
+    for (uint32_t c = 0; c < k; ++c) {
+        float ex = b[c] - px, ey = b[CLUSTER_MAX + c] - py, ez = b[2 * CLUSTER_MAX + c] - pz;
+        const float fx = px - b[3 * CLUSTER_MAX + c], fy = py - b[4 * CLUSTER_MAX + c], fz = pz - b[5 * CLUSTER_MAX + c];
+        ex = ex > fx ? ex : fx, ey = ey > fy ? ey : fy, ez = ez > fz ? ez : fz;
+        ex = ex > 0.0f ? ex : 0.0f, ey = ey > 0.0f ? ey : 0.0f, ez = ez > 0.0f ? ez : 0.0f;
+        d2[c] = ex * ex + ey * ey + ez * ez;
+    }
+}
+
+/* The distance from p to the boxes of the clusters not in mask, less rounding; +inf if none. */
+static double rest_clearance(const weft_garment *g, uint64_t mask, const double p[3])
+{
+    float d2[CLUSTER_MAX];
+    cluster_d2(g, p, d2);
+    float rest2 = INFINITY;
+    for (uint32_t c = 0; c < g->near_kcount; ++c) {
+        rest2 = !(mask >> c & 1u) && d2[c] < rest2 ? d2[c] : rest2;
+    }
+    return sqrt((double)rest2) - CLEAR_ROUND;
+}
+
+/* v was found outside at dist from p: its clearance from here. */
+static void set_clear(weft_garment *g, uint32_t v, const double p[3], double dist, uint32_t tri)
+{
+    float d2[CLUSTER_MAX];
+    cluster_d2(g, p, d2);
+    const float reach = (float)(dist + CLEAR_MARGIN), reach2 = reach * reach;
+    float rest2 = INFINITY;
+    uint64_t mask = 0;
+    for (uint32_t c = 0; c < g->near_kcount; ++c) {
+        if (d2[c] < reach2) {
+            mask |= UINT64_C(1) << c;
+        } else {
+            rest2 = d2[c] < rest2 ? d2[c] : rest2;
+        }
+    }
+    float *cl = g->near_clear + 2 * (size_t)v, *at = g->near_at + 3 * (size_t)v;
+    cl[0] = (float)(dist - CLEAR_ROUND);
+    cl[1] = (float)(sqrt((double)rest2) - CLEAR_ROUND); /* +inf when every cluster is near */
+    g->near_kmask[v] = mask;
+    g->near_home[v] = g->near_ktri[tri];
+    at[0] = (float)p[0], at[1] = (float)p[1], at[2] = (float)p[2];
+}
+
 void weft__push(weft_garment *g)
 {
-    uint32_t pushed = 0, far = 0;
+    uint32_t pushed = 0, far = 0, searched = 0;
     if (!g->near_skip) {
         return;
     }
     for (uint32_t k = 0; k < g->pin_count; ++k) {
         g->near_skip[g->pin_indices[k]] |= 2; /* pinned vertices keep their targets */
     }
+    const bool primed = g->near_primed;
+    cluster_boxes(g);
+    if (primed) {
+        cluster_moves(g);
+    } else {
+        for (size_t i = 0; i < (size_t)g->collider_vertex_count * 3; ++i) {
+            g->near_cref[i] = (float)g->near_cpos[i];
+        }
+        g->near_primed = true;
+    }
     const double thick = g->push_thickness, depth = g->push_depth;
     const double radius = thick > depth ? thick : depth;
     for (uint32_t v = 0; v < g->vertex_count; ++v) {
         if (g->near_skip[v]) {
+            g->near_clear[2 * (size_t)v] = 0.0f;
             continue;
         }
         float *x = g->x_next + 3 * (size_t)v;
         const double p[3] = {x[0], x[1], x[2]};
+        if (primed && !g->near_search_all && still_clear(g, v, p, thick)) {
+            continue;
+        }
+        ++searched;
         weft_near_hit hit;
         const bool found = weft__near_nearest_in(g, p, radius, g->near_last[v], weft__part_mask(g, v), &hit);
         g->near_last[v] = hit.tri; /* UINT32_MAX when nothing is that near */
+        g->near_clear[2 * (size_t)v] = 0.0f;
         if (!found) {
             continue;
         }
@@ -376,6 +684,10 @@ void weft__push(weft_garment *g)
         bool inside;
         const bool has_out = weft__near_outward(g, p, &hit, out, &inside);
         const double dist = sqrt(hit.d2);
+        if (!inside && dist >= thick) {
+            set_clear(g, v, p, dist, hit.tri);
+            continue;
+        }
         if ((inside ? dist > depth : dist >= thick) || !has_out) {
             continue;
         }
@@ -408,5 +720,6 @@ void weft__push(weft_garment *g)
         g->near_skip[g->pin_indices[k]] &= 1;
     }
     g->stats.pushed_vertices = pushed;
+    g->stats.push_searched = searched;
     g->stats.push_from_far_side = far;
 }
