@@ -483,6 +483,18 @@ uint32_t weft__near_mark_inside(weft_garment *g)
  * near enough to push it, so skipping the search changes nothing. */
 #define CLEAR_MARGIN 0.01
 #define CLEAR_ROUND 1e-6 /* metres given away each step for rounding */
+#define CLEAR_BEYOND 0.02 /* the push searches this much farther than it pushes from */
+
+/* The shift of a vertex whose side is not known (nothing within the search's radius) or that is
+ * deep inside: it needs no push while farther than push_depth, so its bounds are kept less
+ * push_depth - push_thickness and tested against push_thickness as the others'. */
+#define HOME_SHIFTED 0x80u
+
+static double clear_shift(const weft_garment *g, uint32_t v)
+{
+    const double s = (double)g->push_depth - (double)g->push_thickness;
+    return (g->near_home[v] & HOME_SHIFTED) && s > 0.0 ? s : 0.0;
+}
 
 static inline double dist3(const double a[3], const double b[3])
 {
@@ -548,7 +560,7 @@ static bool still_clear(weft_garment *g, uint32_t v, const double p[3], double t
     if (!(cl[0] > 0.0f)) {
         return false;
     }
-    const uint32_t k = g->near_kcount, h = g->near_home[v];
+    const uint32_t k = g->near_kcount, h = g->near_home[v] & (CLUSTER_MAX - 1);
     const double *r = g->near_kmove + 4 * (size_t)h;
     float *at = g->near_at + 3 * (size_t)v;
     const double moved[3] = {p[0] - at[0] - r[0], p[1] - at[1] - r[1], p[2] - at[2] - r[2]};
@@ -559,10 +571,12 @@ static bool still_clear(weft_garment *g, uint32_t v, const double p[3], double t
         const double reach = row[__builtin_ctzll(m)];
         near = reach > near ? reach : near;
     }
-    const double a = (double)cl[0] - self - near;
+    double a = (double)cl[0] - self - near;
     double b = (double)cl[1] - self - row[k];
     if (a > thick && !(b > thick)) {
-        b = rest_clearance(g, g->near_kmask[v], p); /* the far clusters' boxes, now */
+        b = rest_clearance(g, g->near_kmask[v], p) - clear_shift(g, v); /* the far clusters' boxes, now */
+    } else if (!(a > thick)) {
+        a = b = rest_clearance(g, 0, p) - clear_shift(g, v); /* every cluster's box, now */
     }
     at[0] = (float)p[0], at[1] = (float)p[1], at[2] = (float)p[2];
     if (a > thick && b > thick) {
@@ -579,6 +593,12 @@ static bool still_clear(weft_garment *g, uint32_t v, const double p[3], double t
 static void cluster_boxes(weft_garment *g)
 {
     float *b = g->near_kbox;
+    for (uint32_t c = g->near_kcount; c < CLUSTER_MAX; ++c) { /* unused slots: empty boxes, infinitely far */
+        for (int a = 0; a < 3; ++a) {
+            b[a * CLUSTER_MAX + c] = INFINITY;
+            b[(3 + a) * CLUSTER_MAX + c] = -INFINITY;
+        }
+    }
     for (uint32_t c = 0; c < g->near_kcount; ++c) {
         const geo_bvh_node *nd = &g->near_tree->nodes[g->near_knode[c]];
         for (int a = 0; a < 3; ++a) {
@@ -594,10 +614,9 @@ static void cluster_boxes(weft_garment *g)
 /* Squared distances from p to every cluster's box. */
 static void cluster_d2(const weft_garment *g, const double p[3], float d2[CLUSTER_MAX])
 {
-    const float *b = g->near_kbox;
+    const float *b = g->near_kbox; /* all CLUSTER_MAX slots: a fixed count the compiler vectorises */
     const float px = (float)p[0], py = (float)p[1], pz = (float)p[2]; /* p is a float position */
-    const uint32_t k = g->near_kcount;
-    for (uint32_t c = 0; c < k; ++c) {
+    for (uint32_t c = 0; c < CLUSTER_MAX; ++c) {
         float ex = b[c] - px, ey = b[CLUSTER_MAX + c] - py, ez = b[2 * CLUSTER_MAX + c] - pz;
         const float fx = px - b[3 * CLUSTER_MAX + c], fy = py - b[4 * CLUSTER_MAX + c], fz = pz - b[5 * CLUSTER_MAX + c];
         ex = ex > fx ? ex : fx, ey = ey > fy ? ey : fy, ez = ez > fz ? ez : fz;
@@ -618,26 +637,32 @@ static double rest_clearance(const weft_garment *g, uint64_t mask, const double 
     return sqrt((double)rest2) - CLEAR_ROUND;
 }
 
-/* v was found outside at dist from p: its clearance from here. */
-static void set_clear(weft_garment *g, uint32_t v, const double p[3], double dist, uint32_t tri)
+/* v is at least dist from the collider at p (outside, or else `shifted`): its clearance from
+ * here; home is the cluster of its nearest triangle, or UINT32_MAX for the nearest box's. */
+static void set_clear(weft_garment *g, uint32_t v, const double p[3], double dist, uint32_t home, bool shifted)
 {
     float d2[CLUSTER_MAX];
     cluster_d2(g, p, d2);
     const float reach = (float)(dist + CLEAR_MARGIN), reach2 = reach * reach;
-    float rest2 = INFINITY;
+    float rest2 = INFINITY, least = INFINITY;
     uint64_t mask = 0;
+    uint32_t nearest = 0;
     for (uint32_t c = 0; c < g->near_kcount; ++c) {
         if (d2[c] < reach2) {
             mask |= UINT64_C(1) << c;
         } else {
             rest2 = d2[c] < rest2 ? d2[c] : rest2;
         }
+        if (d2[c] < least) {
+            least = d2[c], nearest = c;
+        }
     }
+    g->near_home[v] = (uint8_t)((home == UINT32_MAX ? nearest : home) | (shifted ? HOME_SHIFTED : 0u));
+    const double shift = clear_shift(g, v);
     float *cl = g->near_clear + 2 * (size_t)v, *at = g->near_at + 3 * (size_t)v;
-    cl[0] = (float)(dist - CLEAR_ROUND);
-    cl[1] = (float)(sqrt((double)rest2) - CLEAR_ROUND); /* +inf when every cluster is near */
+    cl[0] = (float)(dist - shift - CLEAR_ROUND); /* <= 0 (search again) unless it clears push_thickness */
+    cl[1] = (float)(sqrt((double)rest2) - shift - CLEAR_ROUND); /* +inf when every cluster is near */
     g->near_kmask[v] = mask;
-    g->near_home[v] = g->near_ktri[tri];
     at[0] = (float)p[0], at[1] = (float)p[1], at[2] = (float)p[2];
 }
 
@@ -661,7 +686,7 @@ void weft__push(weft_garment *g)
         g->near_primed = true;
     }
     const double thick = g->push_thickness, depth = g->push_depth;
-    const double radius = thick > depth ? thick : depth;
+    const double radius = (thick > depth ? thick : depth) + CLEAR_BEYOND;
     for (uint32_t v = 0; v < g->vertex_count; ++v) {
         if (g->near_skip[v]) {
             g->near_clear[2 * (size_t)v] = 0.0f;
@@ -677,15 +702,16 @@ void weft__push(weft_garment *g)
         const bool found = weft__near_nearest_in(g, p, radius, g->near_last[v], weft__part_mask(g, v), &hit);
         g->near_last[v] = hit.tri; /* UINT32_MAX when nothing is that near */
         g->near_clear[2 * (size_t)v] = 0.0f;
-        if (!found) {
+        if (!found) { /* farther than radius, on either side */
+            set_clear(g, v, p, radius, UINT32_MAX, true);
             continue;
         }
         double out[3];
         bool inside;
         const bool has_out = weft__near_outward(g, p, &hit, out, &inside);
         const double dist = sqrt(hit.d2);
-        if (!inside && dist >= thick) {
-            set_clear(g, v, p, dist, hit.tri);
+        if (inside ? dist > depth : dist >= thick) {
+            set_clear(g, v, p, dist, g->near_ktri[hit.tri], inside);
             continue;
         }
         if ((inside ? dist > depth : dist >= thick) || !has_out) {

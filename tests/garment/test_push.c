@@ -8,9 +8,9 @@
  * only thing that moves a vertex.
  *
  * The clearance: on a sphere that turns, travels and breathes, with cloth points wandering around
- * it for 240 frames, the push that skips the vertices its motion bound keeps clear gives the same
- * positions, bit for bit, as the push that searches every vertex every step, while searching
- * fewer than half of them. */
+ * it for 240 frames (inside, deep inside, near, and beyond the search's radius), the push that
+ * skips the vertices its motion bound keeps clear gives the same positions, bit for bit, as the
+ * push that searches every vertex every step, while searching fewer than half of them. */
 #include "../xpbd/scene.h"
 #include "garment/garment.h"
 #include "test.h"
@@ -339,7 +339,10 @@ static void test_push_clearance_matches_the_search(void)
             len = sqrtf(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
         } while (len > 1.0f || len < 0.1f);
         local[4 * v] = d[0] / len, local[4 * v + 1] = d[1] / len, local[4 * v + 2] = d[2] / len;
-        local[4 * v + 3] = v % 8 == 0 ? -0.01f : 0.02f * unit_rand(&seed) + 0.03f; /* an eighth inside, 1 .. 5 cm */
+        /* an eighth each inside within the push's depth, deeper, and beyond the search's radius;
+         * the rest 1 .. 5 cm out */
+        const float start[3] = {-0.01f, -0.09f, 0.12f};
+        local[4 * v + 3] = v % 8 < 3 ? start[v % 8] : 0.02f * unit_rand(&seed) + 0.03f;
     }
     /* The sphere of frame f: radius 0.15 m breathing by 4 % along a wave over its surface; the
      * cloth points at their offsets from a sphere of the mean radius. */
@@ -355,8 +358,8 @@ static void test_push_clearance_matches_the_search(void)
         }
         for (uint32_t v = 0; v < n; ++v) {
             float *l = local + 4 * v;
-            if (f > 0) { /* a wander of up to 2 mm a frame, kept within -2.5 .. 6.5 cm */
-                l[3] = fminf(fmaxf(l[3] + 0.002f * unit_rand(&seed), -0.025f), 0.065f);
+            if (f > 0) { /* a wander of up to 2 mm a frame, kept within -11 .. 15 cm */
+                l[3] = fminf(fmaxf(l[3] + 0.002f * unit_rand(&seed), -0.11f), 0.15f);
             }
             const float q[3] = {(radius + l[3]) * l[0], (radius + l[3]) * l[1], (radius + l[3]) * l[2]};
             sphere_frame(f, q, pts + 3 * v);
