@@ -550,11 +550,17 @@ static void cluster_moves(weft_garment *g)
     }
 }
 
-static double rest_clearance(const weft_garment *g, uint64_t mask, const double p[3]);
+/* The squared box distances of one vertex this step (cluster_d2), kept for its set_clear. */
+typedef struct box_d2 {
+    bool have;
+    float d2[CLUSTER_MAX];
+} box_d2;
+
+static double rest_clearance(const weft_garment *g, uint64_t mask, const double p[3], box_d2 *bd);
 
 /* True when v's clearance, lowered by this step's moves, still keeps it farther than thick
  * from the collider (no search needed). */
-static bool still_clear(weft_garment *g, uint32_t v, const double p[3], double thick)
+static bool still_clear(weft_garment *g, uint32_t v, const double p[3], double thick, box_d2 *bd)
 {
     float *cl = g->near_clear + 2 * (size_t)v;
     if (!(cl[0] > 0.0f)) {
@@ -574,9 +580,9 @@ static bool still_clear(weft_garment *g, uint32_t v, const double p[3], double t
     double a = (double)cl[0] - self - near;
     double b = (double)cl[1] - self - row[k];
     if (a > thick && !(b > thick)) {
-        b = rest_clearance(g, g->near_kmask[v], p) - clear_shift(g, v); /* the far clusters' boxes, now */
+        b = rest_clearance(g, g->near_kmask[v], p, bd) - clear_shift(g, v); /* the far clusters' boxes, now */
     } else if (!(a > thick)) {
-        a = b = rest_clearance(g, 0, p) - clear_shift(g, v); /* every cluster's box, now */
+        a = b = rest_clearance(g, 0, p, bd) - clear_shift(g, v); /* every cluster's box, now */
     }
     at[0] = (float)p[0], at[1] = (float)p[1], at[2] = (float)p[2];
     if (a > thick && b > thick) {
@@ -626,23 +632,29 @@ static void cluster_d2(const weft_garment *g, const double p[3], float d2[CLUSTE
 }
 
 /* The distance from p to the boxes of the clusters not in mask, less rounding; +inf if none. */
-static double rest_clearance(const weft_garment *g, uint64_t mask, const double p[3])
+static double rest_clearance(const weft_garment *g, uint64_t mask, const double p[3], box_d2 *bd)
 {
-    float d2[CLUSTER_MAX];
-    cluster_d2(g, p, d2);
+    if (!bd->have) {
+        cluster_d2(g, p, bd->d2);
+        bd->have = true;
+    }
     float rest2 = INFINITY;
     for (uint32_t c = 0; c < g->near_kcount; ++c) {
-        rest2 = !(mask >> c & 1u) && d2[c] < rest2 ? d2[c] : rest2;
+        rest2 = !(mask >> c & 1u) && bd->d2[c] < rest2 ? bd->d2[c] : rest2;
     }
     return sqrt((double)rest2) - CLEAR_ROUND;
 }
 
 /* v is at least dist from the collider at p (outside, or else `shifted`): its clearance from
  * here; home is the cluster of its nearest triangle, or UINT32_MAX for the nearest box's. */
-static void set_clear(weft_garment *g, uint32_t v, const double p[3], double dist, uint32_t home, bool shifted)
+static void set_clear(weft_garment *g, uint32_t v, const double p[3], double dist, uint32_t home, bool shifted,
+                      box_d2 *bd)
 {
-    float d2[CLUSTER_MAX];
-    cluster_d2(g, p, d2);
+    if (!bd->have) {
+        cluster_d2(g, p, bd->d2);
+        bd->have = true;
+    }
+    const float *d2 = bd->d2;
     const float reach = (float)(dist + CLEAR_MARGIN), reach2 = reach * reach;
     float rest2 = INFINITY, least = INFINITY;
     uint64_t mask = 0;
@@ -694,7 +706,9 @@ void weft__push(weft_garment *g)
         }
         float *x = g->x_next + 3 * (size_t)v;
         const double p[3] = {x[0], x[1], x[2]};
-        if (primed && !g->near_search_all && still_clear(g, v, p, thick)) {
+        box_d2 bd;
+        bd.have = false;
+        if (primed && !g->near_search_all && still_clear(g, v, p, thick, &bd)) {
             continue;
         }
         ++searched;
@@ -703,7 +717,7 @@ void weft__push(weft_garment *g)
         g->near_last[v] = hit.tri; /* UINT32_MAX when nothing is that near */
         g->near_clear[2 * (size_t)v] = 0.0f;
         if (!found) { /* farther than radius, on either side */
-            set_clear(g, v, p, radius, UINT32_MAX, true);
+            set_clear(g, v, p, radius, UINT32_MAX, true, &bd);
             continue;
         }
         double out[3];
@@ -711,7 +725,7 @@ void weft__push(weft_garment *g)
         const bool has_out = weft__near_outward(g, p, &hit, out, &inside);
         const double dist = sqrt(hit.d2);
         if (inside ? dist > depth : dist >= thick) {
-            set_clear(g, v, p, dist, g->near_ktri[hit.tri], inside);
+            set_clear(g, v, p, dist, g->near_ktri[hit.tri], inside, &bd);
             continue;
         }
         if ((inside ? dist > depth : dist >= thick) || !has_out) {
