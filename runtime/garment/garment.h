@@ -98,7 +98,8 @@ struct weft_garment {
     double *near_kinv;                  /* near_kcount: 1 / the cluster's vertex count */
     double *near_kmove;                 /* scratch: near_kcount x 4 (mean move, spread about it) */
     float *near_kreach;                 /* scratch: near_kcount x (near_kcount + 1): cluster k's reach
-                                         * seen from cluster h (row h), and row h's largest */
+                                         * seen from cluster h (row h, made each step for the homes
+                                         * in use), and row h's largest */
     float *near_kbox;                   /* scratch: the clusters' boxes at t+1, 6 x 64 (SoA) */
     /* ... and each instance's own (weft__near_alloc_state). */
     float *near_cref;                   /* collider_vertex_count * 3: the collider at the last push */

@@ -123,6 +123,12 @@ static weft_result make_clusters(weft_garment *g)
     for (uint32_t c = 0; c < k; ++c) {
         mark_cluster(g->near_tree, nodes[c], (uint8_t)c, g->near_ktri);
     }
+    for (uint32_t c = k; c < CLUSTER_MAX; ++c) { /* unused box slots: empty, infinitely far */
+        for (int a = 0; a < 3; ++a) {
+            g->near_kbox[a * CLUSTER_MAX + c] = INFINITY;
+            g->near_kbox[(3 + a) * CLUSTER_MAX + c] = -INFINITY;
+        }
+    }
     memset(g->near_kvert, 0, (size_t)nc * sizeof(uint64_t));
     for (uint32_t t = 0; t < nt; ++t) {
         for (int j = 0; j < 3; ++j) {
@@ -496,14 +502,7 @@ static double clear_shift(const weft_garment *g, uint32_t v)
     return (g->near_home[v] & HOME_SHIFTED) && s > 0.0 ? s : 0.0;
 }
 
-static inline double dist3(const double a[3], const double b[3])
-{
-    const double d[3] = {a[0] - b[0], a[1] - b[1], a[2] - b[2]};
-    return sqrt(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
-}
-
-/* The clusters' moves since the last push (near_kmove) and each cluster's reach as seen from
- * each home cluster (near_kreach); then near_cref takes the collider at t+1. */
+/* The clusters' moves since the last push (near_kmove); then near_cref takes the collider at t+1. */
 static void cluster_moves(weft_garment *g)
 {
     const uint32_t k = g->near_kcount, nc = g->collider_vertex_count;
@@ -529,8 +528,9 @@ static void cluster_moves(weft_garment *g)
         const double d[3] = {c[0] - c0[0], c[1] - c0[1], c[2] - c0[2]};
         for (uint64_t m = g->near_kvert[v]; m; m &= m - 1) {
             double *r = mv + 4 * (size_t)__builtin_ctzll(m);
-            const double e[3] = {d[0] - r[0], d[1] - r[1], d[2] - r[2]};
-            const double e2 = e[0] * e[0] + e[1] * e[1] + e[2] * e[2];
+            double e[3];
+            geo_sub(e, d, r);
+            const double e2 = geo_dot(e, e);
             r[3] = e2 > r[3] ? e2 : r[3];
         }
         c0[0] = (float)c[0], c0[1] = (float)c[1], c0[2] = (float)c[2];
@@ -538,16 +538,25 @@ static void cluster_moves(weft_garment *g)
     for (uint32_t c = 0; c < k; ++c) {
         mv[4 * (size_t)c + 3] = sqrt(mv[4 * (size_t)c + 3]);
     }
-    for (uint32_t h = 0; h < k; ++h) {
-        float *row = g->near_kreach + (size_t)h * (k + 1);
-        double most = 0.0;
-        for (uint32_t c = 0; c < k; ++c) {
-            const double reach = mv[4 * (size_t)c + 3] + dist3(mv + 4 * (size_t)c, mv + 4 * (size_t)h) + CLEAR_ROUND;
-            row[c] = (float)reach;
-            most = reach > most ? reach : most;
-        }
-        row[k] = (float)most;
+}
+
+/* Row h of near_kreach: how far each cluster's surface moved relative to home cluster h's mean
+ * move (its spread plus the difference of the means), and the row's largest. Made only for the
+ * homes of the vertices that have a clearance to lower this step. */
+static void reach_row(weft_garment *g, uint32_t h)
+{
+    const uint32_t k = g->near_kcount;
+    const double *mv = g->near_kmove;
+    float *row = g->near_kreach + (size_t)h * (k + 1);
+    double most = 0.0;
+    for (uint32_t c = 0; c < k; ++c) {
+        double d[3];
+        geo_sub(d, mv + 4 * (size_t)c, mv + 4 * (size_t)h);
+        const double reach = mv[4 * (size_t)c + 3] + geo_len(d) + CLEAR_ROUND;
+        row[c] = (float)reach;
+        most = reach > most ? reach : most;
     }
+    row[k] = (float)most;
 }
 
 /* The squared box distances of one vertex this step (cluster_d2), kept for its set_clear. */
@@ -570,7 +579,7 @@ static bool still_clear(weft_garment *g, uint32_t v, const double p[3], double t
     const double *r = g->near_kmove + 4 * (size_t)h;
     float *at = g->near_at + 3 * (size_t)v;
     const double moved[3] = {p[0] - at[0] - r[0], p[1] - at[1] - r[1], p[2] - at[2] - r[2]};
-    const double self = sqrt(moved[0] * moved[0] + moved[1] * moved[1] + moved[2] * moved[2]) + CLEAR_ROUND;
+    const double self = geo_len(moved) + CLEAR_ROUND;
     const float *row = g->near_kreach + (size_t)h * (k + 1);
     double near = 0.0;
     for (uint64_t m = g->near_kmask[v]; m; m &= m - 1) {
@@ -598,13 +607,7 @@ static bool still_clear(weft_garment *g, uint32_t v, const double p[3], double t
  * outward to float. */
 static void cluster_boxes(weft_garment *g)
 {
-    float *b = g->near_kbox;
-    for (uint32_t c = g->near_kcount; c < CLUSTER_MAX; ++c) { /* unused slots: empty boxes, infinitely far */
-        for (int a = 0; a < 3; ++a) {
-            b[a * CLUSTER_MAX + c] = INFINITY;
-            b[(3 + a) * CLUSTER_MAX + c] = -INFINITY;
-        }
-    }
+    float *b = g->near_kbox; /* slots past near_kcount stay the empty boxes make_clusters set */
     for (uint32_t c = 0; c < g->near_kcount; ++c) {
         const geo_bvh_node *nd = &g->near_tree->nodes[g->near_knode[c]];
         for (int a = 0; a < 3; ++a) {
@@ -691,6 +694,13 @@ void weft__push(weft_garment *g)
     cluster_boxes(g);
     if (primed) {
         cluster_moves(g);
+        uint64_t homes = 0; /* the reach rows this step needs */
+        for (uint32_t v = 0; v < g->vertex_count; ++v) {
+            homes |= g->near_clear[2 * (size_t)v] > 0.0f ? UINT64_C(1) << (g->near_home[v] & (CLUSTER_MAX - 1)) : 0;
+        }
+        for (; homes; homes &= homes - 1) {
+            reach_row(g, (uint32_t)__builtin_ctzll(homes));
+        }
     } else {
         for (size_t i = 0; i < (size_t)g->collider_vertex_count * 3; ++i) {
             g->near_cref[i] = (float)g->near_cpos[i];
@@ -728,7 +738,7 @@ void weft__push(weft_garment *g)
             set_clear(g, v, p, dist, g->near_ktri[hit.tri], inside, &bd);
             continue;
         }
-        if ((inside ? dist > depth : dist >= thick) || !has_out) {
+        if (!has_out) {
             continue;
         }
         /* A vertex that entered through the far side moved outward relative to this surface
