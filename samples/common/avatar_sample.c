@@ -1425,6 +1425,8 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
     }
     uint32_t settle = simulated || o->cape ? o->settle_frames : 0;
     double sums[4] = {0, 0, 0, 0};
+    double push_searched = 0.0, push_moved = 0.0; /* sums over the simulated frames (stats) */
+    uint32_t push_frames = 0;
     char path[1200];
     uint32_t tile_next = 0;
     char labels[64][48];
@@ -1539,6 +1541,9 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
         }
         if (dressed && simulated) {
             const weft_step_stats st = weft_garment_stats(s.garment);
+            push_searched += st.push_searched;
+            push_moved += st.pushed_vertices;
+            push_frames++;
             printf("%s%s", st.collider_cut ? "  cut (body jumped; garment reset to the skinned one)" : "",
                    st.ccd_over_budget ? "  ccd over budget (uncertified)" : "");
         }
@@ -1565,6 +1570,12 @@ int weft_avatar_sample_run(const weft_avatar_sample_options *o)
     double n = o->frames;
     printf("mean per frame: pose %.2f ms, cloth(%s) %.2f ms, render %.2f ms, png %.2f ms\n", sums[0] / n, method_used,
            sums[1] / n, sums[2] / n, sums[3] / n);
+    if (push_frames > 0 && s.garment) {
+        const uint32_t sim_nv = weft_garment_vertex_count(s.garment);
+        printf("push: searched %.1f %% of the simulated garment's %u vertices a frame, moved %.1f (mean over %u "
+               "frames; docs/CCD.md, Clearance)\n",
+               100.0 * push_searched / ((double)push_frames * sim_nv), sim_nv, push_moved / push_frames, push_frames);
+    }
     if (s.wear) {
         printf("wear: garment %s (%u of %u frames over 1 %% of vertices farther than %.0f cm from the skinned "
                "garment; worst %.1f %%); inside_body mean %.1f %%, max %.1f %% (%.1f %% where the body is clear); "
