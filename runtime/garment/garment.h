@@ -72,6 +72,8 @@ struct weft_garment {
     float *strain_rest;                 /* rest length per edge */
     uint8_t *strain_fixed;              /* vertex_count: 1 glued (radius-0 tether), | 2 pinned this step,
                                          * | 4 near the collider this step (contact-aware limit) */
+    uint32_t *strain_moved;             /* vertex_count, edge_count: the sweeps' scratch */
+    uint8_t *strain_hot;
     float strain_contact;               /* contact-aware limit distance, metres; 0: off */
     float *strain_normal;               /* vertex_count * 3: away from the collider, where bit 4 is set */
 

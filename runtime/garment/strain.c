@@ -35,15 +35,17 @@ weft_result weft__strain_create(weft_garment *g)
     for (size_t i = 0; i < n; ++i) {
         m += i == 0 || keys[i] != keys[i - 1];
     }
+    g->strain_edge_count = m; /* before the allocations: a failure frees them at their sizes */
     g->strain_edges = weft__alloc(g->ctx, (size_t)m * 2 * sizeof(uint32_t));
     g->strain_rest = weft__alloc(g->ctx, (size_t)m * sizeof(float));
     g->strain_fixed = weft__alloc(g->ctx, g->vertex_count);
-    if (!g->strain_edges || !g->strain_rest || !g->strain_fixed) {
+    g->strain_moved = weft__alloc(g->ctx, (size_t)g->vertex_count * sizeof(uint32_t));
+    g->strain_hot = weft__alloc(g->ctx, m);
+    if (!g->strain_edges || !g->strain_rest || !g->strain_fixed || !g->strain_moved || !g->strain_hot) {
         weft__free(g->ctx, keys, n * sizeof *keys);
         weft__strain_destroy(g);
         return WEFT_ERROR_OUT_OF_MEMORY;
     }
-    g->strain_edge_count = m;
     if (g->strain_contact > 0.0f && g->collider_vertex_count > 0) {
         g->strain_normal = weft__alloc(g->ctx, (size_t)g->vertex_count * 3 * sizeof(float));
         if (!g->strain_normal) {
@@ -77,11 +79,15 @@ void weft__strain_destroy(weft_garment *g)
     weft__free(g->ctx, g->strain_edges, (size_t)g->strain_edge_count * 2 * sizeof(uint32_t));
     weft__free(g->ctx, g->strain_rest, (size_t)g->strain_edge_count * sizeof(float));
     weft__free(g->ctx, g->strain_fixed, g->vertex_count);
+    weft__free(g->ctx, g->strain_moved, (size_t)g->vertex_count * sizeof(uint32_t));
+    weft__free(g->ctx, g->strain_hot, g->strain_edge_count);
     weft__free(g->ctx, g->strain_normal, (size_t)g->vertex_count * 3 * sizeof(float));
     g->strain_normal = NULL;
     g->strain_edges = NULL;
     g->strain_rest = NULL;
     g->strain_fixed = NULL;
+    g->strain_moved = NULL;
+    g->strain_hot = NULL;
     g->strain_edge_count = 0;
 }
 
@@ -154,14 +160,25 @@ void weft__strain_limit(weft_garment *g)
     const float grow = 1.0f + g->strain_limit;
     float *x = g->x_next;
     uint32_t over = 0;
+    /* After the first sweep an edge is measured again only if it was over when last measured or
+     * an end has moved since (moved[v]: 1 + the last sweep that moved v): any other edge has the
+     * length it was found within the cap at, so the sweeps do exactly what measuring every edge
+     * would, at the cost of the edges near the ones still over. */
+    uint32_t *moved = g->strain_moved;
+    uint8_t *hot = g->strain_hot;
+    memset(moved, 0, (size_t)g->vertex_count * sizeof *moved);
     for (uint32_t sweep = 0; sweep < g->strain_iterations; ++sweep) {
         uint32_t n = 0;
         for (uint32_t e = 0; e < g->strain_edge_count; ++e) {
             uint32_t a = g->strain_edges[2 * e], b = g->strain_edges[2 * e + 1];
+            if (sweep > 0 && !hot[e] && moved[a] < sweep && moved[b] < sweep) {
+                continue;
+            }
             float *p = x + 3 * (size_t)a, *q = x + 3 * (size_t)b;
             float d[3] = {q[0] - p[0], q[1] - p[1], q[2] - p[2]};
             float len = sqrtf(d[0] * d[0] + d[1] * d[1] + d[2] * d[2]);
             float cap = grow * g->strain_rest[e];
+            hot[e] = len > cap;
             if (!(len > cap)) {
                 continue;
             }
@@ -189,6 +206,7 @@ void weft__strain_limit(weft_garment *g)
                 p[k] += dp[k];
                 q[k] += dq[k];
             }
+            moved[a] = moved[b] = sweep + 1;
         }
         if (sweep == 0) {
             over = n;

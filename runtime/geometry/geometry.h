@@ -121,5 +121,12 @@ void geo_skin_destroy(const weft_context *ctx, geo_skin *skin);
  * once into the skin's scratch, so one skin is evaluated by one thread at a time. */
 weft_result geo_skin_eval(const geo_skin *skin, const uint32_t *collider_triangles, const float *c, const char *who,
                        float *out_pos);
+/* An evaluation reads only the positions of the collider vertices of the bound triangles. A
+ * caller that keeps one evaluation stores those positions as its key (geo_skin_key_floats floats)
+ * and may reuse the evaluation while geo_skin_key_matches: bitwise equal positions give a
+ * bit-identical evaluation. */
+uint32_t geo_skin_key_floats(const geo_skin *skin);
+void geo_skin_key_store(const geo_skin *skin, const float *c, float *key);
+bool geo_skin_key_matches(const geo_skin *skin, const float *c, const float *key);
 
 #endif

@@ -33,6 +33,8 @@ struct geo_skin {
     uint32_t *tris;              /* tri_count collider triangles */
     uint32_t *slot;              /* n * SKIN_SLOTS: index into tris of each binding (weight 0: unused) */
     skin_frame *frames;          /* tri_count scratch, rewritten by every geo_skin_eval */
+    uint32_t vertex_count;       /* distinct collider vertices those triangles read */
+    uint32_t *vertices;          /* vertex_count, ascending */
 };
 
 static int cmp_u32(const void *a, const void *b)
@@ -41,8 +43,35 @@ static int cmp_u32(const void *a, const void *b)
     return x < y ? -1 : (x > y ? 1 : 0);
 }
 
+/* The distinct collider vertices of the bound triangles, ascending. */
+static weft_result make_vertices(const weft_context *ctx, geo_skin *s, const uint32_t *triangles)
+{
+    const size_t n = (size_t)s->tri_count * 3;
+    uint32_t *v = weft__alloc(ctx, (n ? n : 1) * sizeof(uint32_t));
+    if (!v) {
+        return WEFT_ERROR_OUT_OF_MEMORY;
+    }
+    for (uint32_t u = 0; u < s->tri_count; ++u) {
+        memcpy(v + 3 * (size_t)u, triangles + 3 * (size_t)s->tris[u], 3 * sizeof(uint32_t));
+    }
+    qsort(v, n, sizeof *v, cmp_u32);
+    size_t m = 0;
+    for (size_t i = 0; i < n; ++i) {
+        if (m == 0 || v[i] != v[m - 1]) {
+            v[m++] = v[i];
+        }
+    }
+    s->vertices = weft__alloc(ctx, (m ? m : 1) * sizeof(uint32_t));
+    if (s->vertices) {
+        memcpy(s->vertices, v, m * sizeof *v);
+        s->vertex_count = (uint32_t)m;
+    }
+    weft__free(ctx, v, (n ? n : 1) * sizeof(uint32_t));
+    return s->vertices ? WEFT_OK : WEFT_ERROR_OUT_OF_MEMORY;
+}
+
 /* The distinct triangles of the bindings and each binding's index among them. */
-static weft_result make_frames(const weft_context *ctx, geo_skin *s)
+static weft_result make_frames(const weft_context *ctx, geo_skin *s, const uint32_t *triangles)
 {
     const size_t slots = (size_t)s->n * SKIN_SLOTS;
     uint32_t *all = weft__alloc(ctx, (slots ? slots : 1) * sizeof(uint32_t));
@@ -75,6 +104,9 @@ static weft_result make_frames(const weft_context *ctx, geo_skin *s)
     }
     memcpy(s->tris, all, u * sizeof *all);
     weft__free(ctx, all, (slots ? slots : 1) * sizeof(uint32_t));
+    if (make_vertices(ctx, s, triangles) != WEFT_OK) {
+        return WEFT_ERROR_OUT_OF_MEMORY;
+    }
     for (uint32_t i = 0; i < s->n; ++i) {
         for (int k = 0; k < SKIN_SLOTS; ++k) {
             uint32_t *at = &s->slot[(size_t)i * SKIN_SLOTS + k];
@@ -99,9 +131,10 @@ static bool tri_frame(const double *a, const double *b, const double *c, double 
     if (!(l1 > 0.0) || !(ln > 0.0)) {
         return false;
     }
+    const double i1 = 1.0 / l1, in = 1.0 / ln; /* two divisions, not six */
     for (int k = 0; k < 3; ++k) {
-        t1[k] = e1[k] / l1;
-        nn[k] /= ln;
+        t1[k] = e1[k] * i1;
+        nn[k] *= in;
     }
     geo_cross(t2, nn, t1);
     return true;
@@ -143,6 +176,7 @@ weft_result geo_skin_create_points(const weft_context *ctx, const float *points,
     if (!s) {
         return WEFT_ERROR_OUT_OF_MEMORY;
     }
+    *s = (geo_skin){0}; /* a failing step below frees only what was made */
     s->n = point_count;
     size_t nc3 = (size_t)surface_vertex_count * 3;
     s->bind = weft__alloc(ctx, s->n * sizeof *s->bind);
@@ -237,7 +271,7 @@ weft_result geo_skin_create_points(const weft_context *ctx, const float *points,
     }
     geo_bvh_destroy(ctx, &bvh);
     weft__free(ctx, cpos, nc3 * sizeof(double));
-    if (make_frames(ctx, s) != WEFT_OK) {
+    if (make_frames(ctx, s, triangles) != WEFT_OK) {
         geo_skin_destroy(ctx, s);
         return WEFT_ERROR_OUT_OF_MEMORY;
     }
@@ -252,6 +286,7 @@ void geo_skin_destroy(const weft_context *ctx, geo_skin *s)
         weft__free(ctx, s->slot, (slots ? slots : 1) * sizeof(uint32_t));
         weft__free(ctx, s->tris, (s->tri_count ? s->tri_count : 1) * sizeof(uint32_t));
         weft__free(ctx, s->frames, (s->tri_count ? s->tri_count : 1) * sizeof(skin_frame));
+        weft__free(ctx, s->vertices, (s->vertex_count ? s->vertex_count : 1) * sizeof(uint32_t));
         weft__free(ctx, s->bind, s->n * sizeof *s->bind);
         weft__free(ctx, s, sizeof *s);
     }
@@ -308,4 +343,23 @@ weft_result geo_skin_eval(const geo_skin *s, const uint32_t *collider_triangles,
         }
     }
     return WEFT_OK;
+}
+
+uint32_t geo_skin_key_floats(const geo_skin *s) { return 3 * s->vertex_count; }
+
+bool geo_skin_key_matches(const geo_skin *s, const float *c, const float *key)
+{
+    for (uint32_t i = 0; i < s->vertex_count; ++i) {
+        if (memcmp(c + 3 * (size_t)s->vertices[i], key + 3 * (size_t)i, 3 * sizeof(float)) != 0) {
+            return false;
+        }
+    }
+    return true;
+}
+
+void geo_skin_key_store(const geo_skin *s, const float *c, float *key)
+{
+    for (uint32_t i = 0; i < s->vertex_count; ++i) {
+        memcpy(key + 3 * (size_t)i, c + 3 * (size_t)s->vertices[i], 3 * sizeof(float));
+    }
 }

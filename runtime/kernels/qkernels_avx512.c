@@ -181,5 +181,5 @@ static inline void qk_store_i8(int8_t *q, V v, size_t n)
 #define QK_ISA WEFT_ISA_AVX512
 #define QK_VARIANT "avx512-vnni"
 #define QK_ATT_ACC 24 /* 32 vector registers */
-#define QK_QB 32      /* attention_det: 32 queries per block, two vectors */
+#define QK_ATT_WIDE /* attention_det: blocks of 32 queries (two vectors) when a call has more than 16 */
 #include "kernels/qkernels_body.h"

@@ -462,6 +462,12 @@ typedef struct ct_state {
     geo_skin *skin;
     float *skin_cur, *skin_next;
     bool skin_shared;                   /* skin is the garment's (g->skin), not owned */
+    /* This garment's (an instance's own) S_{t+1} of its last step and the collider positions it
+     * was evaluated from (geo_skin_key_*): the next step's S_t when the collider at t is still
+     * those positions, as it is after every plain step; anything that rewrites the collider
+     * (weft_garment_set_state, a cut, a level switch) fails the comparison. */
+    float *skin_last, *skin_key;
+    bool skin_key_set;
     /* The xpbd prior: an XPBD garment on the same meshes (no CCD), restarted from this garment's
      * state every step, and its result Y (N x 3). NULL for the other priors. */
     weft_garment *prior_sim;
@@ -776,6 +782,14 @@ static bool add_buf(weft_garment *g, ct_state *s, float **ptr, size_t floats)
     *ptr = weft__alloc(g->ctx, floats * sizeof(float));
     s->bufs[s->buf_count++] = (ct_buf){ptr, floats};
     return *ptr != NULL;
+}
+
+/* The instance's own S_{t+1} and its key (skin_eval). */
+static bool skin_cache_alloc(weft_garment *g, ct_state *s)
+{
+    s->skin_key_set = false;
+    return add_buf(g, s, &s->skin_last, (size_t)s->N * 3) &&
+           add_buf(g, s, &s->skin_key, geo_skin_key_floats(s->skin));
 }
 
 static void batch_free(const weft_context *ctx, ct_batch *b)
@@ -1185,6 +1199,10 @@ static weft_result ct_create(weft_garment *g)
         ct_destroy(g);
         return r;
     }
+    if (skinned && !skin_cache_alloc(g, s)) {
+        ct_destroy(g);
+        return WEFT_ERROR_OUT_OF_MEMORY;
+    }
     if (c.prior == WEFT_CT_PRIOR_XPBD && (r = prior_sim_create(g, s)) != WEFT_OK) {
         ct_destroy(g);
         return r;
@@ -1213,7 +1231,8 @@ static weft_result ct_instance(const weft_garment *proto, weft_garment *g)
     s->hist = s->hist_new = NULL;
     g->method_state = s;
     const size_t hkd = (size_t)s->c.history * s->c.K * s->c.D;
-    if (!add_buf(g, s, &s->hist, hkd) || !add_buf(g, s, &s->hist_new, hkd)) {
+    s->skin_last = s->skin_key = NULL;
+    if (!add_buf(g, s, &s->hist, hkd) || !add_buf(g, s, &s->hist_new, hkd) || (s->skin && !skin_cache_alloc(g, s))) {
         ct_destroy(g);
         return WEFT_ERROR_OUT_OF_MEMORY;
     }
@@ -1457,16 +1476,27 @@ static void ct_temporal(const ct_state *first, ct_state *const *members, uint32_
     }
 }
 
-/* S_t and S_{t+1} of the skinned prior, both evaluated every step rather than S_t kept from the
- * step before: weft_garment_set_state, a teleported collider or a level switch's replay then
- * need no care. */
+/* S_t and S_{t+1} of the skinned prior. S_t is the last step's S_{t+1} when the collider
+ * vertices the binding reads are bitwise those it was evaluated from, and is evaluated otherwise
+ * (the first step, weft_garment_set_state, a teleported collider, a level switch's replay). */
 static weft_result skin_eval(const weft_garment *g, ct_state *s)
 {
-    weft_result r = geo_skin_eval(s->skin, g->collider_triangles, g->collider_prev,
-                               "method 'model': skinned prior, collider at t", s->skin_cur);
+    const size_t n3 = (size_t)s->N * 3;
+    weft_result r = WEFT_OK;
+    if (s->skin_key_set && geo_skin_key_matches(s->skin, g->collider_prev, s->skin_key)) {
+        memcpy(s->skin_cur, s->skin_last, n3 * sizeof(float)); /* bit-identical to evaluating it */
+    } else {
+        r = geo_skin_eval(s->skin, g->collider_triangles, g->collider_prev,
+                          "method 'model': skinned prior, collider at t", s->skin_cur);
+    }
     if (r == WEFT_OK) {
         r = geo_skin_eval(s->skin, g->collider_triangles, g->collider_next,
                        "method 'model': skinned prior, collider at t+1", s->skin_next);
+    }
+    s->skin_key_set = r == WEFT_OK;
+    if (r == WEFT_OK) {
+        memcpy(s->skin_last, s->skin_next, n3 * sizeof(float));
+        geo_skin_key_store(s->skin, g->collider_next, s->skin_key);
     }
     return r;
 }

@@ -70,7 +70,7 @@ static void test_attention_bit_exact_and_composed(void)
     static const att_case cases[] = {
         {1, 1, 1, 1, 0},   {5, 7, 2, 3, 0},    {16, 16, 4, 12, 0}, {17, 33, 4, 12, 1}, {32, 1000, 4, 12, 0},
         {40, 37, 4, 24, 2}, {3, 0, 2, 4, 0},   {64, 129, 4, 24, 0}, {33, 64, 3, 5, 1},  {128, 128, 4, 12, 2},
-        {70, 19, 2, 17, 0}, {1056, 32, 4, 12, 0},
+        {70, 19, 2, 17, 0}, {1056, 32, 4, 12, 0}, {16, 2080, 4, 12, 1}, /* the garment encoder: 16 queries */
     };
     test_rng rng = {4242};
     int mismatches = 0, not_composed = 0, guard_hits = 0;

@@ -437,6 +437,81 @@ static void shipped_garment_parity(void)
     rollout_parity_of(&golden_garment_specialist, WEFT_SOURCE_DIR "/tools/train/models/garment.safetensors");
 }
 
+/* The skinned prior's S_t is the previous step's S_{t+1} while the collider at t is bitwise what
+ * it was evaluated from. Three garment-specialist garments end at the same state and collider at
+ * t, then step to the same t+1: A stepped the sequence itself (its S_{t+1} is reused), B stepped
+ * the sequence shifted 5 cm and is then given the collider at t (its kept S_{t+1} is stale and must
+ * not be reused), C never stepped and is given it too (nothing kept). All three equal bit for bit,
+ * at every precision, and so does D, which stepped the sequence and had its collider at t
+ * rewritten with the same values (kept S_{t+1} still valid). */
+static void skinned_prior_reuse(void)
+{
+    golden g;
+    if (!golden_load_from(&g, &golden_garment_specialist)) {
+        CHECK(!"golden tensors missing");
+        return;
+    }
+    weft_context *ctx = make_ctx();
+    weft_model *m = NULL;
+    CHECK_RESULT(weft_model_load_file(ctx, WEFT_SOURCE_DIR "/tools/train/models/garment.safetensors", &m), WEFT_OK);
+    const size_t n = (size_t)g.V * 3, nc = (size_t)g.Vc * 3;
+    const size_t t = g.cpos.shape[0] > 6 ? 5 : g.cpos.shape[0] - 2; /* the frame the three meet at */
+    float *shifted = malloc(nc * sizeof(float));
+    for (int prec = 0; m && prec < 3; ++prec) {
+        weft_garment *gar[4] = {NULL};
+        for (int k = 0; k < 4; ++k) {
+            weft_garment_def d = garment_def(&g, m, 1);
+            d.precision = (weft_precision)prec;
+            CHECK_RESULT(weft_garment_create(ctx, &d, &gar[k]), WEFT_OK);
+        }
+        if (!gar[0] || !gar[1] || !gar[2] || !gar[3]) {
+            for (int k = 0; k < 4; ++k) {
+                weft_garment_destroy(gar[k]);
+            }
+            continue;
+        }
+        for (size_t f = 2; f <= t; ++f) { /* A and D on the sequence, B on it shifted 5 cm in x */
+            for (size_t i = 0; i < nc; ++i) {
+                shifted[i] = frame(&g.cpos, f)[i] + (i % 3 == 0 ? 0.05f : 0.0f);
+            }
+            CHECK_RESULT(weft_garment_set_collider(gar[0], frame(&g.cpos, f)), WEFT_OK);
+            CHECK_RESULT(weft_garment_set_collider(gar[3], frame(&g.cpos, f)), WEFT_OK);
+            CHECK_RESULT(weft_garment_set_collider(gar[1], shifted), WEFT_OK);
+            for (int k = 0; k < 4; ++k) {
+                if (k != 2) {
+                    CHECK_RESULT(weft_garment_step(gar[k]), WEFT_OK);
+                }
+            }
+        }
+        for (int k = 1; k < 4; ++k) {
+            CHECK_RESULT(weft_garment_set_collider_current(gar[k], frame(&g.cpos, t)), WEFT_OK);
+        }
+        for (int k = 0; k < 4; ++k) {
+            CHECK_RESULT(weft_garment_set_state(gar[k], frame(&g.gt, t), frame(&g.gt, t - 1)), WEFT_OK);
+            CHECK_RESULT(weft_garment_set_collider(gar[k], frame(&g.cpos, t + 1)), WEFT_OK);
+            CHECK_RESULT(weft_garment_step(gar[k]), WEFT_OK);
+        }
+        const float *xa = weft_garment_positions(gar[0]);
+        for (int k = 1; k < 4; ++k) {
+            CHECK_MSG(memcmp(xa, weft_garment_positions(gar[k]), n * sizeof(float)) == 0,
+                      "precision %d: garment %d differs from the one that stepped the sequence", prec, k);
+        }
+        /* not vacuous: B's own S_{t+1} of the shifted collider would have moved every vertex */
+        double moved = 0;
+        for (size_t i = 0; i < n; ++i) {
+            moved = fmax(moved, fabs((double)xa[i] - frame(&g.gt, t)[i]));
+        }
+        CHECK(moved > 0.0);
+        for (int k = 0; k < 4; ++k) {
+            weft_garment_destroy(gar[k]);
+        }
+    }
+    free(shifted);
+    weft_model_destroy(m);
+    weft_context_destroy(ctx);
+    golden_free(&g);
+}
+
 /* The shipped gripper specialist (the grasp prior, K = 16) on a grasped sheet being lifted,
  * teacher-forced and rolled out with the sequence's pins set every frame as `weft eval --pins all`
  * sets them (the prior moves the sheet with them); gripper_seq/ is `cut_seq.py --seq
@@ -1470,6 +1545,7 @@ static void parallel_for_hook(void)
 
 TEST_MAIN(TEST_CASE(teacher_forced_parity), TEST_CASE(shipped_game_parity), TEST_CASE(shipped_models_step),
           TEST_CASE(rollout_parity), TEST_CASE(shipped_drop_parity), TEST_CASE(shipped_garment_parity), TEST_CASE(shipped_gripper_parity),
+          TEST_CASE(skinned_prior_reuse),
           TEST_CASE(skinned_teacher_forced_parity), TEST_CASE(skinned_rollout_parity),
           TEST_CASE(bad_model_files), TEST_CASE(priors), TEST_CASE(xpbd_prior), TEST_CASE(skinned_lod_switch),
           TEST_CASE(bad_state_and_collider), TEST_CASE(reduced_precision),
