@@ -3,7 +3,6 @@
 #include "geometry/geometry.h"
 
 #include <float.h>
-#include <string.h>
 
 #define XBVH_LEAF 4u
 
@@ -124,53 +123,8 @@ void geo_bvh_build(geo_bvh *bvh, const double *pos)
     }
 }
 
-/* The boxes of a triangle tree at one set of positions, no pad: geo_bvh_refit's most frequent
- * case (the body each step), the same boxes in straight-line code. */
-static void refit_triangles(geo_bvh *bvh, const double *pos)
-{
-    for (uint32_t ni = bvh->node_count; ni-- > 0;) {
-        geo_bvh_node *nd = &bvh->nodes[ni];
-        double lo[3] = {DBL_MAX, DBL_MAX, DBL_MAX}, hi[3] = {-DBL_MAX, -DBL_MAX, -DBL_MAX};
-        uint32_t max_prim = 0;
-        if (nd->count > 0) {
-            for (uint32_t s = nd->left; s < nd->left + nd->count; ++s) {
-                const uint32_t t = bvh->order[s];
-                max_prim = t > max_prim ? t : max_prim;
-                const uint32_t *pv = bvh->prim_verts + 3 * (size_t)t;
-                const double *a = pos + 3 * (size_t)pv[0], *b = pos + 3 * (size_t)pv[1], *c = pos + 3 * (size_t)pv[2];
-                for (int k = 0; k < 3; ++k) {
-                    lo[k] = a[k] < lo[k] ? a[k] : lo[k];
-                    hi[k] = a[k] > hi[k] ? a[k] : hi[k];
-                    lo[k] = b[k] < lo[k] ? b[k] : lo[k];
-                    hi[k] = b[k] > hi[k] ? b[k] : hi[k];
-                    lo[k] = c[k] < lo[k] ? c[k] : lo[k];
-                    hi[k] = c[k] > hi[k] ? c[k] : hi[k];
-                }
-            }
-            for (int a = 0; a < 3; ++a) { /* the general path's pad of 0 */
-                lo[a] -= 0.0;
-                hi[a] += 0.0;
-            }
-        } else {
-            const geo_bvh_node *l = &bvh->nodes[nd->left], *r = &bvh->nodes[nd->left + 1];
-            max_prim = l->max_prim > r->max_prim ? l->max_prim : r->max_prim;
-            for (int a = 0; a < 3; ++a) {
-                lo[a] = l->lo[a] < r->lo[a] ? l->lo[a] : r->lo[a];
-                hi[a] = l->hi[a] > r->hi[a] ? l->hi[a] : r->hi[a];
-            }
-        }
-        memcpy(nd->lo, lo, sizeof lo);
-        memcpy(nd->hi, hi, sizeof hi);
-        nd->max_prim = max_prim;
-    }
-}
-
 void geo_bvh_refit(geo_bvh *bvh, const double *pos0, const double *pos1, double pad)
 {
-    if (bvh->arity == 3 && !pos1 && pad == 0.0) {
-        refit_triangles(bvh, pos0);
-        return;
-    }
     for (uint32_t ni = bvh->node_count; ni-- > 0;) {
         geo_bvh_node *nd = &bvh->nodes[ni];
         double lo[3] = {DBL_MAX, DBL_MAX, DBL_MAX}, hi[3] = {-DBL_MAX, -DBL_MAX, -DBL_MAX};

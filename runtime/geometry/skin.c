@@ -131,10 +131,9 @@ static bool tri_frame(const double *a, const double *b, const double *c, double 
     if (!(l1 > 0.0) || !(ln > 0.0)) {
         return false;
     }
-    const double i1 = 1.0 / l1, in = 1.0 / ln; /* two divisions, not six */
     for (int k = 0; k < 3; ++k) {
-        t1[k] = e1[k] * i1;
-        nn[k] *= in;
+        t1[k] = e1[k] / l1;
+        nn[k] /= ln;
     }
     geo_cross(t2, nn, t1);
     return true;
