@@ -43,6 +43,19 @@ static int cmp_u32(const void *a, const void *b)
     return x < y ? -1 : (x > y ? 1 : 0);
 }
 
+/* Sorts v ascending and drops repeats in place; returns how many remain. */
+static size_t sort_unique(uint32_t *v, size_t n)
+{
+    qsort(v, n, sizeof *v, cmp_u32);
+    size_t m = 0;
+    for (size_t i = 0; i < n; ++i) {
+        if (m == 0 || v[i] != v[m - 1]) {
+            v[m++] = v[i];
+        }
+    }
+    return m;
+}
+
 /* The distinct collider vertices of the bound triangles, ascending. */
 static weft_result make_vertices(const weft_context *ctx, geo_skin *s, const uint32_t *triangles)
 {
@@ -54,13 +67,7 @@ static weft_result make_vertices(const weft_context *ctx, geo_skin *s, const uin
     for (uint32_t u = 0; u < s->tri_count; ++u) {
         memcpy(v + 3 * (size_t)u, triangles + 3 * (size_t)s->tris[u], 3 * sizeof(uint32_t));
     }
-    qsort(v, n, sizeof *v, cmp_u32);
-    size_t m = 0;
-    for (size_t i = 0; i < n; ++i) {
-        if (m == 0 || v[i] != v[m - 1]) {
-            v[m++] = v[i];
-        }
-    }
+    const size_t m = sort_unique(v, n);
     s->vertices = weft__alloc(ctx, (m ? m : 1) * sizeof(uint32_t));
     if (s->vertices) {
         memcpy(s->vertices, v, m * sizeof *v);
@@ -88,13 +95,7 @@ static weft_result make_frames(const weft_context *ctx, geo_skin *s, const uint3
             }
         }
     }
-    qsort(all, m, sizeof *all, cmp_u32);
-    size_t u = 0;
-    for (size_t i = 0; i < m; ++i) {
-        if (u == 0 || all[i] != all[u - 1]) {
-            all[u++] = all[i];
-        }
-    }
+    const size_t u = sort_unique(all, m);
     s->tri_count = (uint32_t)u;
     s->tris = weft__alloc(ctx, (u ? u : 1) * sizeof(uint32_t));
     s->frames = weft__alloc(ctx, (u ? u : 1) * sizeof(skin_frame));
