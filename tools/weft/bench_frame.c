@@ -10,8 +10,11 @@
  * from weft_step_stats: the method, the constraint stage, CCD, and the map. Then the ratios that
  * matter for a game budget, each from medians of this one run: learned int8 over fast XPBD-10
  * (same resolution item; for D@S also against fast XPBD-10 stepping D itself when that item ran),
- * int8 over fp32, the network's share. A step that fails makes the bench exit non-zero and write
- * no table. */
+ * int8 over fp32 (whole step and network), the network's share, the slowest frame over the median.
+ * Then the learned int8 step's largest GEMM (found by the calibration observer, timed alone)
+ * against the int8 dot-product peak measured in the same run, the crowd, and a table of the
+ * game-budget targets against these figures. A step that fails makes the bench exit non-zero and
+ * write no table. */
 #define _POSIX_C_SOURCE 200809L
 #include "weft.h"
 #include "weft/body.h"
@@ -19,6 +22,10 @@
 #include "support_bench.h"
 #include "support_cli.h"
 #include "core/core.h"
+#include "kernels/kernels_internal.h"
+#include "kernels/qkernels.h"
+#include "model/transformer.h"
+#include "support_peaks.h"
 
 #include <math.h>
 #include <stdio.h>
@@ -44,7 +51,34 @@ typedef struct fr_method {
 
 typedef struct fr_cell {
     double pose, step, method, constraints, ccd, map; /* medians, ms; step includes the map */
+    double worst;                                     /* the slowest frame's whole step, ms */
 } fr_cell;
+
+/* The learned step's largest linear layer by multiply-accumulates per call, as run (the
+ * calibration observer's row counts; layers constant for a garment are skipped, as the normal
+ * step computes them once at creation). */
+typedef struct fr_largest {
+    char name[48];
+    uint32_t M, K, N;
+    uint32_t vertices; /* the simulated garment's */
+} fr_largest;
+
+static void observe_largest(const char *name, const float *in, uint32_t rows, uint32_t in_cols, const float *out,
+                            uint32_t out_cols, void *user)
+{
+    (void)in;
+    (void)out;
+    fr_largest *l = user;
+    if (strncmp(name, "dec_rest.", 9) == 0 || strcmp(name, "enc_xattn.q") == 0 || strcmp(name, "dec_xattn.q") == 0) {
+        return;
+    }
+    if ((double)rows * in_cols * out_cols > (double)l->M * l->K * l->N) {
+        snprintf(l->name, sizeof l->name, "%s", name);
+        l->M = rows;
+        l->K = in_cols;
+        l->N = out_cols;
+    }
+}
 
 static bool parse_method(const char *item, size_t n, fr_method *m)
 {
@@ -134,7 +168,8 @@ static bool parse_resolution(const char *item, fr_res *r)
 
 /* One (motion, resolution, method) run. Returns 0, or 1 with the reason printed. */
 static int run_cell(weft_context *ctx, weft_body *body, const weft_sample_motion *mo, const fr_res *res,
-                    const fr_method *m, weft_model *model, uint32_t frames, uint32_t tokens, fr_cell *out)
+                    const fr_method *m, weft_model *model, uint32_t frames, uint32_t tokens, fr_cell *out,
+                    fr_largest *largest)
 {
     weft_cloth_def cdef = weft_default_cloth_def(WEFT_CLOTH_TSHIRT), ddef = cdef;
     cdef.resolution = res->simulated;
@@ -182,8 +217,12 @@ static int run_cell(weft_context *ctx, weft_body *body, const weft_sample_motion
         d.precision = m->precision;
         d.max_collider_tokens = tokens; /* the recipe's sample cap, or the whole crop (0) */
         weft_sample_set_substeps(&d, m->substeps);
-        if (weft_garment_create(ctx, &d, &g) != WEFT_OK) {
+        if (weft_garment_create(ctx, &d, &g) != WEFT_OK ||
+            (largest && weft__ct_set_observer(g, observe_largest, largest) != WEFT_OK)) {
             rc = 1;
+        }
+        if (largest) {
+            largest->vertices = cloth->vertex_count;
         }
     }
     weft_pose bind, first, pose;
@@ -228,6 +267,10 @@ static int run_cell(weft_context *ctx, weft_body *body, const weft_sample_motion
     if (rc != 0) {
         fprintf(stderr, "weft bench frame: %s at %s: %s\n", m->label, res->name, weft_last_error());
     } else {
+        out->worst = 0.0;
+        for (uint32_t i = 0; i < frames; ++i) {
+            out->worst = t[1][i] > out->worst ? t[1][i] : out->worst;
+        }
         out->pose = median(t[0], frames);
         out->step = median(t[1], frames);
         out->method = median(t[2], frames);
@@ -372,6 +415,41 @@ static int run_crowd(weft_body *body, const weft_sample_motion *mo, uint32_t n, 
     return rc;
 }
 
+/* The smallest and largest of a set of ratios (n == 0: none measured). */
+typedef struct fr_span {
+    double lo, hi;
+    uint32_t n;
+} fr_span;
+
+static void span_add(fr_span *s, double v)
+{
+    s->lo = s->n == 0 || v < s->lo ? v : s->lo;
+    s->hi = s->n == 0 || v > s->hi ? v : s->hi;
+    s->n++;
+}
+
+/* "a-b" (or "a" when equal) with `digits` decimals; "not run" when empty. */
+static const char *span_text(const fr_span *s, int digits, char *buf, size_t cap)
+{
+    char lo[32], hi[32];
+    if (s->n == 0) {
+        snprintf(buf, cap, "not run");
+        return buf;
+    }
+    snprintf(lo, sizeof lo, "%.*f", digits, s->lo);
+    snprintf(hi, sizeof hi, "%.*f", digits, s->hi);
+    if (strcmp(lo, hi) == 0) {
+        snprintf(buf, cap, "%s", lo);
+    } else {
+        snprintf(buf, cap, "%s-%s", lo, hi);
+    }
+    return buf;
+}
+
+typedef struct fr_summary {
+    fr_span native4k, mapped_vs_drawn, mapped_vs_same, net_speedup, worst_real, gemm_peak;
+} fr_summary;
+
 /* The list item `name` of a comma-separated list, copied into buf; false past the end. */
 static bool list_item(const char *list, uint32_t index, char *buf, size_t cap)
 {
@@ -427,7 +505,9 @@ static const cli_command k_command = {
              "stepped --frames frames by each method at each resolution, one thread. Per cell the medians\n"
              "of posing the body, the whole cloth step, the method, the constraint stage, CCD and the mesh\n"
              "map (D@S); then the ratios learned int8 / fast XPBD-10 (for D@S also against fast XPBD-10\n"
-             "stepping D), int8 / fp32 and the network's share of the int8 step.\n"
+             "stepping D), int8 / fp32, the network's int8 speed-up and share, the worst frame over the\n"
+             "median; the int8 step's largest GEMM alone against the int8 peak measured in the same run;\n"
+             "the crowd; and the game-budget targets against this run's figures.\n"
              "Run from the repository root (the shipped models are read from tools/train/models).",
     .options = k_options,
     .notes = NULL,
@@ -532,6 +612,19 @@ int weft_bench_frame(int argc, char **argv)
         return 1;
     }
     weft_model *models[WEFT_PRECISION_COUNT] = {NULL, NULL, NULL};
+    fr_summary sum;
+    memset(&sum, 0, sizeof sum);
+    /* the int8 dot-product and fp32 FMA peaks of this CPU, measured now and again after the
+     * cells (the higher is kept, so a slow spell does not flatter the GEMMs' share) */
+    const weft_isa isa = weft_context_isa(ctx);
+    const weft_qkernels *qk = weft_qkernels_for_isa(isa);
+    const weft_kernels *kt = weft_kernels_for_isa(isa);
+    peak_fn *dot = NULL, *fma = weft__peak_fma_scalar;
+    if (qk) {
+        bench_variant_peaks(qk->variant, &dot, &fma);
+    }
+    double dot_peak = dot && i8 >= 0 ? bench_peak_rate(dot, 0.2) * 1e-9 : NAN;
+    double fma_peak = dot && i8 >= 0 ? bench_peak_rate(fma, 0.2) * 1e-9 : NAN;
     int rc = 0;
     for (uint32_t k = 0; rc == 0 && k < nm; ++k) {
         const weft_precision p = methods[k].precision;
@@ -567,7 +660,7 @@ int weft_bench_frame(int argc, char **argv)
             for (uint32_t k = 0; rc == 0 && k < nm; ++k) {
                 rc = run_cell(ctx, body, &mo, &res[ri], &methods[k],
                               methods[k].method == WEFT_METHOD_MODEL ? models[methods[k].precision] : NULL, frames,
-                              tokens, &cells[k]);
+                              tokens, &cells[k], NULL);
                 if (rc != 0) {
                     break;
                 }
@@ -583,6 +676,8 @@ int weft_bench_frame(int argc, char **argv)
                 break;
             }
         }
+        /* a library clip or a BVH file: real motion, where the worst-frame target applies */
+        const bool real = strncmp(motion_spec, "mocap:", 6) == 0 || strncmp(motion_spec, "bvh:", 4) == 0;
         for (uint32_t ri = 0; rc == 0 && ri < nres; ++ri) {
             /* ratios of medians of this run, where both sides were measured */
             const fr_cell *cells = all[ri];
@@ -601,23 +696,105 @@ int weft_bench_frame(int argc, char **argv)
                           i8 >= 0 && x10_drawn > 0.0 ? cells[i8].step / x10_drawn : 0.0);
             w += snprintf(r + w, sizeof r - (size_t)w, i8 >= 0 && f32 >= 0 ? " %.2f |" : " - |",
                           i8 >= 0 && f32 >= 0 ? cells[i8].step / cells[f32].step : 0.0);
-            snprintf(r + w, sizeof r - (size_t)w, i8 >= 0 ? " %.0f %% |\n" : " - |\n",
-                     i8 >= 0 && cells[i8].step > 0.0 ? 100.0 * cells[i8].method / cells[i8].step : 0.0);
+            w += snprintf(r + w, sizeof r - (size_t)w, i8 >= 0 && f32 >= 0 ? " %.2f (target >= 3) |" : " - |",
+                          i8 >= 0 && f32 >= 0 ? cells[f32].method / cells[i8].method : 0.0);
+            w += snprintf(r + w, sizeof r - (size_t)w, i8 >= 0 ? " %.0f %% |" : " - |",
+                          i8 >= 0 && cells[i8].step > 0.0 ? 100.0 * cells[i8].method / cells[i8].step : 0.0);
+            snprintf(r + w, sizeof r - (size_t)w, i8 >= 0 ? " %.2f%s |\n" : " - |\n",
+                     i8 >= 0 ? cells[i8].worst / cells[i8].step : 0.0, real ? " (target <= 2)" : "");
             strncat(ratios, r, sizeof ratios - strlen(ratios) - 1);
+            /* the targets' summary: extremes over motions and items */
+            if (i8 >= 0 && x10 >= 0 && res[ri].drawn == res[ri].simulated && res[ri].drawn == WEFT_CLOTH_RES_4K) {
+                span_add(&sum.native4k, cells[i8].step / cells[x10].step);
+            }
+            if (i8 >= 0 && res[ri].drawn == WEFT_CLOTH_RES_4K && res[ri].simulated != res[ri].drawn) {
+                if (x10_drawn > 0.0) {
+                    span_add(&sum.mapped_vs_drawn, cells[i8].step / x10_drawn);
+                }
+                if (x10 >= 0) {
+                    span_add(&sum.mapped_vs_same, cells[i8].step / cells[x10].step);
+                }
+            }
+            if (i8 >= 0 && f32 >= 0) {
+                span_add(&sum.net_speedup, cells[f32].method / cells[i8].method);
+            }
+            if (i8 >= 0 && real) {
+                span_add(&sum.worst_real, cells[i8].worst / cells[i8].step);
+            }
         }
         weft_sample_motion_free(&mo);
     }
     if (rc == 0 && table) {
         table = bench_append(table, &len, &cap,
                              "\n| motion | garment | learned int8 / fast XPBD-10 (whole step) | ... / fast XPBD-10 "
-                             "stepping the drawn mesh | int8 / fp32 | network share of the int8 step |\n"
-                             "|---|---|---:|---:|---:|---:|\n");
+                             "stepping the drawn mesh | int8 / fp32 (whole step) | network speed-up int8 over fp32 | "
+                             "network share of the int8 step | worst / median frame, learned int8 |\n"
+                             "|---|---|---:|---:|---:|---:|---:|---:|\n");
         table = table ? bench_append(table, &len, &cap, ratios) : NULL;
         rc = table ? 0 : 1;
         if (table) {
             printf("\n%s", strstr(table, "| motion | garment | learned int8 /"));
         }
     }
+    if (rc == 0 && table && i8 >= 0 && dot && qk && kt) {
+        /* the learned int8 step's largest GEMM at each simulated resolution, on the first motion,
+         * alone against the peaks */
+        weft_sample_motion mo;
+        const bool loaded = list_item(motions, 0, motion_spec, sizeof motion_spec) &&
+                            weft_sample_motion_load(ctx, body, motion_spec, 1.0f, false, &mo) == WEFT_OK;
+        if (!loaded) {
+            fprintf(stderr, "weft bench frame: motion %s: %s\n", motion_spec, weft_last_error());
+            rc = 1;
+        }
+        fr_largest big[FR_MAX_RES];
+        bench_gemm_probe probe[FR_MAX_RES];
+        uint32_t nbig = 0;
+        for (uint32_t ri = 0; rc == 0 && ri < nres; ++ri) {
+            bool seen = false;
+            for (uint32_t rj = 0; rj < ri; ++rj) {
+                seen = seen || res[rj].simulated == res[ri].simulated;
+            }
+            if (seen) {
+                continue;
+            }
+            fr_cell unused;
+            memset(&big[nbig], 0, sizeof big[nbig]);
+            rc = run_cell(ctx, body, &mo, &res[ri], &methods[i8], models[WEFT_PRECISION_INT8], 5, tokens, &unused,
+                          &big[nbig]);
+            if (rc == 0) {
+                probe[nbig] = bench_probe_gemm(qk, kt, big[nbig].M, big[nbig].N, big[nbig].K, 0.2);
+                rc = isnan(probe[nbig].i8_gmacs) ? 1 : 0;
+                ++nbig;
+            }
+        }
+        if (loaded) {
+            weft_sample_motion_free(&mo);
+        }
+        if (rc == 0) {
+            dot_peak = fmax(dot_peak, bench_peak_rate(dot, 0.2) * 1e-9);
+            fma_peak = fmax(fma_peak, bench_peak_rate(fma, 0.2) * 1e-9);
+            snprintf(line, sizeof line,
+                     "\nThe learned int8 step's largest GEMM (rows x in -> out as run on %s, with its per-row "
+                     "quantisation, no activation) alone, against this run's peaks: int8 dot product %.1f GMAC/s "
+                     "(%s), fp32 FMA %.1f GMAC/s.\n\n"
+                     "| simulated | layer | shape | int8 GMAC/s | of the int8 peak | fp32 GMAC/s | of the fp32 peak |\n"
+                     "|---|---|---|---:|---:|---:|---:|\n",
+                     motion_spec, dot_peak, qk->variant, fma_peak);
+            table = bench_append(table, &len, &cap, line);
+            for (uint32_t b = 0; table && b < nbig; ++b) {
+                snprintf(line, sizeof line, "| %u vertices | `%s` | %u x %u -> %u | %.1f | %.0f %% (target >= 50 %%) | "
+                         "%.1f | %.0f %% |\n", big[b].vertices, big[b].name, big[b].M, big[b].K, big[b].N, probe[b].i8_gmacs,
+                         100.0 * probe[b].i8_gmacs / dot_peak, probe[b].f32_gmacs, 100.0 * probe[b].f32_gmacs / fma_peak);
+                span_add(&sum.gemm_peak, 100.0 * probe[b].i8_gmacs / dot_peak);
+                table = bench_append(table, &len, &cap, line);
+            }
+            rc = table ? 0 : 1;
+            if (table) {
+                printf("%s", strstr(table, "\nThe learned int8 step's largest GEMM"));
+            }
+        }
+    }
+    fr_span crowd_time = {0, 0, 0}, crowd_memory = {0, 0, 0};
     if (rc == 0 && table && crowd > 0) {
         /* the crowd on the first motion: one character, then `crowd`, the same code path */
         weft_sample_motion mo;
@@ -647,6 +824,47 @@ int weft_bench_frame(int argc, char **argv)
             fputs(line, stdout);
             table = bench_append(table, &len, &cap, line);
             rc = table ? 0 : 1;
+            span_add(&crowd_time, many.ms_per_character / one.ms_per_character);
+            span_add(&crowd_memory, 100.0 * many.extra_mb / many.first_mb);
+        }
+    }
+    if (rc == 0 && table) {
+        /* the targets against this run's figures */
+        char buf[64];
+        const struct {
+            const char *what;
+            const fr_span *v;
+            int digits;
+            double target;
+            bool at_least;
+        } rows[] = {
+            {"worn 4k T-shirt, learned int8 whole step / fast XPBD-10, both stepping the 4k mesh", &sum.native4k, 3,
+             0.05, false},
+            {"4k T-shirt simulated at 1k (the render sample), learned int8 / fast XPBD-10 stepping the 4k mesh",
+             &sum.mapped_vs_drawn, 3, 0.05, false},
+            {"4k T-shirt simulated at 1k, learned int8 / fast XPBD-10 stepping the same 1k mesh", &sum.mapped_vs_same,
+             3, 0.05, false},
+            {"network, int8 speed-up over fp32", &sum.net_speedup, 2, 3.0, true},
+            {"largest GEMM of the int8 step, % of the int8 peak", &sum.gemm_peak, 0, 50.0, true},
+            {"crowd, ms per character / one character's", &crowd_time, 2, 1.1, false},
+            {"each further instance's memory, % of the first", &crowd_memory, 1, 10.0, false},
+            {"worst frame / median on real motion, learned int8", &sum.worst_real, 2, 2.0, false},
+        };
+        table = bench_append(table, &len, &cap,
+                             "\nTargets (ranges over the motions and items of this run):\n\n"
+                             "| target | measured | bound | met |\n|---|---:|---:|---|\n");
+        for (size_t k = 0; table && k < sizeof rows / sizeof rows[0]; ++k) {
+            const fr_span *sp = rows[k].v;
+            const char *met = sp->n == 0 ? "not run"
+                              : rows[k].at_least ? (sp->lo >= rows[k].target ? "yes" : "no")
+                                                 : (sp->hi <= rows[k].target ? "yes" : "no");
+            snprintf(line, sizeof line, "| %s | %s | %s %g | %s |\n", rows[k].what,
+                     span_text(sp, rows[k].digits, buf, sizeof buf), rows[k].at_least ? ">=" : "<=", rows[k].target, met);
+            table = bench_append(table, &len, &cap, line);
+        }
+        rc = table ? 0 : 1;
+        if (table) {
+            printf("%s", strstr(table, "\nTargets ("));
         }
     }
     if (rc == 0 && md) {

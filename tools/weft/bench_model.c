@@ -255,62 +255,6 @@ static void time_crowd(const scene *s, weft_garment **gs, uint32_t n, uint32_t w
 }
 
 /* ---------------------------------------------------------------------------------------- */
-/* The largest per-frame GEMM alone (GNN fc1: vertices x 2D -> D), int8 and fp32            */
-
-typedef struct gemm_probe {
-    double i8_gmacs, f32_gmacs;
-} gemm_probe;
-
-static gemm_probe probe_gemm(const weft_qkernels *q, const weft_kernels *k, uint32_t M, uint32_t N, uint32_t K,
-                             double min_time)
-{
-    gemm_probe out = {NAN, NAN};
-    const uint32_t Np = weft_q8_pad_n(N), Kp = weft_q8_pad_k(K);
-    float *X = malloc((size_t)M * K * sizeof(float)), *W = malloc((size_t)N * K * sizeof(float));
-    float *C = malloc((size_t)M * N * sizeof(float)), *bias = calloc(N, sizeof(float));
-    float *qs = malloc(M * sizeof(float)), *scale = malloc(N * sizeof(float)), *ps = malloc(Np * sizeof(float));
-    int8_t *Q = malloc((size_t)M * Kp), *wq = malloc((size_t)N * K), *packed = malloc((size_t)Np * Kp);
-    int32_t *ws = malloc(Np * sizeof(int32_t));
-    if (X && W && C && bias && qs && scale && ps && Q && wq && packed && ws) {
-        uint32_t seed = 7;
-        for (size_t i = 0; i < (size_t)M * K; ++i) {
-            seed = seed * 1664525u + 1013904223u;
-            X[i] = (float)(seed >> 8) / 16777216.0f - 0.5f;
-        }
-        for (size_t i = 0; i < (size_t)N * K; ++i) {
-            seed = seed * 1664525u + 1013904223u;
-            W[i] = (float)(seed >> 8) / 16777216.0f - 0.5f;
-        }
-        weft_q8_quantize_weights(W, N, K, wq, scale);
-        weft_q8_pack(wq, scale, N, K, packed, ps, ws);
-        const weft_q8_weights w8 = {N, K, Np, Kp, packed, ps, ws};
-        const double macs = (double)M * N * K;
-        for (int which = 0; which < 2; ++which) {
-            double best = INFINITY;
-            for (int round = 0; round < 3; ++round) {
-                uint64_t calls = 0;
-                const double t0 = bench_cpu_now_s();
-                double t;
-                do {
-                    if (which == 0) {
-                        q->quantize_rows(X, M, K, K, Q, Kp, qs);
-                        q->gemm_q8(M, Q, Kp, qs, &w8, bias, C, N, WEFT_ACT_NONE, false);
-                    } else {
-                        k->gemm(M, N, K, X, K, W, K, bias, C, N, WEFT_ACT_NONE, false);
-                    }
-                    calls++;
-                    t = bench_cpu_now_s() - t0;
-                } while (t < min_time);
-                best = fmin(best, t / (double)calls);
-            }
-            (which == 0 ? &out.i8_gmacs : &out.f32_gmacs)[0] = macs / best * 1e-9;
-        }
-    }
-    free(X); free(W); free(C); free(bias); free(qs); free(scale); free(ps); free(Q); free(wq); free(packed); free(ws);
-    return out;
-}
-
-/* ---------------------------------------------------------------------------------------- */
 /* PyTorch eager baseline                                                                     */
 
 static bool write_npy(const char *dir, const char *name, const void *data, const char *descr, uint32_t rank,
@@ -515,7 +459,7 @@ int weft_bench_model(int argc, char **argv)
     bool have[2] = {false, false};
     char tmpdir[] = "/tmp/weft_bench_model_XXXXXX";
     bool have_tmp = torch && mkdtemp(tmpdir) != NULL;
-    gemm_probe probes[2] = {{NAN, NAN}, {NAN, NAN}};
+    bench_gemm_probe probes[2] = {{NAN, NAN}, {NAN, NAN}};
     uint32_t probe_shape[2][3] = {{0, 0, 0}, {0, 0, 0}};
     for (int r = 0; r < 2; ++r) {
         have[r] = scene_make(ctx, avatar, res[r], frames, &scenes[r]);
@@ -557,7 +501,7 @@ int weft_bench_model(int argc, char **argv)
                         probe_shape[r][0] = s->V;
                         probe_shape[r][1] = c.D;
                         probe_shape[r][2] = 2 * c.D;
-                        probes[r] = probe_gemm(q, kt, s->V, c.D, 2 * c.D, min_time);
+                        probes[r] = bench_probe_gemm(q, kt, s->V, c.D, 2 * c.D, min_time);
                     }
                 }
                 weft_model_destroy(m);
@@ -677,7 +621,7 @@ int weft_bench_model(int argc, char **argv)
         if (!have[r]) {
             continue;
         }
-        const gemm_probe *p = &probes[r];
+        const bench_gemm_probe *p = &probes[r];
         if (md) {
             printf("| %u x %u -> %u | %.2f | %.1f%% | %.2f | %.1f%% |\n", probe_shape[r][0], probe_shape[r][2],
                    probe_shape[r][1], p->i8_gmacs, 100.0 * p->i8_gmacs / dot_peak, p->f32_gmacs,

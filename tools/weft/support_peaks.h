@@ -22,4 +22,15 @@ double bench_peak_rate(peak_fn *fn, double min_time);
  * "avx2-maddubs", "neon-sdot", "scalar") runs at. */
 void bench_variant_peaks(const char *variant, peak_fn **dot, peak_fn **fma);
 
+/* The int8 GEMM (per-row quantisation of X, then gemm_q8, no activation) and the fp32 gemm of
+ * one shape, M x K -> N, on pseudo-random data: GMAC/s of the thread's CPU time, best of 3 rounds
+ * of at least min_time seconds each. NaN where an allocation failed. */
+typedef struct bench_gemm_probe {
+    double i8_gmacs, f32_gmacs;
+} bench_gemm_probe;
+struct weft_qkernels;
+struct weft_kernels;
+bench_gemm_probe bench_probe_gemm(const struct weft_qkernels *q, const struct weft_kernels *k, uint32_t M, uint32_t N,
+                                  uint32_t K, double min_time);
+
 #endif
