@@ -459,7 +459,7 @@ int weft_bench_model(int argc, char **argv)
     bool have[2] = {false, false};
     char tmpdir[] = "/tmp/weft_bench_model_XXXXXX";
     bool have_tmp = torch && mkdtemp(tmpdir) != NULL;
-    bench_gemm_probe probes[2] = {{NAN, NAN}, {NAN, NAN}};
+    bench_gemm_probe probes[2] = {{NAN, NAN, NAN, NAN}, {NAN, NAN, NAN, NAN}};
     uint32_t probe_shape[2][3] = {{0, 0, 0}, {0, 0, 0}};
     for (int r = 0; r < 2; ++r) {
         have[r] = scene_make(ctx, avatar, res[r], frames, &scenes[r]);

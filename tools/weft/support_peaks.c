@@ -68,7 +68,7 @@ void bench_variant_peaks(const char *variant, peak_fn **dot, peak_fn **fma)
 bench_gemm_probe bench_probe_gemm(const weft_qkernels *q, const weft_kernels *k, uint32_t M, uint32_t N, uint32_t K,
                              double min_time)
 {
-    bench_gemm_probe out = {NAN, NAN};
+    bench_gemm_probe out = {NAN, NAN, NAN, NAN};
     const uint32_t Np = weft_q8_pad_n(N), Kp = weft_q8_pad_k(K);
     float *X = malloc((size_t)M * K * sizeof(float)), *W = malloc((size_t)N * K * sizeof(float));
     float *C = malloc((size_t)M * N * sizeof(float)), *bias = calloc(N, sizeof(float));
@@ -89,17 +89,21 @@ bench_gemm_probe bench_probe_gemm(const weft_qkernels *q, const weft_kernels *k,
         weft_q8_pack(wq, scale, N, K, packed, ps, ws);
         const weft_q8_weights w8 = {N, K, Np, Kp, packed, ps, ws};
         const double macs = (double)M * N * K;
-        for (int which = 0; which < 2; ++which) {
+        double secs[4];
+        for (int which = 0; which < 4; ++which) {
             double best = INFINITY;
             for (int round = 0; round < 3; ++round) {
                 uint64_t calls = 0;
                 const double t0 = bench_cpu_now_s();
                 double t;
                 do {
-                    if (which == 0) {
+                    if (which == 0 || which == 2) {
                         q->quantize_rows(X, M, K, K, Q, Kp, qs);
+                    }
+                    if (which == 0 || which == 3) {
                         q->gemm_q8(M, Q, Kp, qs, &w8, bias, C, N, WEFT_ACT_NONE, false);
-                    } else {
+                    }
+                    if (which == 1) {
                         k->gemm(M, N, K, X, K, W, K, bias, C, N, WEFT_ACT_NONE, false);
                     }
                     calls++;
@@ -107,8 +111,12 @@ bench_gemm_probe bench_probe_gemm(const weft_qkernels *q, const weft_kernels *k,
                 } while (t < min_time);
                 best = fmin(best, t / (double)calls);
             }
-            (which == 0 ? &out.i8_gmacs : &out.f32_gmacs)[0] = macs / best * 1e-9;
+            secs[which] = best;
         }
+        out.i8_gmacs = macs / secs[0] * 1e-9;
+        out.f32_gmacs = macs / secs[1] * 1e-9;
+        out.dot_gmacs = macs / secs[3] * 1e-9;
+        out.quantize_share = secs[2] / (secs[2] + secs[3]);
     }
     free(X); free(W); free(C); free(bias); free(qs); free(scale); free(ps); free(Q); free(wq); free(packed); free(ws);
     return out;

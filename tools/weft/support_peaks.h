@@ -24,9 +24,12 @@ void bench_variant_peaks(const char *variant, peak_fn **dot, peak_fn **fma);
 
 /* The int8 GEMM (per-row quantisation of X, then gemm_q8, no activation) and the fp32 gemm of
  * one shape, M x K -> N, on pseudo-random data: GMAC/s of the thread's CPU time, best of 3 rounds
- * of at least min_time seconds each. NaN where an allocation failed. */
+ * of at least min_time seconds each; also gemm_q8 alone on the quantised rows, and the share of
+ * the quantisation in the int8 time when both are timed apart. NaN where an allocation failed. */
 typedef struct bench_gemm_probe {
     double i8_gmacs, f32_gmacs;
+    double dot_gmacs;      /* gemm_q8 alone */
+    double quantize_share; /* quantize_rows / (quantize_rows + gemm_q8) */
 } bench_gemm_probe;
 struct weft_qkernels;
 struct weft_kernels;
