@@ -75,7 +75,7 @@ static void observe_largest(const char *name, const float *in, uint32_t rows, ui
     (void)in;
     (void)out;
     fr_largest *l = user;
-    if (strncmp(name, "dec_rest.", 9) == 0 || strcmp(name, "enc_xattn.q") == 0 || strcmp(name, "dec_xattn.q") == 0) {
+    if (!bench_ct_layer_per_step(name)) {
         return;
     }
     if ((double)rows * in_cols * out_cols > (double)l->M * l->K * l->N) {

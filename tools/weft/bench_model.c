@@ -127,8 +127,7 @@ static void count_layer(const char *name, const float *in, uint32_t rows, uint32
     (void)in;
     (void)out;
     mac_count *c = user;
-    /* Constant per garment: computed once at creation in the normal step. */
-    if (strncmp(name, "dec_rest.", 9) == 0 || strcmp(name, "enc_xattn.q") == 0 || strcmp(name, "dec_xattn.q") == 0) {
+    if (!bench_ct_layer_per_step(name)) { /* constant per garment: computed once at creation */
         return;
     }
     c->linear_macs += (double)rows * in_cols * out_cols;

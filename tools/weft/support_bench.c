@@ -665,3 +665,8 @@ bool bench_write_doc(const char *tool, const char *path, char *doc)
     }
     return wrote;
 }
+
+bool bench_ct_layer_per_step(const char *name)
+{
+    return strncmp(name, "dec_rest.", 9) != 0 && strcmp(name, "enc_xattn.q") != 0 && strcmp(name, "dec_xattn.q") != 0;
+}

@@ -146,4 +146,9 @@ void bench_model_file(const char *dir, const char *stem, const char *base, const
  * cli_u32_list) and returns false, out and *count untouched. */
 bool bench_parse_substeps(const char *tool, const char *opt, const char *v, unsigned *out, size_t cap, size_t *count);
 
+/* Whether the learned model's layer `name` (as the calibration observer names it) runs every
+ * step; false for the layers a garment computes once at creation and the observer shows again
+ * (the rest-shape decoder, the cross-attention query projections). */
+bool bench_ct_layer_per_step(const char *name);
+
 #endif
