@@ -793,7 +793,10 @@ int weft_bench_frame(int argc, char **argv)
                           &big[nbig]);
             if (rc == 0) {
                 probe[nbig] = bench_probe_gemm(qk, kt, big[nbig].M, big[nbig].N, big[nbig].K, 0.2);
-                rc = isnan(probe[nbig].i8_gmacs) ? 1 : 0;
+                if (isnan(probe[nbig].i8_gmacs)) {
+                    fprintf(stderr, "weft bench frame: timing %s alone: out of memory\n", big[nbig].name);
+                    rc = 1;
+                }
                 ++nbig;
             }
         }
