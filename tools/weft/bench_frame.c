@@ -42,9 +42,9 @@ const char weft_bench_frame_help[] =
 #define FR_MAX 8
 #define FR_MAX_RES 8
 /* A cell whose body posing (the same work in every cell) has a median more than FR_SLOW times
- * the run's posing reference ran through a slow spell of its core: it is timed again, up to
- * FR_RETIME times, and keeps the run with the fastest posing (the cloth is the same: the step is
- * deterministic). */
+ * the least posing median of the motion's cells ran through a slow spell of its core: it is
+ * timed again, up to FR_RETIME times, and keeps the run with the fastest posing (the cloth is the
+ * same: the step is deterministic). */
 #define FR_SLOW 1.2
 #define FR_RETIME 2
 
@@ -137,6 +137,12 @@ static double median(double *v, uint32_t n)
 {
     qsort(v, n, sizeof *v, cmp_double);
     return n % 2 ? v[n / 2] : 0.5 * (v[n / 2 - 1] + v[n / 2]);
+}
+
+/* The loaded model a method steps with (NULL for the classical methods). */
+static weft_model *cell_model(const fr_method *m, weft_model *const *models)
+{
+    return m->method == WEFT_METHOD_MODEL ? models[m->precision] : NULL;
 }
 
 /* A resolution item: "D" (simulate and draw D) or "D@S" (simulate S, draw D through a mesh map). */
@@ -620,9 +626,9 @@ int weft_bench_frame(int argc, char **argv)
     weft_model *models[WEFT_PRECISION_COUNT] = {NULL, NULL, NULL};
     fr_summary sum;
     memset(&sum, 0, sizeof sum);
-    /* the int8 dot-product and fp32 FMA peaks of this CPU, measured after the cells (a second
-     * time after the GEMM probes; the higher is kept, so a slow spell does not flatter the GEMMs'
-     * share), so the probes' heat does not reach the first cell */
+    /* the int8 dot-product and fp32 FMA peaks of this CPU: measured after the cells, so the probes
+     * do not slow the first cell, before and after the GEMM probes, keeping the higher (a slow
+     * spell must not flatter the GEMMs' share) */
     const weft_isa isa = weft_context_isa(ctx);
     const weft_qkernels *qk = weft_qkernels_for_isa(isa);
     const weft_kernels *kt = weft_kernels_for_isa(isa);
@@ -665,19 +671,19 @@ int weft_bench_frame(int argc, char **argv)
         fr_cell all[FR_MAX_RES][FR_MAX];
         for (uint32_t ri = 0; rc == 0 && ri < nres; ++ri) {
             for (uint32_t k = 0; rc == 0 && k < nm; ++k) {
-                weft_model *mk = methods[k].method == WEFT_METHOD_MODEL ? models[methods[k].precision] : NULL;
-                rc = run_cell(ctx, body, &mo, &res[ri], &methods[k], mk, frames, tokens, &all[ri][k], NULL);
+                rc = run_cell(ctx, body, &mo, &res[ri], &methods[k], cell_model(&methods[k], models), frames, tokens,
+                              &all[ri][k], NULL);
                 pose_min = rc == 0 && all[ri][k].pose < pose_min ? all[ri][k].pose : pose_min;
             }
         }
         /* slow spells: the cells that posed slower than the run's fastest are timed again */
         for (uint32_t ri = 0; rc == 0 && ri < nres; ++ri) {
             for (uint32_t k = 0; rc == 0 && k < nm; ++k) {
-                weft_model *mk = methods[k].method == WEFT_METHOD_MODEL ? models[methods[k].precision] : NULL;
                 fr_cell *c = &all[ri][k];
                 for (uint32_t again = 0; rc == 0 && again < FR_RETIME && c->pose > FR_SLOW * pose_min; ++again) {
                     fr_cell c2;
-                    rc = run_cell(ctx, body, &mo, &res[ri], &methods[k], mk, frames, tokens, &c2, NULL);
+                    rc = run_cell(ctx, body, &mo, &res[ri], &methods[k], cell_model(&methods[k], models), frames,
+                                  tokens, &c2, NULL);
                     retimed += again == 0;
                     if (rc == 0 && c2.pose < c->pose) {
                         *c = c2;
@@ -774,8 +780,10 @@ int weft_bench_frame(int argc, char **argv)
             fprintf(stderr, "weft bench frame: motion %s: %s\n", motion_spec, weft_last_error());
             rc = 1;
         }
-        dot_peak = bench_peak_rate(dot, 0.2) * 1e-9;
-        fma_peak = bench_peak_rate(fma, 0.2) * 1e-9;
+        if (rc == 0) {
+            dot_peak = bench_peak_rate(dot, 0.2) * 1e-9;
+            fma_peak = bench_peak_rate(fma, 0.2) * 1e-9;
+        }
         fr_largest big[FR_MAX_RES];
         bench_gemm_probe probe[FR_MAX_RES];
         uint32_t nbig = 0;
