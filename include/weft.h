@@ -259,7 +259,10 @@ typedef enum weft_collider_cap {
  * The skinned position is the initial state bound to the collider at creation (the binding
  * WEFT_METHOD_LBS uses) and carried by the collider of t+1; set_state does not rebind. Radius 0
  * glues a vertex (a waistband for a method without pins). Pinned vertices keep their targets.
- * Needs a collider. */
+ * Needs a collider. With WEFT_METHOD_XPBD the clamp moves cloth past the bounds that keep it out
+ * of the collider: where the skinned positions lie inside the body or across a limb (a body that
+ * overlaps itself, real motion) the reference's cloth is pulled into the body and stays there
+ * (docs/STABILITY_MOCAP.md, The reference XPBD on real motion). */
 typedef struct weft_tether_def {
     float distance;                     /* metres, one radius for every vertex; 0 (default) = off; finite, >= 0 */
     const float *distances;             /* optional vertex_count radii (finite, >= 0) replacing distance */

@@ -1043,6 +1043,11 @@ weft_result weft_avatar_sample_garment_create_on(const weft_avatar_sample_option
         }
         if (tether_cm > 0.0f) {
             printf("tethers: every garment vertex within %.1f cm of its skinned position\n", (double)tether_cm);
+            if (order[m].method == WEFT_METHOD_XPBD) {
+                printf("NOTE: the clamp after the reference XPBD's step moves cloth past the bounds that keep it out of\n"
+                       "the body; where the skinned garment lies inside the body or across a limb (real motion), the\n"
+                       "cloth is pulled in and stays (docs/STABILITY_MOCAP.md, The reference XPBD on real motion)\n");
+            }
         }
         if (push_cm > 0.0f) {
             printf("collider push: garment cloth inside the body goes %.1f cm in front of it before CCD\n",
