@@ -561,8 +561,8 @@ WEFT_API weft_result weft_garment_step(weft_garment *garment);
  * its state unchanged when its own step fails. Garments of method MODEL made from the same
  * context, model and precision run their temporal transformer as one stacked GEMM per layer
  * (up to 64 garments per stack), so its weights are read once per stack instead of once per
- * character; other garments, those of a model with the "xpbd" prior (its solver step may fail
- * on its own) and instances of a garment asset (they share its scratch) are stepped one by one.
+ * character; other garments and instances of a garment asset (they share its scratch) are
+ * stepped one by one.
  *
  * A failing garment does not stop the others: every garment is attempted, the result is the
  * first failure in array order (weft_last_error() names its index), and the garments that

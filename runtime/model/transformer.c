@@ -35,8 +35,7 @@ static weft_result get_pos(const weft_model *m, const char *key, float *out)
     return WEFT_OK;
 }
 
-static const char *const g_prior_names[WEFT_CT_PRIOR_COUNT] = {"inertial", "previous", "skinned", "ballistic",
-                                                                      "grasp",    "xpbd"};
+static const char *const g_prior_names[WEFT_CT_PRIOR_COUNT] = {"skinned", "ballistic", "grasp"};
 
 /* Optional number `key` in [lo, hi]; `*out` keeps its default when the file has no such key. */
 static weft_result get_optional_in(const weft_model *m, const char *key, double lo, double hi, float *out)
@@ -93,8 +92,7 @@ static weft_result read_config(const weft_model *m, weft_ct_config *c)
     t.prior = prior_named(prior);
     if (t.prior == WEFT_CT_PRIOR_COUNT) {
         return weft__fail(WEFT_ERROR_BAD_METADATA,
-                          "model config 'prior' = '%s': expected 'inertial', 'previous', 'skinned', 'ballistic', "
-                          "'grasp' or 'xpbd'",
+                          "model config 'prior' = '%s': expected 'skinned', 'ballistic' or 'grasp'",
                           prior);
     }
     t.prior_beta = 1.0f;
@@ -117,20 +115,6 @@ static weft_result read_config(const weft_model *m, weft_ct_config *c)
     if (weft__model_config_find(m, "attach_output") &&
         (r = weft__model_config_bool(m, "attach_output", &t.attach_output)) != WEFT_OK) {
         return r;
-    }
-    t.prior_substeps = 1;
-    if (weft__model_config_find(m, "prior_substeps") &&
-        (r = get_u32(m, "prior_substeps", 1, 64, &t.prior_substeps)) != WEFT_OK) {
-        return r;
-    }
-    if (weft__model_config_find(m, "velocity_from_prior") &&
-        (r = weft__model_config_bool(m, "velocity_from_prior", &t.velocity_from_prior)) != WEFT_OK) {
-        return r;
-    }
-    if (t.velocity_from_prior && t.prior != WEFT_CT_PRIOR_XPBD) {
-        return weft__fail(WEFT_ERROR_BAD_METADATA,
-                          "model config 'velocity_from_prior' is true with prior '%s': only the 'xpbd' prior has it",
-                          prior);
     }
     *c = t;
     return WEFT_OK;
@@ -468,10 +452,6 @@ typedef struct ct_state {
      * (weft_garment_set_state, a cut, a level switch) fails the comparison. */
     float *skin_last, *skin_key;
     bool skin_key_set;
-    /* The xpbd prior: an XPBD garment on the same meshes (no CCD), restarted from this garment's
-     * state every step, and its result Y (N x 3). NULL for the other priors. */
-    weft_garment *prior_sim;
-    float *prior_y;
     float *attn_scratch;
     size_t attn_scratch_floats;
     /* Calibration observer (weft__ct_set_observer) and its packing scratch: obs_rows rows of
@@ -830,7 +810,6 @@ static void ct_destroy(weft_garment *g)
     if (!s->skin_shared) {
         geo_skin_destroy(g->ctx, s->skin);
     }
-    weft_garment_destroy(s->prior_sim);
     for (uint32_t i = 0; i < s->buf_count; ++i) {
         weft__free(g->ctx, *s->bufs[i].ptr, s->bufs[i].floats * sizeof(float));
     }
@@ -1032,54 +1011,6 @@ static weft_result build_reduced(weft_garment *g, ct_state *s)
     return WEFT_OK;
 }
 
-/* The xpbd prior's solver: the XPBD method on this garment's meshes, made once. g->x is still
- * the initial state here. */
-static weft_result prior_sim_create(weft_garment *g, ct_state *s)
-{
-    weft_garment_def d = weft_default_garment_def();
-    d.method = WEFT_METHOD_XPBD;
-    d.rest_positions = g->rest;
-    d.vertex_count = g->vertex_count;
-    d.triangles = g->triangles;
-    d.triangle_count = g->triangle_count;
-    d.collider_rest_positions = g->collider_vertex_count > 0 ? g->collider_rest : NULL;
-    d.collider_vertex_count = g->collider_vertex_count;
-    d.collider_triangles = g->collider_vertex_count > 0 ? g->collider_triangles : NULL;
-    d.collider_triangle_count = g->collider_vertex_count > 0 ? g->collider_triangle_count : 0;
-    d.initial_positions = g->x;
-    d.substeps = s->c.prior_substeps;
-    d.ccd.enabled = false;
-    return weft_garment_create(g->ctx, &d, &s->prior_sim);
-}
-
-/* Y of the xpbd prior into s->prior_y: its solver restarted at (X_t, X_{t-1}) with this step's
- * colliders and pins, and stepped one frame. The solver's own state is scratch; this garment's
- * is not touched. */
-static weft_result prior_sim_step(weft_garment *g, ct_state *s)
-{
-    weft_garment *p = s->prior_sim;
-    weft_result r = weft_garment_set_state(p, g->x, g->x_prev);
-    if (r == WEFT_OK && g->collider_vertex_count > 0) {
-        r = weft_garment_set_collider_current(p, g->collider_prev);
-    }
-    if (r == WEFT_OK && g->collider_vertex_count > 0) {
-        r = weft_garment_set_collider(p, g->collider_next);
-    }
-    if (r == WEFT_OK) {
-        r = weft_garment_set_pins(p, g->pin_indices, g->pin_targets, g->pin_count);
-    }
-    if (r == WEFT_OK) {
-        r = weft_garment_step(p);
-    }
-    if (r != WEFT_OK) {
-        char why[256];
-        snprintf(why, sizeof why, "%s", weft_last_error());
-        return weft__fail(r, "method 'model': the xpbd prior's step failed: %s", why);
-    }
-    memcpy(s->prior_y, weft_garment_positions(p), 3 * (size_t)s->N * sizeof(float));
-    return WEFT_OK;
-}
-
 static weft_result ct_create(weft_garment *g)
 {
     const weft_qkernels *qk = NULL;
@@ -1143,8 +1074,7 @@ static weft_result ct_create(weft_garment *g)
               add_buf(g, s, &s->xk, hk * D) && add_buf(g, s, &s->xv, hk * D) && add_buf(g, s, &s->xa, hk * D) &&
               add_buf(g, s, &s->dh, N * D) && add_buf(g, s, &s->da, N * D) && add_buf(g, s, &s->dln, N * D) &&
               add_buf(g, s, &s->out3, N * 3) &&
-              (!skinned || (add_buf(g, s, &s->skin_cur, N * 3) && add_buf(g, s, &s->skin_next, N * 3))) &&
-              (c.prior != WEFT_CT_PRIOR_XPBD || add_buf(g, s, &s->prior_y, N * 3));
+              (!skinned || (add_buf(g, s, &s->skin_cur, N * 3) && add_buf(g, s, &s->skin_next, N * 3)));
     if (ok) {
         memset(s->key_bias, 0, max_sz(ntok, 1) * sizeof(float));
         size_t a = weft_attention_scratch((uint32_t)K, (uint32_t)ntok);
@@ -1202,10 +1132,6 @@ static weft_result ct_create(weft_garment *g)
     if (skinned && !skin_cache_alloc(g, s)) {
         ct_destroy(g);
         return WEFT_ERROR_OUT_OF_MEMORY;
-    }
-    if (c.prior == WEFT_CT_PRIOR_XPBD && (r = prior_sim_create(g, s)) != WEFT_OK) {
-        ct_destroy(g);
-        return r;
     }
     precompute(g, s);
     s->hist_empty = true;
@@ -1350,8 +1276,7 @@ static void ct_encode(weft_garment *g, ct_state *s)
         float *v = s->feat + (size_t)i * ldf + 6 * F;
         for (int d = 0; d < 3; ++d) {
             const size_t k = 3 * (size_t)i + d;
-            const float step = c->velocity_from_prior ? s->prior_y[k] - g->x[k] : g->x[k] - g->x_prev[k];
-            v[d] = step * c->vel_scale;
+            v[d] = (g->x[k] - g->x_prev[k]) * c->vel_scale;
         }
     }
     linear(s, N, &w->enc_cloth.fc1, s->feat, ldf, s->wide, D, WEFT_ACT_GELU, false);
@@ -1566,17 +1491,13 @@ static weft_result ct_output(weft_garment *g, ct_state *s)
         return WEFT_OK;
     }
     for (size_t i = 0; i < (size_t)s->N * 3; ++i) {
-        float prior = g->x[i]; /* previous */
-        if (c->prior == WEFT_CT_PRIOR_INERTIAL) {
-            prior = 2.0f * g->x[i] - g->x_prev[i];
-        } else if (c->prior == WEFT_CT_PRIOR_SKINNED) {
+        float prior;
+        if (c->prior == WEFT_CT_PRIOR_SKINNED) {
             /* decay 1 keeps the form the models shipped before it were trained with */
             prior = c->prior_decay == 1.0f ? g->x[i] + (s->skin_next[i] - s->skin_cur[i])
                                            : s->skin_next[i] + c->prior_decay * (g->x[i] - s->skin_cur[i]);
-        } else if (c->prior == WEFT_CT_PRIOR_BALLISTIC) {
+        } else {
             prior = g->x[i] + c->prior_beta * (g->x[i] - g->x_prev[i]) - (i % 3 == 1 ? c->gravity_step : 0.0f);
-        } else if (c->prior == WEFT_CT_PRIOR_XPBD) {
-            prior = s->prior_y[i];
         }
         g->x_next[i] = prior + c->out_scale * s->out3[i];
     }
@@ -1630,12 +1551,6 @@ static weft_result ct_step(weft_garment *g)
          * the observer sees every layer once per step. */
         precompute(g, s);
     }
-    if (s->prior_sim) {
-        weft_result r = prior_sim_step(g, s);
-        if (r != WEFT_OK) {
-            return r;
-        }
-    }
     ct_encode(g, s);
     const ct_stream st = {s->x, s->xln, s->xq, s->xk, s->xv, s->xa, NULL, NULL, s->wide, s->wide2};
     const float *z_next = NULL;
@@ -1688,10 +1603,9 @@ static bool batch_reserve(weft_garment *g, ct_state *s, uint32_t n)
 
 bool weft__ct_batchable(const weft_garment *g)
 {
-    /* The xpbd prior's solve may fail on its own, so such garments step one by one. */
     const ct_state *s = g && g->method == WEFT_METHOD_MODEL ? g->method_state : NULL;
     /* An asset's instances share its step scratch, which a stacked step needs per member. */
-    return s && !s->observer && !s->prior_sim && !g->asset;
+    return s && !s->observer && !g->asset;
 }
 
 void weft__ct_step_group(weft_garment *const *garments, uint32_t count, weft_result *results)

@@ -18,21 +18,17 @@
 
 /* The residual's prior (config "prior"): X_{t+1} = prior + out_scale * displacement. */
 typedef enum weft_ct_prior {
-    WEFT_CT_PRIOR_INERTIAL,             /* "inertial": 2 X_t - X_{t-1} */
-    WEFT_CT_PRIOR_PREVIOUS,             /* "previous": X_t */
     WEFT_CT_PRIOR_SKINNED,              /* "skinned": X_t + S_{t+1} - S_t, S the LBS method's
                                            binding (runtime/geometry/skin.c) on the collider; with
                                            prior_decay a < 1, S_{t+1} + a (X_t - S_t) */
     WEFT_CT_PRIOR_BALLISTIC,            /* "ballistic": X_t + prior_beta (X_t - X_{t-1}) - gravity_step Y:
-                                           free fall is in the prior, the network adds contact */
+                                           free fall is in the prior, the network adds contact
+                                           (prior_beta 1 and gravity_step 0: the inertial
+                                           2 X_t - X_{t-1}; prior_beta 0: X_t) */
     WEFT_CT_PRIOR_GRASP,                /* "grasp": X_t + prior_beta (X_t - X_{t-1}), each vertex then
                                            kept within its rest distance of the pins' centroid
                                            (weft_garment_set_pins: vertex i_k to P_k at t+1), a
                                            long-range attachment: a held cloth hangs from its hand */
-    WEFT_CT_PRIOR_XPBD,                 /* "xpbd": one frame of the XPBD method at prior_substeps
-                                           substeps from (X_t, X_{t-1}), the collider at t and t+1
-                                           and the pins, without CCD: the network corrects a
-                                           coarse solve (contact and support come from it) */
     WEFT_CT_PRIOR_COUNT
 } weft_ct_prior;
 
@@ -45,9 +41,6 @@ typedef struct weft_ct_config {
     float prior_decay;                  /* the skinned prior's kept offset (optional key: 1) */
     bool attach_output;                 /* grasp prior: the attachment bounds prior + displacement
                                            (optional key: false, the prior alone) */
-    uint32_t prior_substeps;            /* xpbd prior: substeps per frame (optional key: 1, 1..64) */
-    bool velocity_from_prior;           /* the encoder's velocity feature is prior - X_t instead of
-                                           X_t - X_{t-1} (optional key: false; xpbd prior only) */
     bool dec_skip;
     bool requires_collider;             /* trained only with colliders */
     uint32_t vertex_count;              /* 0: any garment; else the one mesh it was trained for */

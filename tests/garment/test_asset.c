@@ -17,7 +17,8 @@
 
 #define GARMENT_MODEL WEFT_SOURCE_DIR "/tools/train/models/garment.safetensors"
 /* a model with a latent history (2 frames): the state an instance carries between steps */
-#define UNIFIED_MODEL WEFT_SOURCE_DIR "/tools/train/models/unified.safetensors"
+/* a skinned-prior model with a latent history of two frames (the parity tests' golden_skin) */
+#define HISTORY_MODEL WEFT_SOURCE_DIR "/tests/model/data/garment_seq/golden_skin.safetensors"
 #define FRAMES 10u
 
 /* Live bytes through the context's allocator. */
@@ -66,7 +67,7 @@ typedef struct scene {
     weft_context *ctx;
     weft_body *body;
     weft_cloth_mesh *cloth;
-    weft_model *model, *unified;
+    weft_model *model, *history;
     uint8_t *parts;
     float *bind;                        /* the body in its bind pose */
     float *verts;                       /* scratch: the posed body */
@@ -91,8 +92,8 @@ static bool scene_make(scene *s)
     cdef.resolution = WEFT_CLOTH_RES_1K;
     CHECK_RESULT(weft_cloth_create(s->ctx, &cdef, s->body, &s->cloth), WEFT_OK);
     CHECK_RESULT(weft_model_load_file(s->ctx, GARMENT_MODEL, &s->model), WEFT_OK);
-    CHECK_RESULT(weft_model_load_file(s->ctx, UNIFIED_MODEL, &s->unified), WEFT_OK);
-    if (!s->body || !s->cloth || !s->model || !s->unified) {
+    CHECK_RESULT(weft_model_load_file(s->ctx, HISTORY_MODEL, &s->history), WEFT_OK);
+    if (!s->body || !s->cloth || !s->model || !s->history) {
         return false;
     }
     s->nbv = weft_body_vertex_count(s->body);
@@ -110,7 +111,7 @@ static bool scene_make(scene *s)
 static void scene_free(scene *s)
 {
     weft_model_destroy(s->model);
-    weft_model_destroy(s->unified);
+    weft_model_destroy(s->history);
     weft_cloth_destroy(s->cloth);
     weft_body_destroy(s->body);
     weft_context_destroy(s->ctx);
@@ -125,13 +126,13 @@ typedef struct variant {
     weft_precision precision;
     bool ccd;
     bool memory_bound;                  /* the extra instance must cost <= 10 % of the first */
-    bool unified;                       /* the unified model instead of the garment model */
+    bool history;                       /* the history-2 model instead of the garment model */
 } variant;
 
 /* The worn-garment recipe (docs/WEAR.md) for the variant. */
 static weft_garment_def worn_def(const scene *s, const variant *v)
 {
-    const weft_model *m = v->unified ? s->unified : s->model;
+    const weft_model *m = v->history ? s->history : s->model;
     weft_garment_def d = v->method == WEFT_METHOD_MODEL ? weft_model_garment_def(m) : weft_default_garment_def();
     d.method = v->method;
     d.precision = v->precision;
@@ -259,7 +260,7 @@ static void test_instances_match_own_garments(void)
             {"lbs, ccd", WEFT_METHOD_LBS, WEFT_PRECISION_FP32, true, true, false},
             {"model int8", WEFT_METHOD_MODEL, WEFT_PRECISION_INT8, false, true, false},
             {"model fp32, ccd", WEFT_METHOD_MODEL, WEFT_PRECISION_FP32, true, true, false},
-            {"unified int8 (history)", WEFT_METHOD_MODEL, WEFT_PRECISION_INT8, false, true, true},
+            {"history-2 model int8", WEFT_METHOD_MODEL, WEFT_PRECISION_INT8, false, true, true},
             {"xpbd-fast:5", WEFT_METHOD_XPBD_FAST, WEFT_PRECISION_FP32, false, false, false},
             {"external, ccd", WEFT_METHOD_EXTERNAL, WEFT_PRECISION_FP32, true, true, false},
         };

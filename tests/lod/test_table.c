@@ -27,7 +27,7 @@ static const char *const good =
     "xpbd-5,xpbd,-,-,5,on,1,0.9,1.5,0.05,3,300\n"
     "xpbd-40,xpbd,-,-,40,on,1,6.0,0.4,0.02,3,300\n"
     "game-int8,model,game,int8,-,off,1,0.6,2.0,0.04,3,300\n"
-    "unified-fp32,model,unified,fp32,-,on,1,2.5,0.9,0.03,3,300\n";
+    "garment-fp32,model,garment,fp32,-,on,1,2.5,0.9,0.03,3,300\n";
 
 static void test_load_good(void)
 {
@@ -44,7 +44,7 @@ static void test_load_good(void)
     CHECK_NEAR(l->mve_cm, 2.0, 1e-12);
     CHECK(weft_lod_table_level(t, 5) == NULL);
     uint32_t idx = 99;
-    CHECK_RESULT(weft_lod_table_find(t, "unified-fp32", &idx), WEFT_OK);
+    CHECK_RESULT(weft_lod_table_find(t, "garment-fp32", &idx), WEFT_OK);
     CHECK_EQ_INT(idx, 4);
     idx = 99;
     CHECK_RESULT(weft_lod_table_find(t, "nope", &idx), WEFT_ERROR_INVALID_ARGUMENT);
@@ -260,7 +260,7 @@ static void test_pick(void)
     /* Generous: the cheapest meeting 2 cm is game-int8 (0.6 ms) over xpbd-5 (0.9 ms). */
     CHECK_EQ_INT(weft_lod_pick(t, 10.0, 2.0, &lv), WEFT_LOD_PICK_OK);
     CHECK_EQ_INT(lv, 3);
-    /* 1 cm: unified-fp32 (2.5 ms, 0.9 cm) is cheaper than xpbd-40 (6 ms). */
+    /* 1 cm: garment-fp32 (2.5 ms, 0.9 cm) is cheaper than xpbd-40 (6 ms). */
     CHECK_EQ_INT(weft_lod_pick(t, 10.0, 1.0, &lv), WEFT_LOD_PICK_OK);
     CHECK_EQ_INT(lv, 4);
     /* 0.5 cm needs xpbd-40. */

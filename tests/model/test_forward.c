@@ -642,12 +642,18 @@ static void bad_model_files(void)
     expect_create_fails("\\\"D\\\": ", "\\\"D\\\": 1", true, WEFT_ERROR_TENSOR_SHAPE);
 }
 
-/* The golden model (prior "inertial") with its config's prior entry replaced by `to` (a JSON
- * fragment as it appears escaped in the metadata string); NULL on failure. */
+/* The golden model's prior entries, last in its config: the ballistic prior without gravity,
+ * X_t + (X_t - X_{t-1}) (the inertial prior), as they appear escaped in the metadata string. */
+#define GOLDEN_PRIOR "\\\"prior\\\": \\\"ballistic\\\", \\\"prior_beta\\\": 1.0, \\\"gravity_step\\\": 0.0"
+/* The same without the carried velocity: X_t. */
+#define GOLDEN_PRIOR_STILL "\\\"prior\\\": \\\"ballistic\\\", \\\"prior_beta\\\": 0.0, \\\"gravity_step\\\": 0.0"
+
+/* The golden model with its prior entries replaced by `to` (a JSON fragment as it appears escaped
+ * in the metadata string); NULL on failure. */
 static weft_model *model_patched(weft_context *ctx, const char *to, weft_result *result)
 {
     size_t size = 0;
-    void *bytes = patched_model("\\\"prior\\\": \\\"inertial\\\"", to, &size);
+    void *bytes = patched_model(GOLDEN_PRIOR, to, &size);
     CHECK_MSG(bytes != NULL, "could not patch the prior to '%s'", to);
     weft_model *m = NULL;
     *result = bytes ? weft_model_load_memory(ctx, bytes, size, &m) : WEFT_ERROR_IO;
@@ -691,9 +697,10 @@ static bool lbs_track(const golden *g, weft_context *ctx, uint32_t frames, float
     return made;
 }
 
-/* The priors on the same network output: six garments (inertial, previous, skinned,
- * ballistic, skinned with prior_decay 0.5, grasp with prior_beta 0.5) set to the same state every
- * frame of the skinned model's rollout step to
+/* The priors on the same network output: six garments (ballistic without gravity, at beta 1:
+ * "inertial", and at beta 0: "previous"; skinned, ballistic at its defaults, skinned with
+ * prior_decay 0.5, grasp with prior_beta 0.5) set to the same state every frame of the skinned
+ * model's rollout step to
  *   x(previous) - x(inertial) = X_{t-1} - X_t,   x(skinned) - x(previous) = S_{t+1} - S_t,
  *   x(ballistic) - x(previous) = X_t - X_{t-1} - g dt^2 Y   (the default beta 1, g dt^2 9.81/3600 m),
  *   x(decayed) - x(previous) = S_{t+1} + 0.5 (X_t - S_t) - X_t and
@@ -888,9 +895,9 @@ static void skinned_rollout(const golden *g, weft_context *ctx, const weft_model
     weft_garment_destroy(twins[1]);
 }
 
-/* The priors "skinned" (X_t + S_{t+1} - S_t) and "ballistic" against "previous" and "inertial"
- * on the same weights, the skinned one's collider requirement, the ballistic one's optional keys
- * and an unknown prior name. */
+/* The priors "skinned" (X_t + S_{t+1} - S_t), "ballistic" and "grasp" against one another on the
+ * same weights, the skinned one's collider requirement, the optional keys' ranges and an unknown
+ * prior name. */
 static void priors(void)
 {
     golden g;
@@ -899,18 +906,19 @@ static void priors(void)
         return;
     }
     weft_context *ctx = make_ctx();
-    const char *names[4] = {"inertial", "previous", "skinned", "ballistic"};
+    const char *const patches[PRIOR_MODELS] = {
+        GOLDEN_PRIOR,
+        GOLDEN_PRIOR_STILL,
+        "\\\"prior\\\": \\\"skinned\\\"",
+        "\\\"prior\\\": \\\"ballistic\\\"",
+        "\\\"prior_decay\\\": 0.5, \\\"prior\\\": \\\"skinned\\\"",
+        "\\\"prior_beta\\\": 0.5, \\\"prior\\\": \\\"grasp\\\"",
+        "\\\"attach_output\\\": true, \\\"prior_beta\\\": 0.5, \\\"prior\\\": \\\"grasp\\\""};
     weft_model *models[PRIOR_MODELS] = {NULL};
     bool loaded = true;
     for (int k = 0; k < PRIOR_MODELS; ++k) {
         weft_result r;
-        models[k] = k < 4    ? model_with_prior(ctx, names[k], &r)
-                    : k == 4 ? model_patched(ctx, "\\\"prior_decay\\\": 0.5, \\\"prior\\\": \\\"skinned\\\"", &r)
-                    : k == 5 ? model_patched(ctx, "\\\"prior_beta\\\": 0.5, \\\"prior\\\": \\\"grasp\\\"", &r)
-                             : model_patched(ctx,
-                                             "\\\"attach_output\\\": true, \\\"prior_beta\\\": 0.5, "
-                                             "\\\"prior\\\": \\\"grasp\\\"",
-                                             &r);
+        models[k] = model_patched(ctx, patches[k], &r);
         CHECK_RESULT(r, WEFT_OK);
         loaded = loaded && models[k];
     }
@@ -926,7 +934,7 @@ static void priors(void)
     weft_model *bad = model_with_prior(ctx, "skinny", &r);
     CHECK(bad == NULL);
     CHECK_RESULT(r, WEFT_ERROR_BAD_METADATA);
-    CHECK_MSG(strstr(weft_last_error(), "'inertial', 'previous', 'skinned', 'ballistic', 'grasp' or 'xpbd'") != NULL,
+    CHECK_MSG(strstr(weft_last_error(), "'skinned', 'ballistic' or 'grasp'") != NULL,
               "message: %s",
               weft_last_error());
     free(S);
@@ -936,136 +944,16 @@ static void priors(void)
     weft_context_destroy(ctx);
     golden_free(&g);
     /* the skinned prior follows the collider: a garment without one is refused, nothing held */
-    expect_create_fails("\\\"prior\\\": \\\"inertial\\\"", "\\\"prior\\\": \\\"skinned\\\"", false,
-                        WEFT_ERROR_NO_COLLIDER);
+    expect_create_fails(GOLDEN_PRIOR, "\\\"prior\\\": \\\"skinned\\\"", false, WEFT_ERROR_NO_COLLIDER);
     /* the ballistic prior's optional terms are range-checked at load */
-    expect_create_fails("\\\"prior\\\": \\\"", "\\\"prior_beta\\\": 1.5, \\\"prior\\\": \\\"", true,
+    expect_create_fails(GOLDEN_PRIOR, "\\\"prior\\\": \\\"ballistic\\\", \\\"prior_beta\\\": 1.5", true,
                         WEFT_ERROR_BAD_METADATA);
-    expect_create_fails("\\\"prior\\\": \\\"", "\\\"gravity_step\\\": -1, \\\"prior\\\": \\\"", true,
+    expect_create_fails(GOLDEN_PRIOR, "\\\"prior\\\": \\\"ballistic\\\", \\\"gravity_step\\\": -1", true,
                         WEFT_ERROR_BAD_METADATA);
+    /* a key given twice is refused, not read either way */
+    expect_create_fails(GOLDEN_PRIOR, GOLDEN_PRIOR ", \\\"prior_beta\\\": 0.5", true, WEFT_ERROR_DUPLICATE_NAME);
     /* and so is the skinned prior's decay */
     expect_create_fails("\\\"prior\\\": \\\"", "\\\"prior_decay\\\": 1.5, \\\"prior\\\": \\\"", true,
-                        WEFT_ERROR_BAD_METADATA);
-}
-
-/* The xpbd prior against the XPBD method itself: on the golden model's weights, the garment with
- * prior "xpbd" (2 substeps) and the one with prior "previous" are set to the same state every
- * frame of a rollout, with two pins on every other frame, and
- *   x(xpbd) - x(previous) = Y - X_t,
- * Y from an XPBD garment (2 substeps, no CCD) restarted at the same state, collider at t
- * (weft_garment_set_collider_current) and pins, at every precision. Not vacuous: Y moves the
- * cloth away from X_t. With velocity_from_prior the encoder reads Y - X_t, so the output differs
- * from the plain xpbd garment's. Bad keys are refused at load. */
-static void xpbd_prior(void)
-{
-    golden g;
-    if (!golden_load(&g)) {
-        CHECK(!"golden tensors missing");
-        return;
-    }
-    weft_context *ctx = make_ctx();
-    weft_result r;
-    weft_model *prev = model_with_prior(ctx, "previous", &r);
-    CHECK_RESULT(r, WEFT_OK);
-    weft_model *xp = model_patched(ctx, "\\\"prior_substeps\\\": 2, \\\"prior\\\": \\\"xpbd\\\"", &r);
-    CHECK_RESULT(r, WEFT_OK);
-    weft_model *xv = model_patched(ctx,
-                                   "\\\"velocity_from_prior\\\": true, \\\"prior_substeps\\\": 2, "
-                                   "\\\"prior\\\": \\\"xpbd\\\"",
-                                   &r);
-    CHECK_RESULT(r, WEFT_OK);
-    const uint32_t T = 10;
-    const size_t n = (size_t)g.V * 3;
-    const uint32_t pin_idx[2] = {0, g.V - 1};
-    double worst = 0, moved = 0, vel_diff = 0;
-    for (int prec = 0; prev && xp && xv && prec < 3; ++prec) {
-        weft_garment *gp = NULL, *gx = NULL, *gv = NULL, *ref = NULL;
-        weft_garment_def d = garment_def(&g, prev, 1);
-        d.precision = (weft_precision)prec;
-        CHECK_RESULT(weft_garment_create(ctx, &d, &gp), WEFT_OK);
-        d.model = xp;
-        CHECK_RESULT(weft_garment_create(ctx, &d, &gx), WEFT_OK);
-        d.model = xv;
-        CHECK_RESULT(weft_garment_create(ctx, &d, &gv), WEFT_OK);
-        d.method = WEFT_METHOD_XPBD;
-        d.model = NULL;
-        d.substeps = 2;
-        CHECK_RESULT(weft_garment_create(ctx, &d, &ref), WEFT_OK);
-        for (uint32_t t = 1; gp && gx && gv && ref && t <= T; ++t) {
-            /* the state: the golden rollout's frames, the collider at t and t+1 */
-            const float *X = frame(&g.gt, t), *Xp = frame(&g.gt, t - 1);
-            float targets[6];
-            for (int k = 0; k < 2; ++k) {
-                for (int j = 0; j < 3; ++j) {
-                    targets[3 * k + j] = frame(&g.gt, t + 1)[3 * (size_t)pin_idx[k] + j] + 0.01f;
-                }
-            }
-            weft_garment *all[4] = {gp, gx, gv, ref};
-            for (int k = 0; k < 4; ++k) {
-                CHECK_RESULT(weft_garment_set_state(all[k], X, Xp), WEFT_OK);
-                CHECK_RESULT(weft_garment_set_collider_current(all[k], frame(&g.cpos, t)), WEFT_OK);
-                CHECK_RESULT(weft_garment_set_collider(all[k], frame(&g.cpos, t + 1)), WEFT_OK);
-                CHECK_RESULT(weft_garment_set_pins(all[k], pin_idx, targets, t % 2 ? 2 : 0), WEFT_OK);
-                CHECK_RESULT(weft_garment_step(all[k]), WEFT_OK);
-            }
-            const float *a = weft_garment_positions(gx), *b = weft_garment_positions(gp);
-            const float *y = weft_garment_positions(ref), *v = weft_garment_positions(gv);
-            for (size_t i = 0; i < n; ++i) {
-                const bool pinned = t % 2 && (i / 3 == pin_idx[0] || i / 3 == pin_idx[1]);
-                if (pinned) { /* every garment puts it at its target */
-                    worst = fmax(worst, fabs((double)a[i] - y[i]));
-                    continue;
-                }
-                worst = fmax(worst, fabs(((double)a[i] - b[i]) - ((double)y[i] - X[i])));
-                moved = fmax(moved, fabs((double)y[i] - X[i]));
-                vel_diff = fmax(vel_diff, fabs((double)v[i] - a[i]));
-            }
-        }
-        weft_garment_destroy(gp);
-        weft_garment_destroy(gx);
-        weft_garment_destroy(gv);
-        weft_garment_destroy(ref);
-    }
-    /* weft_garments_step steps such garments one by one: bit-identical to stepping them alone */
-    weft_garment *crowd[3] = {NULL}, *alone[3] = {NULL};
-    bool made = xv != NULL;
-    for (uint32_t k = 0; made && k < 3; ++k) {
-        weft_garment_def d = garment_def(&g, xv, 1 + k);
-        CHECK_RESULT(weft_garment_create(ctx, &d, &crowd[k]), WEFT_OK);
-        CHECK_RESULT(weft_garment_create(ctx, &d, &alone[k]), WEFT_OK);
-        made = crowd[k] && alone[k];
-    }
-    for (uint32_t t = 0; made && t < 3; ++t) {
-        for (uint32_t k = 0; k < 3; ++k) {
-            CHECK_RESULT(weft_garment_set_collider(crowd[k], frame(&g.cpos, 2 + k + t)), WEFT_OK);
-            CHECK_RESULT(weft_garment_set_collider(alone[k], frame(&g.cpos, 2 + k + t)), WEFT_OK);
-            CHECK_RESULT(weft_garment_step(alone[k]), WEFT_OK);
-        }
-        CHECK_RESULT(weft_garments_step(crowd, 3), WEFT_OK);
-        for (uint32_t k = 0; k < 3; ++k) {
-            CHECK_MSG(memcmp(weft_garment_positions(crowd[k]), weft_garment_positions(alone[k]), n * sizeof(float)) == 0,
-                      "xpbd prior: crowd garment %u differs from stepping alone at step %u", k, t);
-        }
-    }
-    for (uint32_t k = 0; k < 3; ++k) {
-        weft_garment_destroy(crowd[k]);
-        weft_garment_destroy(alone[k]);
-    }
-    CHECK_MSG(worst < 2e-6, "x(xpbd) - x(previous) is %.3g m off Y - X_t", worst);
-    CHECK_MSG(moved > 1e-3, "the xpbd prior moves the cloth only %.3g m", moved);
-    CHECK_MSG(vel_diff > 1e-6, "velocity_from_prior does not change the output (%.3g m)", vel_diff);
-    printf("xpbd prior over %u frames x 3 precisions: off by %.3g m (prior moves %.3g m; velocity from the prior "
-           "changes the output by %.3g m)\n",
-           T, worst, moved, vel_diff);
-    weft_model_destroy(prev);
-    weft_model_destroy(xp);
-    weft_model_destroy(xv);
-    weft_context_destroy(ctx);
-    golden_free(&g);
-    /* its keys are range-checked, and the velocity from the prior needs the xpbd prior */
-    expect_create_fails("\\\"prior\\\": \\\"", "\\\"prior_substeps\\\": 0, \\\"prior\\\": \\\"", true,
-                        WEFT_ERROR_BAD_METADATA);
-    expect_create_fails("\\\"prior\\\": \\\"", "\\\"velocity_from_prior\\\": true, \\\"prior\\\": \\\"", true,
                         WEFT_ERROR_BAD_METADATA);
 }
 
@@ -1123,7 +1011,8 @@ static weft_lod_garment *lod_on_golden(const golden *g, const float *C, weft_con
 /* A level switch onto a skinned-prior model level binds the garment to the collider as it is at
  * the switch, as LBS levels do (a binding against the rest pose would follow the wrong part of
  * the collider). Two LOD garments run LBS on a turning collider up to frame `at` and switch to
- * the same model level, one with the "previous" prior, one with "skinned"; both rebuild the same
+ * the same model level, one with the ballistic prior at beta 0 and no gravity (X_t), one with
+ * "skinned"; both rebuild the same
  * latent window, so their first steps differ by S_{t+1} - S_t of an LBS garment bound at the
  * switch. */
 static void skinned_lod_switch(void)
@@ -1141,7 +1030,7 @@ static void skinned_lod_switch(void)
     weft_lod_table *table = NULL;
     CHECK_RESULT(weft_lod_table_load_memory(ctx, table_text, strlen(table_text), &table), WEFT_OK);
     weft_result r;
-    weft_model *models[2] = {model_with_prior(ctx, "previous", &r), model_with_prior(ctx, "skinned", &r)};
+    weft_model *models[2] = {model_patched(ctx, GOLDEN_PRIOR_STILL, &r), model_with_prior(ctx, "skinned", &r)};
     const uint32_t at = 20;
     const size_t n = (size_t)g.V * 3, nc = (size_t)g.Vc * 3;
     float *C = malloc((at + 2) * nc * sizeof(float));
@@ -1290,8 +1179,7 @@ static void shipped_models_step(void)
                                         WEFT_SOURCE_DIR "/tools/train/models/game_k16.safetensors",
                                         WEFT_SOURCE_DIR "/tools/train/models/drop.safetensors",
                                         WEFT_SOURCE_DIR "/tools/train/models/garment.safetensors",
-                                        WEFT_SOURCE_DIR "/tools/train/models/gripper.safetensors",
-                                        WEFT_SOURCE_DIR "/tools/train/models/unified.safetensors"};
+                                        WEFT_SOURCE_DIR "/tools/train/models/gripper.safetensors"};
     weft_context *ctx = make_ctx();
     for (size_t f = 0; f < sizeof files / sizeof files[0]; ++f) {
         weft_model *m = NULL;
@@ -1547,6 +1435,6 @@ TEST_MAIN(TEST_CASE(teacher_forced_parity), TEST_CASE(shipped_game_parity), TEST
           TEST_CASE(rollout_parity), TEST_CASE(shipped_drop_parity), TEST_CASE(shipped_garment_parity), TEST_CASE(shipped_gripper_parity),
           TEST_CASE(skinned_prior_reuse),
           TEST_CASE(skinned_teacher_forced_parity), TEST_CASE(skinned_rollout_parity),
-          TEST_CASE(bad_model_files), TEST_CASE(priors), TEST_CASE(xpbd_prior), TEST_CASE(skinned_lod_switch),
+          TEST_CASE(bad_model_files), TEST_CASE(priors), TEST_CASE(skinned_lod_switch),
           TEST_CASE(bad_state_and_collider), TEST_CASE(reduced_precision),
           TEST_CASE(quantized_files), TEST_CASE(parallel_for_hook))

@@ -244,7 +244,7 @@ static void model_scores_follow_the_file(void)
     CHECK_EQ_INT(with_a, 18);
     CHECK_EQ_INT(suite_with("model_a_again", "one_model", false), 0);
     CHECK_EQ_INT(count_files(scores, ".json"), with_a);
-    CHECK(copy_file(WEFT_SOURCE_DIR "/tools/train/models/unified.safetensors", model));
+    CHECK(copy_file(WEFT_SOURCE_DIR "/tools/train/models/game_k16.safetensors", model));
     CHECK_EQ_INT(suite_with("model_b", "one_model", false), 0);
     CHECK_EQ_INT(count_files(scores, ".json"), with_a + 9);
 }

@@ -99,22 +99,6 @@ def golden(model, seq, out_dir, tf_frames, rollout_len, seq_arrays=True):
     def pinned(xn, t):
         return xn if pa is None else torch.where(pa[:, t + 1].unsqueeze(-1), xa[:, t + 1], xn)
 
-    # the xpbd prior: the runtime's own solver through ctypes, as in training
-    sim = None
-    if model.cfg["prior"] == "xpbd":
-        import weft_sim
-        sim = weft_sim.XpbdPrior(seq.rest, seq.faces, None if c is None else c[0], seq.cfaces,
-                                 model.cfg["prior_substeps"])
-
-    def y_prior(xc, xp, t):
-        if sim is None:
-            return None
-        pm = None if pa is None else pa[0, t + 1].numpy()
-        pi = None if pm is None else np.nonzero(pm)[0]
-        y = sim.step(xc[0].numpy(), xp[0].numpy(), None if c is None else c[t], None if c is None else c[t + 1],
-                     pi, None if pi is None else x[t + 1][pi])
-        return torch.from_numpy(y).unsqueeze(0)
-
     tf = []
     frames = [t for t in tf_frames if 1 <= t < T - 1]
     with torch.no_grad():
@@ -124,8 +108,7 @@ def golden(model, seq, out_dir, tf_frames, rollout_len, seq_arrays=True):
             sn = None if sa is None else sa[:, t + 1]
             sc = None if sa is None else sa[:, t]
             pm = None if pa is None else pa[:, t + 1]
-            xn, _ = model.step([], xa[:, t], xa[:, t - 1], rest, adj, cn, cc, ctri, sn, sc, pm, xa[:, t + 1],
-                               y_prior(xa[:, t], xa[:, t - 1], t))
+            xn, _ = model.step([], xa[:, t], xa[:, t - 1], rest, adj, cn, cc, ctri, sn, sc, pm, xa[:, t + 1])
             tf.append(pinned(xn, t)[0].numpy())
         hist, xp, xc, roll = [], xa[:, 0], xa[:, 1], []
         for t in range(1, T - 1):
@@ -134,8 +117,7 @@ def golden(model, seq, out_dir, tf_frames, rollout_len, seq_arrays=True):
             sn = None if sa is None else sa[:, t + 1]
             sc = None if sa is None else sa[:, t]
             pm = None if pa is None else pa[:, t + 1]
-            xn, hist = model.step(hist, xc, xp, rest, adj, cn, cc, ctri, sn, sc, pm, xa[:, t + 1],
-                                  y_prior(xc, xp, t))
+            xn, hist = model.step(hist, xc, xp, rest, adj, cn, cc, ctri, sn, sc, pm, xa[:, t + 1])
             xn = pinned(xn, t)
             roll.append(xn[0].numpy())
             xp, xc = xc, xn

@@ -36,7 +36,7 @@ case "${1:-}" in
             > /dev/null || exit 1
         cmake --build build-bundle -j"$(nproc)" --target weft_cli weft_shared > /dev/null || exit 1
         mkdir -p "$B" && cp build-bundle/bin/weft "$B/" || exit 1
-        # the library itself, for training's ctypes bindings (WEFT_LIB=$B/libweft.so.0: the xpbd prior)
+        # the library itself, for training's ctypes binding (WEFT_LIB=$B/libweft.so.0: the CCD loss)
         cp -L build-bundle/lib/libweft.so.0 "$B/" || exit 1
         # every library the binary loads except the C library itself and the loader
         ldd build-bundle/bin/weft | awk '$3 ~ /^\// {print $3}' |

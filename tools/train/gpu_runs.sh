@@ -15,15 +15,14 @@
 # tree when the models folder kept only shipped weights: `git show 5c87946:tools/train/models/NAME.ckpt.pt
 # > tools/train/models/NAME.ckpt.pt` brings one back. The worn-garment model trains with gpu_window.sh.
 # Runs go to data/gpu/runs/NAME. Sets (docs/MODEL.md, "Training"):
-#   shipped  the four runs the shipped models came from (data: the packed set under data/pack)
-#   skin     the skinned prior on the grown set, against the same models fine-tuned with their
-#            own priors (data: pack.py --skin under data/pack179s)
+#   skin     the skinned prior on the grown set, from the first `game` and from scratch (data:
+#            pack.py --skin under data/pack179s)
 #   skin2    the skin set's game runs continued with longer rollouts (curriculum 1 -> 10), keeping
 #            the weights whose 240-frame validation rollouts are best (--keep-best); their starting
 #            checkpoints are the skin runs' under data/gpu/init/
 #   pins     the skinned prior with the sequences' pins in every training and validation rollout
 #            (train.py --pins: grasped and waistband vertices follow the reference, as weft eval
-#            --pins all), rollouts to 10, 240-frame keep-best: `unified` from scratch, `game` from
+#            --pins all), rollouts to 10, 240-frame keep-best: `game` from
 #            scratch with the gripper drawn twice as often, the shipped `game` fine-tuned, and the
 #            shipped `game` cut to 16 and 8 latents (cut_latents.py, into data/gpu/init/) fine-tuned
 #            at their K (data: pack.py --skin of the grown set, with its pin masks, under
@@ -41,20 +40,15 @@
 #            as `drop` began; snapshots every 100 steps, chosen afterwards on all 14 validation
 #            drops with `weft eval` (data: drops only, ONLY=drop DATA=data/drops gpu_data.sh gen,
 #            made on the machine's cores just before; NO_SKIN=1)
-#   xpbd     drop specialists over the xpbd prior (one frame of weft's XPBD method under the
-#            network, docs/MODEL.md "XPBD prior"): the shipped `drop` with a zeroed head over 1 and 2
-#            substeps, velocity from the prior, batch 32, rollouts 2 -> 16, the prior's solver on 7
-#            threads per run (WEFT_LIB names the carried libweft.so.0); data as for dropgpu
 set -u
 cd "$(dirname "$0")/../.." || exit 1
 R=data/gpu/runs
 SET=${SET:-skin}
 case "$SET" in
-    shipped) RUNS="game_ft unified_ft game_prev unified_prev"; DATA=${DATA:-data/pack}; BUDGET=${BUDGET:-23} ;;
-    skin) RUNS="game_skin unified_skin game_skin0 game_prev179"; DATA=${DATA:-data/pack179s}; BUDGET=${BUDGET:-15} ;;
+    skin) RUNS="game_skin game_skin0"; DATA=${DATA:-data/pack179s}; BUDGET=${BUDGET:-15} ;;
     skin2) RUNS="s0_r10 s_r10 s0_contact ship_skin_r10"; DATA=${DATA:-data/pack179s}; BUDGET=${BUDGET:-7.5}
            EXTRA="--eval-every 500 --eval-frames 238 --keep-best --rollout-max 10" ;;
-    pins) RUNS="unified_pins game_pins0 game_pins_ft game_k16_ft game_k8_ft"; DATA=${DATA:-data/pack_pins}; BUDGET=${BUDGET:-17}
+    pins) RUNS="game_pins0 game_pins_ft game_k16_ft game_k8_ft"; DATA=${DATA:-data/pack_pins}; BUDGET=${BUDGET:-17}
           EXTRA="--eval-every 1000 --eval-frames 238 --keep-best --rollout-max 10 --pins --max-train-vertices 5000" ;;
     long) RUNS="long_r30 long_r30_drop long_contact k16_r30"; DATA=${DATA:-data/refsim}; BUDGET=${BUDGET:-14}
           EXTRA="--skin data/skin --eval-every 400 --eval-frames 238 --keep-best --pins --max-train-vertices 5000" ;;
@@ -62,26 +56,17 @@ case "$SET" in
           EXTRA="--eval-every 400 --eval-frames 238 --keep-best --pins --max-train-vertices 5000 --rollout-max 30" ;;
     dropgpu) RUNS="drop_r20 drop_r30c ball_k16"; DATA=${DATA:-data/drops}; BUDGET=${BUDGET:-5}
           EXTRA="--eval-every 150 --eval-frames 238 --keep-best --snapshot-every 100 --scenarios drop" ;;
-    xpbd) RUNS="xp1 xp2"; DATA=${DATA:-data/drops}; BUDGET=${BUDGET:-5}
-          EXTRA="--eval-every 150 --eval-frames 120 --keep-best --snapshot-every 100 --scenarios drop --prior-workers 7" ;;
-    *) echo "unknown SET=$SET (shipped|skin|skin2|pins|long|ballistic|dropgpu|xpbd)" >&2; exit 2 ;;
+    *) echo "unknown SET=$SET (skin|skin2|pins|long|ballistic|dropgpu)" >&2; exit 2 ;;
 esac
 
 run_args() {  # the arguments of run $1 (besides the common ones)
     case "$1" in
-        game_ft) echo --preset game --init-from tools/train/models/game.ckpt.pt --batch 32 --lr 5e-4 ;;
-        unified_ft) echo --preset unified --init-from tools/train/models/unified.ckpt.pt --batch 32 --lr 5e-4 ;;
-        game_prev) echo "--preset game --config '{\"prior\":\"previous\"}' --batch 32 --lr 1e-3" ;;
-        unified_prev) echo "--preset unified --config '{\"prior\":\"previous\"}' --batch 32 --lr 1.5e-3" ;;
         game_skin) echo "--init-from tools/train/models/game.ckpt.pt --config '{\"prior\":\"skinned\"}' --batch 32 --lr 5e-4" ;;
-        unified_skin) echo "--init-from tools/train/models/unified.ckpt.pt --config '{\"prior\":\"skinned\"}' --batch 32 --lr 5e-4" ;;
         game_skin0) echo "--preset game --config '{\"prior\":\"skinned\"}' --batch 32 --lr 1e-3" ;;
-        game_prev179) echo --init-from tools/train/models/game.ckpt.pt --batch 32 --lr 5e-4 ;;
         s0_r10) echo --init-from data/gpu/init/game_skin0.pt --batch 32 --lr 3e-4 ;;
         s_r10) echo --init-from data/gpu/init/game_skin.pt --batch 32 --lr 3e-4 ;;
         s0_contact) echo --init-from data/gpu/init/game_skin0.pt --batch 32 --lr 3e-4 --lambda-contact 0.5 ;;
         ship_skin_r10) echo "--init-from tools/train/models/game.ckpt.pt --config '{\"prior\":\"skinned\"}' --batch 32 --lr 5e-4" ;;
-        unified_pins) echo "--preset unified --config '{\"prior\":\"skinned\"}' --batch 32 --lr 1e-3" ;;
         game_pins0) echo "--preset game --config '{\"prior\":\"skinned\"}' --batch 32 --lr 1e-3 --scenario-weight gripper=2" ;;
         game_pins_ft) echo --init-from tools/train/models/game.ckpt.pt --batch 32 --lr 3e-4 ;;
         game_k16_ft) echo --init-from data/gpu/init/game_k16.pt --batch 32 --lr 3e-4 ;;
@@ -104,12 +89,6 @@ run_args() {  # the arguments of run $1 (besides the common ones)
                         --rollout-max 30 --lambda-contact 0.5 ;;
         ball_k16) echo "--init-from tools/train/models/game_k16.ckpt.pt --config '{\"prior\":\"ballistic\"}'" \
                        --batch 64 --lr 3e-4 --rollout-max 20 ;;
-        xp1) echo "--init-from tools/train/models/drop.ckpt.pt --init-head-scale 0" \
-                  "--config '{\"prior\":\"xpbd\",\"prior_substeps\":1,\"velocity_from_prior\":true}'" \
-                  --batch 32 --lr 2e-4 --rollout-min 2 --rollout-max 16 ;;
-        xp2) echo "--init-from tools/train/models/drop.ckpt.pt --init-head-scale 0" \
-                  "--config '{\"prior\":\"xpbd\",\"prior_substeps\":2,\"velocity_from_prior\":true}'" \
-                  --batch 32 --lr 2e-4 --rollout-min 2 --rollout-max 16 ;;
         ball_drop0) echo "--preset game --config '{\"prior\":\"ballistic\",\"K\":16}' --scenarios drop --batch 32 --lr 1e-3" ;;
     esac
 }
@@ -149,5 +128,5 @@ case "${1:-}" in
         collect ;;
     launch) start "" ;;
     collect) collect ;;
-    *) echo "usage: SET=shipped|skin|skin2|pins|long|ballistic|dropgpu|xpbd $0 train|launch|collect" >&2; exit 2 ;;
+    *) echo "usage: SET=skin|skin2|pins|long|ballistic|dropgpu $0 train|launch|collect" >&2; exit 2 ;;
 esac

@@ -13,11 +13,11 @@ Data flow for one step t -> t+1 (all positions in metres, centred on the garment
             SwiGLU feed-forward; the newest frame's output is Z_{t+1}
   decoder:  rest-shape vertices -> pe -> MLP -> queries cross-attending to Z_{t+1}
             (+ the encoder's vertex tokens when dec_skip) -> 2 x GNN -> Linear -> displacement
-  output:   X_{t+1} = prior + out_scale * displacement, prior = 2 X_t - X_{t-1} ("inertial"), X_t
-            ("previous"), X_t + S_{t+1} - S_t ("skinned": S is the skinning baseline on the
-            collider, runtime/geometry/skin.c; equal to "previous" when the collider does not move;
-            with prior_decay a < 1, S_{t+1} + a (X_t - S_t)) or
-            X_t + beta (X_t - X_{t-1}) + g dt^2 ("ballistic": free fall is in the prior) or
+  output:   X_{t+1} = prior + out_scale * displacement, prior = X_t + S_{t+1} - S_t ("skinned": S
+            is the skinning baseline on the collider, runtime/geometry/skin.c; X_t when the
+            collider does not move; with prior_decay a < 1, S_{t+1} + a (X_t - S_t)) or
+            X_t + beta (X_t - X_{t-1}) + g dt^2 ("ballistic": free fall is in the prior; beta 1
+            and gravity_step 0 give the inertial 2 X_t - X_{t-1}, beta 0 X_t) or
             X_t + beta (X_t - X_{t-1}) kept within each vertex's rest distance of the pins' centroid
             ("grasp": a long-range attachment to the hand, P the pins' targets at t+1)
 """
@@ -44,20 +44,16 @@ DEFAULT_CONFIG = {
     "vel_scale": 100.0,   # multiplies X_t - X_{t-1} (m/frame) before the velocity embedding
     "area_scale": 100.0,  # multiplies sqrt(triangle area) (m) of collider triangles
     "out_scale": 0.01,    # metres per unit of the decoder output
-    "prior": "inertial",  # "inertial" (2 X_t - X_{t-1}), "previous" (X_t), "skinned" (X_t + S_{t+1} - S_t),
-                          # "ballistic" (X_t + prior_beta (X_t - X_{t-1}) - gravity_step along Y),
-                          # "grasp" (as ballistic without gravity, then every vertex kept within its rest
-                          # distance of the pinned vertices' centroid: a long-range attachment to the hand),
-                          # "xpbd" (one frame of weft's XPBD method at prior_substeps substeps from the
-                          # state, colliders and pins, no CCD; computed by the runtime, tools/train/weft_sim.py)
+    "prior": "skinned",   # "skinned" (X_t + S_{t+1} - S_t), "ballistic" (X_t + prior_beta (X_t - X_{t-1})
+                          # - gravity_step along Y), "grasp" (as ballistic without gravity, then every vertex
+                          # kept within its rest distance of the pinned vertices' centroid: a long-range
+                          # attachment to the hand)
     "prior_beta": 1.0,    # ballistic and grasp priors: fraction of the last frame's displacement carried on
     "prior_decay": 1.0,   # skinned prior: S_{t+1} + prior_decay (X_t - S_t), the offset from the skinned
                           # garment kept per step (1: X_t + S_{t+1} - S_t; < 1: drift decays toward it)
     "gravity_step": 9.81 / 3600.0,  # ballistic prior: g dt^2 (m) at 60 Hz, applied along -Y
     "attach_output": False,  # grasp prior: the attachment to the hand bounds the output (prior plus
                              # displacement), not the prior alone
-    "prior_substeps": 1,  # xpbd prior: substeps of its frame
-    "velocity_from_prior": False,  # the velocity feature is prior - X_t instead of X_t - X_{t-1} (xpbd prior only)
     "crop_margin": 0.15,  # collider triangles farther than this (m) from the garment box are dropped
     "dec_skip": True,     # decoder adds the encoder's per-vertex tokens to its queries' output
     "requires_collider": False,  # set by training when every training sequence had a collider
@@ -65,22 +61,23 @@ DEFAULT_CONFIG = {
 }
 
 GELU_TANH = "tanh"
-PRIORS = ("inertial", "previous", "skinned", "ballistic", "grasp", "xpbd")
+PRIORS = ("skinned", "ballistic", "grasp")
+# Keys no model uses any more; a checkpoint may carry them at these values, which change nothing.
+INERT_KEYS = {"prior_substeps": 1, "velocity_from_prior": False}
 
 
 def full_config(cfg):
     out = dict(DEFAULT_CONFIG)
     out.update(cfg or {})
+    for k, v in INERT_KEYS.items():
+        if k in out and out.pop(k) != v:
+            raise ValueError(f"config key {k!r} is not supported (only {v!r})")
     if out["D"] % out["H"] != 0:
         raise ValueError("D must be a multiple of H")
     if out["prior"] not in PRIORS:
         raise ValueError("prior must be one of " + ", ".join(PRIORS))
     if not 0.0 <= out["prior_decay"] <= 1.0:
         raise ValueError("prior_decay must be in [0, 1]")
-    if out["velocity_from_prior"] and out["prior"] != "xpbd":
-        raise ValueError("velocity_from_prior needs the xpbd prior")
-    if not 1 <= int(out["prior_substeps"]) <= 64:
-        raise ValueError("prior_substeps must be in [1, 64]")
     return out
 
 
@@ -232,6 +229,50 @@ class TemporalLayer(nn.Module):
 
 # ---------------------------------------------------------------------------------------------
 
+def attach(y, pin_mask, pin_next, rest):
+    """The grasp prior's long-range attachment: every vertex of y (B, V, 3) farther from the
+    centroid of the pinned vertices' targets than it is from their centroid at rest is pulled
+    back to that distance (no pins: y unchanged)."""
+    if pin_mask is None:
+        return y
+    if rest is None:
+        raise ValueError("the grasp prior needs the rest positions")
+    m = pin_mask.to(y.dtype).unsqueeze(-1)                        # (B, V, 1)
+    n = m.sum(dim=1, keepdim=True).clamp(min=1.0)                 # (B, 1, 1)
+    c = (pin_next * m).sum(dim=1, keepdim=True) / n               # (B, 1, 3)
+    rest = rest.expand_as(y)
+    rc = (rest * m).sum(dim=1, keepdim=True) / n
+    r = (rest - rc).norm(dim=-1, keepdim=True)                    # (B, V, 1)
+    d = y - c
+    L = d.norm(dim=-1, keepdim=True)
+    held = torch.where(L > r, c + d * (r / L.clamp(min=1e-12)), y)
+    return torch.where(m.sum(dim=1, keepdim=True) > 0, held, y)
+
+
+def prior_positions(cfg, x_t, x_prev, s_next=None, s_cur=None, pin_mask=None, pin_next=None, rest=None):
+    """The prior of config `cfg` (B, V, 3), as runtime/model/transformer.c computes it: the
+    network's displacement is added to it. Any float dtype (the data statistics use float64)."""
+    p = cfg["prior"]
+    if p == "grasp":
+        # the cloth carries its velocity on, and a held cloth hangs from its hand: no vertex
+        # ends farther from the pins' centroid at t+1 than it is from their centroid at rest
+        # (a long-range attachment; the rest distance is a lower bound of the path in the cloth)
+        y = x_t + cfg["prior_beta"] * (x_t - x_prev)
+        return y if cfg["attach_output"] else attach(y, pin_mask, pin_next, rest)
+    if p == "skinned":
+        if s_next is None or s_cur is None:
+            raise ValueError("the skinned prior needs the S track (S_t and S_{t+1})")
+        a = cfg["prior_decay"]
+        if a == 1.0:
+            return x_t + (s_next - s_cur)
+        return s_next + a * (x_t - s_cur)
+    if p == "ballistic":
+        g = torch.zeros(3, dtype=x_t.dtype, device=x_t.device)
+        g[1] = -cfg["gravity_step"]
+        return x_t + cfg["prior_beta"] * (x_t - x_prev) + g
+    raise ValueError(f"unknown prior {p!r}")
+
+
 class ClothTransformer(nn.Module):
     def __init__(self, cfg=None):
         super().__init__()
@@ -260,18 +301,11 @@ class ClothTransformer(nn.Module):
 
     # -- pieces -------------------------------------------------------------------------------
 
-    def encode(self, x_t, x_prev, adj, c_next=None, c_cur=None, ctri=None, y_prior=None):
-        """Returns (Z_t (B, K, D), vertex tokens (B, N, D)). y_prior: the xpbd prior's Y, read as
-        the velocity (Y - X_t) when velocity_from_prior."""
+    def encode(self, x_t, x_prev, adj, c_next=None, c_cur=None, ctri=None):
+        """Returns (Z_t (B, K, D), vertex tokens (B, N, D))."""
         c = self.cfg
         centre = x_t.mean(dim=-2, keepdim=True)                    # (B, 1, 3)
-        if c["velocity_from_prior"]:
-            if y_prior is None:
-                raise ValueError("velocity_from_prior needs the xpbd prior's Y")
-            vel = y_prior - x_t
-        else:
-            vel = x_t - x_prev
-        f = torch.cat([posembed(x_t - centre, self.freqs), vel * c["vel_scale"]], dim=-1)
+        f = torch.cat([posembed(x_t - centre, self.freqs), (x_t - x_prev) * c["vel_scale"]], dim=-1)
         h = self.enc_cloth(f)
         for g in self.enc_gnn:
             h = g(h, adj)
@@ -310,71 +344,26 @@ class ClothTransformer(nn.Module):
             h = g(h, adj)
         return self.dec_head(self.dec_ln(h))
 
-    @staticmethod
-    def attach(y, pin_mask, pin_next, rest):
-        """The grasp prior's long-range attachment: every vertex of y (B, V, 3) farther from the
-        centroid of the pinned vertices' targets than it is from their centroid at rest is pulled
-        back to that distance (no pins: y unchanged)."""
-        if pin_mask is None:
-            return y
-        if rest is None:
-            raise ValueError("the grasp prior needs the rest positions")
-        m = pin_mask.to(y.dtype).unsqueeze(-1)                        # (B, V, 1)
-        n = m.sum(dim=1, keepdim=True).clamp(min=1.0)                 # (B, 1, 1)
-        c = (pin_next * m).sum(dim=1, keepdim=True) / n               # (B, 1, 3)
-        rest = rest.expand_as(y)
-        rc = (rest * m).sum(dim=1, keepdim=True) / n
-        r = (rest - rc).norm(dim=-1, keepdim=True)                    # (B, V, 1)
-        d = y - c
-        L = d.norm(dim=-1, keepdim=True)
-        held = torch.where(L > r, c + d * (r / L.clamp(min=1e-12)), y)
-        return torch.where(m.sum(dim=1, keepdim=True) > 0, held, y)
-
-    def prior(self, x_t, x_prev, s_next=None, s_cur=None, pin_mask=None, pin_next=None, rest=None, y_prior=None):
-        p = self.cfg["prior"]
-        if p == "xpbd":
-            if y_prior is None:
-                raise ValueError("the xpbd prior's Y is computed outside the network (weft_sim.PriorPool)")
-            return y_prior
-        if p == "grasp":
-            # the cloth carries its velocity on, and a held cloth hangs from its hand: no vertex
-            # ends farther from the pins' centroid at t+1 than it is from their centroid at rest
-            # (a long-range attachment; the rest distance is a lower bound of the path in the cloth)
-            y = x_t + self.cfg["prior_beta"] * (x_t - x_prev)
-            return y if self.cfg["attach_output"] else self.attach(y, pin_mask, pin_next, rest)
-        if p == "inertial":
-            return 2.0 * x_t - x_prev
-        if p == "skinned":
-            if s_next is None or s_cur is None:
-                raise ValueError("the skinned prior needs the S track (S_t and S_{t+1})")
-            a = self.cfg["prior_decay"]
-            if a == 1.0:
-                return x_t + (s_next - s_cur)
-            return s_next + a * (x_t - s_cur)
-        if p == "ballistic":
-            g = torch.zeros(3, dtype=x_t.dtype, device=x_t.device)
-            g[1] = -self.cfg["gravity_step"]
-            return x_t + self.cfg["prior_beta"] * (x_t - x_prev) + g
-        return x_t
+    def prior(self, x_t, x_prev, s_next=None, s_cur=None, pin_mask=None, pin_next=None, rest=None):
+        return prior_positions(self.cfg, x_t, x_prev, s_next, s_cur, pin_mask, pin_next, rest)
 
     # -- one step ----------------------------------------------------------------------------
 
     def step(self, hist, x_t, x_prev, rest, adj, c_next=None, c_cur=None, ctri=None, s_next=None, s_cur=None,
-             pin_mask=None, pin_next=None, y_prior=None):
+             pin_mask=None, pin_next=None):
         """hist: list of past latents (B, K, D) (oldest first, may be empty: reset); s_next/s_cur:
         the S track at t+1 and t (the skinned prior only); pin_mask (B, V) bool and pin_next
-        (B, V, 3): the vertices pinned at t+1 and their targets (the grasp prior only); y_prior
-        (B, V, 3): the xpbd prior's Y (a constant: no gradient flows into the solver). Returns
+        (B, V, 3): the vertices pinned at t+1 and their targets (the grasp prior only). Returns
         (x_next, new hist list)."""
-        z, vtok = self.encode(x_t, x_prev, adj, c_next, c_cur, ctri, y_prior)
+        z, vtok = self.encode(x_t, x_prev, adj, c_next, c_cur, ctri)
         hist = (list(hist) + [z])[-self.cfg["history"]:]
         while len(hist) < self.cfg["history"]:
             hist = [hist[0]] + hist            # repeat the oldest after a reset
         z_next = self.temporal(torch.stack(hist, dim=1))
         d = self.decode(z_next, rest, adj, vtok)
-        x_next = self.prior(x_t, x_prev, s_next, s_cur, pin_mask, pin_next, rest, y_prior) + self.cfg["out_scale"] * d
+        x_next = self.prior(x_t, x_prev, s_next, s_cur, pin_mask, pin_next, rest) + self.cfg["out_scale"] * d
         if self.cfg["prior"] == "grasp" and self.cfg["attach_output"]:
-            x_next = self.attach(x_next, pin_mask, pin_next, rest)
+            x_next = attach(x_next, pin_mask, pin_next, rest)
         return x_next, hist
 
     def metadata(self, name=""):

@@ -3,8 +3,8 @@
   /usr/bin/python3 tools/train/prior_eval.py --data data/pack --split test val
 
 Priors:
-  still     X_{t+1} = X_t (the cloth does not move)
-  inertial  X_{t+1} = 2 X_t - X_{t-1}
+  still     X_{t+1} = X_t (the cloth does not move: the ballistic prior at beta 0, no gravity)
+  inertial  X_{t+1} = 2 X_t - X_{t-1} (the ballistic prior at beta 1, no gravity)
   ballistic X_{t+1} = X_t + beta (X_t - X_{t-1}) - g dt^2 y (free fall through everything; the
             runtime's ballistic prior, --beta as its prior_beta)
   translate X_t + the mean step of the vertices pinned at t+1 to their targets (with --pins;
@@ -15,7 +15,8 @@ Priors:
   follow    each vertex moves with the closest point of the collider (nearest triangle at t, same
             barycentric point at t+1), weighted by 1 - distance / --radius, and keeps its
             velocity for the rest of the weight (the collider-following prior)
-The rollout starts from ground-truth frames 0 and 1 and then sees only the collider, as `weft eval`;
+still, inertial, ballistic and grasp are computed by model.py's prior_positions, the priors the
+runtime implements. The rollout starts from ground-truth frames 0 and 1 and then sees only the collider, as `weft eval`;
 with --pins the vertices pinned in a frame (pinned.npy) take their reference positions, as `weft eval
 --pins all`:
 
@@ -28,9 +29,11 @@ import os
 import sys
 
 import numpy as np
+import torch
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import data as weft_data  # noqa: E402
+from model import full_config, prior_positions  # noqa: E402
 
 
 def closest_barycentric(p, a, b, c):
@@ -94,7 +97,22 @@ def follow_displacement(x, c_now, c_next, faces, candidates=8):
     return best_disp, best_d
 
 
-GRAVITY_STEP = 9.81 / 3600.0  # g dt^2 at 60 Hz, the model config's default gravity_step
+# The analysis priors that are runtime priors, as model configs (prior_beta from --beta where None).
+RUNTIME_PRIORS = {
+    "still": {"prior": "ballistic", "prior_beta": 0.0, "gravity_step": 0.0},
+    "inertial": {"prior": "ballistic", "prior_beta": 1.0, "gravity_step": 0.0},
+    "ballistic": {"prior": "ballistic", "prior_beta": None},
+    "grasp": {"prior": "grasp", "prior_beta": None},
+}
+
+
+def runtime_prior(prior, beta, xt, xp, pm, pin_next, rest):
+    """One frame of a runtime prior (numpy float64 in and out)."""
+    cfg = dict(RUNTIME_PRIORS[prior])
+    cfg["prior_beta"] = beta if cfg["prior_beta"] is None else cfg["prior_beta"]
+    t = lambda a: None if a is None else torch.from_numpy(np.asarray(a)).unsqueeze(0)  # noqa: E731
+    return prior_positions(full_config(cfg), t(xt), t(xp), pin_mask=t(pm), pin_next=t(pin_next),
+                           rest=t(rest))[0].numpy()
 
 
 def rollout(seq, prior, radius, frames, beta=1.0, pins=False):
@@ -110,22 +128,8 @@ def rollout(seq, prior, radius, frames, beta=1.0, pins=False):
         pm = None if pinned is None or not pinned[t + 1].any() else pinned[t + 1]
         if prior == "translate":
             nxt = xt + (x[t + 1][pm] - xt[pm]).mean(axis=0) if pm is not None else xt + beta * vel
-        elif prior == "grasp":
-            nxt = xt + beta * vel
-            if pm is not None:
-                hand, hand_rest = x[t + 1][pm].mean(axis=0), rest[pm].mean(axis=0)
-                reach = np.linalg.norm(rest - hand_rest, axis=1)
-                d = nxt - hand
-                L = np.linalg.norm(d, axis=1)
-                far = L > reach
-                nxt[far] = hand + d[far] * (reach[far] / L[far])[:, None]
-        elif prior == "still":
-            nxt = xt
-        elif prior == "ballistic":
-            nxt = xt + beta * vel
-            nxt[:, 1] -= GRAVITY_STEP
-        elif prior == "inertial" or c is None:
-            nxt = xt + vel
+        elif prior in RUNTIME_PRIORS or c is None:
+            nxt = runtime_prior(prior if prior in RUNTIME_PRIORS else "inertial", beta, xt, xp, pm, x[t + 1], rest)
         else:
             disp, dist = follow_displacement(xt, c[t], c[t + 1], seq.cfaces)
             w = np.clip(1.0 - dist / radius, 0.0, 1.0)[:, None]
@@ -152,6 +156,8 @@ def main():
     if not seqs:
         sys.exit(f"no sequences of split {a.split} under {a.data}")
     for prior in a.priors.split(","):
+        if prior not in RUNTIME_PRIORS and prior not in ("translate", "follow"):
+            sys.exit(f"unknown prior {prior!r}: still, inertial, ballistic, grasp, translate or follow")
         rows = [(s.name, *rollout(s, prior, a.radius, a.frames, a.beta, a.pins)) for s in seqs]
         total = sum(m * n for _, m, n in rows) / sum(n for _, _, n in rows)
         print(f"{prior:9s} all {total:7.2f} cm | " + "  ".join(f"{n} {m:.2f}" for n, m, _ in rows), flush=True)

@@ -31,13 +31,11 @@ import torch.distributed as dist  # noqa: E402
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import data as weft_data  # noqa: E402
-from model import ClothTransformer, full_config, mean_adjacency  # noqa: E402
+from model import ClothTransformer, attach, full_config, mean_adjacency, prior_positions  # noqa: E402
 
 PRESETS = {
     # small and fast: the in-game model
     "game": {"K": 32, "D": 48, "L": 2, "H": 4, "history": 1, "ffn": 96, "nfreq": 6},
-    # the larger model trained over every scenario
-    "unified": {"K": 64, "D": 96, "L": 3, "H": 4, "history": 2, "ffn": 192, "nfreq": 8},
     # tiny model for C parity tests (exercises history > 1 and every code path)
     "golden": {"K": 16, "D": 32, "L": 2, "H": 2, "history": 2, "ffn": 64, "nfreq": 4},
 }
@@ -63,11 +61,6 @@ class MeshCache:
                 "rest_len": torch.from_numpy(np.maximum(rest_len, 1e-6).astype(np.float32)).to(self.device),
                 "rest": torch.from_numpy(seq.rest).to(self.device).unsqueeze(0),
                 "ctri": None if seq.cfaces is None else torch.from_numpy(seq.cfaces).to(self.device),
-                # the xpbd prior's solver is made from these (weft_sim.PriorPool)
-                "rest_np": seq.rest,
-                "faces_np": seq.faces,
-                "crest_np": None if seq.cpos is None else np.asarray(seq.cpos[0], dtype=np.float32),
-                "cfaces_np": seq.cfaces,
             }
             self.cache[seq.folder] = c
         return c
@@ -81,29 +74,19 @@ def data_stats(seqs, cfg):
         x = np.asarray(s.pos, dtype=np.float64)
         v = x[1:] - x[:-1]
         vel.append(v.reshape(-1))
-        # ("xpbd": measured over X_t, an upper bound of its residual; the solver is not run here)
-        p = 2 * x[1:-1] - x[:-2] if prior == "inertial" else x[1:-1]
-        if prior == "ballistic":
-            p = x[1:-1] + cfg["prior_beta"] * (x[1:-1] - x[:-2])
-            p[..., 1] -= cfg["gravity_step"]
-        if prior == "grasp":   # as model.py: carried velocity, then the attachment to the pins
-            p = x[1:-1] + cfg["prior_beta"] * (x[1:-1] - x[:-2])
-            if s.pinned is not None:
-                rest = np.asarray(s.rest, dtype=np.float64)
-                for t, pm in enumerate(np.asarray(s.pinned[2:]) != 0):   # pinned at t+1
-                    if pm.any():
-                        c, rc = x[t + 2][pm].mean(axis=0), rest[pm].mean(axis=0)
-                        r = np.linalg.norm(rest - rc, axis=1)
-                        d = p[t] - c
-                        L = np.linalg.norm(d, axis=1)
-                        far = L > r
-                        p[t][far] = c + d[far] * (r[far] / L[far])[:, None]
-        if prior == "skinned":
-            if s.skin is None:   # refused after the config is settled (main)
-                continue
-            sk = np.asarray(s.skin, dtype=np.float64)
-            a = cfg["prior_decay"]
-            p = p + sk[2:] - sk[1:-1] if a == 1.0 else sk[2:] + a * (p - sk[1:-1])
+        if prior == "skinned" and s.skin is None:   # refused after the config is settled (main)
+            continue
+        # the prior of every frame t+1 from (X_t, X_{t-1}): model.py's own, in float64; the grasp
+        # prior with its pins at t+1 (the reference's positions), attached as a step's output is
+        xt, xp = torch.from_numpy(x[1:-1]), torch.from_numpy(x[:-2])
+        sk = None if s.skin is None else torch.from_numpy(np.asarray(s.skin, dtype=np.float64))
+        pm = None if prior != "grasp" or s.pinned is None else torch.from_numpy(np.asarray(s.pinned[2:]) != 0)
+        rest = torch.from_numpy(np.asarray(s.rest, dtype=np.float64)).unsqueeze(0)
+        pt = prior_positions(cfg, xt, xp, None if sk is None else sk[2:], None if sk is None else sk[1:-1],
+                             pm, torch.from_numpy(x[2:]), rest)
+        if prior == "grasp" and cfg["attach_output"]:
+            pt = attach(pt, pm, torch.from_numpy(x[2:]), rest)
+        p = pt.numpy()
         res.append((x[2:] - p).reshape(-1))
         if s.cfaces is not None:
             c = np.asarray(s.cpos[0], dtype=np.float64)
@@ -151,10 +134,7 @@ class Rollout(torch.nn.Module):
         self.m = m
         self.cfg = m.cfg
 
-    def forward(self, x_all, c_all, rest, adj, ctri, steps: int, prefill: bool, s_all=None, p_all=None,
-                prior_fn=None):
-        """prior_fn(x_t, x_prev, t) -> Y: the xpbd prior of the state at frame t of the window
-        (xpbd_prior_fn), else None."""
+    def forward(self, x_all, c_all, rest, adj, ctri, steps: int, prefill: bool, s_all=None, p_all=None):
         m = self.m
         base = self.cfg["history"] - 1 if prefill else 0
         hist = []
@@ -162,8 +142,7 @@ class Rollout(torch.nn.Module):
             for k in range(1, base + 1):
                 cn = None if c_all is None else c_all[:, k + 1]
                 cc = None if c_all is None else c_all[:, k]
-                y = None if prior_fn is None else prior_fn(x_all[:, k], x_all[:, k - 1], k)
-                z, _ = m.encode(x_all[:, k], x_all[:, k - 1], adj, cn, cc, ctri, y)
+                z, _ = m.encode(x_all[:, k], x_all[:, k - 1], adj, cn, cc, ctri)
                 hist.append(z)
         xp, x = x_all[:, base], x_all[:, base + 1]
         preds = []
@@ -174,8 +153,7 @@ class Rollout(torch.nn.Module):
             sn = None if s_all is None else s_all[:, t + 1]
             sc = None if s_all is None else s_all[:, t]
             pm = None if p_all is None else p_all[:, t + 1]
-            y = None if prior_fn is None else prior_fn(x, xp, t)
-            xn, hist = m.step(hist, x, xp, rest, adj, cn, cc, ctri, sn, sc, pm, x_all[:, t + 1], y)
+            xn, hist = m.step(hist, x, xp, rest, adj, cn, cc, ctri, sn, sc, pm, x_all[:, t + 1])
             if p_all is not None:
                 xn = torch.where(p_all[:, t + 1].unsqueeze(-1), x_all[:, t + 1], xn)
             preds.append(xn)
@@ -183,37 +161,11 @@ class Rollout(torch.nn.Module):
         return torch.stack(preds, dim=1)
 
 
-def xpbd_prior_fn(cfg, pool, key, mesh, x_all, c_all, p_all):
-    """The xpbd prior for a batch of windows (None for the other priors): Y of the state (x_t,
-    x_prev) at window frame t, from the runtime's XPBD method with the window's colliders at t and
-    t+1 and its pins at t+1 (targets: the reference). Y is a constant to the network."""
-    if cfg["prior"] != "xpbd":
-        return None
-    dev = x_all.device
-    ca = None if c_all is None else c_all.detach().cpu().numpy()
-    pa = None if p_all is None else p_all.detach().cpu().numpy()
-    xa = None if p_all is None else x_all.detach().cpu().numpy()   # the pins' targets
-
-    def fn(x, xp, t):
-        y = pool.batch(key, mesh, x.detach().cpu().numpy(), xp.detach().cpu().numpy(),
-                       None if ca is None else ca[:, t], None if ca is None else ca[:, t + 1],
-                       None if pa is None else pa[:, t + 1], None if pa is None else xa[:, t + 1])
-        return torch.from_numpy(y).to(dev)
-    return fn
-
-
-def prior_pool(cfg, workers):
-    if cfg["prior"] != "xpbd":
-        return None
-    import weft_sim
-    return weft_sim.PriorPool(cfg["prior_substeps"], workers)
-
-
 def rollout_base(cfg, prefill):
     return cfg["history"] - 1 if prefill else 0
 
 
-def evaluate(model, seqs, mc, device, frames=60, pins=False, pool=None):
+def evaluate(model, seqs, mc, device, frames=60, pins=False):
     """Mean vertex error (cm) of an autoregressive rollout from the first two GT frames (with pins:
     the sequence's pinned vertices follow the reference, as `weft eval --pins all`)."""
     ro = Rollout(model)
@@ -228,9 +180,8 @@ def evaluate(model, seqs, mc, device, frames=60, pins=False, pool=None):
         pm = s.pin_window(0, T) if pins else None
         pa = None if pm is None else torch.from_numpy(pm).to(device).unsqueeze(0)
         mesh = mc.get(s)
-        pf = xpbd_prior_fn(model.cfg, pool, s.folder, mesh, xa, ca, pa)
         with torch.no_grad():
-            preds = ro(xa, ca, mesh["rest"], mesh["adj"], mesh["ctri"], T - 2, False, sa, pa, pf)
+            preds = ro(xa, ca, mesh["rest"], mesh["adj"], mesh["ctri"], T - 2, False, sa, pa)
         errs.append(float((preds - xa[:, 2:T]).norm(dim=-1).mean()) * 100.0)
     return float(np.mean(errs)) if errs else float("nan")
 
@@ -316,8 +267,6 @@ def main():
     ap.add_argument("--init-from", default=None,
                     help="start from this checkpoint's weights and config (fine-tuning: fresh optimiser, "
                          "step 0, new schedule); ignored when --resume finds OUT/ckpt.pt")
-    ap.add_argument("--prior-workers", type=int, default=1,
-                    help="threads stepping the xpbd prior's solver over a batch (its C step runs without the GIL)")
     ap.add_argument("--init-head-scale", type=float, default=1.0,
                     help="with --init-from, multiply the output head (dec_head) by this: 0 starts the "
                          "fine-tune exactly at its prior (the skinned prior: at LBS), as a fresh model does")
@@ -419,7 +368,6 @@ def main():
         model = torch.nn.parallel.DistributedDataParallel(model, find_unused_parameters=True,
                                                           broadcast_buffers=False)
     mc = MeshCache(device)
-    pool = prior_pool(cfg, a.prior_workers)
     ccd = None
     ccd_worlds = {}
     if a.stage == "ccd":
@@ -449,7 +397,7 @@ def main():
     if a.keep_best and os.path.exists(best_path):   # resumed: the best so far stays the bar
         best_val = torch.load(best_path, map_location="cpu").get("val_mve_cm", best_val)
     if rank == 0 and a.eval_first and val:
-        v = evaluate(net, val, mc, device, a.eval_frames, a.pins, pool)
+        v = evaluate(net, val, mc, device, a.eval_frames, a.pins)
         print(f"start val MVE {v:.4f} cm at step {step}", file=sys.stderr, flush=True)
         if log:
             log.writerow([step, "", "", "", "", "", "", f"{elapsed_before:.1f}", f"{v:.4f}", ""])
@@ -493,8 +441,7 @@ def main():
         if a.pins and seq.pinned is not None:
             pa = torch.from_numpy(np.stack([seq.pin_window(s0, need) for s0 in starts])).to(device)
         mesh = mc.get(seq)
-        pf = xpbd_prior_fn(cfg, pool, seq.folder, mesh, xa, ca, pa)
-        predt = model(xa, ca, mesh["rest"], mesh["adj"], mesh["ctri"], R, True, sa, pa, pf)
+        predt = model(xa, ca, mesh["rest"], mesh["adj"], mesh["ctri"], R, True, sa, pa)
         preds = predt.unbind(1)
         base = rollout_base(cfg, True)
         mse = 0.0
@@ -527,7 +474,7 @@ def main():
         elapsed = elapsed_before + time.time() - t_start
         val_mve = ""
         if rank == 0 and a.eval_every > 0 and (step % a.eval_every == 0 or step == a.steps) and val:
-            v = evaluate(net, val, mc, device, a.eval_frames, a.pins, pool)
+            v = evaluate(net, val, mc, device, a.eval_frames, a.pins)
             val_mve = f"{v:.4f}"
             if a.keep_best and v < best_val:
                 best_val = v
@@ -565,13 +512,13 @@ def main():
                                   "config": cfg, "elapsed": elapsed_before + time.time() - t_start,
                                   "py_rng": random.getstate(), "torch_rng": torch.get_rng_state()})
             if val:
-                v = evaluate(net, val, mc, device, a.eval_frames, a.pins, pool)
+                v = evaluate(net, val, mc, device, a.eval_frames, a.pins)
                 print(f"\nfinal val MVE {v:.4f} cm", file=sys.stderr)
                 if a.keep_best and v < best_val:
                     save_ckpt(best_path, {"model": net.state_dict(), "config": cfg, "step": step,
                                           "elapsed": elapsed_before + time.time() - t_start, "val_mve_cm": v})
         elif a.max_minutes > 0 and a.eval_every > 0 and val and step % a.eval_every != 0:
-            v = evaluate(net, val, mc, device, a.eval_frames, a.pins, pool)  # where --max-minutes stopped it
+            v = evaluate(net, val, mc, device, a.eval_frames, a.pins)  # where --max-minutes stopped it
             print(f"\nfinal val MVE {v:.4f} cm", file=sys.stderr)
             if log:
                 log.writerow([step, "", "", "", "", "", "", f"{elapsed_before + time.time() - t_start:.1f}", f"{v:.4f}", ""])

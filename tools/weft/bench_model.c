@@ -449,7 +449,7 @@ int weft_bench_model(int argc, char **argv)
     double dot_peak = dot ? bench_peak_rate(dot, min_time) * 1e-9 : NAN;
 
     static const weft_cloth_resolution res[2] = {WEFT_CLOTH_RES_1K, WEFT_CLOTH_RES_4K};
-    static const char *const stems[2] = {"game", "unified"};
+    static const char *const stems[2] = {"game", "garment"};
     static const char *const pnames[3] = {"fp32", "fp16", "int8"};
     static const weft_precision precs[3] = {WEFT_PRECISION_FP32, WEFT_PRECISION_FP16, WEFT_PRECISION_INT8};
     row rows[MAX_ROWS];
