@@ -60,6 +60,11 @@ def main():
     colliders = torch.from_numpy(np.load(os.path.join(d, "colliders.npy")))
     x_t = torch.from_numpy(np.load(os.path.join(d, "x1.npy")))[None]
     x_prev = torch.from_numpy(np.load(os.path.join(d, "x0.npy")))[None]
+    # the skinned prior's S track (frames x V x 3), written beside the colliders
+    skin_path = os.path.join(d, "skin.npy")
+    skin = torch.from_numpy(np.load(skin_path)) if os.path.exists(skin_path) else None
+    if model.cfg["prior"] == "skinned" and skin is None:
+        raise SystemExit(f"the skinned prior needs {skin_path}")
     steps = a.warmup + a.frames
     if colliders.shape[0] < steps + 2:
         raise SystemExit(f"colliders.npy has {colliders.shape[0]} frames, {steps + 2} needed")
@@ -77,7 +82,9 @@ def main():
             t0, c0 = time.perf_counter(), time.thread_time()
             keep = crop_mask(x_t, c_next, ctri, margin)[0]
             tri = ctri[keep]
-            x_next, hist = model.step(hist, x_t, x_prev, rest, adj, c_next, c_cur, tri)
+            s_cur = None if skin is None else skin[1 + k][None]
+            s_next = None if skin is None else skin[2 + k][None]
+            x_next, hist = model.step(hist, x_t, x_prev, rest, adj, c_next, c_cur, tri, s_next, s_cur)
             dc, dt = time.thread_time() - c0, time.perf_counter() - t0
             if k >= a.warmup:
                 times.append(dt * 1e3)

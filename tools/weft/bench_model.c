@@ -36,6 +36,7 @@ typedef struct scene {
     const uint32_t *ctri;
     float *coll;    /* frames x Vc x 3: the posed avatar per frame */
     float *x0, *x1; /* the shirt skinned to frames 0 and 1 */
+    float *skin;    /* frames x V x 3: the skinned prior's S track (the LBS method bound at frame 1) */
     uint32_t frames;
 } scene;
 
@@ -59,7 +60,8 @@ static bool scene_make(weft_context *ctx, const weft_body *avatar, weft_cloth_re
     s->coll = malloc((size_t)frames * s->Vc * 3 * sizeof(float));
     s->x0 = malloc((size_t)s->V * 3 * sizeof(float));
     s->x1 = malloc((size_t)s->V * 3 * sizeof(float));
-    if (!s->coll || !s->x0 || !s->x1) {
+    s->skin = malloc((size_t)frames * s->V * 3 * sizeof(float));
+    if (!s->coll || !s->x0 || !s->x1 || !s->skin) {
         return false;
     }
     weft_motion_def md = weft_default_motion_def(WEFT_MOTION_WALK);
@@ -74,7 +76,34 @@ static bool scene_make(weft_context *ctx, const weft_body *avatar, weft_cloth_re
             return false;
         }
     }
-    return true;
+    /* S_f: the LBS method bound as the model garments are (the shirt at frame 1 on the collider
+     * at frame 1), stepped onto the collider at f; PyTorch's skinned prior reads it */
+    weft_garment_def d = weft_default_garment_def();
+    d.method = WEFT_METHOD_LBS;
+    d.ccd.enabled = false;
+    d.rest_positions = s->shirt->positions;
+    d.vertex_count = s->V;
+    d.triangles = s->shirt->triangles;
+    d.triangle_count = s->F;
+    d.collider_rest_positions = s->coll + (size_t)s->Vc * 3;
+    d.collider_vertex_count = s->Vc;
+    d.collider_triangles = s->ctri;
+    d.collider_triangle_count = s->Fc;
+    d.initial_positions = s->x1;
+    weft_garment *lbs = NULL;
+    bool ok = weft_garment_create(ctx, &d, &lbs) == WEFT_OK;
+    for (uint32_t f = 0; ok && f < frames; ++f) {
+        ok = weft_garment_set_collider(lbs, s->coll + (size_t)f * s->Vc * 3) == WEFT_OK &&
+             weft_garment_step(lbs) == WEFT_OK;
+        if (ok) {
+            memcpy(s->skin + (size_t)f * s->V * 3, weft_garment_positions(lbs), (size_t)s->V * 3 * sizeof(float));
+        }
+    }
+    if (!ok) {
+        fprintf(stderr, "weft bench model: the S track: %s\n", weft_last_error());
+    }
+    weft_garment_destroy(lbs);
+    return ok;
 }
 
 static void scene_free(scene *s)
@@ -83,6 +112,7 @@ static void scene_free(scene *s)
     free(s->coll);
     free(s->x0);
     free(s->x1);
+    free(s->skin);
 }
 
 static const float *coll_frame(const scene *s, uint32_t f) { return s->coll + (size_t)f * s->Vc * 3; }
@@ -287,17 +317,18 @@ static bool write_npy(const char *dir, const char *name, const void *data, const
 
 static bool write_inputs(const scene *s, const char *dir)
 {
-    const size_t v3[2] = {s->V, 3}, f3[2] = {s->F, 3}, c3[2] = {s->Fc, 3}, cs[3] = {s->frames, s->Vc, 3};
+    const size_t v3[2] = {s->V, 3}, f3[2] = {s->F, 3}, c3[2] = {s->Fc, 3}, cs[3] = {s->frames, s->Vc, 3},
+                 ss[3] = {s->frames, s->V, 3};
     return write_npy(dir, "rest", s->shirt->positions, "<f4", 2, v3) &&
            write_npy(dir, "faces", s->shirt->triangles, "<u4", 2, f3) &&
            write_npy(dir, "ctri", s->ctri, "<u4", 2, c3) &&
            write_npy(dir, "colliders", s->coll, "<f4", 3, cs) && write_npy(dir, "x0", s->x0, "<f4", 2, v3) &&
-           write_npy(dir, "x1", s->x1, "<f4", 2, v3);
+           write_npy(dir, "x1", s->x1, "<f4", 2, v3) && write_npy(dir, "skin", s->skin, "<f4", 3, ss);
 }
 
 static void remove_inputs(const char *dir)
 {
-    static const char *const names[] = {"rest", "faces", "ctri", "colliders", "x0", "x1"};
+    static const char *const names[] = {"rest", "faces", "ctri", "colliders", "x0", "x1", "skin"};
     char path[1200];
     for (size_t i = 0; i < sizeof names / sizeof names[0]; ++i) {
         snprintf(path, sizeof path, "%s/%s.npy", dir, names[i]);
@@ -458,6 +489,7 @@ int weft_bench_model(int argc, char **argv)
     bool have[2] = {false, false};
     char tmpdir[] = "/tmp/weft_bench_model_XXXXXX";
     bool have_tmp = torch && mkdtemp(tmpdir) != NULL;
+    bool failed = torch && !have_tmp; /* any model, garment or PyTorch run that could not be measured */
     bench_gemm_probe probes[2] = {{NAN, NAN, NAN, NAN}, {NAN, NAN, NAN, NAN}};
     uint32_t probe_shape[2][3] = {{0, 0, 0}, {0, 0, 0}};
     for (int r = 0; r < 2; ++r) {
@@ -467,6 +499,10 @@ int weft_bench_model(int argc, char **argv)
         }
         const scene *s = &scenes[r];
         bool inputs = have_tmp && write_inputs(s, tmpdir);
+        if (have_tmp && !inputs) {
+            fprintf(stderr, "weft bench model: could not write PyTorch's inputs under %s\n", tmpdir);
+            failed = true;
+        }
         for (int mi = 0; mi < 2; ++mi) {
             char base[256], path[1200];
             snprintf(base, sizeof base, "%s.safetensors", stems[mi]);
@@ -477,6 +513,7 @@ int weft_bench_model(int argc, char **argv)
                 t_torch = torch_ms(script, path, tmpdir, warm, timed, why, sizeof why);
                 if (isnan(t_torch)) {
                     fprintf(stderr, "weft bench model: PyTorch %s: %s\n", stems[mi], why);
+                    failed = true;
                 }
             }
             for (int pi = 0; pi < 3; ++pi) {
@@ -484,9 +521,11 @@ int weft_bench_model(int argc, char **argv)
                 weft_model *m = NULL;
                 if (weft_model_load_file(ctx, path, &m) != WEFT_OK) {
                     fprintf(stderr, "weft bench model: %s: %s\n", path, weft_last_error());
+                    failed = true;
                     continue;
                 }
                 weft_garment *g = garment_make(ctx, s, m, precs[pi]);
+                failed = failed || !g;
                 double kept = 0;
                 const double macs = macs_per_frame(ctx, s, m, precs[pi], warm + timed, &kept);
                 double wall = NAN, ms = NAN;
@@ -559,6 +598,19 @@ int weft_bench_model(int argc, char **argv)
         dot_peak = fmax(dot_peak, bench_peak_rate(dot, min_time) * 1e-9);
     }
 
+    /* ---- report: only of a run that measured everything it set out to ---- */
+    for (int r = 0; r < 2; ++r) {
+        failed = failed || !have[r];
+    }
+    if (failed) {
+        fprintf(stderr, "weft bench model: failed (above); no table written\n");
+        for (int r = 0; r < 2; ++r) {
+            scene_free(&scenes[r]); /* scene_make leaves a scene it could not finish freeable */
+        }
+        weft_body_destroy(avatar);
+        weft_context_destroy(ctx);
+        return 1;
+    }
     /* ---- report ---- */
     const char *dot_name = q ? q->variant : "none";
     if (md) {
