@@ -36,7 +36,6 @@ typedef struct scene {
     const uint32_t *ctri;
     float *coll;    /* frames x Vc x 3: the posed avatar per frame */
     float *x0, *x1; /* the shirt skinned to frames 0 and 1 */
-    float *skin;    /* frames x V x 3: the skinned prior's S track (the LBS method bound at frame 1) */
     uint32_t frames;
 } scene;
 
@@ -60,8 +59,7 @@ static bool scene_make(weft_context *ctx, const weft_body *avatar, weft_cloth_re
     s->coll = malloc((size_t)frames * s->Vc * 3 * sizeof(float));
     s->x0 = malloc((size_t)s->V * 3 * sizeof(float));
     s->x1 = malloc((size_t)s->V * 3 * sizeof(float));
-    s->skin = malloc((size_t)frames * s->V * 3 * sizeof(float));
-    if (!s->coll || !s->x0 || !s->x1 || !s->skin) {
+    if (!s->coll || !s->x0 || !s->x1) {
         return false;
     }
     weft_motion_def md = weft_default_motion_def(WEFT_MOTION_WALK);
@@ -76,34 +74,7 @@ static bool scene_make(weft_context *ctx, const weft_body *avatar, weft_cloth_re
             return false;
         }
     }
-    /* S_f: the LBS method bound as the model garments are (the shirt at frame 1 on the collider
-     * at frame 1), stepped onto the collider at f; PyTorch's skinned prior reads it */
-    weft_garment_def d = weft_default_garment_def();
-    d.method = WEFT_METHOD_LBS;
-    d.ccd.enabled = false;
-    d.rest_positions = s->shirt->positions;
-    d.vertex_count = s->V;
-    d.triangles = s->shirt->triangles;
-    d.triangle_count = s->F;
-    d.collider_rest_positions = s->coll + (size_t)s->Vc * 3;
-    d.collider_vertex_count = s->Vc;
-    d.collider_triangles = s->ctri;
-    d.collider_triangle_count = s->Fc;
-    d.initial_positions = s->x1;
-    weft_garment *lbs = NULL;
-    bool ok = weft_garment_create(ctx, &d, &lbs) == WEFT_OK;
-    for (uint32_t f = 0; ok && f < frames; ++f) {
-        ok = weft_garment_set_collider(lbs, s->coll + (size_t)f * s->Vc * 3) == WEFT_OK &&
-             weft_garment_step(lbs) == WEFT_OK;
-        if (ok) {
-            memcpy(s->skin + (size_t)f * s->V * 3, weft_garment_positions(lbs), (size_t)s->V * 3 * sizeof(float));
-        }
-    }
-    if (!ok) {
-        fprintf(stderr, "weft bench model: the S track: %s\n", weft_last_error());
-    }
-    weft_garment_destroy(lbs);
-    return ok;
+    return true;
 }
 
 static void scene_free(scene *s)
@@ -112,18 +83,15 @@ static void scene_free(scene *s)
     free(s->coll);
     free(s->x0);
     free(s->x1);
-    free(s->skin);
 }
 
 static const float *coll_frame(const scene *s, uint32_t f) { return s->coll + (size_t)f * s->Vc * 3; }
 
-/* A garment of the model placed at frame 1 (moving: X_0 != X_1). */
-static weft_garment *garment_make(weft_context *ctx, const scene *s, const weft_model *m, weft_precision p)
+/* The scene's shirt placed at frame 1 (skinned to it, bound to the collider there), CCD off. */
+static weft_garment_def scene_garment_def(const scene *s, weft_method method)
 {
     weft_garment_def d = weft_default_garment_def();
-    d.method = WEFT_METHOD_MODEL;
-    d.model = m;
-    d.precision = p;
+    d.method = method;
     d.ccd.enabled = false; /* the model alone: CCD has its own benchmark (weft bench ccd) */
     d.rest_positions = s->shirt->positions;
     d.vertex_count = s->V;
@@ -134,6 +102,15 @@ static weft_garment *garment_make(weft_context *ctx, const scene *s, const weft_
     d.collider_triangles = s->ctri;
     d.collider_triangle_count = s->Fc;
     d.initial_positions = s->x1;
+    return d;
+}
+
+/* A garment of the model placed at frame 1 (moving: X_0 != X_1). */
+static weft_garment *garment_make(weft_context *ctx, const scene *s, const weft_model *m, weft_precision p)
+{
+    weft_garment_def d = scene_garment_def(s, WEFT_METHOD_MODEL);
+    d.model = m;
+    d.precision = p;
     weft_garment *g = NULL;
     if (weft_garment_create(ctx, &d, &g) != WEFT_OK || weft_garment_set_state(g, s->x1, s->x0) != WEFT_OK) {
         fprintf(stderr, "weft bench model: garment: %s\n", weft_last_error());
@@ -315,15 +292,39 @@ static bool write_npy(const char *dir, const char *name, const void *data, const
     return fclose(f) == 0 && ok;
 }
 
-static bool write_inputs(const scene *s, const char *dir)
+/* S_f, the skinned prior's S track (frames x V x 3 into out): the LBS method bound as the model
+ * garments are, stepped onto the collider at f. */
+static bool skin_track(weft_context *ctx, const scene *s, float *out)
+{
+    const weft_garment_def d = scene_garment_def(s, WEFT_METHOD_LBS);
+    weft_garment *lbs = NULL;
+    bool ok = weft_garment_create(ctx, &d, &lbs) == WEFT_OK;
+    for (uint32_t f = 0; ok && f < s->frames; ++f) {
+        ok = weft_garment_set_collider(lbs, coll_frame(s, f)) == WEFT_OK && weft_garment_step(lbs) == WEFT_OK;
+        if (ok) {
+            memcpy(out + (size_t)f * s->V * 3, weft_garment_positions(lbs), (size_t)s->V * 3 * sizeof(float));
+        }
+    }
+    if (!ok) {
+        fprintf(stderr, "weft bench model: the S track: %s\n", weft_last_error());
+    }
+    weft_garment_destroy(lbs);
+    return ok;
+}
+
+/* PyTorch's inputs as .npy files under dir, the S track among them. */
+static bool write_inputs(weft_context *ctx, const scene *s, const char *dir)
 {
     const size_t v3[2] = {s->V, 3}, f3[2] = {s->F, 3}, c3[2] = {s->Fc, 3}, cs[3] = {s->frames, s->Vc, 3},
                  ss[3] = {s->frames, s->V, 3};
-    return write_npy(dir, "rest", s->shirt->positions, "<f4", 2, v3) &&
-           write_npy(dir, "faces", s->shirt->triangles, "<u4", 2, f3) &&
-           write_npy(dir, "ctri", s->ctri, "<u4", 2, c3) &&
-           write_npy(dir, "colliders", s->coll, "<f4", 3, cs) && write_npy(dir, "x0", s->x0, "<f4", 2, v3) &&
-           write_npy(dir, "x1", s->x1, "<f4", 2, v3) && write_npy(dir, "skin", s->skin, "<f4", 3, ss);
+    float *skin = malloc((size_t)s->frames * s->V * 3 * sizeof(float));
+    const bool ok = skin && skin_track(ctx, s, skin) && write_npy(dir, "rest", s->shirt->positions, "<f4", 2, v3) &&
+                    write_npy(dir, "faces", s->shirt->triangles, "<u4", 2, f3) &&
+                    write_npy(dir, "ctri", s->ctri, "<u4", 2, c3) &&
+                    write_npy(dir, "colliders", s->coll, "<f4", 3, cs) && write_npy(dir, "x0", s->x0, "<f4", 2, v3) &&
+                    write_npy(dir, "x1", s->x1, "<f4", 2, v3) && write_npy(dir, "skin", skin, "<f4", 3, ss);
+    free(skin);
+    return ok;
 }
 
 static void remove_inputs(const char *dir)
@@ -498,7 +499,7 @@ int weft_bench_model(int argc, char **argv)
             continue;
         }
         const scene *s = &scenes[r];
-        bool inputs = have_tmp && write_inputs(s, tmpdir);
+        bool inputs = have_tmp && write_inputs(ctx, s, tmpdir);
         if (have_tmp && !inputs) {
             fprintf(stderr, "weft bench model: could not write PyTorch's inputs under %s\n", tmpdir);
             failed = true;
