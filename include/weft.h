@@ -259,10 +259,11 @@ typedef enum weft_collider_cap {
  * The skinned position is the initial state bound to the collider at creation (the binding
  * WEFT_METHOD_LBS uses) and carried by the collider of t+1; set_state does not rebind. Radius 0
  * glues a vertex (a waistband for a method without pins). Pinned vertices keep their targets.
- * Needs a collider. With WEFT_METHOD_XPBD the clamp moves cloth past the bounds that keep it out
- * of the collider: where the skinned positions lie inside the body or across a limb (a body that
- * overlaps itself, real motion) the reference's cloth is pulled into the body and stays there
- * (docs/STABILITY_MOCAP.md, The reference XPBD on real motion). */
+ * Needs a collider. With WEFT_METHOD_XPBD's bounded contacts the clamp moves cloth past the bounds
+ * that keep it out of the collider, and cloth pulled into the body stays there. With
+ * collider_projection the solver holds the max distance inside its substeps instead, before the
+ * bounds that keep the cloth off itself, and there is no clamp after the step: a vertex those
+ * bounds held back may end a step beyond its radius (the reference on real motion, docs/REFSIM.md). */
 typedef struct weft_tether_def {
     float distance;                     /* metres, one radius for every vertex; 0 (default) = off; finite, >= 0 */
     const float *distances;             /* optional vertex_count radii (finite, >= 0) replacing distance */
@@ -384,6 +385,18 @@ typedef struct weft_garment_def {
      * run as with fixed substeps. Ground truth uses it; 0 (default) keeps every frame at
      * `substeps`, a game's fixed budget. At most 4000. */
     uint32_t substeps_max;
+    /* WEFT_METHOD_XPBD: how the solver meets the collider. false (default): bounded contacts, so
+     * cloth never crosses the collider (the penetration-free reference, exact where the collider
+     * does not overlap itself). true: each substep, cloth inside the collider (up to 2 cm deep) or
+     * nearer than the contact radius moves out along the nearest surface's pseudonormal, among
+     * the vertex's body parts (collision.triangle_parts), with Coulomb friction, as
+     * WEFT_METHOD_XPBD_FAST does; cloth-cloth contacts keep their bounds. On a body that overlaps
+     * itself (real motion capture) bounded contacts trap the cloth the body has passed, and the
+     * reference on real motion projects instead (docs/REFSIM.md, *Real motion*). The projection
+     * and the max distance (tethers) act inside the substeps before the cloth-cloth bounds, so the
+     * cloth stays certified against itself; substeps_max then keeps the body's step within the
+     * bounds of the cloth it carries. Ignored by the other methods. */
+    bool collider_projection;
 
     /* WEFT_METHOD_MODEL: collider cropping (ignored by other methods, but still validated).
      * collider_crop_margin: metres; 0 (default) means the model's own crop_margin (0.15 m for

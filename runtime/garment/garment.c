@@ -346,6 +346,7 @@ weft_result weft_garment_create(weft_context *context, const weft_garment_def *d
     g->precision = def->precision;
     g->substeps = def->substeps;
     g->substeps_max = def->substeps_max > def->substeps ? def->substeps_max : def->substeps;
+    g->collider_projection = def->method == WEFT_METHOD_XPBD && def->collider_projection;
     g->ccd = def->ccd.enabled;
     g->ccd_iterations = def->ccd.iterations;
     g->crop_margin = def->collider_crop_margin;
@@ -740,11 +741,16 @@ weft_result weft__garment_finish_step(weft_garment *g)
             memcpy(g->x_next + 3 * (size_t)g->pin_indices[k], g->pin_targets + 3 * (size_t)k, 3 * sizeof(float));
         }
     }
-    if (g->tether_radius) {
+    /* A projecting XPBD holds the max distance inside its substeps, within the bounds that keep the
+     * cloth off itself; a clamp after them would move cloth across cloth. */
+    const bool tethers = g->tether_radius && !g->collider_projection;
+    if (tethers) {
         weft_result r = apply_tethers(g, skinned);
         if (r != WEFT_OK) {
             return r;
         }
+    } else {
+        g->stats.tether_vertices_clamped = 0;
     }
     g->stats.attachment_vertices_clamped = weft__attach_clamp(g);
     if (g->near_inside && g->ccd_state) {
@@ -760,7 +766,7 @@ weft_result weft__garment_finish_step(weft_garment *g)
     if (g->push_thickness > 0.0f) {
         weft__push(g); /* out of the collider, so that CCD starts from a frame the body does not cut */
     }
-    if (g->tether_radius && (g->strain_limit > 0.0f || g->push_thickness > 0.0f)) {
+    if (tethers && (g->strain_limit > 0.0f || g->push_thickness > 0.0f)) {
         /* The strain limit and the push may carry a vertex past its radius again: the max distance
          * is what keeps a garment on its wearer, so it has the last word before CCD. The
          * attachments do not: a cloth swinging from its pins is held out of the body by the push,

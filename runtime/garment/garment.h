@@ -33,6 +33,7 @@ struct weft_garment {
     weft_precision precision;
     uint32_t substeps;
     uint32_t substeps_max;              /* XPBD: fast-collider frames get up to this many (>= substeps) */
+    bool collider_projection;           /* XPBD: the collider as a projection, not bounded contacts */
     bool ccd;
     uint32_t ccd_iterations;            /* CCD back-off passes before the fallback */
     float crop_margin;                  /* model collider crop: metres, 0 = the model's own */

@@ -186,7 +186,8 @@ void weft__near_free_state(weft_garment *g)
 
 weft_result weft__near_create(weft_garment *g)
 {
-    const bool fast = g->method == WEFT_METHOD_XPBD_FAST; /* its collider projection (xpbd_solver.c) */
+    /* the fast method's collider projection, or the reference's when it projects (xpbd_solver.c) */
+    const bool fast = g->method == WEFT_METHOD_XPBD_FAST || g->collider_projection;
     const bool want = g->strain_contact > 0.0f || g->push_thickness > 0.0f || fast;
     if (!want || g->collider_vertex_count == 0) {
         return WEFT_OK;

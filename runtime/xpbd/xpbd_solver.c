@@ -112,6 +112,8 @@ typedef struct xpbd_state {
     /* WEFT_METHOD_XPBD_FAST: the game-engine collision projection replaces the bounds and the
      * contact lists, which are then not allocated. */
     bool fast;
+    bool project; /* WEFT_METHOD_XPBD with collider_projection: the fast method's collider
+                   * projection each substep instead of collider contacts and their bounds */
     uint32_t *near_seed; /* per cloth vertex: its last nearest collider triangle (a search seed) */
     /* Body parts (garment/parts.c), NULL without a partition: a contact pairs a cloth vertex
      * with collider geometry of a part in its mask only. Owned by the garment. */
@@ -371,7 +373,8 @@ static bool params_valid(const xpbd_params *p)
 static weft_result create_state(weft_garment *g, bool fast)
 {
     const weft_context *ctx = g->ctx;
-    if (fast && g->collider_vertex_count > 0 && !g->near_tree) {
+    const bool project = !fast && g->collider_projection && g->collider_vertex_count > 0;
+    if ((fast || project) && g->collider_vertex_count > 0 && !g->near_tree) {
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "xpbd-fast: the collider tree was not made");
     }
     xpbd_state *s = weft__alloc(ctx, sizeof *s);
@@ -380,6 +383,7 @@ static weft_result create_state(weft_garment *g, bool fast)
     }
     s->p = xpbd_default_params();
     s->fast = fast;
+    s->project = project;
     s->n = g->vertex_count;
     s->nc = g->collider_vertex_count;
     s->part_mask = g->part_mask;
@@ -432,8 +436,11 @@ static weft_result create_state(weft_garment *g, bool fast)
         ok = ALLOC_ARR(s->csnap, 3 * nc) && ALLOC_ARR(s->cwin, nc) && ALLOC_ARR(s->cs_pairs, 3 * nc) &&
              ALLOC_ARR(s->box_ctri, 6 * s->nctri) && ALLOC_ARR(s->box_cedge, 6 * s->ctopo.edge_count);
     }
+    if (ok && (fast || project)) {
+        ok = ALLOC_ARR(s->near_seed, n);
+    }
     if (ok && fast) {
-        ok = ALLOC_ARR(s->near_seed, n) && ALLOC_ARR(s->vert_owner, n) && ALLOC_ARR(s->tri_edge, 3 * s->ntri);
+        ok = ALLOC_ARR(s->vert_owner, n) && ALLOC_ARR(s->tri_edge, 3 * s->ntri);
     }
 #undef ALLOC_ARR
     /* hinge arrays have one spare slot so a hinge-free mesh still gets a valid pointer */
@@ -456,9 +463,11 @@ static weft_result create_state(weft_garment *g, bool fast)
         state_free(ctx, s);
         return r;
     }
+    for (uint32_t i = 0; (fast || project) && i < n; ++i) {
+        s->near_seed[i] = UINT32_MAX;
+    }
     if (fast) {
         for (uint32_t i = 0; i < n; ++i) {
-            s->near_seed[i] = UINT32_MAX;
             s->vert_owner[i] = UINT32_MAX;
         }
         for (uint32_t t = 0; t < s->ntri; ++t) {
@@ -527,6 +536,17 @@ weft_result weft__xpbd_export_state(const weft_garment *g, double *x, double *v)
     const xpbd_state *s = g->method_state;
     if (!s->have_state) {
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "xpbd export: the garment has not stepped since its state was set");
+    }
+    for (size_t i = 0; i < 3 * (size_t)s->n; ++i) {
+        if ((float)s->xd[i] != g->x[i]) {
+            /* The constraint stage moved the cloth after the solve: the next step starts from the
+             * float positions (begin_frame), and so does the exported state. */
+            for (size_t k = 0; k < 3 * (size_t)s->n; ++k) {
+                x[k] = g->x[k];
+                v[k] = ((double)g->x[k] - (double)g->x_prev[k]) / FRAME_DT;
+            }
+            return WEFT_OK;
+        }
     }
     memcpy(x, s->xd, 3 * (size_t)s->n * sizeof(double));
     memcpy(v, s->vd, 3 * (size_t)s->n * sizeof(double));
@@ -993,7 +1013,7 @@ static bool traverse(weft_garment *g, xpbd_state *s, double r, const pass_fns *f
             geo_bvh_query_above(&s->bvh_edge, dc->lo, dc->hi, e, fns->self_ee, dc);
         }
     }
-    if (s->nc > 0) {
+    if (s->nc > 0 && !s->project) {
         (void)g;
         const geo_bvh_node *root = &s->bvh_tri.nodes[0];
         dc->list = PL_VT_COLLIDER;
@@ -1566,21 +1586,64 @@ static weft_result end_frame(weft_garment *g, xpbd_state *s)
         s->stats.min_self_distance = s->fast ? s->p.self_radius : s->rq;
     }
     if (!isfinite(s->stats.min_collider_distance)) {
-        s->stats.min_collider_distance = s->fast ? s->p.collider_radius + FAST_DEPTH : s->rq;
+        s->stats.min_collider_distance = s->fast || s->project ? s->p.collider_radius + FAST_DEPTH : s->rq;
     }
     measure(g, s);
     return WEFT_OK;
+}
+
+static uint32_t fast_collide_body(weft_garment *g, xpbd_state *s);
+
+/* Free vertices farther than their radius from their target (the skinned garment) go onto the
+ * sphere. */
+static void hold_max_distance(const weft_garment *g, xpbd_state *s, const float *targets)
+{
+    if (!targets) {
+        return;
+    }
+    for (uint32_t i = 0; i < s->n; ++i) {
+        if (s->pinned[i]) {
+            continue;
+        }
+        double *x = s->x + 3 * (size_t)i, d[3];
+        const float *t = targets + 3 * (size_t)i;
+        for (int a = 0; a < 3; ++a) {
+            d[a] = x[a] - (double)t[a];
+        }
+        const double l = geo_len(d), r = g->tether_radius[i];
+        if (l > r) {
+            for (int a = 0; a < 3; ++a) {
+                x[a] = (double)t[a] + d[a] * (r / l);
+            }
+        }
+    }
 }
 
 static weft_result xpbd_step(weft_garment *g)
 {
     xpbd_state *s = g->method_state;
     const bool adaptive = g->substeps_max > g->substeps && s->nc > 0;
-    const double near_travel = adaptive ? near_collider_travel(g, s) : 0.0;
+    const double near_travel = adaptive || (s->project && s->nc > 0) ? near_collider_travel(g, s) : 0.0;
+    /* A projected collider moves the cloth it meets as fast as it goes: the bounds leave room
+     * for that speed (cloth the bounds hold back is left inside, and goes out over the next
+     * substeps; raised substeps keep the body's step within the bounds of cloth near it). */
+    const double body_speed = s->project ? near_travel / FRAME_DT : 0.0;
     const uint32_t n = s->n, nc = s->nc, S = adaptive ? frame_substeps(g, &s->p, near_travel) : g->substeps;
     const bool raised = S > g->substeps;
     const double h = FRAME_DT / S;
     begin_frame(g, s, S);
+    /* With a projected collider the max distance (tethers) is held inside the substeps, toward
+     * the garment skinned onto the collider at t+1; the constraint stage's clamp after the step
+     * then finds (nearly) nothing to move. */
+    const float *tethers = NULL;
+    if (s->project && g->tether_radius && g->skin) {
+        weft_result tr = geo_skin_eval(g->skin, g->collider_triangles, g->collider_next, "xpbd: max distance",
+                                       g->tether_target);
+        if (tr != WEFT_OK) {
+            return tr;
+        }
+        tethers = g->tether_target;
+    }
     const bool chord_safe = s->chord_safe;
     s->chord_safe = false;
     const bool record = s->rec && S <= s->rec_cap;
@@ -1625,6 +1688,7 @@ static weft_result xpbd_step(weft_garment *g)
                 double sp = geo_len(s->v + 3 * (size_t)i);
                 vmax = sp > vmax ? sp : vmax;
             }
+            vmax = fmax(vmax, body_speed);
             double travel = (vmax + s->p.gravity * h * S) * h * S;
             s->rq = fmin(fmax(s->p.query_radius, travel / s->p.bound_gamma + 2.0 * s->p.collider_radius), RQ_MAX);
             memcpy(s->xs, s->x, 3 * (size_t)n * sizeof(double));
@@ -1648,6 +1712,7 @@ static weft_result xpbd_step(weft_garment *g)
                 double sp = geo_len(s->v + 3 * (size_t)i);
                 vmax = sp > vmax ? sp : vmax;
             }
+            vmax = fmax(vmax, body_speed);
             window = frame_only ? S : (S - step < s->p.detect_window ? S - step : s->p.detect_window);
             /* Moving kinematic geometry shortens the window. Its displacement D over the window
              * is taken off the bounds of the cloth near it, so cloth pushed by it can retreat at
@@ -1665,7 +1730,8 @@ static weft_result xpbd_step(weft_garment *g)
              * fastest collider vertex, so it runs exactly as with fixed substeps: drops, and
              * grippers whose fingers never outrun the condition, come out bit-identical. */
             const double collider_window = raised ? fast_collider_step(&s->p) : s->p.collider_radius / 3.0;
-            const double collider_step = raised ? near_travel / S : cdisp_max;
+            /* A projected collider (collider_projection) sets no bounds to keep pace with. */
+            const double collider_step = s->project ? 0.0 : raised ? near_travel / S : cdisp_max;
             while (!frame_only && window > 1 &&
                    (collider_step * window > collider_window ||
                     (s->p.self_collision && pin_step_max * window > kin_frac * s->p.self_radius))) {
@@ -1704,7 +1770,7 @@ static weft_result xpbd_step(weft_garment *g)
             while (window > 1 && !frame_only) {
                 uint32_t misfits = 0;
                 for (uint32_t i = 0; i < n && misfits <= clamp_redetect; ++i) {
-                    double need = (geo_len(s->v + 3 * (size_t)i) + s->p.gravity * h * window) * h * window;
+                    double need = (fmax(geo_len(s->v + 3 * (size_t)i), body_speed) + s->p.gravity * h * window) * h * window;
                     misfits += !s->pinned[i] && need > s->bound[i];
                 }
                 if (misfits <= clamp_redetect) {
@@ -1717,6 +1783,14 @@ static weft_result xpbd_step(weft_garment *g)
         predict(s, h, a1);
         solve_elastic(g, s, h);
         s->stats.contacts += solve_contacts(s);
+        if (s->project) {
+            /* The max distance and the collider, as the fast method meets it (cloth inside or
+             * within the contact radius moves out along the nearest surface of its parts), before
+             * the bounds: the cloth-cloth certificate holds, and a vertex a bound stops short
+             * goes on out over the next substeps. */
+            hold_max_distance(g, s, tethers);
+            s->stats.contacts += fast_collide_body(g, s);
+        }
         uint32_t clamped_now = 0;
         for (uint32_t i = 0; i < n; ++i) {
             double *xi = s->x + 3 * (size_t)i;

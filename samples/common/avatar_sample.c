@@ -7,7 +7,7 @@
 
 #include "weft_sample.h"
 #include "weft_scenes.h"
-#include "wear.h"
+#include "weft/wear.h"
 #include "pc2.h"
 #include "character.h"
 #include "core/core.h"
@@ -811,7 +811,8 @@ weft_garment_def weft_sample_body_garment_def(const weft_body *body, weft_method
 
 bool weft_sample_parts_on(int mode, weft_method method, bool ccd)
 {
-    return mode >= 0 ? mode != 0 : (method == WEFT_METHOD_XPBD || ccd);
+    (void)method;
+    return mode >= 0 ? mode != 0 : ccd;
 }
 
 float weft_sample_worn_tether_cm(weft_cloth_kind kind)
@@ -849,11 +850,9 @@ static weft_garment_def worn_def_on(const weft_sample_collider *col, weft_cloth_
     }
     if (method == WEFT_METHOD_XPBD) {
         /* The reference runs as weft simgen runs it on real motion (docs/REFSIM.md, Real motion):
-         * the body parts within 1 cm of each vertex at rest, without their neighbours, and none of
-         * the fix-ups a game step needs (a post-step move breaks its penetration-free bounds). */
-        d.collision.part_neighbours = false;
-        d.collision.part_margin = 0.01f;
-        d.tethers.distance = 0.0f;
+         * its cloth-cloth bounds, the collider projected and the max distance held each substep, no
+         * push after the step (it would move cloth past the bounds). */
+        d.collider_projection = true;
         d.collision.push = 0.0f;
     }
     weft_sample_set_substeps(&d, 0);

@@ -1,6 +1,6 @@
 /* A user's skinned character as the collider (character.h). */
 #include "character.h"
-#include "wear.h"
+#include "weft/wear.h"
 #include "core/core.h"
 #include "weft/body.h"
 

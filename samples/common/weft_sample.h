@@ -3,6 +3,7 @@
 #define WEFT_SAMPLE_H
 
 #include "weft_render.h"
+#include "weft/wear.h"
 
 #include <stdio.h>
 
@@ -163,18 +164,10 @@ weft_garment_def weft_sample_body_garment_def(const weft_body *body, weft_method
  * (collision.ground), no CCD, a max distance of weft_sample_worn_tether_cm(cloth->kind), a 0.5 cm
  * push from up to 6 cm deep, and for the learned model a 10 % strain limit and at most
  * WEFT_WORN_COLLIDER_TOKENS collider tokens, an even sample of its crop (WEFT_COLLIDER_CAP_SAMPLE;
- * docs/LOD.md, Collider crop). The reference XPBD
- * (WEFT_METHOD_XPBD) gets simgen's recipe instead: parts within 1 cm without their neighbours, no
- * max distance, no push, and up to WEFT_REFERENCE_SUBSTEP_FACTOR times its substeps on fast
- * frames. Callers override fields after it (the sample's options). Fails only when the parts
- * cannot be made. */
-#define WEFT_WORN_TETHER_CM 8.0f
-#define WEFT_WORN_TETHER_SKIRT_CM 16.0f
-#define WEFT_WORN_TETHER_DRESS_CM 12.0f
-#define WEFT_WORN_PUSH_CM 0.5f
-#define WEFT_WORN_PUSH_DEPTH_CM 6.0f
-#define WEFT_WORN_STRAIN_PCT 10.0f
-#define WEFT_WORN_COLLIDER_TOKENS 1024u
+ * docs/LOD.md, Collider crop); the constants are weft/wear.h's. The reference XPBD
+ * (WEFT_METHOD_XPBD) runs as simgen runs it on real motion: the same recipe with its collider
+ * projected each substep (collider_projection). Callers override fields after it (the sample's
+ * options). Fails only when the parts cannot be made. */
 weft_result weft_sample_worn_def(const weft_body *body, const weft_cloth_mesh *cloth, weft_method method, uint8_t *parts,
                                  weft_garment_def *out);
 /* The recipe's max distance for a garment kind, in cm: WEFT_WORN_TETHER_SKIRT_CM for skirts and

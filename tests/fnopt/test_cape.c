@@ -1,7 +1,7 @@
 /* The render sample's FNOpt cape (samples/common/cape.c): argument checks, pins that follow the
  * body, a cloth that hangs below them, and a finite state over a few steps of a walk. */
 #include "fnopt_test_util.h"
-#include "wear.h"
+#include "weft/wear.h"
 #include "weft_sample.h"
 
 #if WEFT_RENDER_HAVE_SAMPLE

@@ -191,7 +191,7 @@ static void failed_run_writes_no_manifest(void)
 
 /* --mocap: windows of the library's clips (WEFT_MOCAP_DIR, set by the test), here the first of
  * the test clip walk_cmu07_01, short and unvalidated: its meta.json carries the library's split,
- * the clip and the body-parts rule; the name says clip, vertices and first frame. Bad --mocap
+ * the clip and the body rule of real motion; the name says clip, vertices and first frame. Bad --mocap
  * values and unknown clips are refused, and --clips needs --mocap. */
 static void mocap_windows_of_library_clips(void)
 {
@@ -208,7 +208,28 @@ static void mocap_windows_of_library_clips(void)
     CHECK_MSG(strstr(text, "\"split\":\t\"test\"") != NULL, "no test split in %.300s", text);
     CHECK_MSG(strstr(text, "\"clip\":\t\"walk_cmu07_01\"") != NULL, "no clip in %.300s", text);
     CHECK_MSG(strstr(text, "mocap walk_cmu07_01 from 0.00 s") != NULL, "description: %.300s", text);
-    CHECK(strstr(text, "\"body_parts\"") != NULL);
+    CHECK(strstr(text, "\"inside_clear_limit\"") != NULL); /* the body rule of real motion */
+    /* validated: the cloth is certified against itself and the body measured in every frame; the
+     * window is accepted or rejected for a named reason (a cloth-cloth hit, or cloth inside the body) */
+    snprintf(meta, sizeof meta, "%s/mocap_walk_cmu07_01_v256_00020/meta.json", dir);
+    unlink(meta);
+    const char *checked[] = {g_exe, "simgen", "--out", dir, "--mocap", "test", "--clips", "walk_cmu07_01", "--vertices",
+                             "256", "--frames", "20", "--substeps", "10", "--max-substeps", "10", "--limit", "2", NULL};
+    CHECK_EQ_INT(tool_run_err(checked, NULL, err), 0);
+    tool_slurp(meta, text, sizeof text);
+    double inside_mean = -1.0, clear_max = -1.0;
+    const char *p = strstr(text, "\"inside_body_mean\":");
+    CHECK_MSG(p && sscanf(p + 19, "%lf", &inside_mean) == 1, "no inside_body_mean in %.400s", text);
+    p = strstr(text, "\"inside_clear_max\":");
+    CHECK_MSG(p && sscanf(p + 19, "%lf", &clear_max) == 1, "no inside_clear_max in %.400s", text);
+    CHECK_MSG(inside_mean >= 0.0 && inside_mean <= 1.0 && clear_max >= 0.0 && clear_max <= 1.0, "%g %g", inside_mean,
+              clear_max);
+    if (strstr(text, "\"accepted\":\tfalse")) {
+        CHECK_MSG(strstr(text, "\"inside_clear_rejected\":\ttrue") || !strstr(text, "\"first_hit_frame\":\t-1"),
+                  "rejected without a reason: %.600s", text);
+    } else {
+        CHECK_MSG(clear_max <= WEFT_SIM_INSIDE_CLEAR_MAX, "accepted with %g of the cloth inside the clear body", clear_max);
+    }
     const char *bad[] = {g_exe, "simgen", "--out", dir, "--mocap", "holdout", NULL};
     CHECK_EQ_INT(tool_run(bad, NULL), 2);
     const char *unknown[] = {g_exe, "simgen", "--out", dir, "--mocap", "all", "--clips", "moonwalk_cmu99", NULL};

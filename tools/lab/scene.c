@@ -1,5 +1,6 @@
 /* Procedural geometry and kinematics for the drop and gripper scenarios. */
 #include "weft/ccd.h"
+#include "weft/wear.h"
 #include "scene.h"
 #include "bvh.h"
 
@@ -1026,6 +1027,7 @@ static weft_result build_garment(weft_context *ctx, xscene *sc, const weft_sim_s
         return res;
     }
     sc->garment_clearance = cd.clearance;
+    sc->cloth_kind = (int)kind;
     bool ok = reserve(&sc->cloth, mesh->vertex_count, mesh->triangle_count);
     if (ok) {
         memcpy(sc->cloth.pos, mesh->positions, sizeof(float) * 3 * mesh->vertex_count);
@@ -1080,7 +1082,7 @@ static weft_result build_garment(weft_context *ctx, xscene *sc, const weft_sim_s
     snprintf(sc->objects, sizeof sc->objects, "avatar");
     if (sc->clip) {
         snprintf(sc->description, sizeof sc->description,
-                 "garment: %s on avatar h=%.2f girth=%.2f, mocap %s from %.2f s speed %.2f, body parts",
+                 "garment: %s on avatar h=%.2f girth=%.2f, mocap %s from %.2f s speed %.2f, projected body",
                  weft_cloth_kind_name(kind), ad.height, ad.girth, motion_label, sc->clip_start_s, sc->clip_speed);
     } else {
         snprintf(sc->description, sizeof sc->description,
@@ -1138,8 +1140,22 @@ weft_garment_def xscene_garment_def(const xscene *sc, uint32_t substeps, uint32_
     gd.collider_triangles = sc->collider.tris;
     gd.collider_triangle_count = sc->collider.nt;
     gd.collision.triangle_parts = sc->parts;
-    gd.collision.part_neighbours = false; /* docs/REFSIM.md, Real motion */
+    gd.collision.part_neighbours = false; /* a host's character: docs/REFSIM.md, Real motion */
     gd.collision.part_margin = 0.01f;
+    if (sc->clip) {
+        /* Motion capture (docs/REFSIM.md, Real motion): the body overlaps itself, so its contacts
+         * are a projection each substep against the whole body, not bounds, and the worn-garment
+         * recipe's max distance, held inside the substeps, and the floor keep the garment on its
+         * wearer. Cloth-cloth contacts keep their bounds; no push after the step (it would move
+         * cloth past them). */
+        gd.collider_projection = true;
+        gd.collision.triangle_parts = NULL;
+        gd.tethers.distance = (sc->cloth_kind == WEFT_CLOTH_SKIRT   ? WEFT_WORN_TETHER_SKIRT_CM
+                               : sc->cloth_kind == WEFT_CLOTH_DRESS ? WEFT_WORN_TETHER_DRESS_CM
+                                                                    : WEFT_WORN_TETHER_CM) /
+                              100.0f;
+        gd.collision.ground = true;
+    }
     return gd;
 }
 

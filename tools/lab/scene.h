@@ -71,6 +71,7 @@ typedef struct xscene {
     uint32_t preroll;
     float ease_in_s;             /* the motion's time ramps in over this after the pre-roll (0: none) */
     float garment_clearance;     /* the wardrobe clearance the garment was made with */
+    int cloth_kind;              /* the garment's weft_cloth_kind */
     /* Waistband (skirts, dresses): the garment's top ring rides on the body like an elastic
      * band. Each band vertex keeps its bind-pose offset in the frame of its closest body
      * triangle (barycentric point + offset along the edge, bitangent and normal). */

@@ -4,6 +4,7 @@
 #include "scene.h"
 
 #include "npy_write.h"
+#include "weft/wear.h"
 
 #include <cjson/cJSON.h>
 #include <errno.h>
@@ -30,12 +31,14 @@ enum {
     ST_VALIDATE_MS,
     ST_RETRIED,
     ST_PATH,
+    ST_INSIDE_BODY,
+    ST_INSIDE_CLEAR,
     ST_COUNT
 };
 static const char *const stat_names[ST_COUNT] = {
     "wall_ms",   "substeps",   "detections",      "contacts", "contacts_dropped", "clamped",    "min_self_distance",
     "min_collider_distance", "max_strain", "elastic_energy", "ccd_hits", "intersection_hits", "validate_ms", "chord_safe_retry",
-    "path_validated"};
+    "path_validated", "inside_body", "inside_clear"};
 
 weft_sim_sequence_def weft_sim_default_sequence_def(void)
 {
@@ -253,6 +256,7 @@ static uint64_t def_fingerprint(const weft_sim_sequence_def *d, uint32_t nv, uin
     if (d->motion_path) { /* procedural sequences hash as before clips existed */
         h = fnv1a(h, d->motion_path, strlen(d->motion_path));
         h = fnv1a(h, &d->motion_start_s, sizeof d->motion_start_s);
+        h = fnv1a(h, "projected body", 14); /* the reference on real motion (scene.c) */
     }
     if (d->garment_kind >= 0) {
         h = fnv1a(h, &d->garment_kind, sizeof d->garment_kind); /* the default draw hashes as before it existed */
@@ -360,6 +364,9 @@ static weft_result validate_frame(weft_sim_validator *val, const weft_garment *g
     if (r != WEFT_OK || (v->ccd_hits == 0 && v->intersection_hits == 0) || states < 2) {
         return r;
     }
+    /* The path ends where the frame does: a move of the constraint stage after the solve (the max
+     * distance, pins set to their targets, the floor) joins the last substep's straight motion. */
+    memcpy(b->path + (size_t)(states - 1) * nv * 3, b->cloth + (size_t)f * nv * 3, sizeof(float) * 3 * nv);
     weft_sim_validation pv;
     r = weft_sim_validator_check_path(val, b->path, states, c0, c1, &pv);
     if (r == WEFT_OK && pv.ccd_hits == 0 && pv.intersection_hits == 0) {
@@ -436,6 +443,21 @@ static ckpt_header ckpt_at(const ckpt_run *ck, const weft_sim_sequence_result *r
     return h;
 }
 
+/* The wear measures' columns over stats rows 1..last into the result (real motion; 0 elsewhere). */
+static void inside_summary(const run_buffers *b, size_t last, weft_sim_sequence_result *res)
+{
+    double sum = 0.0, worst = 0.0, clear = 0.0;
+    for (size_t f = 1; f <= last; ++f) {
+        const float *row = b->stats + f * ST_COUNT;
+        sum += row[ST_INSIDE_BODY];
+        worst = fmax(worst, row[ST_INSIDE_BODY]);
+        clear = fmax(clear, row[ST_INSIDE_CLEAR]);
+    }
+    res->inside_body_mean = last > 0 ? (float)(sum / (double)last) : 0.0f;
+    res->inside_body_max = (float)worst;
+    res->inside_clear_max = (float)clear;
+}
+
 /* Simulates all frames at `substeps`; stops at the first validator hit. With checkpoints
  * (ck->dir), the state is saved every ck->every frames, the run continues from ck->resume when
  * given, and stops early (ck->stopped) at the first checkpoint after ck->deadline_ms. */
@@ -454,10 +476,18 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
         return r;
     }
     weft_sim_validator *val = NULL;
+    weft_wear *wear = NULL;
     if (def->validate) {
-        r = weft_sim_validator_create(ctx, sc->cloth.tris, sc->cloth.nt, nv, sc->collider.tris, sc->collider.nt, nc,
-                                      &val);
+        /* Motion capture: the validator certifies the cloth against itself, and the body is
+         * checked by the wear measures (docs/REFSIM.md, Real motion). */
+        r = sc->clip ? weft_sim_validator_create(ctx, sc->cloth.tris, sc->cloth.nt, nv, NULL, 0, 0, &val)
+                     : weft_sim_validator_create(ctx, sc->cloth.tris, sc->cloth.nt, nv, sc->collider.tris,
+                                                 sc->collider.nt, nc, &val);
+        if (r == WEFT_OK && sc->clip) {
+            r = weft_wear_create(sc->collider.tris, sc->collider.nt, nc, nv, &wear);
+        }
         if (r != WEFT_OK) {
+            weft_sim_validator_destroy(val);
             weft_garment_destroy(g);
             return r;
         }
@@ -466,6 +496,7 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
         }
         r = r != WEFT_OK ? r : weft__xpbd_record_substeps(g, b->path, def->max_substeps * def->fast_collider_factor);
         if (r != WEFT_OK) {
+            weft_wear_destroy(wear);
             weft_sim_validator_destroy(val);
             weft_garment_destroy(g);
             return r;
@@ -476,6 +507,7 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
     memset(b->stats + kept * ST_COUNT, 0, sizeof(float) * ST_COUNT * (T - kept));
     memset(b->pinned, 0, (size_t)T * nv);
     res->ccd_hits = res->intersection_hits = 0;
+    res->inside_clear_rejected = false;
     res->first_hit_frame = -1;
     locate_hit(sc, b, 0, &(weft_ccd_hit){.type = WEFT_CCD_TYPE_COUNT}, res);
     res->chord_retries = res->path_frames = 0;
@@ -597,6 +629,20 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
                 locate_hit(sc, b, f, &v.hit, res);
                 break; /* rejected: no point simulating further */
             }
+            if (wear) {
+                weft_wear_frame wf;
+                const float *xf = b->cloth + (size_t)f * nv * 3;
+                if ((r = weft_wear_measure(wear, cnext, xf, xf, 1.0f, &wf)) != WEFT_OK) {
+                    break;
+                }
+                row[ST_INSIDE_BODY] = (float)wf.inside_body;
+                row[ST_INSIDE_CLEAR] = (float)wf.inside_clear;
+                if (wf.inside_clear > WEFT_SIM_INSIDE_CLEAR_MAX && res->first_hit_frame < 0) {
+                    res->first_hit_frame = (int32_t)f;
+                    res->inside_clear_rejected = true;
+                    break; /* cloth inside the body where the body does not overlap itself */
+                }
+            }
         }
         if (progress) {
             progress(f, T - 1, user);
@@ -613,6 +659,7 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
             }
         }
     }
+    weft_wear_destroy(wear);
     weft_sim_validator_destroy(val);
     weft_garment_destroy(g);
     return r;
@@ -660,10 +707,17 @@ static bool write_meta(const char *dir, const xscene *sc, const weft_sim_sequenc
         cJSON_AddNumberToObject(mo, "start_s", def->motion_start_s);
         cJSON_AddNumberToObject(mo, "fps", sc->clip->fps);
         cJSON_AddNumberToObject(mo, "turned_rad", -sc->clip_yaw);
-        cJSON_AddStringToObject(mo, "body_parts",
-                                "each cloth vertex collides with, and is validated against, the body parts "
-                                "(dominant joint of each body triangle) within 1 cm of its nearest body point at the "
-                                "start, without their neighbours; no arm spread");
+        cJSON_AddStringToObject(mo, "body",
+                                "the body's contacts projected each substep (cloth inside or within the contact radius "
+                                "moves out along the nearest surface's pseudonormal), with the worn-garment recipe's max "
+                                "distance, push and floor; the validator certifies the cloth against itself, and a frame "
+                                "with cloth inside the body where the body does not overlap itself (inside_clear) over "
+                                "the limit rejects the sequence; no arm spread");
+        cJSON_AddNumberToObject(mo, "inside_clear_limit", WEFT_SIM_INSIDE_CLEAR_MAX);
+        cJSON_AddNumberToObject(mo, "inside_body_mean", res->inside_body_mean);
+        cJSON_AddNumberToObject(mo, "inside_body_max", res->inside_body_max);
+        cJSON_AddNumberToObject(mo, "inside_clear_max", res->inside_clear_max);
+        cJSON_AddBoolToObject(mo, "inside_clear_rejected", res->inside_clear_rejected);
     }
     if (sc->character) {
         cJSON *co = num_obj(m, "character");
@@ -996,6 +1050,7 @@ weft_result weft_sim_generate(weft_context *ctx, const weft_sim_sequence_def *de
                 break;
             }
             res.accepted = res.first_hit_frame < 0;
+            inside_summary(&b, res.first_hit_frame < 0 ? T - 1 : (size_t)res.first_hit_frame, &res);
             if (res.accepted || s > def->max_substeps / 2) {
                 break;
             }

@@ -25,7 +25,7 @@ const char weft_bench_mocap_help[] = "garments on the mocap library's clips: gar
 
 #if WEFT_RENDER_HAVE_SAMPLE && WEFT_RENDER_HAVE_ASSETS
 #include "bvh.h"
-#include "wear.h"
+#include "weft/wear.h"
 #include "weft_sample.h"
 
 #define MC_MAX_CLIPS 128
@@ -251,14 +251,14 @@ static int run_cell(const mc_options *o, weft_context *ctx, const weft_body *bod
         weft_sample_set_substeps(&d, m->substeps);
         d.ccd.enabled = o->ccd;
         d.collision.triangle_parts = weft_sample_parts_on(o->parts, m->method, o->ccd) ? parts : NULL;
-        if (m->method != WEFT_METHOD_XPBD) { /* the reference keeps simgen's recipe (weft_sample_worn_def) */
-            if (o->tether_cm >= 0.0f) { /* else the recipe's for the garment kind */
-                d.tethers.distance = o->tether_cm / 100.0f;
-            }
+        if (o->tether_cm >= 0.0f) { /* else the recipe's for the garment kind */
+            d.tethers.distance = o->tether_cm / 100.0f;
+        }
+        if (m->method != WEFT_METHOD_XPBD) { /* the reference pushes nothing (weft_sample_worn_def) */
             d.collision.push = o->push_cm / 100.0f;
             d.collision.push_depth = o->push_depth_cm / 100.0f;
-            d.strain.limit = m->method == WEFT_METHOD_MODEL ? o->strain_pct / 100.0f : 0.0f;
         }
+        d.strain.limit = m->method == WEFT_METHOD_MODEL ? o->strain_pct / 100.0f : 0.0f;
         d.max_collider_tokens = o->tokens; /* the recipe's sample cap, or the whole crop (0) */
         if (rc == 0 && weft_garment_create(ctx, &d, &g) != WEFT_OK) {
             fprintf(stderr, "weft bench mocap: %s: %s\n", m->label, weft_last_error());

@@ -16,7 +16,7 @@
  *                        the two above: the reference stretches too, at pins and tight contacts)
  *   time_limited         --time-limit stopped the rollout before its last frame
  *   ms_p50/p99/max       percentiles of the step's wall time over the scored frames
- *   wear                 worn garments (meta.json scenario "garment"), samples/common/wear.h, against
+ *   wear                 worn garments (meta.json scenario "garment"), tools/lab/include/weft/wear.h, against
  *                        the garment carried by the skin (weft_garment_skinned_positions): frames
  *                        with off_body over 1 % (a sequence with any has lost the garment; off_body
  *                        is the share farther than 10 cm, 25 cm for skirts and dresses), the worst
@@ -34,7 +34,7 @@
 
 #include <cjson/cJSON.h>
 #if WEFT_HAVE_RENDER
-#include "wear.h"
+#include "weft/wear.h"
 #endif
 #include <dirent.h>
 #include <math.h>

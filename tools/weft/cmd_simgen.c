@@ -1259,7 +1259,12 @@ int weft_cmd_simgen(int argc, char **argv)
             }
             accepted += res.accepted;
             rejected += !res.accepted;
-            if (!res.accepted) {
+            if (!res.accepted && res.inside_clear_rejected) {
+                fprintf(stderr, "\nsimgen: %s rejected: %.1f %% of the cloth inside the body where it does not overlap "
+                                "itself at frame %d (limit %.1f %%, substeps %u)\n",
+                        plan[i].name, 100.0 * res.inside_clear_max, res.first_hit_frame,
+                        100.0 * WEFT_SIM_INSIDE_CLEAR_MAX, res.substeps_used);
+            } else if (!res.accepted) {
                 fprintf(stderr, "\nsimgen: %s rejected by the validator (%u CCD, %u intersection hits, first at frame %d, "
                                 "substeps %u%s%s)\n",
                         plan[i].name, res.ccd_hits, res.intersection_hits, res.first_hit_frame, res.substeps_used,

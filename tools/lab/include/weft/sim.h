@@ -41,6 +41,10 @@ typedef struct weft_sim_validation {
 
 /* Separation below which a sweep counts as a hit (metres): 10 micrometres. */
 #define WEFT_SIM_VALIDATOR_TOLERANCE 1e-5
+/* Real motion (weft_sim_sequence_def.motion_path): a frame with more than this share of the cloth
+ * inside the body where the body does not overlap itself (weft/wear.h, inside_clear) rejects the
+ * sequence (docs/REFSIM.md, Real motion). */
+#define WEFT_SIM_INSIDE_CLEAR_MAX 0.02
 
 /* Topology is copied. The collider may be absent (collider_vertex_count 0). Cloth triangles
  * that share a vertex are not tested against each other; the mesh checks of
@@ -194,6 +198,11 @@ typedef struct weft_sim_sequence_result {
     weft_ccd_hit hit;
     float hit_position[3];
     char hit_joint[24];
+    /* Real motion: the last attempt was rejected for cloth inside the body (WEFT_SIM_INSIDE_CLEAR_MAX,
+     * at first_hit_frame), and the shares of the cloth inside the body over its frames (mean, worst)
+     * and inside where the body does not overlap itself (worst); 0 on other scenes. */
+    bool inside_clear_rejected;
+    float inside_body_mean, inside_body_max, inside_clear_max;
     uint32_t chord_retries;       /* frames redone with one proximity pass (see docs/REFSIM.md) */
     uint32_t path_frames;         /* frames whose chord grazed but whose substep path is clean */
     double simulate_s, validate_s; /* wall time of the last attempt */

@@ -1,5 +1,5 @@
 /* Wear measures of a garment on its body (wear.h). */
-#include "wear.h"
+#include "weft/wear.h"
 #include "core/core.h"
 
 #include <math.h>

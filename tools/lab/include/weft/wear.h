@@ -1,5 +1,6 @@
 /* How a worn garment sits on its body, frame by frame: the measures the render sample, `weft
- * render` and the stability suite report for real motion (docs/WEAR.md, *Wear measures*).
+ * render` and the stability suite report for real motion, and simgen's real-motion acceptance
+ * checks (docs/WEAR.md, *Wear measures*).
  *
  *   off_body           share of garment vertices farther than a distance (10 cm; 25 cm for skirts
  *                      and dresses) from the same garment skinned to the body; a clip loses the
@@ -19,10 +20,22 @@
  * XZ projection holds the point and which lies above it adds +1 when it faces up (the ray
  * leaves the body there) and -1 when it faces down. Triangles are binned once per frame on a
  * grid over their XZ bounds; nothing is allocated after creation. */
-#ifndef WEFT_SAMPLE_WEAR_H
-#define WEFT_SAMPLE_WEAR_H
+#ifndef WEFT_WEAR_H
+#define WEFT_WEAR_H
 
 #include "weft.h"
+
+/* The worn-garment recipe (docs/WEAR.md): the max distance to the skinned garment (T-shirts,
+ * skirts, dresses), the collider push and the depth it reaches, and for the learned model a strain
+ * limit and a collider token cap. The game methods wear garments with it, and simgen's reference
+ * on real motion with the same max distance, push and floor. */
+#define WEFT_WORN_TETHER_CM 8.0f
+#define WEFT_WORN_TETHER_SKIRT_CM 16.0f
+#define WEFT_WORN_TETHER_DRESS_CM 12.0f
+#define WEFT_WORN_PUSH_CM 0.5f
+#define WEFT_WORN_PUSH_DEPTH_CM 6.0f
+#define WEFT_WORN_STRAIN_PCT 10.0f
+#define WEFT_WORN_COLLIDER_TOKENS 1024u
 
 typedef struct weft_wear weft_wear;
 

@@ -1,11 +1,11 @@
-/* Wear measures (samples/common/wear.c): on two overlapping closed boxes, a point inside both
+/* Wear measures (tools/lab/wear.c): on two overlapping closed boxes, a point inside both
  * counts once, points outside count zero, the winding number is right at random points against a
  * box oracle, the buried corners of one box count as body overlap and nothing else does, points
  * inside within 5 cm of a buried corner are not inside_clear and the other inside points are, and
  * off_body counts vertices beyond the distance from their skinned twins. */
 #include "../xpbd/scene.h"
 #include "test.h"
-#include "wear.h"
+#include "weft/wear.h"
 
 static const float k_a_lo[3] = {0.0f, 0.0f, 0.0f}, k_a_hi[3] = {1.0f, 1.0f, 1.0f};
 static const float k_b_lo[3] = {0.6f, 0.3f, 0.3f}, k_b_hi[3] = {1.6f, 0.7f, 0.7f};
