@@ -263,7 +263,8 @@ typedef enum weft_collider_cap {
  * that keep it out of the collider, and cloth pulled into the body stays there. With
  * collider_projection the solver holds the max distance inside its substeps instead, before the
  * bounds that keep the cloth off itself, and there is no clamp after the step: a vertex those
- * bounds held back may end a step beyond its radius (the reference on real motion, docs/REFSIM.md). */
+ * bounds or the body's projection moved may end a step beyond its radius (the reference on real
+ * motion, docs/REFSIM.md). */
 typedef struct weft_tether_def {
     float distance;                     /* metres, one radius for every vertex; 0 (default) = off; finite, >= 0 */
     const float *distances;             /* optional vertex_count radii (finite, >= 0) replacing distance */
@@ -387,15 +388,17 @@ typedef struct weft_garment_def {
     uint32_t substeps_max;
     /* WEFT_METHOD_XPBD: how the solver meets the collider. false (default): bounded contacts, so
      * cloth never crosses the collider (the penetration-free reference, exact where the collider
-     * does not overlap itself). true: each substep, cloth inside the collider (up to 2 cm deep) or
-     * nearer than the contact radius moves out along the nearest surface's pseudonormal, among
-     * the vertex's body parts (collision.triangle_parts), with Coulomb friction, as
-     * WEFT_METHOD_XPBD_FAST does; cloth-cloth contacts keep their bounds. On a body that overlaps
-     * itself (real motion capture) bounded contacts trap the cloth the body has passed, and the
-     * reference on real motion projects instead (docs/REFSIM.md, *Real motion*). The projection
-     * and the max distance (tethers) act inside the substeps before the cloth-cloth bounds, so the
-     * cloth stays certified against itself; substeps_max then keeps the body's step within the
-     * bounds of the cloth it carries. Ignored by the other methods. */
+     * does not overlap itself). true: each substep ends with cloth inside the collider (up to 2 cm
+     * deep) or nearer than the contact radius moved out along the nearest surface's pseudonormal,
+     * among the vertex's body parts (collision.triangle_parts), with Coulomb friction, as
+     * WEFT_METHOD_XPBD_FAST does; the max distance (tethers) is held inside the substeps, before
+     * the bounds that keep the cloth off itself, and not clamped again after the step. The body
+     * cannot be held back, so its projection has the last word: where the body squeezes cloth
+     * against itself (two limbs that overlap) the cloth is not certified against itself. On a body
+     * that overlaps itself (real motion capture) bounded contacts trap the cloth the body has
+     * passed, and the reference on real motion projects instead (docs/REFSIM.md, *Real motion*).
+     * substeps_max keeps the body's step within the bounds of the cloth it carries. Ignored by the
+     * other methods. */
     bool collider_projection;
 
     /* WEFT_METHOD_MODEL: collider cropping (ignored by other methods, but still validated).

@@ -41,6 +41,9 @@ int ccd_segment_crosses_triangle_strict(const double p[3], const double q[3], co
  * the cloth triangle's corners have the collider triangle's part (the lab's validator certifies
  * ground truth on self-intersecting bodies this way); the metrics ignore them. */
 void weft__ccd_world_set_parts(weft_ccd_world *w, const uint32_t *cloth_masks, const uint32_t *collider_tri_bits);
+/* Per cloth vertex (not copied; NULL: none): cloth–cloth pairs of triangles with an exempt vertex
+ * are neither swept nor intersected (simgen on real motion: cloth where the body overlaps itself). */
+void weft__ccd_world_set_self_exempt(weft_ccd_world *w, const uint8_t *exempt);
 
 /* ---- garment hook (world.c) ------------------------------------------------------------- */
 

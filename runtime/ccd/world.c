@@ -64,6 +64,9 @@ struct weft_ccd_world {
     /* Body parts (weft__ccd_world_set_parts), NULL without: a collider pair counts only for the
      * cloth vertices whose mask holds the collider triangle's part. Not owned. */
     const uint32_t *part_mask, *ctri_bits;
+    /* Per cloth vertex, NULL without (weft__ccd_world_set_self_exempt): cloth–cloth pairs of a
+     * triangle with an exempt vertex are not tested. Not owned. */
+    const uint8_t *self_exempt;
     float shift[3];              /* broad-phase frame: mean cloth displacement of the last full pass */
 };
 
@@ -721,6 +724,13 @@ static inline box tri_box(const uint32_t *t, const box *vb)
 
 static inline bool has_vertex(const uint32_t *t, uint32_t v) { return t[0] == v || t[1] == v || t[2] == v; }
 
+/* A cloth triangle pair with a vertex the caller exempts from the cloth-cloth test. */
+static inline bool self_exempt(const weft_ccd_world *w, const uint32_t *a, const uint32_t *b)
+{
+    const uint8_t *e = w->self_exempt;
+    return e && (e[a[0]] | e[a[1]] | e[a[2]] | e[b[0]] | e[b[1]] | e[b[2]]);
+}
+
 /* Cloth triangle ta against collider triangle tb: VF for the cloth corners ta owns, FV for the
  * collider corners tb owns, EE for the edges both own. */
 static void pair_cloth_collider(void *ctx, uint32_t ta, uint32_t tb)
@@ -813,6 +823,9 @@ static void pair_cloth_cloth(void *ctx, uint32_t ta, uint32_t tb)
     count_pair(d);
     const weft_ccd_world *w = d->w;
     const uint32_t *T[2] = {w->tris + 3 * (size_t)ta, w->tris + 3 * (size_t)tb};
+    if (self_exempt(w, T[0], T[1])) {
+        return;
+    }
     uint8_t m[2] = {w->own[ta], w->own[tb]};
     if (d->types & WEFT_CCD_MASK(WEFT_CCD_SELF_VF)) {
         for (int side = 0; side < 2; ++side) {
@@ -975,6 +988,8 @@ weft_result weft_ccd_world_let_out(weft_ccd_world *w, const uint8_t *inside)
     }
     return WEFT_OK;
 }
+
+void weft__ccd_world_set_self_exempt(weft_ccd_world *w, const uint8_t *exempt) { w->self_exempt = exempt; }
 
 void weft__ccd_world_set_parts(weft_ccd_world *w, const uint32_t *cloth_masks, const uint32_t *collider_tri_bits)
 {
@@ -1299,6 +1314,9 @@ static void pair_isect_self(void *ctx, uint32_t ta, uint32_t tb)
 {
     isect_ctx *ic = ctx;
     const uint32_t *a = ic->w->tris + 3 * (size_t)ta, *b = ic->w->tris + 3 * (size_t)tb;
+    if (self_exempt(ic->w, a, b)) {
+        return;
+    }
     int shared = 0, sa = -1, sb = -1;
     for (int i = 0; i < 3; ++i) {
         for (int j = 0; j < 3; ++j) {

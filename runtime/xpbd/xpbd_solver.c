@@ -1783,14 +1783,7 @@ static weft_result xpbd_step(weft_garment *g)
         predict(s, h, a1);
         solve_elastic(g, s, h);
         s->stats.contacts += solve_contacts(s);
-        if (s->project) {
-            /* The max distance and the collider, as the fast method meets it (cloth inside or
-             * within the contact radius moves out along the nearest surface of its parts), before
-             * the bounds: the cloth-cloth certificate holds, and a vertex a bound stops short
-             * goes on out over the next substeps. */
-            hold_max_distance(g, s, tethers);
-            s->stats.contacts += fast_collide_body(g, s);
-        }
+        hold_max_distance(g, s, tethers); /* before the bounds: the cloth stays off itself */
         uint32_t clamped_now = 0;
         for (uint32_t i = 0; i < n; ++i) {
             double *xi = s->x + 3 * (size_t)i;
@@ -1828,6 +1821,16 @@ static weft_result xpbd_step(weft_garment *g)
             }
         }
         clamped_last = clamped_now;
+        if (s->project) {
+            /* The body last, as the fast method meets it: cloth inside or within the contact
+             * radius moves out along the nearest surface of its parts. The body cannot be held
+             * back, so it has the last word over the cloth-cloth bounds (cloth the body squeezes
+             * where it overlaps itself is not certified against itself there). */
+            s->stats.contacts += fast_collide_body(g, s);
+            for (size_t i = 0; i < 3 * (size_t)n; ++i) {
+                s->v[i] = (s->x[i] - s->xo[i]) / h;
+            }
+        }
         if (record) {
             float *dst = s->rec + (size_t)(step + 1) * 3 * n;
             for (size_t i = 0; i < 3 * (size_t)n; ++i) {

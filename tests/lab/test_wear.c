@@ -78,6 +78,36 @@ static void test_inside_counts_the_union_once(void)
     test_mesh_free(&body);
 }
 
+/* weft_wear_near_overlap: a unit box and a larger one 5 mm beside it do not overlap, so no point
+ * is near a buried vertex at a 2 mm reach; at a 1 cm reach three of the unit box's facing corners
+ * (moved 1 cm out along their normals) are inside the larger box, so a point within 5 cm of the
+ * corner (1, 1, 1) is flagged and points far from them are not. Bad reach and NULL arrays are
+ * refused. */
+static void test_near_overlap_reach(void)
+{
+    const float alo[3] = {0.0f, 0.0f, 0.0f}, ahi[3] = {1.0f, 1.0f, 1.0f};
+    const float blo[3] = {1.005f, -0.5f, -0.5f}, bhi[3] = {2.0f, 1.5f, 1.5f};
+    test_mesh a = test_box(alo, ahi), b = test_box(blo, bhi), body = test_mesh_join(&a, &b);
+    const float pts[3][3] = {{1.0025f, 0.98f, 0.98f}, {1.0025f, 0.5f, 0.5f}, {0.5f, 0.5f, -0.3f}};
+    weft_wear *w = NULL;
+    CHECK_RESULT(weft_wear_create(body.tris, body.nt, body.nv, 3, &w), WEFT_OK);
+    weft_wear_frame f;
+    CHECK_RESULT(weft_wear_measure(w, body.pos, pts[0], pts[0], 1.0f, &f), WEFT_OK);
+    CHECK(f.body_self_overlap == 0.0);
+    uint8_t near[3] = {9, 9, 9};
+    CHECK_RESULT(weft_wear_near_overlap(w, body.pos, 0.002f, pts[0], 3, near), WEFT_OK);
+    CHECK(near[0] == 0 && near[1] == 0 && near[2] == 0);
+    CHECK_RESULT(weft_wear_near_overlap(w, body.pos, 0.01f, pts[0], 3, near), WEFT_OK);
+    CHECK_MSG(near[0] == 1, "a point by a facing corner: %u", near[0]);
+    CHECK_MSG(near[1] == 0 && near[2] == 0, "points far from the corners: %u %u", near[1], near[2]);
+    CHECK_RESULT(weft_wear_near_overlap(w, body.pos, -0.01f, pts[0], 3, near), WEFT_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(weft_wear_near_overlap(w, body.pos, 0.01f, NULL, 3, near), WEFT_ERROR_INVALID_ARGUMENT);
+    weft_wear_destroy(w);
+    test_mesh_free(&a);
+    test_mesh_free(&b);
+    test_mesh_free(&body);
+}
+
 static void test_bad_input(void)
 {
     test_mesh a = test_box(k_a_lo, k_a_hi);
@@ -104,4 +134,5 @@ static void test_percentile(void)
     CHECK(isnan(weft_wear_percentile(v, 0, 50.0)));
 }
 
-TEST_MAIN(TEST_CASE(test_inside_counts_the_union_once), TEST_CASE(test_bad_input), TEST_CASE(test_percentile))
+TEST_MAIN(TEST_CASE(test_inside_counts_the_union_once), TEST_CASE(test_near_overlap_reach), TEST_CASE(test_bad_input),
+          TEST_CASE(test_percentile))

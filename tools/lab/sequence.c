@@ -33,12 +33,13 @@ enum {
     ST_PATH,
     ST_INSIDE_BODY,
     ST_INSIDE_CLEAR,
+    ST_SELF_EXEMPT,
     ST_COUNT
 };
 static const char *const stat_names[ST_COUNT] = {
     "wall_ms",   "substeps",   "detections",      "contacts", "contacts_dropped", "clamped",    "min_self_distance",
     "min_collider_distance", "max_strain", "elastic_energy", "ccd_hits", "intersection_hits", "validate_ms", "chord_safe_retry",
-    "path_validated", "inside_body", "inside_clear"};
+    "path_validated", "inside_body", "inside_clear", "self_exempt"};
 
 weft_sim_sequence_def weft_sim_default_sequence_def(void)
 {
@@ -443,6 +444,38 @@ static ckpt_header ckpt_at(const ckpt_run *ck, const weft_sim_sequence_result *r
     return h;
 }
 
+/* Real motion: the wear measures of frame f (the body overlapping itself, the cloth inside it),
+ * and the cloth the validator exempts from its cloth-cloth test: near where the body overlaps
+ * itself at f or at f - 1. near[0, nv): exempt; [nv, 2 nv): at f; [2 nv, 3 nv): at *measured,
+ * the last frame done (measured here when it is not f - 1: the run's first frame, a resumed run).
+ * wf->off_body is set to the exempt share. */
+static weft_result body_check(weft_wear *wear, const xscene *sc, const run_buffers *b, uint32_t f, uint8_t *near,
+                              uint32_t *measured, weft_wear_frame *wf)
+{
+    const uint32_t nv = sc->cloth.nv, nc = sc->collider.nv;
+    uint8_t *now = near + nv, *last = near + 2 * (size_t)nv;
+    weft_result r = WEFT_OK;
+    if (*measured + 1 != f) {
+        const float *bp = b->collider + (size_t)(f - 1) * nc * 3, *xp = b->cloth + (size_t)(f - 1) * nv * 3;
+        weft_wear_frame scratch;
+        r = weft_wear_measure(wear, bp, xp, xp, 1.0f, &scratch);
+        r = r != WEFT_OK ? r : weft_wear_near_overlap(wear, bp, WEFT_SIM_SQUEEZE_REACH, xp, nv, last);
+    }
+    const float *body = b->collider + (size_t)f * nc * 3, *xf = b->cloth + (size_t)f * nv * 3;
+    r = r != WEFT_OK ? r : weft_wear_measure(wear, body, xf, xf, 1.0f, wf);
+    r = r != WEFT_OK ? r : weft_wear_near_overlap(wear, body, WEFT_SIM_SQUEEZE_REACH, xf, nv, now);
+    if (r != WEFT_OK) {
+        return r;
+    }
+    uint32_t exempt = 0;
+    for (uint32_t v = 0; v < nv; ++v) {
+        near[v] = now[v] | last[v];
+        exempt += near[v];
+    }
+    wf->off_body = (double)exempt / nv;
+    return WEFT_OK;
+}
+
 /* The wear measures' columns over stats rows 1..last into the result (real motion; 0 elsewhere). */
 static void inside_summary(const run_buffers *b, size_t last, weft_sim_sequence_result *res)
 {
@@ -477,6 +510,7 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
     }
     weft_sim_validator *val = NULL;
     weft_wear *wear = NULL;
+    uint8_t *near_overlap = NULL;
     if (def->validate) {
         /* Motion capture: the validator certifies the cloth against itself, and the body is
          * checked by the wear measures (docs/REFSIM.md, Real motion). */
@@ -485,8 +519,13 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
                                                  sc->collider.nt, nc, &val);
         if (r == WEFT_OK && sc->clip) {
             r = weft_wear_create(sc->collider.tris, sc->collider.nt, nc, nv, &wear);
+            near_overlap = calloc(3 * (size_t)nv, 1); /* exempt, this frame's, the last frame's */
+            r = r != WEFT_OK ? r : near_overlap ? weft_sim_validator_set_self_exempt(val, near_overlap)
+                                                : weft__fail(WEFT_ERROR_OUT_OF_MEMORY, "simgen: out of memory");
         }
         if (r != WEFT_OK) {
+            free(near_overlap);
+            weft_wear_destroy(wear);
             weft_sim_validator_destroy(val);
             weft_garment_destroy(g);
             return r;
@@ -496,6 +535,7 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
         }
         r = r != WEFT_OK ? r : weft__xpbd_record_substeps(g, b->path, def->max_substeps * def->fast_collider_factor);
         if (r != WEFT_OK) {
+            free(near_overlap);
             weft_wear_destroy(wear);
             weft_sim_validator_destroy(val);
             weft_garment_destroy(g);
@@ -544,6 +584,7 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
             r = weft__fail(WEFT_ERROR_IO, "weft_sim_generate: writing the checkpoint into '%s' failed", ck->dir);
         }
     }
+    uint32_t measured = UINT32_MAX - 1; /* body_check's last frame: none yet */
     for (uint32_t f = f_first; f < T && r == WEFT_OK; ++f) {
         if (ck->dir && f > 1 && (f - 1) % ck->every == 0) {
             weft__xpbd_forget_caches(g); /* as a run continued from the checkpoint after f - 1 has them */
@@ -576,6 +617,10 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
         row[ST_MAX_STRAIN] = (float)st.max_strain;
         row[ST_ENERGY] = (float)st.elastic_energy;
         res->simulate_s += (t1 - t0) / 1000.0;
+        weft_wear_frame wf = {0};
+        if (wear && (r = body_check(wear, sc, b, f, near_overlap, &measured, &wf)) != WEFT_OK) {
+            break;
+        }
         if (val) {
             double t2 = t1;
             weft_sim_validation v;
@@ -611,6 +656,9 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
                 row[ST_ENERGY] = (float)st.elastic_energy;
                 row[ST_RETRIED] = 1.0f;
                 res->chord_retries++;
+                if (r == WEFT_OK && wear) {
+                    r = body_check(wear, sc, b, f, near_overlap, &measured, &wf);
+                }
             }
             t2 = weft__now_ms();
             row[ST_CCD_HITS] = (float)v.ccd_hits;
@@ -630,19 +678,19 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
                 break; /* rejected: no point simulating further */
             }
             if (wear) {
-                weft_wear_frame wf;
-                const float *xf = b->cloth + (size_t)f * nv * 3;
-                if ((r = weft_wear_measure(wear, cnext, xf, xf, 1.0f, &wf)) != WEFT_OK) {
-                    break;
-                }
                 row[ST_INSIDE_BODY] = (float)wf.inside_body;
                 row[ST_INSIDE_CLEAR] = (float)wf.inside_clear;
+                row[ST_SELF_EXEMPT] = (float)wf.off_body; /* body_check's share of exempt vertices */
                 if (wf.inside_clear > WEFT_SIM_INSIDE_CLEAR_MAX && res->first_hit_frame < 0) {
                     res->first_hit_frame = (int32_t)f;
                     res->inside_clear_rejected = true;
                     break; /* cloth inside the body where the body does not overlap itself */
                 }
             }
+        }
+        if (wear) {
+            memcpy(near_overlap + 2 * (size_t)nv, near_overlap + nv, nv); /* frame f is the last one now */
+            measured = f;
         }
         if (progress) {
             progress(f, T - 1, user);
@@ -659,6 +707,7 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
             }
         }
     }
+    free(near_overlap);
     weft_wear_destroy(wear);
     weft_sim_validator_destroy(val);
     weft_garment_destroy(g);

@@ -148,6 +148,15 @@ weft_result weft_sim_validator_set_parts(weft_sim_validator *v, const uint32_t *
     return WEFT_OK;
 }
 
+weft_result weft_sim_validator_set_self_exempt(weft_sim_validator *v, const uint8_t *exempt)
+{
+    if (!v) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_sim_validator_set_self_exempt: validator is NULL");
+    }
+    weft__ccd_world_set_self_exempt(v->world, exempt);
+    return WEFT_OK;
+}
+
 weft_result weft_sim_validator_check(weft_sim_validator *v, const float *cloth0, const float *cloth1,
                                      const float *collider0, const float *collider1, weft_sim_validation *out)
 {

@@ -258,6 +258,27 @@ static bool near_buried(const weft_wear *w, const float *body, const float *p)
     return false;
 }
 
+weft_result weft_wear_near_overlap(weft_wear *w, const float *body, float reach, const float *points, uint32_t count,
+                                   uint8_t *out)
+{
+    if (!w || !body || !points || !out || !(reach >= 0.0f && reach <= 0.1f)) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
+                          "weft_wear_near_overlap: all arrays are required and reach in [0, 0.1] m");
+    }
+    for (uint32_t v = 0; v < w->nbv; ++v) { /* the normals are weft_wear_measure's, of this body */
+        const float *n = w->normals + 3 * (size_t)v, *p = body + 3 * (size_t)v;
+        const float len = sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        const float s = len > 0.0f ? reach / len : 0.0f;
+        const float q[3] = {p[0] + s * n[0], p[1] + s * n[1], p[2] + s * n[2]};
+        w->buried[v] = winding(w, body, q) > 0;
+    }
+    hash_buried(w, body);
+    for (uint32_t i = 0; i < count; ++i) {
+        out[i] = near_buried(w, body, points + 3 * (size_t)i);
+    }
+    return WEFT_OK;
+}
+
 weft_result weft_wear_measure(weft_wear *w, const float *body, const float *garment, const float *skinned,
                               float off_distance, weft_wear_frame *out)
 {

@@ -45,6 +45,10 @@ typedef struct weft_sim_validation {
  * inside the body where the body does not overlap itself (weft/wear.h, inside_clear) rejects the
  * sequence (docs/REFSIM.md, Real motion). */
 #define WEFT_SIM_INSIDE_CLEAR_MAX 0.02
+/* Real motion: cloth within 5 cm of a body vertex that another part of the body reaches within
+ * this many metres (weft_wear_near_overlap) is squeezed by the body and not certified against
+ * itself (weft_sim_validator_set_self_exempt). */
+#define WEFT_SIM_SQUEEZE_REACH 0.01f
 
 /* Topology is copied. The collider may be absent (collider_vertex_count 0). Cloth triangles
  * that share a vertex are not tested against each other; the mesh checks of
@@ -62,6 +66,11 @@ WEFT_API void weft_sim_validator_destroy(weft_sim_validator *validator);
  * parts of a self-intersecting body is certified against the parts it belongs to. */
 WEFT_API weft_result weft_sim_validator_set_parts(weft_sim_validator *validator, const uint32_t *cloth_masks,
                                                   const uint32_t *collider_triangle_bits);
+/* Cloth vertices (cloth_vertex_count flags, read by every later check, not copied; NULL: none)
+ * whose cloth-cloth pairs are not certified: a pair of cloth triangles with an exempt vertex is
+ * neither swept nor intersected. simgen on real motion exempts the cloth near where the body
+ * overlaps itself, which squeezes cloth through cloth (docs/REFSIM.md, Real motion). */
+WEFT_API weft_result weft_sim_validator_set_self_exempt(weft_sim_validator *validator, const uint8_t *exempt);
 /* Checks the motion from frame t (cloth0, collider0) to t+1 (cloth1, collider1). Collider
  * arrays may be NULL when there is no collider. Allocates nothing. */
 WEFT_API weft_result weft_sim_validator_check(weft_sim_validator *validator, const float *cloth0, const float *cloth1,

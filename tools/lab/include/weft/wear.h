@@ -56,6 +56,13 @@ void weft_wear_destroy(weft_wear *w);
 weft_result weft_wear_measure(weft_wear *w, const float *body, const float *garment, const float *skinned,
                               float off_distance, weft_wear_frame *out);
 
+/* After weft_wear_measure on this body: for each point, 1 when within 5 cm of a body vertex that
+ * another part of the body reaches within `reach` metres (the vertex moved `reach` out along its
+ * normal is inside the body: parts that overlap or nearly touch), else 0. Changes nothing the
+ * measure returned. */
+weft_result weft_wear_near_overlap(weft_wear *w, const float *body, float reach, const float *points, uint32_t count,
+                                   uint8_t *out);
+
 /* The summary of a clip: per-frame figures fed one at a time. */
 typedef struct weft_wear_summary {
     uint32_t frames;
