@@ -261,10 +261,9 @@ typedef enum weft_collider_cap {
  * glues a vertex (a waistband for a method without pins). Pinned vertices keep their targets.
  * Needs a collider. With WEFT_METHOD_XPBD's bounded contacts the clamp moves cloth past the bounds
  * that keep it out of the collider, and cloth pulled into the body stays there. With
- * collider_projection the solver holds the max distance inside its substeps instead, before the
- * bounds that keep the cloth off itself, and there is no clamp after the step: a vertex those
- * bounds or the body's projection moved may end a step beyond its radius (the reference on real
- * motion, docs/REFSIM.md). */
+ * collider_projection the solver also holds the max distance inside its substeps, before the
+ * bounds that keep the cloth off itself, and the clamp after the step moves only what those bounds
+ * held back (the reference on real motion, docs/REFSIM.md). */
 typedef struct weft_tether_def {
     float distance;                     /* metres, one radius for every vertex; 0 (default) = off; finite, >= 0 */
     const float *distances;             /* optional vertex_count radii (finite, >= 0) replacing distance */
@@ -391,10 +390,11 @@ typedef struct weft_garment_def {
      * does not overlap itself). true: each substep ends with cloth inside the collider (up to 2 cm
      * deep) or nearer than the contact radius moved out along the nearest surface's pseudonormal,
      * among the vertex's body parts (collision.triangle_parts), with Coulomb friction, as
-     * WEFT_METHOD_XPBD_FAST does; the max distance (tethers) is held inside the substeps, before
-     * the bounds that keep the cloth off itself, and not clamped again after the step. The body
-     * cannot be held back, so its projection has the last word: where the body squeezes cloth
-     * against itself (two limbs that overlap) the cloth is not certified against itself. On a body
+     * WEFT_METHOD_XPBD_FAST does; the max distance (tethers) is also held inside the substeps,
+     * before the bounds that keep the cloth off itself. The body cannot be held back, so its
+     * projection has the last word in a substep, and the max distance after the step: where the
+     * body squeezes cloth against itself (two limbs that overlap), or the bounds held cloth beyond
+     * its radius, the cloth is not certified against itself. On a body
      * that overlaps itself (real motion capture) bounded contacts trap the cloth the body has
      * passed, and the reference on real motion projects instead (docs/REFSIM.md, *Real motion*).
      * substeps_max keeps the body's step within the bounds of the cloth it carries. Ignored by the

@@ -741,9 +741,7 @@ weft_result weft__garment_finish_step(weft_garment *g)
             memcpy(g->x_next + 3 * (size_t)g->pin_indices[k], g->pin_targets + 3 * (size_t)k, 3 * sizeof(float));
         }
     }
-    /* A projecting XPBD holds the max distance inside its substeps, within the bounds that keep the
-     * cloth off itself; a clamp after them would move cloth across cloth. */
-    const bool tethers = g->tether_radius && !g->collider_projection;
+    const bool tethers = g->tether_radius != NULL;
     if (tethers) {
         weft_result r = apply_tethers(g, skinned);
         if (r != WEFT_OK) {

@@ -375,7 +375,7 @@ static weft_result create_state(weft_garment *g, bool fast)
     const weft_context *ctx = g->ctx;
     const bool project = !fast && g->collider_projection && g->collider_vertex_count > 0;
     if ((fast || project) && g->collider_vertex_count > 0 && !g->near_tree) {
-        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "xpbd-fast: the collider tree was not made");
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "xpbd: the collider tree of the projection was not made");
     }
     xpbd_state *s = weft__alloc(ctx, sizeof *s);
     if (!s) {
