@@ -133,8 +133,9 @@ static const cli_command k_command = {
              "off) on each sequence of the split, and the FNOpt grid scenes, each as one `weft eval --json`\n"
              "(or `weft fnopt run --gt`) run; writes OUT/CHART.md, OUT/img/chart.png and the CSV behind them.\n"
              "The real-motion panel runs `weft bench mocap` (" CHART_MOCAP_METHODS ", each at its\n"
-             "defaults, on the library's test clips): there is no ground truth on real motion, so its error\n"
-             "axis is the share of cloth inside the body, and lost garments are counted. The render sample's\n"
+             "defaults, on the library's test clips): the reference's ground truth covers few real-motion\n"
+             "windows (docs/DATASET.md), so its error axis is the share of cloth inside the body, and lost\n"
+             "garments are counted. The render sample's\n"
              "cape on the same clips is a panel of its own: FNOpt (K = 10) beside the fast XPBD on one grid.\n"
              "A run that fails (a child that cannot start, crashes or reports an error) fails the whole\n"
              "benchmark: nothing is written from partial results.",
@@ -535,8 +536,8 @@ static bool write_outputs(const chart_opts *o, const chart_method *methods, cons
         } else if (mo) {
             fprintf(f, "The mocap library's clips (%s), garments %s, %u frames each after a 30-frame settle, "
                        "every method at its defaults (the worn-garment recipe, CCD off): `weft bench mocap`, "
-                       "per-cell numbers in [chart_mocap.csv](%s). There is no ground truth on real motion, so "
-                       "the error is the share of cloth vertices inside the body (mean over frames and cells), "
+                       "per-cell numbers in [chart_mocap.csv](%s). The reference's ground truth covers few "
+                       "real-motion windows (docs/DATASET.md), so the error is the share of cloth vertices inside the body (mean over frames and cells), "
                        "beside the garments lost (a frame with over 1 %% of the vertices farther than 10 cm, "
                        "25 cm for skirts and dresses, from the skinned garment; docs/STABILITY_MOCAP.md). ms/frame "
                        "is the mean of the cells' median step.\n\n",
