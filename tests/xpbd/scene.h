@@ -119,4 +119,31 @@ static inline weft_garment_def test_garment_def(weft_method method, const test_m
     return gd;
 }
 
+/* The lifting box of the fast-collider cases: over frames 3..11 the box rises 6 cm a frame
+ * (3.6 m/s); returns this frame's rise. */
+static inline float test_lift_box(test_mesh *box, int frame)
+{
+    const float rise = frame >= 3 && frame < 12 ? 0.06f : 0.0f;
+    for (uint32_t k = 0; k < box->nv; ++k) {
+        box->pos[3 * k + 1] += rise;
+    }
+    return rise;
+}
+
+/* The two-layer cases (two 15 x 15 sheets of 0.4 m, the upper one 2 cm above, fallen onto a box
+ * whose top is at 0.2 m): the lower sheet's centre height and the lowest height of the upper
+ * sheet over the box's middle. */
+static inline void test_two_layer_heights(const float *x, uint32_t lower_nv, uint32_t upper_nv, float *centre_lower,
+                                          float *upper_min)
+{
+    *centre_lower = x[3 * (7 * 15 + 7) + 1];
+    *upper_min = 1e9f;
+    for (uint32_t i = 0; i < upper_nv; ++i) {
+        const float *p = x + 3 * (lower_nv + i);
+        if (p[0] > -0.05f && p[0] < 0.05f && p[2] > -0.05f && p[2] < 0.05f && p[1] < *upper_min) {
+            *upper_min = p[1];
+        }
+    }
+}
+
 #endif

@@ -76,10 +76,7 @@ static void test_fast_body_raised_substeps(void)
     weft_garment *g = make_ref(ctx, &sheet, &box, 10, true);
     float top = hi[1];
     for (int f = 0; f < 15; ++f) {
-        const float rise = f >= 3 && f < 12 ? 0.06f : 0.0f;
-        for (uint32_t k = 0; k < box.nv; ++k) {
-            box.pos[3 * k + 1] += rise;
-        }
+        const float rise = test_lift_box(&box, f);
         top += rise;
         CHECK_RESULT(weft_garment_set_collider(g, box.pos), WEFT_OK);
         CHECK_RESULT(weft_garment_step(g), WEFT_OK);
@@ -124,14 +121,8 @@ static void test_layers_stay_certified(void)
     }
     CHECK_MSG(hits == 0, "%u cloth-cloth hits", hits);
     const float *x = weft_garment_positions(g);
-    const float centre_a = x[3 * (7 * 15 + 7) + 1];
-    float top_b_min = 1e9f;
-    for (uint32_t i = 0; i < b.nv; ++i) {
-        const float *p = x + 3 * (a.nv + i);
-        if (fabsf(p[0]) < 0.05f && fabsf(p[2]) < 0.05f) {
-            top_b_min = fminf(top_b_min, p[1]);
-        }
-    }
+    float centre_a, top_b_min;
+    test_two_layer_heights(x, a.nv, b.nv, &centre_a, &top_b_min);
     CHECK_MSG(centre_a > 0.2f && centre_a < 0.21f, "lower sheet's centre at %g", centre_a);
     CHECK_MSG(top_b_min > centre_a, "upper sheet %g, lower sheet %g", top_b_min, centre_a);
     free(prev);
