@@ -130,7 +130,7 @@ const weft_sample_option weft_avatar_sample_option_table[] = {
     {"body-parts", "auto|on|off", OPT_BODY_PARTS,
      "garment vertices collide only with the body parts they lie against at\n"
      "rest (each triangle's dominant bone; docs/CCD.md, Body parts); default\n"
-     "auto: on where CCD runs and for the reference XPBD"},
+     "auto: on where CCD runs"},
     {"ccd", "on|off", OPT_CCD,
      "the CCD post-process after each step (default off: its cost is\n"
      "unbounded where the body overlaps itself; docs/CCD.md, Body parts)"},

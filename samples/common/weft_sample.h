@@ -175,10 +175,10 @@ weft_result weft_sample_worn_def(const weft_body *body, const weft_cloth_mesh *c
  * hem a thigh kicks up through is held inside it; the dress's longer hem, let farther, leaves the
  * body), WEFT_WORN_TETHER_CM otherwise (docs/WEAR.md, The max distance). */
 float weft_sample_worn_tether_cm(weft_cloth_kind kind);
-/* Whether a worn garment collides by body parts: `mode` 1 on, 0 off; < 0 (auto) for the reference
- * XPBD (simgen's recipe) and wherever CCD runs, where the parts keep CCD from trapping cloth between
- * two overlapping body parts; with CCD off the push moves cloth to the nearest body surface, and
- * the whole body keeps less cloth inside it (docs/WEAR.md, Body parts and the push). */
+/* Whether a worn garment collides by body parts: `mode` 1 on, 0 off; < 0 (auto) wherever CCD runs,
+ * where the parts keep CCD from trapping cloth between two overlapping body parts; with CCD off the
+ * push (and the reference's projection) moves cloth to the nearest body surface, and the whole body
+ * keeps less cloth inside it (docs/WEAR.md, Body parts and the push). Every method alike. */
 bool weft_sample_parts_on(int mode, weft_method method, bool ccd);
 /* Sets def->substeps to `substeps` (0 keeps the def's). The reference XPBD runs as `weft simgen`
  * runs it: frames whose body moves fast near the cloth get up to WEFT_REFERENCE_SUBSTEP_FACTOR

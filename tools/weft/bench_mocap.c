@@ -435,9 +435,9 @@ static const cli_option k_options[] = {
      "32x40 cape, run only by fnopt* and xpbd-fast:S"},
     {"methods", "lbs,model,xpbd-fast:5,xpbd-fast:10,xpbd:S,fnopt", OPT_METHODS,
      "the methods, at most 8 (default lbs,model,xpbd-fast:5,xpbd-fast:10); S:\n"
-     "substeps, 1..200. xpbd:S is the reference as weft simgen runs it (parts\n"
-     "within 1 cm without neighbours, up to 8 S substeps on fast frames, none\n"
-     "of the three fix-ups). fnopt, fnopt-fp16, fnopt-int8: the cape by FNOpt\n"
+     "substeps, 1..200. xpbd:S is the reference as weft simgen runs it on real\n"
+     "motion (the body projected each substep, the max distance, no push, up to\n"
+     "8 S substeps on fast frames). fnopt, fnopt-fp16, fnopt-int8: the cape by FNOpt\n"
      "(K = 10) at that precision; the garments skip them"},
     {"frames", "N", OPT_FRAMES,
      "frames after the settle, 0..100000 (default 300; 0: every frame of each\n"
@@ -453,11 +453,11 @@ static const cli_option k_options[] = {
      "the cape's FNOpt weights (default tools/fnopt/models/fnopt_32.safetensors)"},
     {"ccd", "on|off", OPT_CCD, "the CCD post-process (default off)"},
     {"body-parts", "auto|on|off", OPT_BODY_PARTS,
-     "collision by body parts (default auto: on where CCD runs and for the\n"
-     "xpbd:S reference, off otherwise)"},
+     "collision by body parts (default auto: on where CCD runs, off\n"
+     "otherwise)"},
     {"tether-cm", "X", OPT_TETHER_CM, "the max distance to the skinned garment for every garment, 0..1000 cm\n"
      "(default: the recipe's for each garment, below)"},
-    {"push-cm", "X", OPT_PUSH_CM, "the collider push, 0..10 cm (default below)"},
+    {"push-cm", "X", OPT_PUSH_CM, "the collider push, 0..10 cm (default below; not for the xpbd:S reference)"},
     {"push-depth-cm", "X", OPT_PUSH_DEPTH_CM, "the deepest cloth the push moves out, 0..50 cm (default below)"},
     {"strain-limit", "PCT", OPT_STRAIN_LIMIT, "the learned model's strain limit, 0..1000 % (default below)"},
     {"collider-tokens", "N", OPT_COLLIDER_TOKENS,
@@ -490,7 +490,8 @@ static void notes(FILE *out)
             "first pose (--settle N, 1..1000), 1k, the shipped int8 garment model, and the worn-garment recipe\n"
             "of the render sample: CCD off, the whole body as collider (no parts), a max distance of %g cm (skirts\n"
             "%g, dresses %g), a push of %g cm from up to %g cm deep, and for the learned model a strain limit\n"
-            "of %g %% and %u collider tokens (the xpbd:S reference keeps simgen's recipe, body parts included).\n",
+            "of %g %% and %u collider tokens (the xpbd:S reference runs as simgen runs it on real motion: the\n"
+            "body projected each substep, the max distance, no push; docs/REFSIM.md).\n",
             MC_SETTLE, (double)WEFT_WORN_TETHER_CM, (double)WEFT_WORN_TETHER_SKIRT_CM,
             (double)WEFT_WORN_TETHER_DRESS_CM, (double)WEFT_WORN_PUSH_CM, (double)WEFT_WORN_PUSH_DEPTH_CM,
             (double)WEFT_WORN_STRAIN_PCT,
