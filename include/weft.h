@@ -394,11 +394,10 @@ typedef struct weft_garment_def {
      * before the bounds that keep the cloth off itself. The body cannot be held back, so its
      * projection has the last word in a substep, and the max distance after the step: where the
      * body squeezes cloth against itself (two limbs that overlap), or the bounds held cloth beyond
-     * its radius, the cloth is not certified against itself. On a body
-     * that overlaps itself (real motion capture) bounded contacts trap the cloth the body has
-     * passed, and the reference on real motion projects instead (docs/REFSIM.md, *Real motion*).
-     * substeps_max keeps the body's step within the bounds of the cloth it carries. Ignored by the
-     * other methods. */
+     * its radius, the cloth is not certified against itself. On a body that overlaps itself (real
+     * motion capture) bounded contacts trap the cloth the body has passed, and the reference on
+     * real motion projects instead (docs/REFSIM.md, *Real motion*). substeps_max keeps the body's
+     * step within the bounds of the cloth it carries. Ignored by the other methods. */
     bool collider_projection;
 
     /* WEFT_METHOD_MODEL: collider cropping (ignored by other methods, but still validated).

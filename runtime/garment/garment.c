@@ -741,14 +741,11 @@ weft_result weft__garment_finish_step(weft_garment *g)
             memcpy(g->x_next + 3 * (size_t)g->pin_indices[k], g->pin_targets + 3 * (size_t)k, 3 * sizeof(float));
         }
     }
-    const bool tethers = g->tether_radius != NULL;
-    if (tethers) {
+    if (g->tether_radius) {
         weft_result r = apply_tethers(g, skinned);
         if (r != WEFT_OK) {
             return r;
         }
-    } else {
-        g->stats.tether_vertices_clamped = 0;
     }
     g->stats.attachment_vertices_clamped = weft__attach_clamp(g);
     if (g->near_inside && g->ccd_state) {
@@ -764,7 +761,7 @@ weft_result weft__garment_finish_step(weft_garment *g)
     if (g->push_thickness > 0.0f) {
         weft__push(g); /* out of the collider, so that CCD starts from a frame the body does not cut */
     }
-    if (tethers && (g->strain_limit > 0.0f || g->push_thickness > 0.0f)) {
+    if (g->tether_radius && (g->strain_limit > 0.0f || g->push_thickness > 0.0f)) {
         /* The strain limit and the push may carry a vertex past its radius again: the max distance
          * is what keeps a garment on its wearer, so it has the last word before CCD. The
          * attachments do not: a cloth swinging from its pins is held out of the body by the push,

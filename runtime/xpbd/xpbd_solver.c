@@ -501,6 +501,26 @@ static void xpbd_destroy(weft_garment *g)
     g->method_state = NULL;
 }
 
+/* Whether the solver's double state rounds to the garment's positions (no one moved them since). */
+static bool state_is_positions(const weft_garment *g, const xpbd_state *s)
+{
+    for (size_t i = 0; i < 3 * (size_t)s->n; ++i) {
+        if ((float)s->xd[i] != g->x[i]) {
+            return false;
+        }
+    }
+    return true;
+}
+
+/* The state a step starts from when the positions were replaced: x_t, and (x_t - x_{t-1}) / dt. */
+static void state_from_positions(const weft_garment *g, double *x, double *v)
+{
+    for (size_t i = 0; i < 3 * (size_t)g->vertex_count; ++i) {
+        x[i] = g->x[i];
+        v[i] = ((double)g->x[i] - (double)g->x_prev[i]) / FRAME_DT;
+    }
+}
+
 static void xpbd_reset(weft_garment *g)
 {
     xpbd_state *s = g->method_state;
@@ -537,16 +557,11 @@ weft_result weft__xpbd_export_state(const weft_garment *g, double *x, double *v)
     if (!s->have_state) {
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "xpbd export: the garment has not stepped since its state was set");
     }
-    for (size_t i = 0; i < 3 * (size_t)s->n; ++i) {
-        if ((float)s->xd[i] != g->x[i]) {
-            /* The constraint stage moved the cloth after the solve: the next step starts from the
-             * float positions (begin_frame), and so does the exported state. */
-            for (size_t k = 0; k < 3 * (size_t)s->n; ++k) {
-                x[k] = g->x[k];
-                v[k] = ((double)g->x[k] - (double)g->x_prev[k]) / FRAME_DT;
-            }
-            return WEFT_OK;
-        }
+    if (!state_is_positions(g, s)) {
+        /* The constraint stage moved the cloth after the solve: the next step starts from the
+         * float positions (begin_frame), and so does the exported state. */
+        state_from_positions(g, x, v);
+        return WEFT_OK;
     }
     memcpy(x, s->xd, 3 * (size_t)s->n * sizeof(double));
     memcpy(v, s->vd, 3 * (size_t)s->n * sizeof(double));
@@ -1496,19 +1511,9 @@ static void begin_frame(weft_garment *g, xpbd_state *s, uint32_t S)
     const uint32_t n = s->n, nc = s->nc;
     /* The double state continues the previous frame unless the positions were replaced
      * (set_state, or a post-process that moved vertices). */
-    if (s->have_state) {
-        for (size_t i = 0; i < 3 * (size_t)n; ++i) {
-            if ((float)s->xd[i] != g->x[i]) {
-                s->have_state = false;
-                break;
-            }
-        }
-    }
+    s->have_state = s->have_state && state_is_positions(g, s);
     if (!s->have_state) {
-        for (size_t i = 0; i < 3 * (size_t)n; ++i) {
-            s->xd[i] = g->x[i];
-            s->vd[i] = ((double)g->x[i] - (double)g->x_prev[i]) / FRAME_DT;
-        }
+        state_from_positions(g, s->xd, s->vd);
     }
     memcpy(s->xd_back, s->xd, 3 * (size_t)n * sizeof(double));
     memcpy(s->vd_back, s->vd, 3 * (size_t)n * sizeof(double));
@@ -1634,7 +1639,7 @@ static weft_result xpbd_step(weft_garment *g)
     begin_frame(g, s, S);
     /* With a projected collider the max distance (tethers) is held inside the substeps, toward
      * the garment skinned onto the collider at t+1; the constraint stage's clamp after the step
-     * then finds (nearly) nothing to move. */
+     * takes the same targets (skinned_next) and moves only what the bounds held back. */
     const float *tethers = NULL;
     if (s->project && g->tether_radius && g->skin) {
         weft_result tr = geo_skin_eval(g->skin, g->collider_triangles, g->collider_next, "xpbd: max distance",
@@ -1865,6 +1870,7 @@ static weft_result xpbd_step(weft_garment *g)
     }
     weft_result r = end_frame(g, s);
     s->rec_states = r == WEFT_OK && record ? S + 1 : 0;
+    g->skinned_next = r == WEFT_OK ? tethers : NULL;
     return r;
 }
 

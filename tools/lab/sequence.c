@@ -444,13 +444,13 @@ static ckpt_header ckpt_at(const ckpt_run *ck, const weft_sim_sequence_result *r
     return h;
 }
 
-/* Real motion: the wear measures of frame f (the body overlapping itself, the cloth inside it),
- * and the cloth the validator exempts from its cloth-cloth test: near where the body overlaps
- * itself at f or at f - 1. near[0, nv): exempt; [nv, 2 nv): at f; [2 nv, 3 nv): at *measured,
- * the last frame done (measured here when it is not f - 1: the run's first frame, a resumed run).
- * wf->off_body is set to the exempt share. */
-static weft_result body_check(weft_wear *wear, const xscene *sc, const run_buffers *b, uint32_t f, uint8_t *near,
-                              uint32_t *measured, weft_wear_frame *wf)
+/* Real motion: the wear measures of frame f into its stats row (the cloth inside the body, and
+ * inside where the body is clear), and the cloth the validator exempts from its cloth-cloth test:
+ * near where the body squeezes it at f or at f - 1, whose share goes into the row too.
+ * near[0, nv): exempt; [nv, 2 nv): at f; [2 nv, 3 nv): at *measured, the last frame done (measured
+ * here when it is not f - 1: the run's first frame, a resumed run). */
+static weft_result body_check(weft_wear *wear, const xscene *sc, run_buffers *b, uint32_t f, uint8_t *near,
+                              const uint32_t *measured, weft_wear_frame *wf)
 {
     const uint32_t nv = sc->cloth.nv, nc = sc->collider.nv;
     uint8_t *now = near + nv, *last = near + 2 * (size_t)nv;
@@ -472,7 +472,10 @@ static weft_result body_check(weft_wear *wear, const xscene *sc, const run_buffe
         near[v] = now[v] | last[v];
         exempt += near[v];
     }
-    wf->off_body = (double)exempt / nv;
+    float *row = b->stats + (size_t)f * ST_COUNT;
+    row[ST_INSIDE_BODY] = (float)wf->inside_body;
+    row[ST_INSIDE_CLEAR] = (float)wf->inside_clear;
+    row[ST_SELF_EXEMPT] = (float)exempt / (float)nv;
     return WEFT_OK;
 }
 
@@ -677,15 +680,10 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
                 locate_hit(sc, b, f, &v.hit, res);
                 break; /* rejected: no point simulating further */
             }
-            if (wear) {
-                row[ST_INSIDE_BODY] = (float)wf.inside_body;
-                row[ST_INSIDE_CLEAR] = (float)wf.inside_clear;
-                row[ST_SELF_EXEMPT] = (float)wf.off_body; /* body_check's share of exempt vertices */
-                if (wf.inside_clear > WEFT_SIM_INSIDE_CLEAR_MAX && res->first_hit_frame < 0) {
-                    res->first_hit_frame = (int32_t)f;
-                    res->inside_clear_rejected = true;
-                    break; /* cloth inside the body where the body does not overlap itself */
-                }
+            if (wear && wf.inside_clear > WEFT_SIM_INSIDE_CLEAR_MAX && res->first_hit_frame < 0) {
+                res->first_hit_frame = (int32_t)f;
+                res->inside_clear_rejected = true;
+                break; /* cloth inside the body where the body does not overlap itself */
             }
         }
         if (wear) {
@@ -759,9 +757,10 @@ static bool write_meta(const char *dir, const xscene *sc, const weft_sim_sequenc
         cJSON_AddStringToObject(mo, "body",
                                 "the body's contacts projected each substep (cloth inside or within the contact radius "
                                 "moves out along the nearest surface's pseudonormal), with the worn-garment recipe's max "
-                                "distance, push and floor; the validator certifies the cloth against itself, and a frame "
-                                "with cloth inside the body where the body does not overlap itself (inside_clear) over "
-                                "the limit rejects the sequence; no arm spread");
+                                "distance (inside the substeps and after them) and floor, no push; the validator "
+                                "certifies the cloth against itself except near where the body squeezes it "
+                                "(stats self_exempt), and a frame with cloth inside the body where the body does not "
+                                "overlap itself (inside_clear) over the limit rejects the sequence; no arm spread");
         cJSON_AddNumberToObject(mo, "inside_clear_limit", WEFT_SIM_INSIDE_CLEAR_MAX);
         cJSON_AddNumberToObject(mo, "inside_body_mean", res->inside_body_mean);
         cJSON_AddNumberToObject(mo, "inside_body_max", res->inside_body_max);
