@@ -44,6 +44,9 @@ void weft__ccd_world_set_parts(weft_ccd_world *w, const uint32_t *cloth_masks, c
 /* Per cloth vertex (not copied; NULL: none): cloth–cloth pairs of triangles with an exempt vertex
  * are neither swept nor intersected (simgen on real motion: cloth where the body overlaps itself). */
 void weft__ccd_world_set_self_exempt(weft_ccd_world *w, const uint8_t *exempt);
+/* Every pair of cloth triangles sharing no edge that intersects at x, exempt or not: sets mark to 1
+ * at their corners (the caller clears it) and returns the pair count. x must be finite. */
+uint32_t weft__ccd_intersect_mark(weft_ccd_world *w, const float *x, uint8_t *mark);
 
 /* ---- garment hook (world.c) ------------------------------------------------------------- */
 

@@ -1299,6 +1299,7 @@ typedef struct isect_ctx {
     const weft_ccd_world *w;
     const float *x, *c;
     uint32_t count;
+    uint8_t *mark; /* weft__ccd_intersect_mark: every pair, exempt or not; their corners marked */
 } isect_ctx;
 
 static void load_tri(double out[9], const float *pos, const uint32_t *t)
@@ -1314,7 +1315,7 @@ static void pair_isect_self(void *ctx, uint32_t ta, uint32_t tb)
 {
     isect_ctx *ic = ctx;
     const uint32_t *a = ic->w->tris + 3 * (size_t)ta, *b = ic->w->tris + 3 * (size_t)tb;
-    if (self_exempt(ic->w, a, b)) {
+    if (!ic->mark && self_exempt(ic->w, a, b)) {
         return;
     }
     int shared = 0, sa = -1, sb = -1;
@@ -1344,6 +1345,11 @@ static void pair_isect_self(void *ctx, uint32_t ta, uint32_t tb)
         hit = ccd_tri_tri(A, A + 3, A + 6, B, B + 3, B + 6);
     }
     ic->count += hit;
+    if (hit && ic->mark) {
+        for (int k = 0; k < 3; ++k) {
+            ic->mark[a[k]] = ic->mark[b[k]] = 1;
+        }
+    }
 }
 
 static void pair_isect_col(void *ctx, uint32_t ta, uint32_t tb)
@@ -1390,6 +1396,18 @@ weft_result weft_ccd_intersect_frame(weft_ccd_world *w, const float *x, const fl
         out->cloth_collider = ic.count;
     }
     return WEFT_OK;
+}
+
+uint32_t weft__ccd_intersect_mark(weft_ccd_world *w, const float *x, uint8_t *mark)
+{
+    if (!w->cloth_t.built) {
+        tree_build(&w->cloth_t, x, w->centroids);
+    }
+    vertex_boxes(w->vbox, x, x, w->nv, 0.0f, NULL);
+    tree_refit(&w->cloth_t, w->vbox);
+    isect_ctx ic = {.w = w, .x = x, .mark = mark};
+    traverse(&w->cloth_t, &w->cloth_t, pair_isect_self, &ic, false, NULL);
+    return ic.count;
 }
 
 /* ---- metrics ------------------------------------------------------------------------------- */

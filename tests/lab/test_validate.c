@@ -1,10 +1,13 @@
 /* The validator's cloth-cloth exemption (weft_sim_validator_set_self_exempt): a sheet pushed down
  * through another is a hit in the sweeps and in the triangle test; with the moving sheet's
- * vertices exempt it is not, and with the mask removed again it is. NULL validator is refused. */
+ * vertices exempt it is not, and with the mask removed again it is. NULL validator is refused.
+ * weft_sim_validator_tangled marks cloth crossing itself (the crossing triangles' corners and their
+ * ring), nothing on cloth that does not cross, and refuses non-finite positions. */
 #include "../xpbd/scene.h"
 #include "test.h"
 #include "weft/sim.h"
 
+#include <math.h>
 #include <string.h>
 
 static void test_exempt_cloth_is_not_certified(void)
@@ -46,4 +49,58 @@ static void test_exempt_cloth_is_not_certified(void)
     weft_context_destroy(ctx);
 }
 
-TEST_MAIN(TEST_CASE(test_exempt_cloth_is_not_certified))
+static void test_tangled_marks_the_crossing(void)
+{
+    weft_context_def cd = weft_default_context_def();
+    weft_context *ctx = NULL;
+    CHECK_RESULT(weft_context_create(&cd, &ctx), WEFT_OK);
+    test_mesh a = test_sheet(9, 9, 0.4f, 0.4f, 0.0f, 0.0f, 0.0f);
+    test_mesh b = test_sheet(9, 9, 0.4f, 0.4f, 0.0f, 0.01f, 0.0f);
+    test_mesh both = test_mesh_join(&a, &b);
+    CHECK(both.pos && both.tris);
+    float *x = malloc(sizeof(float) * 3 * both.nv);
+    uint8_t *tangled = malloc(both.nv);
+    CHECK(x && tangled);
+    memcpy(x, both.pos, sizeof(float) * 3 * both.nv);
+    weft_sim_validator *v = NULL;
+    CHECK_RESULT(weft_sim_validator_create(ctx, both.tris, both.nt, both.nv, NULL, 0, 0, &v), WEFT_OK);
+    uint32_t count = 99;
+    memset(tangled, 7, both.nv);
+    CHECK_RESULT(weft_sim_validator_tangled(v, x, tangled, &count), WEFT_OK);
+    CHECK_EQ_INT(count, 0);
+    for (uint32_t i = 0; i < both.nv; ++i) {
+        CHECK_EQ_INT(tangled[i], 0);
+    }
+    /* The upper sheet's x > 0 half sinks 2 cm: it crosses the lower sheet along a line near x = 0. */
+    for (uint32_t i = a.nv; i < both.nv; ++i) {
+        if (x[3 * i] > 0.0f) {
+            x[3 * i + 1] -= 0.02f;
+        }
+    }
+    CHECK_RESULT(weft_sim_validator_tangled(v, x, tangled, &count), WEFT_OK);
+    uint32_t marked = 0, marked_lower = 0, far_marked = 0;
+    for (uint32_t i = 0; i < both.nv; ++i) {
+        CHECK(tangled[i] <= 1);
+        marked += tangled[i];
+        marked_lower += i < a.nv && tangled[i];
+        far_marked += tangled[i] && fabsf(x[3 * i]) > 0.16f; /* beyond the crossing's triangles and ring */
+    }
+    CHECK(count > 0 && count < marked); /* the corners; the ring is marked, not counted */
+    CHECK(marked_lower > 0 && marked > marked_lower);
+    CHECK_EQ_INT(far_marked, 0);
+    /* Non-finite positions: refused, the mask untouched. */
+    memset(tangled, 5, both.nv);
+    x[4] = NAN;
+    CHECK_RESULT(weft_sim_validator_tangled(v, x, tangled, &count), WEFT_ERROR_NOT_FINITE);
+    CHECK_EQ_INT(tangled[0], 5);
+    CHECK_RESULT(weft_sim_validator_tangled(NULL, x, tangled, &count), WEFT_ERROR_INVALID_ARGUMENT);
+    weft_sim_validator_destroy(v);
+    free(x);
+    free(tangled);
+    test_mesh_free(&a);
+    test_mesh_free(&b);
+    test_mesh_free(&both);
+    weft_context_destroy(ctx);
+}
+
+TEST_MAIN(TEST_CASE(test_exempt_cloth_is_not_certified), TEST_CASE(test_tangled_marks_the_crossing))

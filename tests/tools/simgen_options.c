@@ -225,10 +225,16 @@ static void mocap_windows_of_library_clips(void)
     CHECK_MSG(inside_mean >= 0.0 && inside_mean <= 1.0 && clear_max >= 0.0 && clear_max <= 1.0, "%g %g", inside_mean,
               clear_max);
     if (strstr(text, "\"accepted\":\tfalse")) {
-        CHECK_MSG(strstr(text, "\"inside_clear_rejected\":\ttrue") || !strstr(text, "\"first_hit_frame\":\t-1"),
+        CHECK_MSG(strstr(text, "\"inside_clear_rejected\":\ttrue") || strstr(text, "\"tangled_rejected\":\ttrue") ||
+                      !strstr(text, "\"first_hit_frame\":\t-1"),
                   "rejected without a reason: %.600s", text);
     } else {
         CHECK_MSG(clear_max <= WEFT_SIM_INSIDE_CLEAR_MAX, "accepted with %g of the cloth inside the clear body", clear_max);
+        double tangled_max = -1.0;
+        p = strstr(text, "\"tangled_max\":");
+        CHECK_MSG(p && sscanf(p + 14, "%lf", &tangled_max) == 1, "no tangled_max in %.400s", text);
+        CHECK_MSG(tangled_max >= 0.0 && tangled_max <= WEFT_SIM_TANGLED_MAX, "accepted with %g of the cloth crossing itself",
+                  tangled_max);
     }
     const char *bad[] = {g_exe, "simgen", "--out", dir, "--mocap", "holdout", NULL};
     CHECK_EQ_INT(tool_run(bad, NULL), 2);

@@ -34,12 +34,13 @@ enum {
     ST_INSIDE_BODY,
     ST_INSIDE_CLEAR,
     ST_SELF_EXEMPT,
+    ST_TANGLED,
     ST_COUNT
 };
 static const char *const stat_names[ST_COUNT] = {
     "wall_ms",   "substeps",   "detections",      "contacts", "contacts_dropped", "clamped",    "min_self_distance",
     "min_collider_distance", "max_strain", "elastic_energy", "ccd_hits", "intersection_hits", "validate_ms", "chord_safe_retry",
-    "path_validated", "inside_body", "inside_clear", "self_exempt"};
+    "path_validated", "inside_body", "inside_clear", "self_exempt", "tangled"};
 
 weft_sim_sequence_def weft_sim_default_sequence_def(void)
 {
@@ -370,8 +371,9 @@ static weft_result validate_frame(weft_sim_validator *val, const weft_garment *g
     memcpy(b->path + (size_t)(states - 1) * nv * 3, b->cloth + (size_t)f * nv * 3, sizeof(float) * 3 * nv);
     weft_sim_validation pv;
     r = weft_sim_validator_check_path(val, b->path, states, c0, c1, &pv);
-    if (r == WEFT_OK && pv.ccd_hits == 0 && pv.intersection_hits == 0) {
-        *by_path = true;
+    if (r == WEFT_OK) {
+        /* the path is the motion the solver made: its verdict, and where it failed */
+        *by_path = pv.ccd_hits == 0 && pv.intersection_hits == 0;
         *v = pv;
     }
     return r;
@@ -446,20 +448,25 @@ static ckpt_header ckpt_at(const ckpt_run *ck, const weft_sim_sequence_result *r
 
 /* Real motion: the wear measures of frame f into its stats row (the cloth inside the body, and
  * inside where the body is clear), and the cloth the validator exempts from its cloth-cloth test:
- * near where the body squeezes it at f or at f - 1, whose share goes into the row too.
- * near[0, nv): exempt; [nv, 2 nv): at f; [2 nv, 3 nv): at *measured, the last frame done (measured
- * here when it is not f - 1: the run's first frame, a resumed run). */
-static weft_result body_check(weft_wear *wear, const xscene *sc, run_buffers *b, uint32_t f, uint8_t *near,
-                              const uint32_t *measured, weft_wear_frame *wf)
+ * near where the body squeezes it at f or at f - 1, and cloth that was crossing itself at the end
+ * of f - 1 (which the validator let pass only where exempt: a tangle made where the body squeezed
+ * it stays exempt while it stays crossed), whose share goes into the row too.
+ * near[0, nv): exempt; [nv, 2 nv): near the squeeze at f; [2 nv, 3 nv): at *measured, the last
+ * frame done; [3 nv, 4 nv): crossing itself at *measured (both measured here when *measured is
+ * not f - 1: the run's first frame, a resumed run). */
+static weft_result body_check(weft_wear *wear, weft_sim_validator *val, const xscene *sc, run_buffers *b, uint32_t f,
+                              uint8_t *near, const uint32_t *measured, weft_wear_frame *wf)
 {
     const uint32_t nv = sc->cloth.nv, nc = sc->collider.nv;
-    uint8_t *now = near + nv, *last = near + 2 * (size_t)nv;
+    uint8_t *now = near + nv, *last = near + 2 * (size_t)nv, *tangled = near + 3 * (size_t)nv;
     weft_result r = WEFT_OK;
     if (*measured + 1 != f) {
         const float *bp = b->collider + (size_t)(f - 1) * nc * 3, *xp = b->cloth + (size_t)(f - 1) * nv * 3;
         weft_wear_frame scratch;
+        uint32_t crossed = 0;
         r = weft_wear_measure(wear, bp, xp, xp, 1.0f, &scratch);
         r = r != WEFT_OK ? r : weft_wear_near_overlap(wear, bp, WEFT_SIM_SQUEEZE_REACH, xp, nv, last);
+        r = r != WEFT_OK ? r : weft_sim_validator_tangled(val, xp, tangled, &crossed);
     }
     const float *body = b->collider + (size_t)f * nc * 3, *xf = b->cloth + (size_t)f * nv * 3;
     r = r != WEFT_OK ? r : weft_wear_measure(wear, body, xf, xf, 1.0f, wf);
@@ -469,7 +476,7 @@ static weft_result body_check(weft_wear *wear, const xscene *sc, run_buffers *b,
     }
     uint32_t exempt = 0;
     for (uint32_t v = 0; v < nv; ++v) {
-        near[v] = now[v] | last[v];
+        near[v] = now[v] | last[v] | tangled[v];
         exempt += near[v];
     }
     float *row = b->stats + (size_t)f * ST_COUNT;
@@ -479,16 +486,41 @@ static weft_result body_check(weft_wear *wear, const xscene *sc, run_buffers *b,
     return WEFT_OK;
 }
 
+/* Real motion: cloth the constraint stage moved after the solve (the max distance pulling cloth
+ * the bounds held back, the floor) joins the exempt set of frame f: those moves were not made
+ * under the bounds (the validator's path joins them to the last substep). Returns how many. */
+static uint32_t exempt_moved(const weft_garment *g, const run_buffers *b, uint32_t f, uint32_t nv, uint8_t *exempt)
+{
+    const uint32_t states = weft__xpbd_recorded_states(g);
+    if (states < 2) {
+        return 0;
+    }
+    const float *solved = b->path + (size_t)(states - 1) * nv * 3, *x = b->cloth + (size_t)f * nv * 3;
+    uint32_t moved = 0;
+    for (uint32_t v = 0; v < nv; ++v) {
+        const float *p = solved + 3 * (size_t)v, *q = x + 3 * (size_t)v;
+        if (p[0] != q[0] || p[1] != q[1] || p[2] != q[2]) {
+            moved += !exempt[v];
+            exempt[v] = 1;
+        }
+    }
+    return moved;
+}
+
 /* The wear measures' columns over stats rows 1..last into the result (real motion; 0 elsewhere). */
 static void inside_summary(const run_buffers *b, size_t last, weft_sim_sequence_result *res)
 {
-    double sum = 0.0, worst = 0.0, clear = 0.0;
+    double sum = 0.0, worst = 0.0, clear = 0.0, exempt = 0.0, tangled = 0.0;
     for (size_t f = 1; f <= last; ++f) {
         const float *row = b->stats + f * ST_COUNT;
         sum += row[ST_INSIDE_BODY];
         worst = fmax(worst, row[ST_INSIDE_BODY]);
         clear = fmax(clear, row[ST_INSIDE_CLEAR]);
+        exempt += row[ST_SELF_EXEMPT];
+        tangled = fmax(tangled, row[ST_TANGLED]);
     }
+    res->self_exempt_mean = last > 0 ? (float)(exempt / (double)last) : 0.0f;
+    res->tangled_max = (float)tangled;
     res->inside_body_mean = last > 0 ? (float)(sum / (double)last) : 0.0f;
     res->inside_body_max = (float)worst;
     res->inside_clear_max = (float)clear;
@@ -522,7 +554,7 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
                                                  sc->collider.nt, nc, &val);
         if (r == WEFT_OK && sc->clip) {
             r = weft_wear_create(sc->collider.tris, sc->collider.nt, nc, nv, &wear);
-            near_overlap = calloc(3 * (size_t)nv, 1); /* exempt, this frame's, the last frame's */
+            near_overlap = calloc(4 * (size_t)nv, 1); /* exempt; near a squeeze now, at the last frame; crossed */
             r = r != WEFT_OK ? r : near_overlap ? weft_sim_validator_set_self_exempt(val, near_overlap)
                                                 : weft__fail(WEFT_ERROR_OUT_OF_MEMORY, "simgen: out of memory");
         }
@@ -550,7 +582,7 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
     memset(b->stats + kept * ST_COUNT, 0, sizeof(float) * ST_COUNT * (T - kept));
     memset(b->pinned, 0, (size_t)T * nv);
     res->ccd_hits = res->intersection_hits = 0;
-    res->inside_clear_rejected = false;
+    res->inside_clear_rejected = res->tangled_rejected = false;
     res->first_hit_frame = -1;
     locate_hit(sc, b, 0, &(weft_ccd_hit){.type = WEFT_CCD_TYPE_COUNT}, res);
     res->chord_retries = res->path_frames = 0;
@@ -621,8 +653,11 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
         row[ST_ENERGY] = (float)st.elastic_energy;
         res->simulate_s += (t1 - t0) / 1000.0;
         weft_wear_frame wf = {0};
-        if (wear && (r = body_check(wear, sc, b, f, near_overlap, &measured, &wf)) != WEFT_OK) {
+        if (wear && (r = body_check(wear, val, sc, b, f, near_overlap, &measured, &wf)) != WEFT_OK) {
             break;
+        }
+        if (wear) {
+            row[ST_SELF_EXEMPT] += (float)exempt_moved(g, b, f, nv, near_overlap) / (float)nv;
         }
         if (val) {
             double t2 = t1;
@@ -660,7 +695,10 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
                 row[ST_RETRIED] = 1.0f;
                 res->chord_retries++;
                 if (r == WEFT_OK && wear) {
-                    r = body_check(wear, sc, b, f, near_overlap, &measured, &wf);
+                    r = body_check(wear, val, sc, b, f, near_overlap, &measured, &wf);
+                }
+                if (r == WEFT_OK && wear) {
+                    row[ST_SELF_EXEMPT] += (float)exempt_moved(g, b, f, nv, near_overlap) / (float)nv;
                 }
             }
             t2 = weft__now_ms();
@@ -687,8 +725,20 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
             }
         }
         if (wear) {
-            memcpy(near_overlap + 2 * (size_t)nv, near_overlap + nv, nv); /* frame f is the last one now */
+            /* frame f is the last one now: its squeeze zone, and the cloth crossing itself there */
+            uint32_t crossed = 0;
+            memcpy(near_overlap + 2 * (size_t)nv, near_overlap + nv, nv);
+            r = weft_sim_validator_tangled(val, b->cloth + (size_t)f * nv * 3, near_overlap + 3 * (size_t)nv, &crossed);
+            b->stats[(size_t)f * ST_COUNT + ST_TANGLED] = (float)crossed / (float)nv;
             measured = f;
+            if (r != WEFT_OK) {
+                break;
+            }
+            if ((double)crossed > WEFT_SIM_TANGLED_MAX * nv && res->first_hit_frame < 0) {
+                res->first_hit_frame = (int32_t)f;
+                res->tangled_rejected = true;
+                break; /* a tangle over the limit: not ground truth, however it came about */
+            }
         }
         if (progress) {
             progress(f, T - 1, user);
@@ -758,13 +808,19 @@ static bool write_meta(const char *dir, const xscene *sc, const weft_sim_sequenc
                                 "the body's contacts projected each substep (cloth inside or within the contact radius "
                                 "moves out along the nearest surface's pseudonormal), with the worn-garment recipe's max "
                                 "distance (inside the substeps and after them) and floor, no push; the validator "
-                                "certifies the cloth against itself except near where the body squeezes it "
-                                "(stats self_exempt), and a frame with cloth inside the body where the body does not "
-                                "overlap itself (inside_clear) over the limit rejects the sequence; no arm spread");
+                                "certifies the cloth against itself except near where the body squeezes it, where the "
+                                "max distance or the floor moved it after the solve, and where it still crosses itself "
+                                "from such a place (stats self_exempt, tangled), and a frame with cloth inside the body "
+                                "where the body does not overlap itself (inside_clear) over the limit rejects the "
+                                "sequence; no arm spread");
         cJSON_AddNumberToObject(mo, "inside_clear_limit", WEFT_SIM_INSIDE_CLEAR_MAX);
         cJSON_AddNumberToObject(mo, "inside_body_mean", res->inside_body_mean);
         cJSON_AddNumberToObject(mo, "inside_body_max", res->inside_body_max);
         cJSON_AddNumberToObject(mo, "inside_clear_max", res->inside_clear_max);
+        cJSON_AddNumberToObject(mo, "self_exempt_mean", res->self_exempt_mean);
+        cJSON_AddNumberToObject(mo, "tangled_max", res->tangled_max);
+        cJSON_AddNumberToObject(mo, "tangled_limit", WEFT_SIM_TANGLED_MAX);
+        cJSON_AddBoolToObject(mo, "tangled_rejected", res->tangled_rejected);
         cJSON_AddBoolToObject(mo, "inside_clear_rejected", res->inside_clear_rejected);
     }
     if (sc->character) {

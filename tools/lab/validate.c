@@ -14,6 +14,7 @@ struct weft_sim_validator {
     uint32_t n, nc;
     weft_ccd_world *world;
     float *ca, *cb; /* collider interpolated along a substep path */
+    uint32_t *tris, nt; /* the cloth's triangles (weft_sim_validator_tangled's ring) */
 };
 
 void weft_sim_validator_destroy(weft_sim_validator *v)
@@ -25,6 +26,7 @@ void weft_sim_validator_destroy(weft_sim_validator *v)
     weft_ccd_world_destroy(v->world);
     weft__free(ctx, v->ca, 3 * (size_t)(v->nc ? v->nc : 1) * sizeof(float));
     weft__free(ctx, v->cb, 3 * (size_t)(v->nc ? v->nc : 1) * sizeof(float));
+    weft__free(ctx, v->tris, 3 * (size_t)v->nt * sizeof(uint32_t));
     weft__free(ctx, v, sizeof *v);
 }
 
@@ -60,7 +62,12 @@ weft_result weft_sim_validator_create(weft_context *ctx, const uint32_t *cloth_t
     v->nc = collider_vertex_count;
     v->ca = weft__alloc(ctx, 3 * (size_t)(v->nc ? v->nc : 1) * sizeof(float));
     v->cb = weft__alloc(ctx, 3 * (size_t)(v->nc ? v->nc : 1) * sizeof(float));
-    if (!v->ca || !v->cb) {
+    v->tris = weft__alloc(ctx, 3 * (size_t)cloth_triangle_count * sizeof(uint32_t));
+    if (v->tris) {
+        v->nt = cloth_triangle_count;
+        memcpy(v->tris, cloth_triangles, 3 * (size_t)cloth_triangle_count * sizeof(uint32_t));
+    }
+    if (!v->ca || !v->cb || !v->tris) {
         weft_sim_validator_destroy(v);
         return WEFT_ERROR_OUT_OF_MEMORY;
     }
@@ -154,6 +161,38 @@ weft_result weft_sim_validator_set_self_exempt(weft_sim_validator *v, const uint
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_sim_validator_set_self_exempt: validator is NULL");
     }
     weft__ccd_world_set_self_exempt(v->world, exempt);
+    return WEFT_OK;
+}
+
+weft_result weft_sim_validator_tangled(weft_sim_validator *v, const float *cloth, uint8_t *tangled, uint32_t *count)
+{
+    if (!v || !cloth || !tangled || !count) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_sim_validator_tangled: every argument is required");
+    }
+    if (!weft__all_finite(cloth, 3 * (size_t)v->n)) {
+        return weft__fail(WEFT_ERROR_NOT_FINITE, "weft_sim_validator_tangled: positions contain NaN or infinity");
+    }
+    memset(tangled, 0, v->n);
+    if (weft__ccd_intersect_mark(v->world, cloth, tangled) == 0) {
+        *count = 0;
+        return WEFT_OK;
+    }
+    /* One ring: a triangle with a crossing corner marks its other corners (2 marks the new ones,
+     * so the ring does not spread within the pass). */
+    for (uint32_t t = 0; t < v->nt; ++t) {
+        const uint32_t *tri = v->tris + 3 * (size_t)t;
+        if (tangled[tri[0]] == 1 || tangled[tri[1]] == 1 || tangled[tri[2]] == 1) {
+            for (int k = 0; k < 3; ++k) {
+                tangled[tri[k]] = tangled[tri[k]] ? tangled[tri[k]] : 2;
+            }
+        }
+    }
+    uint32_t c = 0;
+    for (uint32_t i = 0; i < v->n; ++i) {
+        c += tangled[i] == 1;
+        tangled[i] = tangled[i] != 0;
+    }
+    *count = c;
     return WEFT_OK;
 }
 

@@ -1264,6 +1264,11 @@ int weft_cmd_simgen(int argc, char **argv)
                                 "itself at frame %d (limit %.1f %%, substeps %u)\n",
                         plan[i].name, 100.0 * res.inside_clear_max, res.first_hit_frame,
                         100.0 * WEFT_SIM_INSIDE_CLEAR_MAX, res.substeps_used);
+            } else if (!res.accepted && res.tangled_rejected) {
+                fprintf(stderr, "\nsimgen: %s rejected: %.1f %% of the cloth crossing itself at frame %d (limit %.1f %%, "
+                                "substeps %u)\n",
+                        plan[i].name, 100.0 * res.tangled_max, res.first_hit_frame, 100.0 * WEFT_SIM_TANGLED_MAX,
+                        res.substeps_used);
             } else if (!res.accepted) {
                 fprintf(stderr, "\nsimgen: %s rejected by the validator (%u CCD, %u intersection hits, first at frame %d, "
                                 "substeps %u%s%s)\n",

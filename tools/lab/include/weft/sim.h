@@ -49,6 +49,10 @@ typedef struct weft_sim_validation {
  * this many metres (weft_wear_near_overlap) is squeezed by the body and not certified against
  * itself (weft_sim_validator_set_self_exempt). */
 #define WEFT_SIM_SQUEEZE_REACH 0.01f
+/* Real motion: a frame whose cloth crosses itself over this share of its vertices (the crossing
+ * triangles' corners, weft_sim_validator_tangled's count) rejects the sequence, whatever exempt
+ * place the crossing came from. */
+#define WEFT_SIM_TANGLED_MAX 0.02
 
 /* Topology is copied. The collider may be absent (collider_vertex_count 0). Cloth triangles
  * that share a vertex are not tested against each other; the mesh checks of
@@ -71,6 +75,12 @@ WEFT_API weft_result weft_sim_validator_set_parts(weft_sim_validator *validator,
  * neither swept nor intersected. simgen on real motion exempts the cloth near where the body
  * overlaps itself, which squeezes cloth through cloth (docs/REFSIM.md, Real motion). */
 WEFT_API weft_result weft_sim_validator_set_self_exempt(weft_sim_validator *validator, const uint8_t *exempt);
+/* The cloth crossing itself at `cloth`: sets tangled[v] (cloth vertex count) to 1 at the corners of
+ * every pair of cloth triangles that intersect, exempt or not, and at the corners' one ring; 0
+ * elsewhere. *count: the corners (the ring not counted). simgen on real motion keeps cloth that
+ * crossed itself in an exempt zone exempt while it stays crossed (docs/REFSIM.md, Real motion). */
+WEFT_API weft_result weft_sim_validator_tangled(weft_sim_validator *validator, const float *cloth, uint8_t *tangled,
+                                                uint32_t *count);
 /* Checks the motion from frame t (cloth0, collider0) to t+1 (cloth1, collider1). Collider
  * arrays may be NULL when there is no collider. Allocates nothing. */
 WEFT_API weft_result weft_sim_validator_check(weft_sim_validator *validator, const float *cloth0, const float *cloth1,
@@ -211,7 +221,11 @@ typedef struct weft_sim_sequence_result {
      * at first_hit_frame), and the shares of the cloth inside the body over its frames (mean, worst)
      * and inside where the body does not overlap itself (worst); 0 on other scenes. */
     bool inside_clear_rejected;
+    bool tangled_rejected; /* real motion: rejected for cloth crossing itself (WEFT_SIM_TANGLED_MAX) */
     float inside_body_mean, inside_body_max, inside_clear_max;
+    /* Real motion: the share of the cloth the validator did not certify against itself, mean over
+     * the frames (stats self_exempt), and the worst frame's share crossing itself (stats tangled). */
+    float self_exempt_mean, tangled_max;
     uint32_t chord_retries;       /* frames redone with one proximity pass (see docs/REFSIM.md) */
     uint32_t path_frames;         /* frames whose chord grazed but whose substep path is clean */
     double simulate_s, validate_s; /* wall time of the last attempt */
