@@ -1367,6 +1367,19 @@ static void pair_isect_col(void *ctx, uint32_t ta, uint32_t tb)
     ic->count += ccd_tri_tri(A, A + 3, A + 6, B, B + 3, B + 6);
 }
 
+/* The cloth's tree at ic->x, then its triangle pairs against each other: the intersecting count. */
+static uint32_t cloth_self_isect(weft_ccd_world *w, isect_ctx *ic)
+{
+    if (!w->cloth_t.built) {
+        tree_build(&w->cloth_t, ic->x, w->centroids);
+    }
+    vertex_boxes(w->vbox, ic->x, ic->x, w->nv, 0.0f, NULL);
+    tree_refit(&w->cloth_t, w->vbox);
+    ic->count = 0;
+    traverse(&w->cloth_t, &w->cloth_t, pair_isect_self, ic, false, NULL);
+    return ic->count;
+}
+
 weft_result weft_ccd_intersect_frame(weft_ccd_world *w, const float *x, const float *c, weft_ccd_intersections *out)
 {
     if (!w || !out) {
@@ -1376,14 +1389,8 @@ weft_result weft_ccd_intersect_frame(weft_ccd_world *w, const float *x, const fl
     if (r != WEFT_OK) {
         return r;
     }
-    if (!w->cloth_t.built) {
-        tree_build(&w->cloth_t, x, w->centroids);
-    }
-    vertex_boxes(w->vbox, x, x, w->nv, 0.0f, NULL);
-    tree_refit(&w->cloth_t, w->vbox);
     isect_ctx ic = {.w = w, .x = x, .c = c};
-    traverse(&w->cloth_t, &w->cloth_t, pair_isect_self, &ic, false, NULL);
-    out->cloth_cloth = ic.count;
+    out->cloth_cloth = cloth_self_isect(w, &ic);
     out->cloth_collider = 0;
     if (w->cv > 0) {
         if (!w->col_t.built) {
@@ -1400,14 +1407,8 @@ weft_result weft_ccd_intersect_frame(weft_ccd_world *w, const float *x, const fl
 
 uint32_t weft__ccd_intersect_mark(weft_ccd_world *w, const float *x, uint8_t *mark)
 {
-    if (!w->cloth_t.built) {
-        tree_build(&w->cloth_t, x, w->centroids);
-    }
-    vertex_boxes(w->vbox, x, x, w->nv, 0.0f, NULL);
-    tree_refit(&w->cloth_t, w->vbox);
     isect_ctx ic = {.w = w, .x = x, .mark = mark};
-    traverse(&w->cloth_t, &w->cloth_t, pair_isect_self, &ic, false, NULL);
-    return ic.count;
+    return cloth_self_isect(w, &ic);
 }
 
 /* ---- metrics ------------------------------------------------------------------------------- */
