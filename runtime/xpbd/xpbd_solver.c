@@ -1821,7 +1821,7 @@ static weft_result xpbd_step(weft_garment *g)
                 }
             }
             const double *xo = s->xo + 3 * (size_t)i;
-            for (int a = 0; a < 3; ++a) {
+            for (int a = 0; !s->project && a < 3; ++a) { /* a projected body sets v after it moves */
                 s->v[3 * (size_t)i + a] = (xi[a] - xo[a]) / h;
             }
         }

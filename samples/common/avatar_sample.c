@@ -809,9 +809,8 @@ weft_garment_def weft_sample_body_garment_def(const weft_body *body, weft_method
     return d;
 }
 
-bool weft_sample_parts_on(int mode, weft_method method, bool ccd)
+bool weft_sample_parts_on(int mode, bool ccd)
 {
-    (void)method;
     return mode >= 0 ? mode != 0 : ccd;
 }
 
@@ -837,7 +836,7 @@ static weft_garment_def worn_def_on(const weft_sample_collider *col, weft_cloth_
     d.collider_vertex_count = col->vertex_count;
     d.collider_triangles = col->triangles;
     d.collider_triangle_count = col->triangle_count;
-    d.collision.triangle_parts = weft_sample_parts_on(-1, method, false) ? col->triangle_parts : NULL;
+    d.collision.triangle_parts = weft_sample_parts_on(-1, false) ? col->triangle_parts : NULL;
     d.collision.ground = true; /* the floor the sample draws, y = 0 */
     d.ccd.enabled = false;
     d.tethers.distance = weft_sample_worn_tether_cm(kind) / 100.0f;
@@ -1026,7 +1025,7 @@ weft_result weft_avatar_sample_garment_create_on(const weft_avatar_sample_option
         }
         gdef.ccd.enabled = o->ccd;
         gdef.collision.triangle_parts =
-            weft_sample_parts_on(o->body_parts, order[m].method, o->ccd) ? collider->triangle_parts : NULL;
+            weft_sample_parts_on(o->body_parts, o->ccd) ? collider->triangle_parts : NULL;
         weft_result r = weft_garment_create(ctx, &gdef, out_garment);
         if (r != WEFT_OK) {
             fprintf(stderr, "avatar_render: method %s unavailable: %s\n", order[m].name, weft_last_error());

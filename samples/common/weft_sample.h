@@ -160,7 +160,7 @@ weft_garment_def weft_sample_body_garment_def(const weft_body *body, weft_method
 /* The worn-garment recipe (docs/WEAR.md) for `method`: the cloth mesh on the body as collider,
  * body parts from weft_body_triangle_parts written into `parts` (weft_body_triangle_count(body)
  * bytes, kept by the caller until the garment is created; NULL: no parts) and used where
- * weft_sample_parts_on(-1, method, false) says (the reference only), the floor y = 0
+ * weft_sample_parts_on(-1, false) says (CCD is off: none), the floor y = 0
  * (collision.ground), no CCD, a max distance of weft_sample_worn_tether_cm(cloth->kind), a 0.5 cm
  * push from up to 6 cm deep, and for the learned model a 10 % strain limit and at most
  * WEFT_WORN_COLLIDER_TOKENS collider tokens, an even sample of its crop (WEFT_COLLIDER_CAP_SAMPLE;
@@ -179,7 +179,7 @@ float weft_sample_worn_tether_cm(weft_cloth_kind kind);
  * where the parts keep CCD from trapping cloth between two overlapping body parts; with CCD off the
  * push (and the reference's projection) moves cloth to the nearest body surface, and the whole body
  * keeps less cloth inside it (docs/WEAR.md, Body parts and the push). Every method alike. */
-bool weft_sample_parts_on(int mode, weft_method method, bool ccd);
+bool weft_sample_parts_on(int mode, bool ccd);
 /* Sets def->substeps to `substeps` (0 keeps the def's). The reference XPBD runs as `weft simgen`
  * runs it: frames whose body moves fast near the cloth get up to WEFT_REFERENCE_SUBSTEP_FACTOR
  * times the substeps (substeps_max; docs/REFSIM.md, Fast colliders), or a walking body outruns its

@@ -446,16 +446,29 @@ static ckpt_header ckpt_at(const ckpt_run *ck, const weft_sim_sequence_result *r
     return h;
 }
 
+/* Real motion: whether the constraint stage moved cloth vertex v after the solve (the max distance
+ * pulling cloth the bounds held back, the floor): its position at frame f differs from the last
+ * recorded substep's. Read before validate_frame, which joins the path to the frame. */
+static bool moved_after_solve(const float *solved, const float *x, uint32_t v)
+{
+    if (!solved) {
+        return false;
+    }
+    const float *p = solved + 3 * (size_t)v, *q = x + 3 * (size_t)v;
+    return p[0] != q[0] || p[1] != q[1] || p[2] != q[2];
+}
+
 /* Real motion: the wear measures of frame f into its stats row (the cloth inside the body, and
  * inside where the body is clear), and the cloth the validator exempts from its cloth-cloth test:
- * near where the body squeezes it at f or at f - 1, and cloth that was crossing itself at the end
- * of f - 1 (which the validator let pass only where exempt: a tangle made where the body squeezed
- * it stays exempt while it stays crossed), whose share goes into the row too.
+ * near where the body squeezes it at f or at f - 1, moved by the constraint stage after the solve
+ * (not under the bounds), and cloth that was crossing itself at the end of f - 1 (which the
+ * validator let pass only where exempt: a tangle made there stays exempt while it stays crossed),
+ * whose share goes into the row too. Runs before the frame is validated.
  * near[0, nv): exempt; [nv, 2 nv): near the squeeze at f; [2 nv, 3 nv): at *measured, the last
  * frame done; [3 nv, 4 nv): crossing itself at *measured (both measured here when *measured is
  * not f - 1: the run's first frame, a resumed run). */
-static weft_result body_check(weft_wear *wear, weft_sim_validator *val, const xscene *sc, run_buffers *b, uint32_t f,
-                              uint8_t *near, const uint32_t *measured, weft_wear_frame *wf)
+static weft_result body_check(weft_wear *wear, weft_sim_validator *val, const weft_garment *g, const xscene *sc,
+                              run_buffers *b, uint32_t f, uint8_t *near, const uint32_t *measured, weft_wear_frame *wf)
 {
     const uint32_t nv = sc->cloth.nv, nc = sc->collider.nv;
     uint8_t *now = near + nv, *last = near + 2 * (size_t)nv, *tangled = near + 3 * (size_t)nv;
@@ -474,9 +487,11 @@ static weft_result body_check(weft_wear *wear, weft_sim_validator *val, const xs
     if (r != WEFT_OK) {
         return r;
     }
+    const uint32_t states = weft__xpbd_recorded_states(g);
+    const float *solved = states >= 2 ? b->path + (size_t)(states - 1) * nv * 3 : NULL;
     uint32_t exempt = 0;
     for (uint32_t v = 0; v < nv; ++v) {
-        near[v] = now[v] | last[v] | tangled[v];
+        near[v] = now[v] | last[v] | tangled[v] | moved_after_solve(solved, xf, v);
         exempt += near[v];
     }
     float *row = b->stats + (size_t)f * ST_COUNT;
@@ -484,27 +499,6 @@ static weft_result body_check(weft_wear *wear, weft_sim_validator *val, const xs
     row[ST_INSIDE_CLEAR] = (float)wf->inside_clear;
     row[ST_SELF_EXEMPT] = (float)exempt / (float)nv;
     return WEFT_OK;
-}
-
-/* Real motion: cloth the constraint stage moved after the solve (the max distance pulling cloth
- * the bounds held back, the floor) joins the exempt set of frame f: those moves were not made
- * under the bounds (the validator's path joins them to the last substep). Returns how many. */
-static uint32_t exempt_moved(const weft_garment *g, const run_buffers *b, uint32_t f, uint32_t nv, uint8_t *exempt)
-{
-    const uint32_t states = weft__xpbd_recorded_states(g);
-    if (states < 2) {
-        return 0;
-    }
-    const float *solved = b->path + (size_t)(states - 1) * nv * 3, *x = b->cloth + (size_t)f * nv * 3;
-    uint32_t moved = 0;
-    for (uint32_t v = 0; v < nv; ++v) {
-        const float *p = solved + 3 * (size_t)v, *q = x + 3 * (size_t)v;
-        if (p[0] != q[0] || p[1] != q[1] || p[2] != q[2]) {
-            moved += !exempt[v];
-            exempt[v] = 1;
-        }
-    }
-    return moved;
 }
 
 /* The wear measures' columns over stats rows 1..last into the result (real motion; 0 elsewhere). */
@@ -653,11 +647,8 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
         row[ST_ENERGY] = (float)st.elastic_energy;
         res->simulate_s += (t1 - t0) / 1000.0;
         weft_wear_frame wf = {0};
-        if (wear && (r = body_check(wear, val, sc, b, f, near_overlap, &measured, &wf)) != WEFT_OK) {
+        if (wear && (r = body_check(wear, val, g, sc, b, f, near_overlap, &measured, &wf)) != WEFT_OK) {
             break;
-        }
-        if (wear) {
-            row[ST_SELF_EXEMPT] += (float)exempt_moved(g, b, f, nv, near_overlap) / (float)nv;
         }
         if (val) {
             double t2 = t1;
@@ -683,7 +674,12 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
                     break;
                 }
                 memcpy(b->cloth + (size_t)f * nv * 3, weft_garment_positions(g), sizeof(float) * 3 * nv);
-                r = validate_frame(val, g, b, f, nv, nc, &v, &by_path);
+                if (wear) { /* the exempt set of the frame as redone */
+                    r = body_check(wear, val, g, sc, b, f, near_overlap, &measured, &wf);
+                }
+                if (r == WEFT_OK) {
+                    r = validate_frame(val, g, b, f, nv, nc, &v, &by_path);
+                }
                 st = weft__xpbd_last_stats(g);
                 row[ST_DETECTIONS] = (float)st.detections;
                 row[ST_CONTACTS] = (float)st.contacts;
@@ -694,12 +690,6 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
                 row[ST_ENERGY] = (float)st.elastic_energy;
                 row[ST_RETRIED] = 1.0f;
                 res->chord_retries++;
-                if (r == WEFT_OK && wear) {
-                    r = body_check(wear, val, sc, b, f, near_overlap, &measured, &wf);
-                }
-                if (r == WEFT_OK && wear) {
-                    row[ST_SELF_EXEMPT] += (float)exempt_moved(g, b, f, nv, near_overlap) / (float)nv;
-                }
             }
             t2 = weft__now_ms();
             row[ST_CCD_HITS] = (float)v.ccd_hits;

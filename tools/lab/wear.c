@@ -258,6 +258,23 @@ static bool near_buried(const weft_wear *w, const float *body, const float *p)
     return false;
 }
 
+/* Marks the body vertices another part of the body reaches within `reach` along the vertex normal
+ * (w->normals, of this body) and hashes them; returns how many. */
+static uint32_t mark_buried(weft_wear *w, const float *body, float reach)
+{
+    uint32_t buried = 0;
+    for (uint32_t v = 0; v < w->nbv; ++v) {
+        const float *n = w->normals + 3 * (size_t)v, *p = body + 3 * (size_t)v;
+        const float len = sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
+        const float s = len > 0.0f ? reach / len : 0.0f;
+        const float q[3] = {p[0] + s * n[0], p[1] + s * n[1], p[2] + s * n[2]};
+        w->buried[v] = winding(w, body, q) > 0;
+        buried += w->buried[v];
+    }
+    hash_buried(w, body);
+    return buried;
+}
+
 weft_result weft_wear_near_overlap(weft_wear *w, const float *body, float reach, const float *points, uint32_t count,
                                    uint8_t *out)
 {
@@ -265,14 +282,7 @@ weft_result weft_wear_near_overlap(weft_wear *w, const float *body, float reach,
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
                           "weft_wear_near_overlap: all arrays are required and reach in [0, 0.1] m");
     }
-    for (uint32_t v = 0; v < w->nbv; ++v) { /* the normals are weft_wear_measure's, of this body */
-        const float *n = w->normals + 3 * (size_t)v, *p = body + 3 * (size_t)v;
-        const float len = sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-        const float s = len > 0.0f ? reach / len : 0.0f;
-        const float q[3] = {p[0] + s * n[0], p[1] + s * n[1], p[2] + s * n[2]};
-        w->buried[v] = winding(w, body, q) > 0;
-    }
-    hash_buried(w, body);
+    (void)mark_buried(w, body, reach); /* the normals are weft_wear_measure's, of this body */
     for (uint32_t i = 0; i < count; ++i) {
         out[i] = near_buried(w, body, points + 3 * (size_t)i);
     }
@@ -289,7 +299,7 @@ weft_result weft_wear_measure(weft_wear *w, const float *body, const float *garm
     if (r != WEFT_OK) {
         return r;
     }
-    uint32_t off = 0, inside = 0, clear = 0, buried = 0;
+    uint32_t off = 0, inside = 0, clear = 0;
     memset(w->normals, 0, (size_t)w->nbv * 3 * sizeof(float));
     for (uint32_t t = 0; t < w->nt; ++t) {
         const uint32_t *tri = w->tris + 3 * (size_t)t;
@@ -302,18 +312,7 @@ weft_result weft_wear_measure(weft_wear *w, const float *body, const float *garm
             }
         }
     }
-    for (uint32_t v = 0; v < w->nbv; ++v) {
-        float *n = w->normals + 3 * (size_t)v;
-        const float len = sqrtf(n[0] * n[0] + n[1] * n[1] + n[2] * n[2]);
-        const float s = len > 0.0f ? 0.002f / len : 0.0f;
-        float q[3];
-        for (int k = 0; k < 3; ++k) {
-            q[k] = body[3 * (size_t)v + k] + n[k] * s;
-        }
-        w->buried[v] = winding(w, body, q) > 0;
-        buried += w->buried[v];
-    }
-    hash_buried(w, body);
+    const uint32_t buried = mark_buried(w, body, 0.002f);
     const float d2 = off_distance * off_distance;
     for (uint32_t i = 0; i < w->ngv; ++i) {
         const float *x = garment + 3 * (size_t)i, *s = skinned + 3 * (size_t)i;

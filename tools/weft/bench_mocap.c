@@ -250,7 +250,7 @@ static int run_cell(const mc_options *o, weft_context *ctx, const weft_body *bod
         d.precision = WEFT_PRECISION_INT8;
         weft_sample_set_substeps(&d, m->substeps);
         d.ccd.enabled = o->ccd;
-        d.collision.triangle_parts = weft_sample_parts_on(o->parts, m->method, o->ccd) ? parts : NULL;
+        d.collision.triangle_parts = weft_sample_parts_on(o->parts, o->ccd) ? parts : NULL;
         if (o->tether_cm >= 0.0f) { /* else the recipe's for the garment kind */
             d.tethers.distance = o->tether_cm / 100.0f;
         }
