@@ -356,6 +356,7 @@ static void simgen(void)
     const char *pre[] = {"simgen", "--out", dir, "--manifest-only", "--scenario", "drop", NULL};
     refuses_all(pre, "--checkpoint-frames", k_whole_all, (const char *const[]){"2.5", "100001", NULL});
     refuses_all(pre, "--time-limit", k_real_few, (const char *const[]){"-3", "1e10", NULL});
+    refuses_all(pre, "--prefix-min", k_whole_all, (const char *const[]){"2.5", "100001", NULL});
     refuses_all(pre, "--speed", k_real_few, (const char *const[]){"0", "0.05", "11", NULL});
     refuses_all(pre, "--arm-spread", k_real_few, (const char *const[]){"-0.1", "0.9", NULL});
     refuses_all(pre, "--ease-in-retry", k_real_few, (const char *const[]){"2.5", NULL});
@@ -366,7 +367,7 @@ static void simgen(void)
     CHECK_MSG(!exists(dir), "a refused simgen created %s", dir);
     accepted((const char *const[]){"simgen", "--out", good, "--manifest-only", "--scenario", "drop", "--count", "2",
                                    "--vertices", "64", "--frames", "2", "--shard", "1/2", "--checkpoint-frames", "0",
-                                   "--time-limit", "0", "--speed", "1.5", NULL});
+                                   "--time-limit", "0", "--speed", "1.5", "--prefix-min", "0", NULL});
 }
 
 static void body(void)

@@ -280,6 +280,66 @@ static void mocap_windows_of_library_clips(void)
     CHECK_EQ_INT(tool_run(no_bvh, NULL), 2);
 }
 
+/* --prefix-min: a real-motion window the validator rejects keeps the frames recorded before the
+ * rejected one. At one substep the walk's first window at 256 vertices is rejected as the clip's
+ * motion starts, after the 90-frame pre-roll: with --prefix-min 1 it is accepted as the frames
+ * before that one (meta.json "truncated", "planned_frames" and the validator's first hit;
+ * cloth_pos.npy and the manifest with that many frames); with the default (60) it is rejected and
+ * writes no arrays. */
+static void mocap_rejected_window_keeps_its_first_frames(void)
+{
+    char dir[1024], meta[1200], pos[1200], manifest[1200], err[1100], text[1 << 14];
+    snprintf(dir, sizeof dir, "%s/prefix", g_out);
+    snprintf(meta, sizeof meta, "%s/mocap_walk_cmu07_01_v256_00000/meta.json", dir);
+    snprintf(pos, sizeof pos, "%s/mocap_walk_cmu07_01_v256_00000/cloth_pos.npy", dir);
+    snprintf(manifest, sizeof manifest, "%s/manifest.json", dir);
+    snprintf(err, sizeof err, "%s/prefix.err", g_out);
+    mkdir(g_out, 0777); /* this case may run alone */
+    unlink(meta);
+    unlink(pos);
+    const char *kept[] = {g_exe,      "simgen", "--out",           dir, "--mocap",  "test", "--clips",      "walk_cmu07_01",
+                          "--vertices", "256",  "--frames",        "8", "--substeps", "1",  "--max-substeps", "1",
+                          "--limit",    "1",    "--prefix-min",    "1", NULL};
+    CHECK_EQ_INT(tool_run_err(kept, NULL, err), 0);
+    tool_slurp(meta, text, sizeof text);
+    int first = -1, frames = -1, planned = -1;
+    const char *p = strstr(text, "\"first_hit_frame\":");
+    CHECK_MSG(p && sscanf(p + 18, "%d", &first) == 1, "no first_hit_frame in %.600s", text);
+    p = strstr(text, "\"frames\":");
+    CHECK_MSG(p && sscanf(p + 9, "%d", &frames) == 1, "no frames in %.300s", text);
+    p = strstr(text, "\"planned_frames\":");
+    CHECK_MSG(p && sscanf(p + 17, "%d", &planned) == 1, "no planned_frames in %.600s", text);
+    CHECK_MSG(strstr(text, "\"accepted\":\ttrue") && strstr(text, "\"truncated\":\ttrue"), "%.600s", text);
+    CHECK_MSG(first > 90 && frames == first - 90 && frames < planned && planned == 8,
+              "first hit at %d, %d of %d frames kept", first, frames, planned);
+    /* the array holds the kept frames: the .npy header's shape starts with their count */
+    memset(text, 0, sizeof text);
+    FILE *npy = fopen(pos, "rb");
+    const size_t got = npy ? fread(text, 1, 256, npy) : 0;
+    if (npy) {
+        fclose(npy);
+    }
+    for (size_t k = 0; k < got; ++k) {
+        text[k] = text[k] ? text[k] : ' '; /* the magic's version bytes hold a NUL */
+    }
+    p = strstr(text, "'shape': (");
+    int rows = -1;
+    CHECK_MSG(p && sscanf(p + 10, "%d", &rows) == 1 && rows == frames, "cloth_pos.npy has %d frames, meta %d", rows,
+              frames);
+    tool_slurp(manifest, text, sizeof text);
+    CHECK_MSG(strstr(text, "mocap_walk_cmu07_01_v256_00000") != NULL, "not in the manifest: %.400s", text);
+    /* the default minimum: rejected, nothing but meta.json */
+    unlink(meta);
+    unlink(pos);
+    const char *rejected[] = {g_exe,      "simgen", "--out",    dir, "--mocap",    "test", "--clips",        "walk_cmu07_01",
+                              "--vertices", "256",  "--frames", "8", "--substeps", "1",    "--max-substeps", "1",
+                              "--limit",    "1",    NULL};
+    CHECK_EQ_INT(tool_run_err(rejected, NULL, err), 1);
+    tool_slurp(meta, text, sizeof text);
+    CHECK_MSG(strstr(text, "\"accepted\":\tfalse") && !strstr(text, "\"truncated\""), "%.400s", text);
+    CHECK_MSG(!exists(pos), "a rejected window wrote %s", pos);
+}
+
 static void bad_plan_options_fail(void)
 {
     char dir[1024];
@@ -340,6 +400,7 @@ int main(int argc, char **argv)
                                          TEST_CASE(only_generates_that_scenario),
                                          TEST_CASE(redo_rejected_runs_rejected_again), TEST_CASE(like_makes_the_same_scene),
                                          TEST_CASE(failed_run_writes_no_manifest), TEST_CASE(mocap_windows_of_library_clips),
+                                         TEST_CASE(mocap_rejected_window_keeps_its_first_frames),
                                          TEST_CASE(bad_plan_options_fail)};
     return test_run_(cases, sizeof cases / sizeof cases[0], argc - 2, argv + 2);
 }

@@ -1144,16 +1144,15 @@ weft_garment_def xscene_garment_def(const xscene *sc, uint32_t substeps, uint32_
     gd.collision.part_margin = 0.01f;
     if (sc->clip) {
         /* Motion capture (docs/REFSIM.md, Real motion): the body overlaps itself, so its contacts
-         * are a projection each substep against the whole body, not bounds, and the worn-garment
-         * recipe's max distance, held inside the substeps, and the floor keep the garment on its
-         * wearer. Cloth-cloth contacts keep their bounds; no push after the step (it would move
-         * cloth past them). */
+         * are a projection each substep against the whole body, not bounds, and the floor and, for
+         * a T-shirt, the worn-garment recipe's max distance, held inside the substeps, keep the
+         * garment on its wearer. A skirt or dress hangs from its waistband (the pins) and has no
+         * max distance: pulled toward a skinned hem the legs fold through itself as they close,
+         * its cloth went through its other layer. Cloth-cloth contacts keep their bounds; no push
+         * after the step (it would move cloth past them). */
         gd.collider_projection = true;
         gd.collision.triangle_parts = NULL;
-        gd.tethers.distance = (sc->cloth_kind == WEFT_CLOTH_SKIRT   ? WEFT_WORN_TETHER_SKIRT_CM
-                               : sc->cloth_kind == WEFT_CLOTH_DRESS ? WEFT_WORN_TETHER_DRESS_CM
-                                                                    : WEFT_WORN_TETHER_CM) /
-                              100.0f;
+        gd.tethers.distance = weft_wear_reference_tether_cm(sc->cloth_kind) / 100.0f;
         gd.collision.ground = true;
     }
     return gd;

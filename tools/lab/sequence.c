@@ -60,6 +60,7 @@ weft_sim_sequence_def weft_sim_default_sequence_def(void)
     d.garment_retry_arm_spread = 0.3f;
     d.garment_retry_ease_in = 0.5f;
     d.garment_retry_amplitude = 0.75f;
+    d.prefix_frames_min = 60;
     d.internal_cookie = WEFT_DEF_COOKIE;
     return d;
 }
@@ -577,6 +578,7 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
     memset(b->pinned, 0, (size_t)T * nv);
     res->ccd_hits = res->intersection_hits = 0;
     res->inside_clear_rejected = res->tangled_rejected = false;
+    res->rejected_share = 0.0f;
     res->first_hit_frame = -1;
     locate_hit(sc, b, 0, &(weft_ccd_hit){.type = WEFT_CCD_TYPE_COUNT}, res);
     res->chord_retries = res->path_frames = 0;
@@ -711,6 +713,7 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
             if (wear && wf.inside_clear > WEFT_SIM_INSIDE_CLEAR_MAX && res->first_hit_frame < 0) {
                 res->first_hit_frame = (int32_t)f;
                 res->inside_clear_rejected = true;
+                res->rejected_share = (float)wf.inside_clear;
                 break; /* cloth inside the body where the body does not overlap itself */
             }
         }
@@ -727,6 +730,7 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
             if ((double)crossed > WEFT_SIM_TANGLED_MAX * nv && res->first_hit_frame < 0) {
                 res->first_hit_frame = (int32_t)f;
                 res->tangled_rejected = true;
+                res->rejected_share = (float)crossed / (float)nv;
                 break; /* a tangle over the limit: not ground truth, however it came about */
             }
         }
@@ -774,7 +778,12 @@ static bool write_meta(const char *dir, const xscene *sc, const weft_sim_sequenc
     cJSON_AddStringToObject(m, "description", res->description);
     cJSON_AddNumberToObject(m, "seed", (double)def->seed);
     cJSON_AddBoolToObject(m, "accepted", res->accepted);
-    cJSON_AddNumberToObject(m, "frames", def->frames);
+    cJSON_AddNumberToObject(m, "frames", res->frames);
+    if (res->truncated) {
+        /* the frames before the one the validator rejected (validator.first_hit_frame) */
+        cJSON_AddBoolToObject(m, "truncated", true);
+        cJSON_AddNumberToObject(m, "planned_frames", def->frames);
+    }
     cJSON_AddNumberToObject(m, "frame_dt", 1.0 / 60.0);
     cJSON_AddStringToObject(m, "units", "m, s, kg; Y up");
     cJSON_AddStringToObject(m, "solver", "xpbd small steps, one Gauss-Seidel pass per substep, double precision");
@@ -796,8 +805,9 @@ static bool write_meta(const char *dir, const xscene *sc, const weft_sim_sequenc
         cJSON_AddNumberToObject(mo, "turned_rad", -sc->clip_yaw);
         cJSON_AddStringToObject(mo, "body",
                                 "the body's contacts projected each substep (cloth inside or within the contact radius "
-                                "moves out along the nearest surface's pseudonormal), with the worn-garment recipe's max "
-                                "distance (inside the substeps and after them) and floor, no push; the validator "
+                                "moves out along the nearest surface's pseudonormal), the floor and, for a T-shirt, the "
+                                "worn-garment recipe's max distance (inside the substeps and after them; a skirt or "
+                                "dress hangs from its waistband), no push; the validator "
                                 "certifies the cloth against itself except near where the body squeezes it, where the "
                                 "max distance or the floor moved it after the solve, and where it still crosses itself "
                                 "from such a place (stats self_exempt, tangled), and a frame with cloth inside the body "
@@ -812,6 +822,9 @@ static bool write_meta(const char *dir, const xscene *sc, const weft_sim_sequenc
         cJSON_AddNumberToObject(mo, "tangled_limit", WEFT_SIM_TANGLED_MAX);
         cJSON_AddBoolToObject(mo, "tangled_rejected", res->tangled_rejected);
         cJSON_AddBoolToObject(mo, "inside_clear_rejected", res->inside_clear_rejected);
+        if (res->tangled_rejected || res->inside_clear_rejected) {
+            cJSON_AddNumberToObject(mo, "rejected_share", res->rejected_share);
+        }
     }
     if (sc->character) {
         cJSON *co = num_obj(m, "character");
@@ -951,10 +964,12 @@ static bool write_meta(const char *dir, const xscene *sc, const weft_sim_sequenc
     return ok && rename(tmp, fin) == 0;
 }
 
-static bool write_arrays(const char *dir, const xscene *sc, const weft_sim_sequence_def *def, const run_buffers *b)
+/* The recorded frames (res->frames: the def's, or a truncated window's first ones) after the
+ * pre-roll. */
+static bool write_arrays(const char *dir, const xscene *sc, const weft_sim_sequence_result *res, const run_buffers *b)
 {
     char path[1100];
-    const uint64_t T = def->frames, nv = sc->cloth.nv, nc = sc->collider.nv, off = sc->preroll;
+    const uint64_t T = res->frames, nv = sc->cloth.nv, nc = sc->collider.nv, off = sc->preroll;
     bool ok = true;
     uint64_t s2[2] = {nv, 3}, s3[3] = {T, nv, 3};
     snprintf(path, sizeof path, "%s/rest_pos.npy", dir);
@@ -1038,6 +1053,7 @@ static weft_result check_sequence_def(const weft_sim_sequence_def *d, const char
     WEFT_SEQ_BAD(d->split && strcmp(d->split, "train") && strcmp(d->split, "val") && strcmp(d->split, "test"),
                  "split '%.32s' is not train, val or test", d->split);
     WEFT_SEQ_BAD(d->checkpoint_frames > 100000, "checkpoint_frames %u outside [0, 100000]", d->checkpoint_frames);
+    WEFT_SEQ_BAD(d->prefix_frames_min > 100000, "prefix_frames_min %u outside [0, 100000]", d->prefix_frames_min);
     WEFT_SEQ_BAD(!(d->time_limit_s >= 0.0 && d->time_limit_s <= 1e9), "time_limit_s %g outside [0, 1e9]",
                  d->time_limit_s);
     WEFT_SEQ_BAD(d->time_limit_s > 0.0 && d->checkpoint_frames == 0,
@@ -1151,10 +1167,20 @@ weft_result weft_sim_generate(weft_context *ctx, const weft_sim_sequence_def *de
         }
     }
     res.finished = !ck.stopped;
+    /* Real motion: the frames before the rejected one are validated ground truth; a window that
+     * recorded enough of them keeps those (docs/DATASET.md, Real-motion acceptance). */
+    if (r == WEFT_OK && res.finished && !res.accepted && def->motion_path && def->prefix_frames_min > 0 &&
+        res.first_hit_frame > (int32_t)sc.preroll &&
+        (uint32_t)res.first_hit_frame - sc.preroll >= def->prefix_frames_min) {
+        res.accepted = true;
+        res.truncated = true;
+        res.frames = (uint32_t)res.first_hit_frame - sc.preroll;
+        inside_summary(&b, (size_t)res.first_hit_frame - 1, &res);
+    }
     if (r == WEFT_OK && res.finished) {
         if (!make_dir(out_dir)) {
             r = weft__fail(WEFT_ERROR_IO, "weft_sim_generate: cannot create '%s'", out_dir);
-        } else if (res.accepted && !write_arrays(out_dir, &sc, def, &b)) {
+        } else if (res.accepted && !write_arrays(out_dir, &sc, &res, &b)) {
             r = weft__fail(WEFT_ERROR_IO, "weft_sim_generate: writing arrays into '%s' failed", out_dir);
         } else if (!write_meta(out_dir, &sc, def, &res)) {
             r = weft__fail(WEFT_ERROR_IO, "weft_sim_generate: writing '%s/meta.json' failed", out_dir);

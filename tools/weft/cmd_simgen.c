@@ -99,6 +99,24 @@ static bool file_exists(const char *path)
     return stat(path, &st) == 0;
 }
 
+/* Why the validator rejected the last attempt of a sequence (res->first_hit_frame >= 0), in words. */
+static void rejection_reason(const weft_sim_sequence_result *res, char *out, size_t cap)
+{
+    if (res->inside_clear_rejected) {
+        snprintf(out, cap, "%.1f %% of the cloth inside the body where it does not overlap itself at frame %d (limit "
+                           "%.1f %%, substeps %u)",
+                 100.0 * res->rejected_share, res->first_hit_frame, 100.0 * WEFT_SIM_INSIDE_CLEAR_MAX,
+                 res->substeps_used);
+    } else if (res->tangled_rejected) {
+        snprintf(out, cap, "%.1f %% of the cloth crossing itself at frame %d (limit %.1f %%, substeps %u)",
+                 100.0 * res->rejected_share, res->first_hit_frame, 100.0 * WEFT_SIM_TANGLED_MAX, res->substeps_used);
+    } else {
+        snprintf(out, cap, "the validator's hits (%u CCD, %u intersection, first at frame %d, substeps %u%s%s)",
+                 res->ccd_hits, res->intersection_hits, res->first_hit_frame, res->substeps_used,
+                 res->hit_joint[0] ? ", near " : "", res->hit_joint);
+    }
+}
+
 /* Whether the sequence whose meta.json is at path still needs generating: not finished (no
  * meta.json), or with redo_rejected finished and rejected. */
 static bool needs_run(const char *path, bool redo_rejected)
@@ -502,7 +520,7 @@ enum {
     OPT_NO_GARMENTS, OPT_SHARD, OPT_LIMIT, OPT_FRAMES, OPT_SUBSTEPS, OPT_MAX_SUBSTEPS, OPT_GARMENT_SUBSTEPS,
     OPT_FAST_COLLIDER, OPT_SEED, OPT_SPEED, OPT_RESOLUTION_SERIES, OPT_ARM_SPREAD, OPT_ARM_SPREAD_RETRY,
     OPT_EASE_IN_RETRY, OPT_AMPLITUDE_RETRY, OPT_NO_GARMENT_RETRY, OPT_NO_VALIDATE, OPT_REDO_REJECTED,
-    OPT_CHECKPOINT_FRAMES, OPT_TIME_LIMIT,
+    OPT_CHECKPOINT_FRAMES, OPT_TIME_LIMIT, OPT_PREFIX_MIN,
 };
 
 static const cli_option k_options[] = {
@@ -610,6 +628,10 @@ static const cli_option k_options[] = {
      "(DIR/<name>/checkpoint.bin) and continue from it when rerun (default: 10\n"
      "for sequences of 16k vertices or more, 0 = none below); part of what\n"
      "defines the sequence"},
+    {"prefix-min", "N", OPT_PREFIX_MIN,
+     "with --mocap or --bvh: a window the validator rejects keeps its validated\n"
+     "frames before the rejected one when there are at least N, 0..100000\n"
+     "(default 60; 0: a rejected window keeps nothing)"},
     {"time-limit", "S", OPT_TIME_LIMIT,
      "stop at the first checkpoint after S seconds, 0..1e9 (sequences without\n"
      "checkpoints are not started once S has passed); rerun to continue"},
@@ -639,6 +661,7 @@ static const cli_command k_command = {
         "            [--split train|val|test] [--only drop|gripper|garment] [--arm-spread-retry R]\n"
         "            [--ease-in-retry S] [--amplitude-retry A] [--no-garment-retry] [--redo-rejected]\n"
         "            [--fast-collider F] [--arm-spread R] [--checkpoint-frames N] [--time-limit S]\n"
+        "            [--prefix-min N]\n"
         "weft simgen --out DIR --avatar gltf:PATH --garment obj:PATH [--frames T] [--substeps S]\n"
         "            [--max-substeps S] [--fast-collider F] [--preroll N] [--no-validate]\n"
         "weft simgen --out DIR (--mocap train|test|all [--clips A,B,...] [--mocap-dir DIR]\n"
@@ -815,6 +838,7 @@ int weft_cmd_simgen(int argc, char **argv)
     uint32_t count = 10, vertices = 1024, frames = 240, substeps = 40, max_substeps = 80, shard_i = 0, shard_n = 1;
     uint32_t limit = UINT32_MAX;
     long checkpoint_frames = -1; /* -1: by size */
+    uint32_t prefix_min = weft_sim_default_sequence_def().prefix_frames_min;
     double time_limit = 0.0;
     unsigned long long seed0 = 1;
     cli_parser parser;
@@ -979,6 +1003,11 @@ int weft_cmd_simgen(int argc, char **argv)
             checkpoint_frames = (long)every;
             break;
         }
+        case OPT_PREFIX_MIN:
+            if (!cli_u32("simgen", a, v, 0, 100000, &prefix_min)) {
+                return 2;
+            }
+            break;
         case OPT_TIME_LIMIT:
             if (!cli_double("simgen", a, v, 0.0, 1e9, &time_limit)) {
                 return 2;
@@ -1194,7 +1223,7 @@ int weft_cmd_simgen(int argc, char **argv)
             todo = limit;
         }
         progress_state ps = {.total = todo, .t0 = now_s(), .frac0 = -1.0};
-        uint32_t accepted = 0, rejected = 0;
+        uint32_t accepted = 0, rejected = 0, truncated = 0;
         bool stopped = false;
         for (uint32_t i = 0; i < n && ps.done < todo && !stopped; ++i) {
             char dir[1100], path[1200];
@@ -1238,6 +1267,7 @@ int weft_cmd_simgen(int argc, char **argv)
                 break;
             }
             def.time_limit_s = def.checkpoint_frames ? left : 0.0;
+            def.prefix_frames_min = prefix_min;
             ps.name = plan[i].name;
             weft_sim_sequence_result res;
             weft_result r = weft_sim_generate(ctx, &def, dir, on_frame, &ps, &res);
@@ -1259,26 +1289,21 @@ int weft_cmd_simgen(int argc, char **argv)
             }
             accepted += res.accepted;
             rejected += !res.accepted;
-            if (!res.accepted && res.inside_clear_rejected) {
-                fprintf(stderr, "\nsimgen: %s rejected: %.1f %% of the cloth inside the body where it does not overlap "
-                                "itself at frame %d (limit %.1f %%, substeps %u)\n",
-                        plan[i].name, 100.0 * res.inside_clear_max, res.first_hit_frame,
-                        100.0 * WEFT_SIM_INSIDE_CLEAR_MAX, res.substeps_used);
-            } else if (!res.accepted && res.tangled_rejected) {
-                fprintf(stderr, "\nsimgen: %s rejected: %.1f %% of the cloth crossing itself at frame %d (limit %.1f %%, "
-                                "substeps %u)\n",
-                        plan[i].name, 100.0 * res.tangled_max, res.first_hit_frame, 100.0 * WEFT_SIM_TANGLED_MAX,
-                        res.substeps_used);
-            } else if (!res.accepted) {
-                fprintf(stderr, "\nsimgen: %s rejected by the validator (%u CCD, %u intersection hits, first at frame %d, "
-                                "substeps %u%s%s)\n",
-                        plan[i].name, res.ccd_hits, res.intersection_hits, res.first_hit_frame, res.substeps_used,
-                        res.hit_joint[0] ? ", near " : "", res.hit_joint);
+            truncated += res.truncated;
+            if (!res.accepted || res.truncated) {
+                char why[256];
+                rejection_reason(&res, why, sizeof why);
+                if (res.truncated) {
+                    fprintf(stderr, "\nsimgen: %s accepted as its first %u of %u frames: %s\n", plan[i].name, res.frames,
+                            def.frames, why);
+                } else {
+                    fprintf(stderr, "\nsimgen: %s rejected: %s\n", plan[i].name, why);
+                }
             }
         }
         draw_bar(&ps, 0, 0);
-        fprintf(stderr, "\nsimgen: %u accepted, %u rejected, %u failed, %.0f s\n", accepted, rejected,
-                ps.done - accepted - rejected, now_s() - ps.t0);
+        fprintf(stderr, "\nsimgen: %u accepted (%u of them their first frames only), %u rejected, %u failed, %.0f s\n",
+                accepted, truncated, rejected, ps.done - accepted - rejected, now_s() - ps.t0);
         if (ps.done > 0 && accepted == 0) {
             /* A manifest of nothing new would let a training run start on an empty or stale set. */
             fprintf(stderr, "simgen: no sequence of this run was accepted; %s/manifest.json not written\n", out);

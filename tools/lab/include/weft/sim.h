@@ -177,12 +177,16 @@ typedef struct weft_sim_sequence_def {
      * to the drawn avatar and played from motion_start_s seconds of the clip once the drape is done,
      * at motion_speed, turned and moved so that it starts where the bind pose stands, facing as it
      * does. The avatar and the garment stay the seed's draws; garment_arm_spread and the gentle
-     * retry do not apply (the motion is the clip's as captured). The reference garment and the validator then use body
-     * parts (weft_body_triangle_parts, collision.triangle_parts in weft.h): where the body overlaps
-     * itself, cloth collides with, and is certified against, the parts it lies against at the
-     * start (docs/REFSIM.md, Real motion). Past the clip's end the last pose holds. NULL
+     * retry do not apply (the motion is the clip's as captured). The reference then projects the
+     * whole body each substep and the validator measures the cloth inside it instead of sweeping
+     * against it (docs/REFSIM.md, Real motion). Past the clip's end the last pose holds. NULL
      * (default): a procedural motion drawn from the seed. */
     const char *motion_path;
+    /* With motion_path: a window the validator rejects keeps the frames recorded before the
+     * rejected one, each validated, as a shorter sequence when there are at least this many
+     * (meta.json "truncated"; weft_sim_sequence_result.truncated); fewer, or 0, and a rejected
+     * window writes no arrays (0..100000, default 60: one second). */
+    uint32_t prefix_frames_min;
     /* With motion_path: its joint for each SMPL joint (weft_bvh_def.joint_map; 24 entries); NULL
      * (default): the naming tables. */
     const char *const *motion_joint_map;
@@ -203,6 +207,9 @@ typedef struct weft_sim_sequence_def {
 typedef struct weft_sim_sequence_result {
     bool finished;                /* false only when time_limit_s stopped the run at a checkpoint */
     bool accepted;                /* validated with zero hits: written as ground truth */
+    /* Accepted as the frames before the one that rejected the last attempt (first_hit_frame;
+     * weft_sim_sequence_def.prefix_frames_min): `frames` is then that many, fewer than the def's. */
+    bool truncated;
     uint32_t resumed_frame;       /* the checkpoint frame this call continued from (0: from the start) */
     uint32_t substeps_used;
     uint32_t attempts;
@@ -222,6 +229,7 @@ typedef struct weft_sim_sequence_result {
      * and inside where the body does not overlap itself (worst); 0 on other scenes. */
     bool inside_clear_rejected;
     bool tangled_rejected; /* real motion: rejected for cloth crossing itself (WEFT_SIM_TANGLED_MAX) */
+    float rejected_share;  /* with either: that frame's share of the cloth inside, or crossing itself */
     float inside_body_mean, inside_body_max, inside_clear_max;
     /* Real motion: the share of the cloth the validator did not certify against itself, mean over
      * the frames (stats self_exempt), and the worst frame's share crossing itself (stats tangled). */

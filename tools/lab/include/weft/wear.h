@@ -24,6 +24,7 @@
 #define WEFT_WEAR_H
 
 #include "weft.h"
+#include "weft/body.h"
 
 /* The worn-garment recipe (docs/WEAR.md): the max distance to the skinned garment (T-shirts,
  * skirts, dresses), the collider push and the depth it reaches, and for the learned model a strain
@@ -36,6 +37,15 @@
 #define WEFT_WORN_PUSH_DEPTH_CM 6.0f
 #define WEFT_WORN_STRAIN_PCT 10.0f
 #define WEFT_WORN_COLLIDER_TOKENS 1024u
+
+/* The max distance of simgen's reference on real motion (the ground truth), in cm:
+ * WEFT_WORN_TETHER_CM for a T-shirt; 0 (none) for a skirt or dress, which hangs from its waistband
+ * instead (docs/REFSIM.md, Real motion). The game-facing recipe (weft_sample_worn_def, the
+ * stability suite's reference rows) keeps the max distance for every garment. */
+static inline float weft_wear_reference_tether_cm(weft_cloth_kind kind)
+{
+    return kind == WEFT_CLOTH_SKIRT || kind == WEFT_CLOTH_DRESS ? 0.0f : WEFT_WORN_TETHER_CM;
+}
 
 typedef struct weft_wear weft_wear;
 
