@@ -7,7 +7,9 @@
 
 #include "tool_run.h"
 #include "weft/sim.h"
+#include "weft/wear.h"
 
+#include <math.h>
 #include <stdbool.h>
 #include <sys/stat.h>
 #include <unistd.h>
@@ -209,6 +211,14 @@ static void mocap_windows_of_library_clips(void)
     CHECK_MSG(strstr(text, "\"clip\":\t\"walk_cmu07_01\"") != NULL, "no clip in %.300s", text);
     CHECK_MSG(strstr(text, "mocap walk_cmu07_01 from 0.00 s") != NULL, "description: %.300s", text);
     CHECK(strstr(text, "\"inside_clear_limit\"") != NULL); /* the body rule of real motion */
+    /* a T-shirt is held by the recipe's max distance, a skirt or dress by its waistband alone */
+    double max_distance = -1.0;
+    const char *md = strstr(text, "\"max_distance_m\":");
+    CHECK_MSG(md && sscanf(md + 17, "%lf", &max_distance) == 1, "no max_distance_m in %.600s", text);
+    const bool tshirt = strstr(text, "garment: tshirt") != NULL;
+    CHECK_MSG(tshirt || strstr(text, "garment: skirt") || strstr(text, "garment: dress"), "garment? %.300s", text);
+    CHECK_MSG(tshirt ? fabs(max_distance - WEFT_WORN_TETHER_CM / 100.0) < 1e-6 : max_distance == 0.0,
+              "max distance %g for %s", max_distance, tshirt ? "a T-shirt" : "a skirt or dress");
     /* validated: the cloth is certified against itself and the body measured in every frame; the
      * window is accepted or rejected for a named reason (a cloth-cloth hit, or cloth inside the body) */
     snprintf(meta, sizeof meta, "%s/mocap_walk_cmu07_01_v256_00020/meta.json", dir);

@@ -813,6 +813,8 @@ static bool write_meta(const char *dir, const xscene *sc, const weft_sim_sequenc
                                 "from such a place (stats self_exempt, tangled), and a frame with cloth inside the body "
                                 "where the body does not overlap itself (inside_clear) over the limit rejects the "
                                 "sequence; no arm spread");
+        /* the max distance the reference ran with: a T-shirt's, none for a skirt or dress */
+        cJSON_AddNumberToObject(mo, "max_distance_m", xscene_garment_def(sc, def->substeps, 1).tethers.distance);
         cJSON_AddNumberToObject(mo, "inside_clear_limit", WEFT_SIM_INSIDE_CLEAR_MAX);
         cJSON_AddNumberToObject(mo, "inside_body_mean", res->inside_body_mean);
         cJSON_AddNumberToObject(mo, "inside_body_max", res->inside_body_max);
