@@ -10,15 +10,41 @@
 #include <math.h>
 #include <string.h>
 
+/* Two flat sheets of n x n vertices as one cloth (the second 1 cm above the first, size_b wide,
+ * centred at (cx, cz)) and a validator of it without a collider. */
+typedef struct two_sheets {
+    weft_context *ctx;
+    test_mesh a, b, both;
+    weft_sim_validator *v;
+} two_sheets;
+
+static two_sheets two_sheets_make(uint32_t n, float size_a, float size_b, float cx, float cz)
+{
+    two_sheets t = {0};
+    weft_context_def cd = weft_default_context_def();
+    CHECK_RESULT(weft_context_create(&cd, &t.ctx), WEFT_OK);
+    t.a = test_sheet(n, n, size_a, size_a, 0.0f, 0.0f, 0.0f);
+    t.b = test_sheet(n, n, size_b, size_b, cx, 0.01f, cz);
+    t.both = test_mesh_join(&t.a, &t.b);
+    CHECK(t.both.pos && t.both.tris);
+    CHECK_RESULT(weft_sim_validator_create(t.ctx, t.both.tris, t.both.nt, t.both.nv, NULL, 0, 0, &t.v), WEFT_OK);
+    return t;
+}
+
+static void two_sheets_free(two_sheets *t)
+{
+    weft_sim_validator_destroy(t->v);
+    test_mesh_free(&t->a);
+    test_mesh_free(&t->b);
+    test_mesh_free(&t->both);
+    weft_context_destroy(t->ctx);
+}
+
 static void test_exempt_cloth_is_not_certified(void)
 {
-    weft_context_def cd = weft_default_context_def();
-    weft_context *ctx = NULL;
-    CHECK_RESULT(weft_context_create(&cd, &ctx), WEFT_OK);
-    test_mesh a = test_sheet(6, 6, 0.3f, 0.3f, 0.0f, 0.0f, 0.0f);
-    test_mesh b = test_sheet(6, 6, 0.2f, 0.2f, 0.01f, 0.01f, 0.01f);
-    test_mesh both = test_mesh_join(&a, &b);
-    CHECK(both.pos && both.tris);
+    two_sheets t = two_sheets_make(6, 0.3f, 0.2f, 0.01f, 0.01f);
+    const test_mesh a = t.a, both = t.both;
+    weft_sim_validator *v = t.v;
     float *after = malloc(sizeof(float) * 3 * both.nv);
     uint8_t *exempt = calloc(both.nv, 1);
     CHECK(after && exempt);
@@ -27,8 +53,6 @@ static void test_exempt_cloth_is_not_certified(void)
         after[3 * i + 1] -= 0.02f; /* from 1 cm above the other sheet to 1 cm below it */
         exempt[i] = 1;
     }
-    weft_sim_validator *v = NULL;
-    CHECK_RESULT(weft_sim_validator_create(ctx, both.tris, both.nt, both.nv, NULL, 0, 0, &v), WEFT_OK);
     weft_sim_validation val;
     CHECK_RESULT(weft_sim_validator_check(v, both.pos, after, NULL, NULL, &val), WEFT_OK);
     CHECK(val.ccd_hits > 0);
@@ -40,30 +64,20 @@ static void test_exempt_cloth_is_not_certified(void)
     CHECK_RESULT(weft_sim_validator_check(v, both.pos, after, NULL, NULL, &val), WEFT_OK);
     CHECK(val.ccd_hits > 0);
     CHECK_RESULT(weft_sim_validator_set_self_exempt(NULL, exempt), WEFT_ERROR_INVALID_ARGUMENT);
-    weft_sim_validator_destroy(v);
     free(after);
     free(exempt);
-    test_mesh_free(&a);
-    test_mesh_free(&b);
-    test_mesh_free(&both);
-    weft_context_destroy(ctx);
+    two_sheets_free(&t);
 }
 
 static void test_tangled_marks_the_crossing(void)
 {
-    weft_context_def cd = weft_default_context_def();
-    weft_context *ctx = NULL;
-    CHECK_RESULT(weft_context_create(&cd, &ctx), WEFT_OK);
-    test_mesh a = test_sheet(9, 9, 0.4f, 0.4f, 0.0f, 0.0f, 0.0f);
-    test_mesh b = test_sheet(9, 9, 0.4f, 0.4f, 0.0f, 0.01f, 0.0f);
-    test_mesh both = test_mesh_join(&a, &b);
-    CHECK(both.pos && both.tris);
+    two_sheets t = two_sheets_make(9, 0.4f, 0.4f, 0.0f, 0.0f);
+    const test_mesh a = t.a, both = t.both;
+    weft_sim_validator *v = t.v;
     float *x = malloc(sizeof(float) * 3 * both.nv);
     uint8_t *tangled = malloc(both.nv);
     CHECK(x && tangled);
     memcpy(x, both.pos, sizeof(float) * 3 * both.nv);
-    weft_sim_validator *v = NULL;
-    CHECK_RESULT(weft_sim_validator_create(ctx, both.tris, both.nt, both.nv, NULL, 0, 0, &v), WEFT_OK);
     uint32_t count = 99;
     memset(tangled, 7, both.nv);
     CHECK_RESULT(weft_sim_validator_tangled(v, x, tangled, &count), WEFT_OK);
@@ -94,13 +108,9 @@ static void test_tangled_marks_the_crossing(void)
     CHECK_RESULT(weft_sim_validator_tangled(v, x, tangled, &count), WEFT_ERROR_NOT_FINITE);
     CHECK_EQ_INT(tangled[0], 5);
     CHECK_RESULT(weft_sim_validator_tangled(NULL, x, tangled, &count), WEFT_ERROR_INVALID_ARGUMENT);
-    weft_sim_validator_destroy(v);
     free(x);
     free(tangled);
-    test_mesh_free(&a);
-    test_mesh_free(&b);
-    test_mesh_free(&both);
-    weft_context_destroy(ctx);
+    two_sheets_free(&t);
 }
 
 TEST_MAIN(TEST_CASE(test_exempt_cloth_is_not_certified), TEST_CASE(test_tangled_marks_the_crossing))

@@ -934,7 +934,9 @@ static bool write_meta(const char *dir, const xscene *sc, const weft_sim_sequenc
     cJSON *tm = num_obj(m, "timings");
     cJSON_AddNumberToObject(tm, "simulate_s", res->simulate_s);
     cJSON_AddNumberToObject(tm, "validate_s", res->validate_s);
-    cJSON_AddNumberToObject(tm, "ms_per_frame", def->frames > 1 ? 1000.0 * res->simulate_s / (def->frames - 1) : 0.0);
+    /* per frame the last attempt stepped: the pre-roll and the recorded frames, up to a rejecting one */
+    const double stepped = res->first_hit_frame >= 0 ? (double)res->first_hit_frame : (double)(def->frames + sc->preroll - 1);
+    cJSON_AddNumberToObject(tm, "ms_per_frame", stepped > 0.0 ? 1000.0 * res->simulate_s / stepped : 0.0);
     cJSON *cols = cJSON_CreateArray();
     for (int i = 0; i < ST_COUNT; ++i) {
         cJSON_AddItemToArray(cols, cJSON_CreateString(stat_names[i]));
