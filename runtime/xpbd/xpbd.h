@@ -74,6 +74,12 @@ weft_result weft__xpbd_import_state(weft_garment *g, const double *x, const doub
  * the collider's tree), so the next step runs as on a new garment with the same state: a run
  * that calls this at its checkpoints matches one continued from them, bit for bit. */
 void weft__xpbd_forget_caches(weft_garment *g);
+/* The reference with a projected body (collider_projection): the vertices whose mask byte is
+ * non-zero are held to their cloth-cloth bounds after the body's projection too, so the body
+ * cannot push them through the cloth around them (the lab sets it, before each step, to where
+ * the body squeezed the cloth at the frame before). The mask (n bytes) is borrowed until the
+ * next call; NULL clears it. Other garments: WEFT_ERROR_INVALID_ARGUMENT. */
+weft_result weft__xpbd_set_bounded_projection(weft_garment *g, const uint8_t *mask);
 /* Statistics of the last step of an XPBD garment (zeros for other methods). */
 xpbd_frame_stats weft__xpbd_last_stats(const weft_garment *g);
 

@@ -112,6 +112,7 @@ typedef struct xpbd_state {
     /* WEFT_METHOD_XPBD_FAST: the game-engine collision projection replaces the bounds and the
      * contact lists, which are then not allocated. */
     bool fast;
+    const uint8_t *held; /* weft__xpbd_set_bounded_projection: held to the bounds after the projection */
     bool project; /* WEFT_METHOD_XPBD with collider_projection: the fast method's collider
                    * projection each substep instead of collider contacts and their bounds */
     uint32_t *near_seed; /* per cloth vertex: its last nearest collider triangle (a search seed) */
@@ -627,6 +628,15 @@ weft_result weft__xpbd_record_substeps(weft_garment *g, float *buffer, uint32_t 
     s->rec = buffer;
     s->rec_cap = buffer ? capacity_substeps : 0;
     s->rec_states = 0;
+    return WEFT_OK;
+}
+
+weft_result weft__xpbd_set_bounded_projection(weft_garment *g, const uint8_t *mask)
+{
+    if (!g || g->ops != &weft__xpbd_ops || !g->method_state) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "xpbd bounded projection: needs an XPBD garment");
+    }
+    ((xpbd_state *)g->method_state)->held = mask;
     return WEFT_OK;
 }
 
@@ -1599,6 +1609,20 @@ static weft_result end_frame(weft_garment *g, xpbd_state *s)
 
 static uint32_t fast_collide_body(weft_garment *g, xpbd_state *s);
 
+/* x moved back onto the ball of radius r around c when it left it. */
+static void hold_to_bound(double *x, const double *c, double r)
+{
+    double d[3];
+    geo_sub(d, x, c);
+    const double l = geo_len(d);
+    if (l > r) {
+        const double f = l > 0.0 ? r / l : 0.0;
+        for (int a = 0; a < 3; ++a) {
+            x[a] = c[a] + f * d[a];
+        }
+    }
+}
+
 /* Free vertices farther than their radius from their target (the skinned garment) go onto the
  * sphere. */
 static void hold_max_distance(const weft_garment *g, xpbd_state *s, const float *targets)
@@ -1832,6 +1856,14 @@ static weft_result xpbd_step(weft_garment *g)
              * back, so it has the last word over the cloth-cloth bounds (cloth the body squeezes
              * where it overlaps itself is not certified against itself there). */
             s->stats.contacts += fast_collide_body(g, s);
+            for (uint32_t i = 0; s->held && i < n; ++i) { /* squeezed cloth: the bounds have the last word */
+                if (s->held[i] && !s->pinned[i]) {
+                    if (split) {
+                        hold_to_bound(s->x + 3 * (size_t)i, s->xs_frame + 3 * (size_t)i, s->bound_frame[i]);
+                    }
+                    hold_to_bound(s->x + 3 * (size_t)i, s->xs + 3 * (size_t)i, s->bound[i]);
+                }
+            }
             for (size_t i = 0; i < 3 * (size_t)n; ++i) {
                 s->v[i] = (s->x[i] - s->xo[i]) / h;
             }

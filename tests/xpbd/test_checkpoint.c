@@ -129,6 +129,44 @@ static void test_drop_interrupted(void) { interrupted_matches(WEFT_SIM_SCENARIO_
 
 static void test_gripper_interrupted(void) { interrupted_matches(WEFT_SIM_SCENARIO_GRIPPER, "gripper"); }
 
+/* Real motion: a window of a library clip stopped at every checkpoint writes the same frames as
+ * one run (the squeeze zone the reference holds to its bounds, and the validator's exempt and
+ * tangle state, are rebuilt from the checkpoint's frame). */
+static void test_mocap_interrupted(void)
+{
+    weft_context_def cd = weft_default_context_def();
+    weft_context *ctx = NULL;
+    CHECK_RESULT(weft_context_create(&cd, &ctx), WEFT_OK);
+    char a[512], b[512];
+    snprintf(a, sizeof a, "%s/xpbd_checkpoint/mocap_whole", WEFT_BINARY_DIR);
+    snprintf(b, sizeof b, "%s/xpbd_checkpoint/mocap_parts", WEFT_BINARY_DIR);
+    remove_sequence(a);
+    remove_sequence(b);
+    weft_sim_sequence_def d = weft_sim_default_sequence_def();
+    d.scenario = WEFT_SIM_SCENARIO_GARMENT;
+    d.motion_path = WEFT_SOURCE_DIR "/samples/mocap/clips/walk_cmu07_01.bvh.gz";
+    d.motion_start_s = 1.0f;
+    d.seed = 5; /* a T-shirt the arms squeeze on this walk */
+    d.frames = 30; /* after the 90-frame pre-roll */
+    d.substeps = d.max_substeps = 10;
+    d.cloth_vertices = 256;
+    d.checkpoint_frames = 8;
+    weft_sim_sequence_result whole = {0};
+    CHECK_RESULT(weft_sim_generate(ctx, &d, a, NULL, NULL, &whole), WEFT_OK);
+    CHECK(whole.finished && whole.accepted && whole.resumed_frame == 0);
+    d.time_limit_s = 1e-9;
+    weft_sim_sequence_result part = {0};
+    uint32_t calls = 0;
+    do {
+        CHECK_RESULT(weft_sim_generate(ctx, &d, b, NULL, NULL, &part), WEFT_OK);
+        ++calls;
+    } while (!part.finished && calls < 60);
+    CHECK_MSG(calls >= 3 && part.finished, "%u calls, finished %d", calls, part.finished);
+    CHECK(part.accepted == whole.accepted && part.attempts == whole.attempts && part.frames == whole.frames);
+    check_same_sequence(a, b);
+    weft_context_destroy(ctx);
+}
+
 /* A checkpoint truncated, overwritten with garbage or made by another def is not trusted: the
  * run starts over and still writes the right sequence. */
 static void test_bad_checkpoint_ignored(void)
@@ -196,5 +234,6 @@ static void test_bad_settings(void)
     weft_context_destroy(ctx);
 }
 
-TEST_MAIN(TEST_CASE(test_drop_interrupted), TEST_CASE(test_gripper_interrupted), TEST_CASE(test_bad_checkpoint_ignored),
+TEST_MAIN(TEST_CASE(test_drop_interrupted), TEST_CASE(test_gripper_interrupted), TEST_CASE(test_mocap_interrupted),
+          TEST_CASE(test_bad_checkpoint_ignored),
           TEST_CASE(test_bad_settings))

@@ -552,6 +552,9 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
             near_overlap = calloc(4 * (size_t)nv, 1); /* exempt; near a squeeze now, at the last frame; crossed */
             r = r != WEFT_OK ? r : near_overlap ? weft_sim_validator_set_self_exempt(val, near_overlap)
                                                 : weft__fail(WEFT_ERROR_OUT_OF_MEMORY, "simgen: out of memory");
+            /* where the body squeezed the cloth at the frame before, the cloth keeps its bounds
+             * against the body's projection (REFSIM.md, Real motion) */
+            r = r != WEFT_OK ? r : weft__xpbd_set_bounded_projection(g, near_overlap + 2 * (size_t)nv);
         }
         if (r != WEFT_OK) {
             free(near_overlap);
@@ -604,6 +607,12 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
         }
         if (r == WEFT_OK) {
             r = weft__xpbd_import_state(g, ck->xd, ck->vd);
+        }
+        if (r == WEFT_OK && wear) { /* the squeeze zone of the checkpoint's frame, as a continued run has it */
+            const float *bp = b->collider + (size_t)h->frame * nc * 3, *xp = b->cloth + (size_t)h->frame * nv * 3;
+            weft_wear_frame scratch;
+            r = weft_wear_measure(wear, bp, xp, xp, 1.0f, &scratch); /* the body's normals near_overlap reads */
+            r = r != WEFT_OK ? r : weft_wear_near_overlap(wear, bp, WEFT_SIM_SQUEEZE_REACH, xp, nv, near_overlap + 2 * (size_t)nv);
         }
         f_first = h->frame + 1;
         ck->resume = NULL;

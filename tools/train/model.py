@@ -311,9 +311,14 @@ class ClothTransformer(nn.Module):
             h = g(h, adj)
         tokens, key_mask = h, None
         if ctri is not None and ctri.shape[0] > 0:
+            keep = crop_mask(x_t, c_next, ctri, c["crop_margin"])
+            # only the triangles some window of the batch keeps are encoded (the others are masked
+            # out of the attention anyway): the same result, at the cost of the crop, not the body
+            sel = keep.any(dim=0).nonzero().squeeze(1)
+            if sel.numel() < ctri.shape[0]:
+                ctri, keep = ctri[sel], keep[:, sel]
             tf = triangle_features(c_next, c_cur, ctri, centre, self.freqs, c["vel_scale"], c["area_scale"])
             ct = self.enc_coll(tf)
-            keep = crop_mask(x_t, c_next, ctri, c["crop_margin"])
             tokens = torch.cat([h, ct], dim=1)
             key_mask = torch.cat([torch.ones(h.shape[:2], dtype=torch.bool, device=h.device), keep], dim=1)
         q = self.queries.unsqueeze(0).expand(x_t.shape[0], -1, -1)

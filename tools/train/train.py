@@ -240,6 +240,9 @@ def main():
                          "the runtime does with weft_garment_set_pins (evaluate with weft eval --pins all)")
     ap.add_argument("--scenario-weight", nargs="*", default=[], metavar="SCENARIO=W",
                     help="draw training sequences of a scenario W times as often (default 1 each)")
+    ap.add_argument("--mocap-weight", type=float, default=1.0, metavar="W",
+                    help="draw real-motion training sequences (meta.json with a mocap block: weft simgen "
+                         "--mocap) W times as often as procedural ones (default 1)")
     ap.add_argument("--scenarios", default="",
                     help="comma-separated scenarios (drop,gripper,garment) to train and validate on "
                          "(default: all): a model for the scenes that need it, e.g. a drop specialist")
@@ -305,7 +308,10 @@ def main():
             sys.exit(f"--scenario-weight {sw}: expected SCENARIO=W")
         if weights[name] < 0:
             sys.exit(f"--scenario-weight {sw}: the weight must be >= 0")
-    draw_w = [weights.get(s.scenario, 1.0) for s in train]
+    if not a.mocap_weight >= 0:
+        sys.exit(f"--mocap-weight {a.mocap_weight}: the weight must be >= 0")
+    draw_w = [weights.get(s.scenario, 1.0) * (a.mocap_weight if "mocap" in s.meta else 1.0) for s in train]
+    weighted = bool(weights) or a.mocap_weight != 1.0
     if sum(draw_w) <= 0:
         sys.exit("--scenario-weight leaves no training sequence to draw")
     if a.pins and not any(s.pinned is not None for s in train):
@@ -421,7 +427,7 @@ def main():
             gparam["lr"] = lr
         R = 1 + min(a.rollout_max - 1, int(a.rollout_max * progress / 0.7))
         R = max(R, min(a.rollout_min, a.rollout_max))
-        seq = random.choices(train, draw_w)[0] if weights else random.choice(train)
+        seq = random.choices(train, draw_w)[0] if weighted else random.choice(train)
         h = cfg["history"]
         need = (h - 1) + R + 2
         if seq.frames < need:
