@@ -814,7 +814,9 @@ static bool write_meta(const char *dir, const xscene *sc, const weft_sim_sequenc
         cJSON_AddNumberToObject(mo, "turned_rad", -sc->clip_yaw);
         cJSON_AddStringToObject(mo, "body",
                                 "the body's contacts projected each substep (cloth inside or within the contact radius "
-                                "moves out along the nearest surface's pseudonormal), the floor and, for a T-shirt, the "
+                                "moves out along the nearest surface's pseudonormal; where the body squeezed the cloth "
+                                "at the frame before, the cloth keeps its cloth-cloth bounds after it), the floor and, "
+                                "for a T-shirt, the "
                                 "worn-garment recipe's max distance (inside the substeps and after them; a skirt or "
                                 "dress hangs from its waistband), no push; the validator "
                                 "certifies the cloth against itself except near where the body squeezes it, where the "
