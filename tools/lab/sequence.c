@@ -552,9 +552,11 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
             near_overlap = calloc(4 * (size_t)nv, 1); /* exempt; near a squeeze now, at the last frame; crossed */
             r = r != WEFT_OK ? r : near_overlap ? weft_sim_validator_set_self_exempt(val, near_overlap)
                                                 : weft__fail(WEFT_ERROR_OUT_OF_MEMORY, "simgen: out of memory");
-            /* where the body squeezed the cloth at the frame before, the cloth keeps its bounds
-             * against the body's projection (REFSIM.md, Real motion) */
-            r = r != WEFT_OK ? r : weft__xpbd_set_bounded_projection(g, near_overlap + 2 * (size_t)nv);
+            /* a skirt or dress: where the body squeezed the cloth at the frame before, the cloth
+             * keeps its bounds against the body's projection (REFSIM.md, Real motion) */
+            if (r == WEFT_OK && weft_wear_reference_holds_squeeze(sc->cloth_kind)) {
+                r = weft__xpbd_set_bounded_projection(g, near_overlap + 2 * (size_t)nv);
+            }
         }
         if (r != WEFT_OK) {
             free(near_overlap);
@@ -814,9 +816,9 @@ static bool write_meta(const char *dir, const xscene *sc, const weft_sim_sequenc
         cJSON_AddNumberToObject(mo, "turned_rad", -sc->clip_yaw);
         cJSON_AddStringToObject(mo, "body",
                                 "the body's contacts projected each substep (cloth inside or within the contact radius "
-                                "moves out along the nearest surface's pseudonormal; where the body squeezed the cloth "
-                                "at the frame before, the cloth keeps its cloth-cloth bounds after it), the floor and, "
-                                "for a T-shirt, the "
+                                "moves out along the nearest surface's pseudonormal; for a skirt or dress, where the body "
+                                "squeezed the cloth at the frame before, the cloth keeps its cloth-cloth bounds after "
+                                "it), the floor and, for a T-shirt, the "
                                 "worn-garment recipe's max distance (inside the substeps and after them; a skirt or "
                                 "dress hangs from its waistband), no push; the validator "
                                 "certifies the cloth against itself except near where the body squeezes it, where the "
