@@ -33,7 +33,7 @@ import tempfile
 
 LINE = re.compile(r"^(\S+)\s+frames\s+(\d+)\s+MVE\s+([-\d.naninf]+) cm\s+coll\s+([-\d.]+)%\s+self\s+([-\d.]+)%\s+"
                   r"([-\d.]+) ms/frame(?:\s+\(p50 [^)]*\))?\s+strain\s+([-\d.naninf]+)\s+tokens\s+\S+(\s+NaN)?")
-LOST = re.compile(r"\sgarment (kept|lost)\b")
+LOST = re.compile(r"\sgarment (kept|LOST)\b")
 SCENARIOS = ("drop", "garment", "gripper")
 KINDS = ("skirt", "dress", "tshirt")
 
@@ -85,7 +85,7 @@ def run(weft, data, split, spec, ccd, frames, pins="xpbd"):
             name = os.path.basename(m.group(1).rstrip("/"))
             lost = LOST.search(line)
             rows.append({"sequence": name, "scenario": name.split("_")[0], "kind": garment_kind(data, name),
-                         "lost": bool(lost and lost.group(1) == "lost"), "frames": int(m.group(2)),
+                         "lost": bool(lost and lost.group(1) == "LOST"), "frames": int(m.group(2)),
                          "mve_cm": float(m.group(3)), "coll_pct": float(m.group(4)),
                          "self_pct": float(m.group(5)), "ms_per_frame": float(m.group(6)),
                          "max_strain": float(m.group(7)), "nan": bool(m.group(8))})
