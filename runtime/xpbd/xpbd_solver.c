@@ -1609,18 +1609,31 @@ static weft_result end_frame(weft_garment *g, xpbd_state *s)
 
 static uint32_t fast_collide_body(weft_garment *g, xpbd_state *s);
 
-/* x moved back onto the ball of radius r around c when it left it. */
-static void hold_to_bound(double *x, const double *c, double r)
+/* x moved back onto the ball of radius r around c when it left it; whether it moved. */
+static bool hold_to_bound(double *x, const double *c, double r)
 {
     double d[3];
     geo_sub(d, x, c);
     const double l = geo_len(d);
-    if (l > r) {
-        const double f = l > 0.0 ? r / l : 0.0;
-        for (int a = 0; a < 3; ++a) {
-            x[a] = c[a] + f * d[a];
-        }
+    if (l <= r) {
+        return false;
     }
+    const double f = l > 0.0 ? r / l : 0.0;
+    for (int a = 0; a < 3; ++a) {
+        x[a] = c[a] + f * d[a];
+    }
+    return true;
+}
+
+/* Vertex i back within its conservative bounds: around its position at the frame's start when
+ * the frame is split (chord-safe frames), then around the window's start. Returns the clamps
+ * that moved it (0..2). */
+static uint32_t hold_to_bounds(xpbd_state *s, uint32_t i, bool split)
+{
+    double *xi = s->x + 3 * (size_t)i;
+    uint32_t moved = split && hold_to_bound(xi, s->xs_frame + 3 * (size_t)i, s->bound_frame[i]);
+    moved += hold_to_bound(xi, s->xs + 3 * (size_t)i, s->bound[i]);
+    return moved;
 }
 
 /* Free vertices farther than their radius from their target (the skinned garment) go onto the
@@ -1815,34 +1828,11 @@ static weft_result xpbd_step(weft_garment *g)
         hold_max_distance(g, s, tethers); /* before the bounds: the cloth stays off itself */
         uint32_t clamped_now = 0;
         for (uint32_t i = 0; i < n; ++i) {
-            double *xi = s->x + 3 * (size_t)i;
-            const double *x0 = s->xs + 3 * (size_t)i;
-            if (!s->pinned[i] && split) {
-                const double *xf = s->xs_frame + 3 * (size_t)i;
-                double d[3];
-                geo_sub(d, xi, xf);
-                double l = geo_len(d);
-                if (l > s->bound_frame[i]) {
-                    double f = l > 0.0 ? s->bound_frame[i] / l : 0.0;
-                    for (int a = 0; a < 3; ++a) {
-                        xi[a] = xf[a] + f * d[a];
-                    }
-                    s->stats.clamped++;
-                    clamped_now++;
-                }
-            }
+            const double *xi = s->x + 3 * (size_t)i;
             if (!s->pinned[i]) {
-                double d[3];
-                geo_sub(d, xi, x0);
-                double l = geo_len(d);
-                if (l > s->bound[i]) {
-                    double f = l > 0.0 ? s->bound[i] / l : 0.0;
-                    for (int a = 0; a < 3; ++a) {
-                        xi[a] = x0[a] + f * d[a];
-                    }
-                    s->stats.clamped++;
-                    clamped_now++;
-                }
+                const uint32_t moved = hold_to_bounds(s, i, split);
+                s->stats.clamped += moved;
+                clamped_now += moved;
             }
             const double *xo = s->xo + 3 * (size_t)i;
             for (int a = 0; !s->project && a < 3; ++a) { /* a projected body sets v after it moves */
@@ -1854,14 +1844,12 @@ static weft_result xpbd_step(weft_garment *g)
             /* The body last, as the fast method meets it: cloth inside or within the contact
              * radius moves out along the nearest surface of its parts. The body cannot be held
              * back, so it has the last word over the cloth-cloth bounds (cloth the body squeezes
-             * where it overlaps itself is not certified against itself there). */
+             * where it overlaps itself is not certified against itself there), except on the
+             * vertices weft__xpbd_set_bounded_projection holds: their bounds have it. */
             s->stats.contacts += fast_collide_body(g, s);
-            for (uint32_t i = 0; s->held && i < n; ++i) { /* squeezed cloth: the bounds have the last word */
+            for (uint32_t i = 0; s->held && i < n; ++i) {
                 if (s->held[i] && !s->pinned[i]) {
-                    if (split) {
-                        hold_to_bound(s->x + 3 * (size_t)i, s->xs_frame + 3 * (size_t)i, s->bound_frame[i]);
-                    }
-                    hold_to_bound(s->x + 3 * (size_t)i, s->xs + 3 * (size_t)i, s->bound[i]);
+                    (void)hold_to_bounds(s, i, split);
                 }
             }
             for (size_t i = 0; i < 3 * (size_t)n; ++i) {

@@ -49,8 +49,8 @@ static inline float weft_wear_reference_tether_cm(weft_cloth_kind kind)
 
 /* Whether simgen's reference on real motion holds the cloth the body squeezed at the frame before
  * to its cloth-cloth bounds after the body's projection (weft__xpbd_set_bounded_projection): a
- * skirt or dress, whose layers the legs and arms press together; not a T-shirt, whose max
- * distance pulls the same cloth after the step (docs/REFSIM.md, Real motion, has the measurements). */
+ * skirt or dress, whose layers the legs and arms press together; not a T-shirt, of which it kept
+ * fewer frames (docs/REFSIM.md, Real motion, has the measurements). */
 static inline bool weft_wear_reference_holds_squeeze(weft_cloth_kind kind)
 {
     return kind == WEFT_CLOTH_SKIRT || kind == WEFT_CLOTH_DRESS;
