@@ -84,8 +84,9 @@ static void check_same_sequence(const char *a, const char *b)
     }
 }
 
-/* One uninterrupted run against one stopped at every checkpoint, for a scenario. */
-static void interrupted_matches(weft_sim_scenario scenario, const char *tag)
+/* One uninterrupted run of d against one stopped at every checkpoint (every call after the first
+ * goes on from the checkpoint the one before left), `calls` calls in all. */
+static void interrupted_matches(weft_sim_sequence_def d, const char *tag, uint32_t calls_expected)
 {
     weft_context_def cd = weft_default_context_def();
     weft_context *ctx = NULL;
@@ -95,7 +96,6 @@ static void interrupted_matches(weft_sim_scenario scenario, const char *tag)
     snprintf(b, sizeof b, "%s/xpbd_checkpoint/%s_parts", WEFT_BINARY_DIR, tag);
     remove_sequence(a);
     remove_sequence(b);
-    weft_sim_sequence_def d = small_def(scenario);
     weft_sim_sequence_result whole = {0};
     CHECK_RESULT(weft_sim_generate(ctx, &d, a, NULL, NULL, &whole), WEFT_OK);
     CHECK(whole.finished && whole.accepted && whole.resumed_frame == 0);
@@ -109,63 +109,41 @@ static void interrupted_matches(weft_sim_scenario scenario, const char *tag)
         CHECK_RESULT(weft_sim_generate(ctx, &d, b, NULL, NULL, &part), WEFT_OK);
         ++calls;
         if (calls > 1) {
-            /* every call after the first goes on from the checkpoint the one before left */
-            CHECK_MSG(part.resumed_frame == last_frame + 4, "call %u resumed at %u after %u", calls,
+            CHECK_MSG(part.resumed_frame == last_frame + d.checkpoint_frames, "call %u resumed at %u after %u", calls,
                       part.resumed_frame, last_frame);
         }
         last_frame = part.resumed_frame;
         CHECK(part.finished || exists(b, "checkpoint.bin"));
         CHECK(part.finished || !exists(b, "meta.json"));
-    } while (!part.finished && calls < 20);
-    /* frames 1..59 with checkpoints after 4, 8, ..., 56: 14 stops, then the call that finishes */
-    CHECK_EQ_INT(calls, 15);
+    } while (!part.finished && calls < 2 * calls_expected);
+    CHECK_EQ_INT(calls, calls_expected);
     CHECK(part.accepted && part.attempts == whole.attempts && part.substeps_used == whole.substeps_used);
     CHECK(!exists(b, "checkpoint.bin"));
     check_same_sequence(a, b);
     weft_context_destroy(ctx);
 }
 
-static void test_drop_interrupted(void) { interrupted_matches(WEFT_SIM_SCENARIO_DROP, "drop"); }
+/* frames 1..59 with checkpoints after 4, 8, ..., 56: 14 stops, then the call that finishes */
+static void test_drop_interrupted(void) { interrupted_matches(small_def(WEFT_SIM_SCENARIO_DROP), "drop", 15); }
 
-static void test_gripper_interrupted(void) { interrupted_matches(WEFT_SIM_SCENARIO_GRIPPER, "gripper"); }
+static void test_gripper_interrupted(void) { interrupted_matches(small_def(WEFT_SIM_SCENARIO_GRIPPER), "gripper", 15); }
 
-/* Real motion: a window of a library clip stopped at every checkpoint writes the same frames as
- * one run (the squeeze zone the reference holds a dress to its bounds in, and the validator's
- * exempt and tangle state, are rebuilt from the checkpoint's frame; without the squeeze zone's
- * rebuild this case differs). */
+/* Real motion: the squeeze zone the reference holds a dress to its bounds in, and the
+ * validator's exempt and tangle state, are rebuilt from the checkpoint's frame (without the
+ * squeeze zone's rebuild this case differs). Frames 1..119 (a 90-frame pre-roll, then 30) with
+ * checkpoints after 8, 16, ..., 112: 14 stops, then the call that finishes. */
 static void test_mocap_interrupted(void)
 {
-    weft_context_def cd = weft_default_context_def();
-    weft_context *ctx = NULL;
-    CHECK_RESULT(weft_context_create(&cd, &ctx), WEFT_OK);
-    char a[512], b[512];
-    snprintf(a, sizeof a, "%s/xpbd_checkpoint/mocap_whole", WEFT_BINARY_DIR);
-    snprintf(b, sizeof b, "%s/xpbd_checkpoint/mocap_parts", WEFT_BINARY_DIR);
-    remove_sequence(a);
-    remove_sequence(b);
     weft_sim_sequence_def d = weft_sim_default_sequence_def();
     d.scenario = WEFT_SIM_SCENARIO_GARMENT;
     d.motion_path = WEFT_SOURCE_DIR "/samples/mocap/clips/crouch_cmu01_05.bvh.gz";
     d.motion_start_s = 1.0f;
     d.seed = 9; /* a dress the crouch squeezes at a checkpoint's frame */
-    d.frames = 30; /* after the 90-frame pre-roll */
+    d.frames = 30;
     d.substeps = d.max_substeps = 10;
     d.cloth_vertices = 256;
     d.checkpoint_frames = 8;
-    weft_sim_sequence_result whole = {0};
-    CHECK_RESULT(weft_sim_generate(ctx, &d, a, NULL, NULL, &whole), WEFT_OK);
-    CHECK(whole.finished && whole.accepted && whole.resumed_frame == 0);
-    d.time_limit_s = 1e-9;
-    weft_sim_sequence_result part = {0};
-    uint32_t calls = 0;
-    do {
-        CHECK_RESULT(weft_sim_generate(ctx, &d, b, NULL, NULL, &part), WEFT_OK);
-        ++calls;
-    } while (!part.finished && calls < 60);
-    CHECK_MSG(calls >= 3 && part.finished, "%u calls, finished %d", calls, part.finished);
-    CHECK(part.accepted == whole.accepted && part.attempts == whole.attempts && part.frames == whole.frames);
-    check_same_sequence(a, b);
-    weft_context_destroy(ctx);
+    interrupted_matches(d, "mocap", 15);
 }
 
 /* A checkpoint truncated, overwritten with garbage or made by another def is not trusted: the
