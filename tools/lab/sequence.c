@@ -459,6 +459,21 @@ static bool moved_after_solve(const float *solved, const float *x, uint32_t v)
     return p[0] != q[0] || p[1] != q[1] || p[2] != q[2];
 }
 
+/* What a run keeps of its last frame done, rebuilt from that frame's recorded positions (the run's
+ * first frame, a resumed run): near[2 nv, 3 nv) the squeeze zone, near[3 nv, 4 nv) the cloth
+ * crossing itself. */
+static weft_result last_frame_state(weft_wear *wear, weft_sim_validator *val, const xscene *sc, const run_buffers *b,
+                                    uint32_t frame, uint8_t *near)
+{
+    const uint32_t nv = sc->cloth.nv, nc = sc->collider.nv;
+    const float *bp = b->collider + (size_t)frame * nc * 3, *xp = b->cloth + (size_t)frame * nv * 3;
+    weft_wear_frame scratch;
+    uint32_t crossed = 0;
+    weft_result r = weft_wear_measure(wear, bp, xp, xp, 1.0f, &scratch); /* the body's normals near_overlap reads */
+    r = r != WEFT_OK ? r : weft_wear_near_overlap(wear, bp, WEFT_SIM_SQUEEZE_REACH, xp, nv, near + 2 * (size_t)nv);
+    return r != WEFT_OK ? r : weft_sim_validator_tangled(val, xp, near + 3 * (size_t)nv, &crossed);
+}
+
 /* Real motion: the wear measures of frame f into its stats row (the cloth inside the body, and
  * inside where the body is clear), and the cloth the validator exempts from its cloth-cloth test:
  * near where the body squeezes it at f or at f - 1, moved by the constraint stage after the solve
@@ -466,22 +481,14 @@ static bool moved_after_solve(const float *solved, const float *x, uint32_t v)
  * validator let pass only where exempt: a tangle made there stays exempt while it stays crossed),
  * whose share goes into the row too. Runs before the frame is validated.
  * near[0, nv): exempt; [nv, 2 nv): near the squeeze at f; [2 nv, 3 nv): at *measured, the last
- * frame done; [3 nv, 4 nv): crossing itself at *measured (both measured here when *measured is
- * not f - 1: the run's first frame, a resumed run). */
+ * frame done; [3 nv, 4 nv): crossing itself at *measured (rebuilt by last_frame_state when
+ * *measured is not f - 1: the run's first frame). */
 static weft_result body_check(weft_wear *wear, weft_sim_validator *val, const weft_garment *g, const xscene *sc,
                               run_buffers *b, uint32_t f, uint8_t *near, const uint32_t *measured, weft_wear_frame *wf)
 {
     const uint32_t nv = sc->cloth.nv, nc = sc->collider.nv;
     uint8_t *now = near + nv, *last = near + 2 * (size_t)nv, *tangled = near + 3 * (size_t)nv;
-    weft_result r = WEFT_OK;
-    if (*measured + 1 != f) {
-        const float *bp = b->collider + (size_t)(f - 1) * nc * 3, *xp = b->cloth + (size_t)(f - 1) * nv * 3;
-        weft_wear_frame scratch;
-        uint32_t crossed = 0;
-        r = weft_wear_measure(wear, bp, xp, xp, 1.0f, &scratch);
-        r = r != WEFT_OK ? r : weft_wear_near_overlap(wear, bp, WEFT_SIM_SQUEEZE_REACH, xp, nv, last);
-        r = r != WEFT_OK ? r : weft_sim_validator_tangled(val, xp, tangled, &crossed);
-    }
+    weft_result r = *measured + 1 != f ? last_frame_state(wear, val, sc, b, f - 1, near) : WEFT_OK;
     const float *body = b->collider + (size_t)f * nc * 3, *xf = b->cloth + (size_t)f * nv * 3;
     r = r != WEFT_OK ? r : weft_wear_measure(wear, body, xf, xf, 1.0f, wf);
     r = r != WEFT_OK ? r : weft_wear_near_overlap(wear, body, WEFT_SIM_SQUEEZE_REACH, xf, nv, now);
@@ -589,6 +596,7 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
     res->chord_retries = res->path_frames = 0;
     res->simulate_s = res->validate_s = 0.0;
     uint32_t f_first = 1;
+    uint32_t measured = UINT32_MAX - 1; /* body_check's last frame: none yet */
     if (ck->resume) {
         /* Continue after the checkpoint's frame: its kinematics again (functions of the frame),
          * its recorded frames and counters, and the solver's exact state. */
@@ -610,11 +618,10 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
         if (r == WEFT_OK) {
             r = weft__xpbd_import_state(g, ck->xd, ck->vd);
         }
-        if (r == WEFT_OK && wear) { /* the squeeze zone of the checkpoint's frame, as a continued run has it */
-            const float *bp = b->collider + (size_t)h->frame * nc * 3, *xp = b->cloth + (size_t)h->frame * nv * 3;
-            weft_wear_frame scratch;
-            r = weft_wear_measure(wear, bp, xp, xp, 1.0f, &scratch); /* the body's normals near_overlap reads */
-            r = r != WEFT_OK ? r : weft_wear_near_overlap(wear, bp, WEFT_SIM_SQUEEZE_REACH, xp, nv, near_overlap + 2 * (size_t)nv);
+        if (r == WEFT_OK && wear && h->frame > 0) { /* the squeeze zone the next step holds, as a continued run has it
+                                                      (a fresh run's first step holds none) */
+            r = last_frame_state(wear, val, sc, b, h->frame, near_overlap);
+            measured = h->frame;
         }
         f_first = h->frame + 1;
         ck->resume = NULL;
@@ -626,7 +633,6 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
             r = weft__fail(WEFT_ERROR_IO, "weft_sim_generate: writing the checkpoint into '%s' failed", ck->dir);
         }
     }
-    uint32_t measured = UINT32_MAX - 1; /* body_check's last frame: none yet */
     for (uint32_t f = f_first; f < T && r == WEFT_OK; ++f) {
         if (ck->dir && f > 1 && (f - 1) % ck->every == 0) {
             weft__xpbd_forget_caches(g); /* as a run continued from the checkpoint after f - 1 has them */
