@@ -38,6 +38,7 @@ typedef struct xpbd_frame_stats {
     uint32_t contacts_dropped;   /* candidate pairs beyond the contact capacity (bounds still hold) */
     uint32_t tight_passes;       /* passes whose self contacts overflowed and were swept again by their final bounds */
     uint32_t clamped;            /* vertex truncations to their conservative bound (summed) */
+    uint32_t untangled;          /* crossings undone by untangling (summed over substeps) */
     double min_self_distance;    /* smallest cloth-cloth proximity seen (query radius if none) */
     double min_collider_distance;
     double max_strain;           /* largest |Fu| - 1 or |Fv| - 1 at the end of the frame */
@@ -80,6 +81,17 @@ void weft__xpbd_forget_caches(weft_garment *g);
  * the body squeezed the cloth at the frame before). The mask (n bytes) is borrowed until the
  * next call; NULL clears it. Other garments: WEFT_ERROR_INVALID_ARGUMENT. */
 weft_result weft__xpbd_set_bounded_projection(weft_garment *g, const uint8_t *mask);
+/* The reference with a projected body: untangling. mask (n bytes, borrowed until the next call;
+ * NULL clears) marks the cloth found crossing itself at the end of the frame before (the lab's
+ * validator: the crossing triangles' corners and their ring). Each substep, after the body's
+ * projection, every marked edge that crosses a marked triangle is undone: the crossing point
+ * slides along the edge toward its neighbours on the intersection contour (the direction that
+ * shortens the contour), so the edge's end on that side goes back through the triangle to the
+ * other end's side, plus the self radius, as a contact on the triangle's normal (at most the self
+ * radius a substep; only marked vertices move, the triangle's by its weights at the crossing).
+ * The pairs between marked cloth crossing at the step's start set no bounds and no contacts, which
+ * would hold the crossing. Other garments: WEFT_ERROR_INVALID_ARGUMENT. */
+weft_result weft__xpbd_set_untangle(weft_garment *g, const uint8_t *mask);
 /* Statistics of the last step of an XPBD garment (zeros for other methods). */
 xpbd_frame_stats weft__xpbd_last_stats(const weft_garment *g);
 
@@ -95,6 +107,28 @@ bool xpbd_membrane_coefficients(const double *r0, const double *r1, const double
  * Returns false for a degenerate hinge (zero-area wing), leaving grad zeroed. */
 bool xpbd_dihedral_eval(const double *x0, const double *x1, const double *x2, const double *x3, double *theta,
                         double grad[12]);
+
+/* Untangling's scratch and the crossings of the current frame (untangle.c). */
+typedef struct xpbd_untangle {
+    uint32_t n, ntri, nedge;
+    uint32_t *cand_tri, *cand_edge; /* triangles and edges with a marked corner */
+    uint32_t ncand_tri, ncand_edge;
+    double *box;                    /* per candidate triangle: lo xyz, hi xyz */
+    const uint8_t *mask;            /* the caller's marks (borrowed) */
+    uint8_t *crossing;              /* per vertex: on an edge or a triangle crossing the cloth at the step's start */
+    uint32_t crossing_count;
+} xpbd_untangle;
+
+weft_result xpbd_untangle_create(const weft_context *ctx, xpbd_untangle *u, uint32_t n, uint32_t ntri, uint32_t nedge);
+void xpbd_untangle_destroy(const weft_context *ctx, xpbd_untangle *u);
+/* The crossings among the marked cloth at positions x (the step's start); returns the vertices
+ * on them. */
+uint32_t xpbd_untangle_begin(xpbd_untangle *u, const geo_topo *topo, const uint32_t *tris, const uint8_t *mask,
+                             const double *x);
+/* One substep's projection (see weft__xpbd_set_untangle); returns the crossings worked on. w:
+ * inverse masses (0 pinned). */
+uint32_t xpbd_untangle_project(xpbd_untangle *u, const geo_topo *topo, const uint32_t *tris, double *x, const double *w,
+                               double margin);
 
 extern const weft_method_ops weft__xpbd_ops;
 /* WEFT_METHOD_XPBD_FAST: the same solver with a game engine's collision projection. */

@@ -113,6 +113,9 @@ typedef struct xpbd_state {
      * contact lists, which are then not allocated. */
     bool fast;
     const uint8_t *held; /* weft__xpbd_set_bounded_projection: held to the bounds after the projection */
+    const uint8_t *untangle_mask; /* weft__xpbd_set_untangle: the cloth crossing itself at the frame before */
+    xpbd_untangle ut;             /* its crossings this frame (untangle.c); not allocated for the fast method */
+    bool untangling;              /* this frame starts with marked cloth on a crossing */
     bool project; /* WEFT_METHOD_XPBD with collider_projection: the fast method's collider
                    * projection each substep instead of collider contacts and their bounds */
     uint32_t *near_seed; /* per cloth vertex: its last nearest collider triangle (a search seed) */
@@ -299,6 +302,9 @@ static void state_free(const weft_context *ctx, xpbd_state *s)
     FREE_ARR(s->near_seed, n);
     FREE_ARR(s->vert_owner, n);
     FREE_ARR(s->tri_edge, 3 * s->ntri);
+    if (s->ut.crossing) {
+        xpbd_untangle_destroy(ctx, &s->ut);
+    }
     geo_bvh_destroy(ctx, &s->bvh_tri);
     geo_bvh_destroy(ctx, &s->bvh_edge);
     geo_bvh_destroy(ctx, &s->bvh_ctri);
@@ -454,6 +460,9 @@ static weft_result create_state(weft_garment *g, bool fast)
     if (ok && nc > 0 && !fast) {
         ok = geo_bvh_create(ctx, &s->bvh_ctri, g->collider_triangles, s->nctri, 3) == WEFT_OK &&
              geo_bvh_create(ctx, &s->bvh_cedge, s->ctopo.edges, s->ctopo.edge_count, 2) == WEFT_OK;
+    }
+    if (ok && !fast) {
+        ok = xpbd_untangle_create(ctx, &s->ut, n, s->ntri, s->topo.edge_count) == WEFT_OK;
     }
     if (!ok) {
         state_free(ctx, s);
@@ -640,6 +649,15 @@ weft_result weft__xpbd_set_bounded_projection(weft_garment *g, const uint8_t *ma
     return WEFT_OK;
 }
 
+weft_result weft__xpbd_set_untangle(weft_garment *g, const uint8_t *mask)
+{
+    if (!g || g->ops != &weft__xpbd_ops || !g->method_state) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "xpbd untangle: needs an XPBD garment");
+    }
+    ((xpbd_state *)g->method_state)->untangle_mask = mask;
+    return WEFT_OK;
+}
+
 uint32_t weft__xpbd_recorded_states(const weft_garment *g)
 {
     return g && g->ops == &weft__xpbd_ops && g->method_state ? ((const xpbd_state *)g->method_state)->rec_states : 0;
@@ -770,6 +788,25 @@ static inline bool self_contact_wanted(xpbd_state *s, double de, double bound_a,
     return slack < s->slack_cutoff;
 }
 
+/* Untangling: a pair whose two sides both hold marked cloth on a crossing at the step's start sets
+ * no bound and no contact (both would hold the crossing). a and b: the pair's two sides, na and nb
+ * vertices each. */
+static bool untangling_pair(const xpbd_state *s, const uint32_t *a, int na, const uint32_t *b, int nb)
+{
+    if (!s->untangling) {
+        return false;
+    }
+    const uint8_t *c = s->ut.crossing;
+    bool a_crossing = false, b_crossing = false;
+    for (int k = 0; k < na; ++k) {
+        a_crossing |= c[a[k]] != 0;
+    }
+    for (int k = 0; k < nb; ++k) {
+        b_crossing |= c[b[k]] != 0;
+    }
+    return a_crossing && b_crossing;
+}
+
 /* Cloth vertex vs cloth triangle. */
 static bool visit_self_vt(uint32_t t, void *user)
 {
@@ -777,7 +814,7 @@ static bool visit_self_vt(uint32_t t, void *user)
     xpbd_state *s = dc->s;
     uint32_t v = dc->query;
     const uint32_t *tri = dc->tris + 3 * (size_t)t;
-    if (tri[0] == v || tri[1] == v || tri[2] == v || !box_hits(dc, t)) {
+    if (tri[0] == v || tri[1] == v || tri[2] == v || !box_hits(dc, t) || untangling_pair(s, &v, 1, tri, 3)) {
         return true;
     }
     const double *x = s->xs;
@@ -820,7 +857,8 @@ static bool visit_self_ee(uint32_t e2, void *user)
         return true;
     }
     const uint32_t *a = s->topo.edges + 2 * (size_t)e1, *b = s->topo.edges + 2 * (size_t)e2;
-    if (a[0] == b[0] || a[0] == b[1] || a[1] == b[0] || a[1] == b[1] || !box_hits(dc, e2)) {
+    if (a[0] == b[0] || a[0] == b[1] || a[1] == b[0] || a[1] == b[1] || !box_hits(dc, e2) ||
+        untangling_pair(s, a, 2, b, 2)) {
         return true;
     }
     const double *x = s->xs;
@@ -1674,6 +1712,8 @@ static weft_result xpbd_step(weft_garment *g)
     const bool raised = S > g->substeps;
     const double h = FRAME_DT / S;
     begin_frame(g, s, S);
+    s->untangling = s->untangle_mask && !s->fast &&
+                    xpbd_untangle_begin(&s->ut, &s->topo, g->triangles, s->untangle_mask, s->x) > 0;
     /* With a projected collider the max distance (tethers) is held inside the substeps, toward
      * the garment skinned onto the collider at t+1; the constraint stage's clamp after the step
      * takes the same targets (skinned_next) and moves only what the bounds held back. */
@@ -1851,6 +1891,10 @@ static weft_result xpbd_step(weft_garment *g)
                 if (s->held[i] && !s->pinned[i]) {
                     (void)hold_to_bounds(s, i, split);
                 }
+            }
+            /* then the cloth the body pushed through the cloth goes back (weft__xpbd_set_untangle) */
+            if (s->untangling) {
+                s->stats.untangled += xpbd_untangle_project(&s->ut, &s->topo, g->triangles, s->x, s->w, s->p.self_radius);
             }
             for (size_t i = 0; i < 3 * (size_t)n; ++i) {
                 s->v[i] = (s->x[i] - s->xo[i]) / h;

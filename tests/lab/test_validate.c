@@ -80,7 +80,7 @@ static void test_tangled_marks_the_crossing(void)
     memcpy(x, both.pos, sizeof(float) * 3 * both.nv);
     uint32_t count = 99;
     memset(tangled, 7, both.nv);
-    CHECK_RESULT(weft_sim_validator_tangled(v, x, tangled, &count), WEFT_OK);
+    CHECK_RESULT(weft_sim_validator_tangled(v, x, NULL, tangled, &count, NULL), WEFT_OK);
     CHECK_EQ_INT(count, 0);
     for (uint32_t i = 0; i < both.nv; ++i) {
         CHECK_EQ_INT(tangled[i], 0);
@@ -91,7 +91,7 @@ static void test_tangled_marks_the_crossing(void)
             x[3 * i + 1] -= 0.02f;
         }
     }
-    CHECK_RESULT(weft_sim_validator_tangled(v, x, tangled, &count), WEFT_OK);
+    CHECK_RESULT(weft_sim_validator_tangled(v, x, NULL, tangled, &count, NULL), WEFT_OK);
     uint32_t marked = 0, marked_lower = 0, far_marked = 0;
     for (uint32_t i = 0; i < both.nv; ++i) {
         CHECK(tangled[i] <= 1);
@@ -102,12 +102,31 @@ static void test_tangled_marks_the_crossing(void)
     CHECK(count > 0 && count < marked); /* the corners; the ring is marked, not counted */
     CHECK(marked_lower > 0 && marked > marked_lower);
     CHECK_EQ_INT(far_marked, 0);
+    /* Counted outside a pinch: the lower sheet pinched leaves the upper sheet's corners; all
+     * pinched, none; without pinched, all of them. */
+    uint8_t *pinched = calloc(both.nv, 1);
+    CHECK(pinched != NULL);
+    uint32_t all = 0, clear = 99, upper_corners = 0, lower_corners = 0;
+    CHECK_RESULT(weft_sim_validator_tangled(v, x, NULL, tangled, &all, &clear), WEFT_OK);
+    CHECK_EQ_INT(clear, all);
+    memset(pinched, 1, a.nv);
+    CHECK_RESULT(weft_sim_validator_tangled(v, x, pinched, tangled, &all, &upper_corners), WEFT_OK);
+    memset(pinched, 0, a.nv);
+    memset(pinched + a.nv, 1, both.nv - a.nv);
+    CHECK_RESULT(weft_sim_validator_tangled(v, x, pinched, tangled, &all, &lower_corners), WEFT_OK);
+    CHECK(upper_corners > 0 && lower_corners > 0);
+    CHECK_EQ_INT(upper_corners + lower_corners, all);
+    memset(pinched, 1, both.nv);
+    CHECK_RESULT(weft_sim_validator_tangled(v, x, pinched, tangled, &all, &clear), WEFT_OK);
+    CHECK_EQ_INT(clear, 0);
+    CHECK_RESULT(weft_sim_validator_tangled(v, x, pinched, tangled, &all, NULL), WEFT_ERROR_INVALID_ARGUMENT);
+    free(pinched);
     /* Non-finite positions: refused, the mask untouched. */
     memset(tangled, 5, both.nv);
     x[4] = NAN;
-    CHECK_RESULT(weft_sim_validator_tangled(v, x, tangled, &count), WEFT_ERROR_NOT_FINITE);
+    CHECK_RESULT(weft_sim_validator_tangled(v, x, NULL, tangled, &count, NULL), WEFT_ERROR_NOT_FINITE);
     CHECK_EQ_INT(tangled[0], 5);
-    CHECK_RESULT(weft_sim_validator_tangled(NULL, x, tangled, &count), WEFT_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(weft_sim_validator_tangled(NULL, x, NULL, tangled, &count, NULL), WEFT_ERROR_INVALID_ARGUMENT);
     free(x);
     free(tangled);
     two_sheets_free(&t);

@@ -44,7 +44,8 @@ def reason(w):
     v, mo = w["validator"], w["mocap"]
     f = v.get("first_hit_frame", -1)
     if mo.get("tangled_rejected"):
-        return f"{f}: {100 * mo.get('rejected_share', 0):.1f} % of the cloth crossing itself"
+        where = " outside a pinch" if "tangled_clear_max" in mo else ""
+        return f"{f}: {100 * mo.get('rejected_share', 0):.1f} % of the cloth crossing itself{where}"
     if mo.get("inside_clear_rejected"):
         return f"{f}: {100 * mo.get('rejected_share', 0):.1f} % of the cloth inside the body where it is clear"
     joint = (v.get("first_hit") or {}).get("body_joint")
@@ -94,6 +95,7 @@ def main():
         mo = w["mocap"]
         why = (f"{w['substeps']} substeps; exempt {100 * mo.get('self_exempt_mean', 0):.1f} % of the cloth on "
                f"average, crossing itself {100 * mo.get('tangled_max', 0):.2f} % at worst"
+               + (f" ({100 * mo['tangled_clear_max']:.2f} % outside a pinch)" if "tangled_clear_max" in mo else "")
                if w["accepted"] and not w["truncated"] else reason(w))
         print(f"| {w['clip']} | {KIND_NAMES.get(w['kind'], w['kind'])} | {kept_cell(w)} | {why} |")
 

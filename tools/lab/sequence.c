@@ -35,12 +35,13 @@ enum {
     ST_INSIDE_CLEAR,
     ST_SELF_EXEMPT,
     ST_TANGLED,
+    ST_TANGLED_CLEAR,
     ST_COUNT
 };
 static const char *const stat_names[ST_COUNT] = {
     "wall_ms",   "substeps",   "detections",      "contacts", "contacts_dropped", "clamped",    "min_self_distance",
     "min_collider_distance", "max_strain", "elastic_energy", "ccd_hits", "intersection_hits", "validate_ms", "chord_safe_retry",
-    "path_validated", "inside_body", "inside_clear", "self_exempt", "tangled"};
+    "path_validated", "inside_body", "inside_clear", "self_exempt", "tangled", "tangled_clear"};
 
 weft_sim_sequence_def weft_sim_default_sequence_def(void)
 {
@@ -471,7 +472,7 @@ static weft_result last_frame_state(weft_wear *wear, weft_sim_validator *val, co
     uint32_t crossed = 0;
     weft_result r = weft_wear_measure(wear, bp, xp, xp, 1.0f, &scratch); /* the body's normals near_overlap reads */
     r = r != WEFT_OK ? r : weft_wear_near_overlap(wear, bp, WEFT_SIM_SQUEEZE_REACH, xp, nv, near + 2 * (size_t)nv);
-    return r != WEFT_OK ? r : weft_sim_validator_tangled(val, xp, near + 3 * (size_t)nv, &crossed);
+    return r != WEFT_OK ? r : weft_sim_validator_tangled(val, xp, NULL, near + 3 * (size_t)nv, &crossed, NULL);
 }
 
 /* Real motion: the wear measures of frame f into its stats row (the cloth inside the body, and
@@ -512,7 +513,7 @@ static weft_result body_check(weft_wear *wear, weft_sim_validator *val, const we
 /* The wear measures' columns over stats rows 1..last into the result (real motion; 0 elsewhere). */
 static void inside_summary(const run_buffers *b, size_t last, weft_sim_sequence_result *res)
 {
-    double sum = 0.0, worst = 0.0, clear = 0.0, exempt = 0.0, tangled = 0.0;
+    double sum = 0.0, worst = 0.0, clear = 0.0, exempt = 0.0, tangled = 0.0, tangled_clear = 0.0;
     for (size_t f = 1; f <= last; ++f) {
         const float *row = b->stats + f * ST_COUNT;
         sum += row[ST_INSIDE_BODY];
@@ -520,9 +521,11 @@ static void inside_summary(const run_buffers *b, size_t last, weft_sim_sequence_
         clear = fmax(clear, row[ST_INSIDE_CLEAR]);
         exempt += row[ST_SELF_EXEMPT];
         tangled = fmax(tangled, row[ST_TANGLED]);
+        tangled_clear = fmax(tangled_clear, row[ST_TANGLED_CLEAR]);
     }
     res->self_exempt_mean = last > 0 ? (float)(exempt / (double)last) : 0.0f;
     res->tangled_max = (float)tangled;
+    res->tangled_clear_max = (float)tangled_clear;
     res->inside_body_mean = last > 0 ? (float)(sum / (double)last) : 0.0f;
     res->inside_body_max = (float)worst;
     res->inside_clear_max = (float)clear;
@@ -556,13 +559,19 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
                                                  sc->collider.nt, nc, &val);
         if (r == WEFT_OK && sc->clip) {
             r = weft_wear_create(sc->collider.tris, sc->collider.nt, nc, nv, &wear);
-            near_overlap = calloc(4 * (size_t)nv, 1); /* exempt; near a squeeze now, at the last frame; crossed */
+            /* exempt; near a squeeze now, at the last frame; crossed; pinched (near a squeeze now or
+             * at the frame before, where a crossing does not count) */
+            near_overlap = calloc(5 * (size_t)nv, 1);
             r = r != WEFT_OK ? r : near_overlap ? weft_sim_validator_set_self_exempt(val, near_overlap)
                                                 : weft__fail(WEFT_ERROR_OUT_OF_MEMORY, "simgen: out of memory");
             /* a skirt or dress: where the body squeezed the cloth at the frame before, the cloth
              * keeps its bounds against the body's projection (REFSIM.md, Real motion) */
             if (r == WEFT_OK && weft_wear_reference_holds_squeeze(sc->cloth_kind)) {
                 r = weft__xpbd_set_bounded_projection(g, near_overlap + 2 * (size_t)nv);
+            }
+            /* the cloth crossing itself at the frame before is untangled (REFSIM.md, Real motion) */
+            if (r == WEFT_OK) {
+                r = weft__xpbd_set_untangle(g, near_overlap + 3 * (size_t)nv);
             }
         }
         if (r != WEFT_OK) {
@@ -735,19 +744,26 @@ static weft_result simulate(weft_context *ctx, const xscene *sc, const weft_sim_
             }
         }
         if (wear) {
-            /* frame f is the last one now: its squeeze zone, and the cloth crossing itself there */
-            uint32_t crossed = 0;
+            /* frame f is the last one now: its squeeze zone, and the cloth crossing itself there,
+             * counted where the body does not pinch it (near a squeeze at f or f - 1) */
+            uint32_t crossed = 0, crossed_clear = 0;
+            uint8_t *pinched = near_overlap + 4 * (size_t)nv;
+            for (uint32_t v = 0; v < nv; ++v) {
+                pinched[v] = near_overlap[nv + v] | near_overlap[2 * (size_t)nv + v];
+            }
             memcpy(near_overlap + 2 * (size_t)nv, near_overlap + nv, nv);
-            r = weft_sim_validator_tangled(val, b->cloth + (size_t)f * nv * 3, near_overlap + 3 * (size_t)nv, &crossed);
+            r = weft_sim_validator_tangled(val, b->cloth + (size_t)f * nv * 3, pinched, near_overlap + 3 * (size_t)nv,
+                                           &crossed, &crossed_clear);
             b->stats[(size_t)f * ST_COUNT + ST_TANGLED] = (float)crossed / (float)nv;
+            b->stats[(size_t)f * ST_COUNT + ST_TANGLED_CLEAR] = (float)crossed_clear / (float)nv;
             measured = f;
             if (r != WEFT_OK) {
                 break;
             }
-            if ((double)crossed > WEFT_SIM_TANGLED_MAX * nv && res->first_hit_frame < 0) {
+            if ((double)crossed_clear > WEFT_SIM_TANGLED_MAX * nv && res->first_hit_frame < 0) {
                 res->first_hit_frame = (int32_t)f;
                 res->tangled_rejected = true;
-                res->rejected_share = (float)crossed / (float)nv;
+                res->rejected_share = (float)crossed_clear / (float)nv;
                 break; /* a tangle over the limit: not ground truth, however it came about */
             }
         }
@@ -824,12 +840,15 @@ static bool write_meta(const char *dir, const xscene *sc, const weft_sim_sequenc
                                 "the body's contacts projected each substep (cloth inside or within the contact radius "
                                 "moves out along the nearest surface's pseudonormal; for a skirt or dress, where the body "
                                 "squeezed the cloth at the frame before, the cloth keeps its cloth-cloth bounds after "
-                                "it), the floor and, for a T-shirt, the "
+                                "it), then the cloth found crossing itself at the frame before untangled (each crossing "
+                                "edge's end on the side that shortens the intersection contour goes back through the "
+                                "triangle), the floor and, for a T-shirt, the "
                                 "worn-garment recipe's max distance (inside the substeps and after them; a skirt or "
                                 "dress hangs from its waistband), no push; the validator "
                                 "certifies the cloth against itself except near where the body squeezes it, where the "
                                 "max distance or the floor moved it after the solve, and where it still crosses itself "
-                                "from such a place (stats self_exempt, tangled), and a frame with cloth inside the body "
+                                "from such a place (stats self_exempt, tangled), and a frame with cloth crossing itself "
+                                "outside where the body pinches it (tangled_clear) or inside the body "
                                 "where the body does not overlap itself (inside_clear) over the limit rejects the "
                                 "sequence; no arm spread");
         /* the max distance the reference ran with: a T-shirt's, none for a skirt or dress */
@@ -840,6 +859,7 @@ static bool write_meta(const char *dir, const xscene *sc, const weft_sim_sequenc
         cJSON_AddNumberToObject(mo, "inside_clear_max", res->inside_clear_max);
         cJSON_AddNumberToObject(mo, "self_exempt_mean", res->self_exempt_mean);
         cJSON_AddNumberToObject(mo, "tangled_max", res->tangled_max);
+        cJSON_AddNumberToObject(mo, "tangled_clear_max", res->tangled_clear_max);
         cJSON_AddNumberToObject(mo, "tangled_limit", WEFT_SIM_TANGLED_MAX);
         cJSON_AddBoolToObject(mo, "tangled_rejected", res->tangled_rejected);
         cJSON_AddBoolToObject(mo, "inside_clear_rejected", res->inside_clear_rejected);

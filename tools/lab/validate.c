@@ -164,15 +164,19 @@ weft_result weft_sim_validator_set_self_exempt(weft_sim_validator *v, const uint
     return WEFT_OK;
 }
 
-weft_result weft_sim_validator_tangled(weft_sim_validator *v, const float *cloth, uint8_t *tangled, uint32_t *count)
+weft_result weft_sim_validator_tangled(weft_sim_validator *v, const float *cloth, const uint8_t *pinched,
+                                      uint8_t *tangled, uint32_t *count, uint32_t *count_clear)
 {
-    if (!v || !cloth || !tangled || !count) {
+    if (!v || !cloth || !tangled || !count || (pinched && !count_clear)) {
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_sim_validator_tangled: every argument is required");
     }
     if (!weft__all_finite(cloth, 3 * (size_t)v->n)) {
         return weft__fail(WEFT_ERROR_NOT_FINITE, "weft_sim_validator_tangled: positions contain NaN or infinity");
     }
     memset(tangled, 0, v->n);
+    if (count_clear) {
+        *count_clear = 0;
+    }
     if (weft__ccd_intersect_mark(v->world, cloth, tangled) == 0) {
         *count = 0;
         return WEFT_OK;
@@ -187,12 +191,16 @@ weft_result weft_sim_validator_tangled(weft_sim_validator *v, const float *cloth
             }
         }
     }
-    uint32_t c = 0;
+    uint32_t c = 0, clear = 0;
     for (uint32_t i = 0; i < v->n; ++i) {
         c += tangled[i] == 1;
+        clear += tangled[i] == 1 && pinched && !pinched[i];
         tangled[i] = tangled[i] != 0;
     }
     *count = c;
+    if (count_clear) {
+        *count_clear = pinched ? clear : c;
+    }
     return WEFT_OK;
 }
 

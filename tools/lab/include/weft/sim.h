@@ -50,8 +50,9 @@ typedef struct weft_sim_validation {
  * itself (weft_sim_validator_set_self_exempt). */
 #define WEFT_SIM_SQUEEZE_REACH 0.01f
 /* Real motion: a frame whose cloth crosses itself over this share of its vertices (the crossing
- * triangles' corners, weft_sim_validator_tangled's count) rejects the sequence, whatever exempt
- * place the crossing came from. */
+ * triangles' corners, weft_sim_validator_tangled's count) outside where the body pinches it (near
+ * a squeeze at that frame or the one before) rejects the sequence, whatever exempt place the
+ * crossing came from. */
 #define WEFT_SIM_TANGLED_MAX 0.02
 
 /* Topology is copied. The collider may be absent (collider_vertex_count 0). Cloth triangles
@@ -77,10 +78,14 @@ WEFT_API weft_result weft_sim_validator_set_parts(weft_sim_validator *validator,
 WEFT_API weft_result weft_sim_validator_set_self_exempt(weft_sim_validator *validator, const uint8_t *exempt);
 /* The cloth crossing itself at `cloth`: sets tangled[v] (cloth vertex count) to 1 at the corners of
  * every pair of cloth triangles that intersect, exempt or not, and at the corners' one ring; 0
- * elsewhere. *count: the corners (the ring not counted). simgen on real motion keeps cloth that
- * crossed itself in an exempt zone exempt while it stays crossed (docs/REFSIM.md, Real motion). */
-WEFT_API weft_result weft_sim_validator_tangled(weft_sim_validator *validator, const float *cloth, uint8_t *tangled,
-                                                uint32_t *count);
+ * elsewhere. *count: the corners (the ring not counted); *count_clear (optional, required with
+ * `pinched`): the corners whose `pinched` flag is 0 (all of them when pinched is NULL). simgen on
+ * real motion keeps cloth that crossed itself in an exempt zone exempt while it stays crossed,
+ * hands it to the reference to untangle, and counts the crossing outside where the body pinches
+ * the cloth (docs/REFSIM.md, Real motion). */
+WEFT_API weft_result weft_sim_validator_tangled(weft_sim_validator *validator, const float *cloth,
+                                                const uint8_t *pinched, uint8_t *tangled, uint32_t *count,
+                                                uint32_t *count_clear);
 /* Checks the motion from frame t (cloth0, collider0) to t+1 (cloth1, collider1). Collider
  * arrays may be NULL when there is no collider. Allocates nothing. */
 WEFT_API weft_result weft_sim_validator_check(weft_sim_validator *validator, const float *cloth0, const float *cloth1,
@@ -234,6 +239,7 @@ typedef struct weft_sim_sequence_result {
     /* Real motion: the share of the cloth the validator did not certify against itself, mean over
      * the frames (stats self_exempt), and the worst frame's share crossing itself (stats tangled). */
     float self_exempt_mean, tangled_max;
+    float tangled_clear_max; /* the worst frame's share crossing itself outside a pinch (stats tangled_clear) */
     uint32_t chord_retries;       /* frames redone with one proximity pass (see docs/REFSIM.md) */
     uint32_t path_frames;         /* frames whose chord grazed but whose substep path is clean */
     double simulate_s, validate_s; /* wall time of the last attempt */
