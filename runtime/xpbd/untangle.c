@@ -175,6 +175,22 @@ static int end_to_move(const geo_topo *topo, const uint32_t *tris, uint32_t e, c
     return s > 1e-9 * geo_len(d) ? 1 : s < -1e-9 * geo_len(d) ? 0 : -1;
 }
 
+/* Whether candidate edge i crosses candidate triangle k at x (an edge and a triangle that share a
+ * vertex do not count); then the edge's and the triangle's vertices and segment_crosses' outputs.
+ * The candidates' boxes must be those of x. */
+static bool candidate_crosses(const xpbd_untangle *u, const geo_topo *topo, const uint32_t *tris, const double *x,
+                              uint32_t i, uint32_t k, const uint32_t **edge, const uint32_t **tri, double nrm[3],
+                              double *dp, double *dq, double bary[3])
+{
+    const uint32_t *ed = topo->edges + 2 * (size_t)u->cand_edge[i], *t = tris + 3 * (size_t)u->cand_tri[k];
+    const double *p = x + 3 * (size_t)ed[0], *q = x + 3 * (size_t)ed[1];
+    *edge = ed;
+    *tri = t;
+    return t[0] != ed[0] && t[1] != ed[0] && t[2] != ed[0] && t[0] != ed[1] && t[1] != ed[1] && t[2] != ed[1] &&
+           edge_meets_box(p, q, u->box + 6 * (size_t)k) &&
+           segment_crosses(p, q, x + 3 * (size_t)t[0], x + 3 * (size_t)t[1], x + 3 * (size_t)t[2], nrm, dp, dq, bary);
+}
+
 uint32_t xpbd_untangle_begin(xpbd_untangle *u, const geo_topo *topo, const uint32_t *tris, const uint8_t *mask,
                              const double *x)
 {
@@ -199,17 +215,10 @@ uint32_t xpbd_untangle_begin(xpbd_untangle *u, const geo_topo *topo, const uint3
     }
     candidate_boxes(u, tris, x);
     for (uint32_t i = 0; i < u->ncand_edge; ++i) {
-        const uint32_t *ed = topo->edges + 2 * (size_t)u->cand_edge[i];
-        const double *p = x + 3 * (size_t)ed[0], *q = x + 3 * (size_t)ed[1];
         for (uint32_t k = 0; k < u->ncand_tri; ++k) {
-            const uint32_t *t = tris + 3 * (size_t)u->cand_tri[k];
-            if (t[0] == ed[0] || t[1] == ed[0] || t[2] == ed[0] || t[0] == ed[1] || t[1] == ed[1] || t[2] == ed[1] ||
-                !edge_meets_box(p, q, u->box + 6 * (size_t)k)) {
-                continue;
-            }
+            const uint32_t *ed, *t;
             double nrm[3], dp, dq, bary[3];
-            if (segment_crosses(p, q, x + 3 * (size_t)t[0], x + 3 * (size_t)t[1], x + 3 * (size_t)t[2], nrm, &dp, &dq,
-                                bary)) {
+            if (candidate_crosses(u, topo, tris, x, i, k, &ed, &t, nrm, &dp, &dq, bary)) {
                 for (int j = 0; j < 3; ++j) {
                     u->crossing[t[j]] |= mask[t[j]];
                 }
@@ -233,19 +242,14 @@ uint32_t xpbd_untangle_project(xpbd_untangle *u, const geo_topo *topo, const uin
     candidate_boxes(u, tris, x);
     uint32_t undone = 0;
     for (uint32_t i = 0; i < u->ncand_edge; ++i) {
-        const uint32_t e = u->cand_edge[i], *ed = topo->edges + 2 * (size_t)e;
+        const uint32_t e = u->cand_edge[i];
         for (uint32_t k = 0; k < u->ncand_tri; ++k) {
-            const uint32_t *t = tris + 3 * (size_t)u->cand_tri[k];
-            const double *p = x + 3 * (size_t)ed[0], *q = x + 3 * (size_t)ed[1];
-            if (t[0] == ed[0] || t[1] == ed[0] || t[2] == ed[0] || t[0] == ed[1] || t[1] == ed[1] || t[2] == ed[1] ||
-                !edge_meets_box(p, q, u->box + 6 * (size_t)k)) {
-                continue;
-            }
+            const uint32_t *ed, *t;
             double nrm[3], dp, dq, bary[3], at[3];
-            if (!segment_crosses(p, q, x + 3 * (size_t)t[0], x + 3 * (size_t)t[1], x + 3 * (size_t)t[2], nrm, &dp, &dq,
-                                 bary)) {
+            if (!candidate_crosses(u, topo, tris, x, i, k, &ed, &t, nrm, &dp, &dq, bary)) {
                 continue;
             }
+            const double *p = x + 3 * (size_t)ed[0], *q = x + 3 * (size_t)ed[1];
             for (int a = 0; a < 3; ++a) {
                 at[a] = p[a] + dp / (dp - dq) * (q[a] - p[a]);
             }
