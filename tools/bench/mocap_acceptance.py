@@ -18,6 +18,8 @@ import os
 import re
 import sys
 
+import numpy as np
+
 KIND_NAMES = {"tshirt": "T-shirt", "skirt": "skirt", "dress": "dress"}
 PLURAL = {"tshirt": "T-shirts", "skirt": "skirts", "dress": "dresses"}
 
@@ -32,7 +34,8 @@ def load(data):
         kind = re.match(r"garment: (\w+) on", m.get("description", ""))
         planned = m.get("planned_frames") or m["frames"]
         accepted = bool(m["accepted"])
-        wins.append({"clip": m["mocap"]["clip"], "start_s": float(m["mocap"]["start_s"]),
+        wins.append({"dir": os.path.dirname(meta), "columns": m.get("stats_columns", []),
+                     "clip": m["mocap"]["clip"], "start_s": float(m["mocap"]["start_s"]),
                      "kind": kind.group(1) if kind else "?", "planned": int(planned),
                      "kept": int(m["frames"]) if accepted else 0, "accepted": accepted,
                      "truncated": bool(m.get("truncated")), "substeps": m.get("substeps"),
@@ -85,6 +88,31 @@ def main():
                   "cloth inside the body where it is clear" if mo.get("inside_clear_rejected") else
                   "a swept crossing"] += 1
     print("cut short or rejected at: " + ", ".join(f"{n} {what}" for what, n in stops.most_common()))
+    joints = collections.Counter((w["validator"].get("first_hit") or {}).get("body_joint") for w in wins
+                                 if not (w["accepted"] and not w["truncated"]) and not w["mocap"].get("tangled_rejected")
+                                 and not w["mocap"].get("inside_clear_rejected"))
+    if joints:
+        print("  swept crossings, nearest joint: " + ", ".join(f"{j} {n}" for j, n in joints.most_common()))
+    # the accepted frames' stats rows (row 0 is the initial state), per garment kind; a column an
+    # older set lacks is left out
+    for k in ("tshirt", "dress", "skirt"):
+        cols = collections.defaultdict(list)
+        for w in wins:
+            if w["kind"] == k and w["accepted"]:
+                st = np.load(os.path.join(w["dir"], "stats.npy"))[1:]
+                for name in ("tangled", "tangled_clear", "inside_clear"):
+                    if name in w["columns"]:
+                        cols[name].append(st[:, w["columns"].index(name)])
+        if "tangled" not in cols:
+            continue
+        t = np.concatenate(cols["tangled"])
+        line = (f"  {PLURAL[k]}, accepted frames: crossing itself in {100 * (t > 0).mean():.0f} % of them, "
+                f"{100 * t.mean():.2f} % of the cloth on average, {100 * t.max():.2f} % at worst")
+        if cols["tangled_clear"]:
+            tc = np.concatenate(cols["tangled_clear"])
+            line += f" (outside a pinch {100 * tc.mean():.2f} %, {100 * tc.max():.2f} % at worst)"
+        line += f"; inside where the body is clear {100 * np.concatenate(cols['inside_clear']).max():.2f} % at worst"
+        print(line)
 
     print("\n| clip | garment | kept | the rejecting frame and why, or the accepted window |\n|---|---|---|---|")
     firsts = {}
