@@ -837,25 +837,31 @@ static weft_garment_def worn_def_on(const weft_sample_collider *col, weft_cloth_
     d.collider_triangles = col->triangles;
     d.collider_triangle_count = col->triangle_count;
     d.collision.triangle_parts = weft_sample_parts_on(-1, false) ? col->triangle_parts : NULL;
-    d.collision.ground = true; /* the floor the sample draws, y = 0 */
-    d.ccd.enabled = false;
-    d.tethers.distance = weft_sample_worn_tether_cm(kind) / 100.0f;
-    d.collision.push = WEFT_WORN_PUSH_CM / 100.0f;
-    d.collision.push_depth = WEFT_WORN_PUSH_DEPTH_CM / 100.0f;
-    d.strain.limit = method == WEFT_METHOD_MODEL ? WEFT_WORN_STRAIN_PCT / 100.0f : 0.0f;
+    weft_sample_worn_recipe(&d, kind, method);
+    weft_sample_set_substeps(&d, 0);
+    return d;
+}
+
+void weft_sample_worn_recipe(weft_garment_def *d, weft_cloth_kind kind, weft_method method)
+{
+    d->collision.ground = true; /* the floor the sample draws, y = 0 */
+    d->collision.ground_height = 0.0f;
+    d->ccd.enabled = false;
+    d->tethers.distance = weft_sample_worn_tether_cm(kind) / 100.0f;
+    d->collision.push = WEFT_WORN_PUSH_CM / 100.0f;
+    d->collision.push_depth = WEFT_WORN_PUSH_DEPTH_CM / 100.0f;
+    d->strain.limit = method == WEFT_METHOD_MODEL ? WEFT_WORN_STRAIN_PCT / 100.0f : 0.0f;
     if (method == WEFT_METHOD_MODEL) {
-        d.max_collider_tokens = WEFT_WORN_COLLIDER_TOKENS;
-        d.collider_cap = WEFT_COLLIDER_CAP_SAMPLE;
+        d->max_collider_tokens = WEFT_WORN_COLLIDER_TOKENS;
+        d->collider_cap = WEFT_COLLIDER_CAP_SAMPLE;
     }
     if (method == WEFT_METHOD_XPBD) {
         /* The reference runs as weft simgen runs it on real motion (docs/REFSIM.md, Real motion):
          * its cloth-cloth bounds, the collider projected and the max distance held each substep, no
          * push after the step (it would move cloth past the bounds). */
-        d.collider_projection = true;
-        d.collision.push = 0.0f;
+        d->collider_projection = true;
+        d->collision.push = 0.0f;
     }
-    weft_sample_set_substeps(&d, 0);
-    return d;
 }
 
 weft_result weft_sample_waistband_create(weft_context *ctx, const weft_body *body, const weft_cloth_mesh *cloth,

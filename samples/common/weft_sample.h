@@ -170,6 +170,12 @@ weft_garment_def weft_sample_body_garment_def(const weft_body *body, weft_method
  * options). Fails only when the parts cannot be made. */
 weft_result weft_sample_worn_def(const weft_body *body, const weft_cloth_mesh *cloth, weft_method method, uint8_t *parts,
                                  weft_garment_def *out);
+/* The recipe's settings alone on `d`, for a garment of `kind` stepped by `method`: the floor
+ * y = 0, no CCD, the max distance, the push and, for the learned model, the strain limit and the
+ * sampled collider tokens; for the reference XPBD its projection and no push. The collider, the mesh,
+ * the body parts and the substeps are the caller's (weft_sample_worn_def sets them; `weft eval
+ * --recipe worn` scores simgen sequences with this on their own collider). */
+void weft_sample_worn_recipe(weft_garment_def *d, weft_cloth_kind kind, weft_method method);
 /* The recipe's max distance for a garment kind, in cm: WEFT_WORN_TETHER_SKIRT_CM for skirts and
  * WEFT_WORN_TETHER_DRESS_CM for dresses, whose hems swing wide of the skinned hem (held closer, a
  * hem a thigh kicks up through is held inside it; the dress's longer hem, let farther, leaves the

@@ -2,7 +2,8 @@
  * (an identity map) scores exactly as without it, pins included (a copy of the sample with a
  * pinned corner), --tether-cm and --strain-limit run, a tiny
  * --time-limit stops the rollout early and says so, --write-pos writes the rollout, a worn garment
- * reports the wear measures, and bad values fail with an error exit. argv: weft binary, data folder, output folder. Exits 77 (skipped) without
+ * reports the wear measures and takes the worn-garment recipe (--recipe worn), and bad values fail
+ * with an error exit. argv: weft binary, data folder, output folder. Exits 77 (skipped) without
  * a sample sequence. */
 #define _POSIX_C_SOURCE 200809L /* posix_spawn, stat */
 #include "test.h"
@@ -294,19 +295,34 @@ static void failed_rollout_is_not_scored(void)
     CHECK_MSG(strstr(text, "architecture 'fnopt', not 'clothtransformer'") != NULL, "%s", text);
 }
 
-/* Wear measures: a worn garment made here by simgen on a library clip (the T-shirt, 12 frames)
- * reports them, with step-time percentiles; the drop sample reports "wear": null. */
-static void wear_measures(void)
+/* A worn garment made here by simgen on a library clip (the T-shirt, 12 frames), once: its folder
+ * into seq; false when simgen failed. */
+static bool worn_sequence(char *seq, size_t cap)
 {
-    char dir[1100], o[1100], e[1100], j[4096], clip[1100], seq[1300];
+    char dir[1100], o[1100], e[1100], clip[1100], meta[1400];
     snprintf(dir, sizeof dir, "%s/worn", g_out);
-    snprintf(o, sizeof o, "%s/eval_wear.txt", g_out);
-    snprintf(e, sizeof e, "%s/eval_wear.err", g_out);
+    snprintf(seq, cap, "%s/mocap_walk_cmu07_01_v300_00000", dir);
+    snprintf(meta, sizeof meta, "%s/meta.json", seq);
+    struct stat st;
+    if (stat(meta, &st) == 0) {
+        return true;
+    }
+    snprintf(o, sizeof o, "%s/simgen_worn.txt", g_out);
+    snprintf(e, sizeof e, "%s/simgen_worn.err", g_out);
     snprintf(clip, sizeof clip, "%s/samples/mocap/clips/walk_cmu07_01.bvh.gz", WEFT_SOURCE_DIR);
     const char *gen[] = {g_exe, "simgen", "--out", dir, "--bvh", clip, "--vertices", "300", "--frames", "12",
                          "--limit", "1", "--no-validate", NULL};
-    CHECK_EQ_INT(tool_run_err(gen, o, e), 0);
-    snprintf(seq, sizeof seq, "%s/mocap_walk_cmu07_01_v300_00000", dir);
+    return tool_run_err(gen, o, e) == 0;
+}
+
+/* Wear measures: the worn garment reports them, with step-time percentiles; the drop sample
+ * reports "wear": null. */
+static void wear_measures(void)
+{
+    char o[1100], e[1100], j[4096], seq[1300];
+    snprintf(o, sizeof o, "%s/eval_wear.txt", g_out);
+    snprintf(e, sizeof e, "%s/eval_wear.err", g_out);
+    CHECK(worn_sequence(seq, sizeof seq));
     const char *lbs[] = {g_exe, "eval", "--seq", seq, "--method", "lbs", "--json", NULL};
     CHECK_EQ_INT(tool_run_err(lbs, o, e), 0);
     tool_slurp(o, j, sizeof j); /* the raw line: its timings are read below */
@@ -324,6 +340,56 @@ static void wear_measures(void)
     CHECK_EQ_INT(tool_run_err(drop, o, e), 0);
     CHECK(json_line(o, j, sizeof j));
     CHECK_MSG(strstr(j, "\"wear\": null") != NULL, "%s", j);
+}
+
+/* --recipe worn: on the worn garment, LBS scores exactly as with the recipe's settings passed one
+ * by one (max distance 8 cm for a T-shirt, 0.5 cm push from 6 cm deep, CCD off), the learned model
+ * sees at most the recipe's 1024 sampled collider tokens (more without it); on the drop sample,
+ * which is not worn, it changes nothing; an option it sets, or another recipe, is refused. */
+static void worn_recipe(void)
+{
+    char o[1100], e[1100], seq[1300], ja[4096], jb[4096], model[1200];
+    snprintf(o, sizeof o, "%s/eval_recipe.txt", g_out);
+    snprintf(e, sizeof e, "%s/eval_recipe.err", g_out);
+    CHECK(worn_sequence(seq, sizeof seq));
+    const char *recipe[] = {g_exe, "eval", "--seq", seq, "--method", "lbs", "--recipe", "worn", "--json", NULL};
+    CHECK_EQ_INT(tool_run_err(recipe, o, e), 0);
+    CHECK(json_line(o, ja, sizeof ja));
+    const char *spelled[] = {g_exe, "eval", "--seq", seq, "--method", "lbs", "--ccd", "off", "--tether-cm", "8",
+                             "--push-cm", "0.5", "--push-depth-cm", "6", "--json", NULL};
+    CHECK_EQ_INT(tool_run_err(spelled, o, e), 0);
+    CHECK(json_line(o, jb, sizeof jb));
+    CHECK_MSG(strcmp(ja, jb) == 0, "recipe: %s\nspelled out: %s", ja, jb);
+    const char *none[] = {g_exe, "eval", "--seq", seq, "--method", "lbs", "--recipe", "none", "--json", NULL};
+    CHECK_EQ_INT(tool_run_err(none, o, e), 0);
+    CHECK(json_line(o, jb, sizeof jb));
+    CHECK_MSG(strcmp(ja, jb) != 0, "the recipe changed nothing: %s", ja);
+
+    snprintf(model, sizeof model, "%s/tools/train/models/garment.int8.safetensors", WEFT_SOURCE_DIR);
+    const char *learned[] = {g_exe, "eval", "--seq", seq, "--method", "model", "--model", model, "--precision", "int8",
+                             "--frames", "4", "--recipe", "worn", "--json", NULL};
+    CHECK_EQ_INT(tool_run_err(learned, o, e), 0);
+    CHECK(json_line(o, ja, sizeof ja));
+    const char *whole[] = {g_exe, "eval", "--seq", seq, "--method", "model", "--model", model, "--precision", "int8",
+                           "--frames", "4", "--ccd", "off", "--json", NULL};
+    CHECK_EQ_INT(tool_run_err(whole, o, e), 0);
+    CHECK(json_line(o, jb, sizeof jb));
+    const double tokens = json_number(ja, "collider_tokens"), all = json_number(jb, "collider_tokens");
+    CHECK_MSG(tokens > 0.0 && tokens <= 1024.0 && all > tokens, "tokens %g with the recipe, %g without", tokens, all);
+
+    const char *drop_recipe[] = {g_exe, "eval", "--seq", g_seq, "--method", "lbs", "--frames", "5", "--recipe", "worn",
+                                 "--json", NULL};
+    CHECK_EQ_INT(tool_run_err(drop_recipe, o, e), 0);
+    CHECK(json_line(o, ja, sizeof ja));
+    const char *drop[] = {g_exe, "eval", "--seq", g_seq, "--method", "lbs", "--frames", "5", "--json", NULL};
+    CHECK_EQ_INT(tool_run_err(drop, o, e), 0);
+    CHECK(json_line(o, jb, sizeof jb));
+    CHECK_MSG(strcmp(ja, jb) == 0, "recipe on a drop: %s\nplain: %s", ja, jb);
+
+    const char *both[] = {g_exe, "eval", "--seq", seq, "--method", "lbs", "--recipe", "worn", "--push-cm", "1", NULL};
+    CHECK_EQ_INT(tool_run_err(both, o, e), 2);
+    const char *unknown[] = {g_exe, "eval", "--seq", seq, "--method", "lbs", "--recipe", "game", NULL};
+    CHECK_EQ_INT(tool_run_err(unknown, o, e), 2);
 }
 
 int main(int argc, char **argv)
@@ -348,6 +414,7 @@ int main(int argc, char **argv)
     static const test_case_ cases[] = {TEST_CASE(sim_mesh_identity), TEST_CASE(sim_mesh_keeps_pins),
                                        TEST_CASE(tethers_and_bad_values),
                                        TEST_CASE(strain_and_time_limits), TEST_CASE(write_pos),
-                                       TEST_CASE(failed_rollout_is_not_scored), TEST_CASE(wear_measures)};
+                                       TEST_CASE(failed_rollout_is_not_scored), TEST_CASE(wear_measures),
+                                       TEST_CASE(worn_recipe)};
     return test_run_(cases, sizeof cases / sizeof cases[0], 1, argv);
 }

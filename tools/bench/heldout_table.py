@@ -4,10 +4,11 @@
       --method game=model:tools/train/models/game.safetensors --method LBS=lbs --method XPBD-5=xpbd:5 \
       --out docs/data/heldout_test_val.md
 
-Each --method is LABEL=METHOD[:ARG][,strain=PCT][,tether=CM][,scontact=CM][,push=CM] with METHOD one of model:PATH (fp32),
-int8:PATH, fp16:PATH, lbs, xpbd:S, xpbd-fast:S; strain= and tether= add the runtime's strain limit and
-tethers (`weft eval --strain-limit`, `--tether-cm`; scontact= the contact-aware limit's distance,
-`--strain-contact-cm`; push= the collider push, `--push-cm`), e.g. `game+SL10=model:game.safetensors,strain=10`;
+Each --method is LABEL=METHOD[:ARG][,strain=PCT][,tether=CM][,scontact=CM][,push=CM][,recipe=worn] with METHOD one
+of model:PATH (fp32), int8:PATH, fp16:PATH, lbs, xpbd:S, xpbd-fast:S; strain= and tether= add the runtime's strain
+limit and tethers (`weft eval --strain-limit`, `--tether-cm`; scontact= the contact-aware limit's distance,
+`--strain-contact-cm`; push= the collider push, `--push-cm`; recipe=worn the worn-garment recipe on worn garments,
+`--recipe worn`), e.g. `game+SL10=model:game.safetensors,strain=10`;
 a method chosen per scene is SCENARIO@METHOD alternatives joined by '|', '*' for every other
 scenario, e.g. `'game_k16+drop=drop@model:drop.safetensors|*@model:game_k16.safetensors,strain=10'`
 (each alternative runs on a temporary folder of links to that scenario's sequences);
@@ -48,7 +49,8 @@ def garment_kind(data, name):
     return m.group(1) if m and m.group(1) in KINDS else None
 
 
-OPTIONS = {"strain": "--strain-limit", "tether": "--tether-cm", "scontact": "--strain-contact-cm", "push": "--push-cm"}
+OPTIONS = {"strain": "--strain-limit", "tether": "--tether-cm", "scontact": "--strain-contact-cm", "push": "--push-cm",
+           "recipe": "--recipe"}
 
 
 def method_args(spec):
@@ -57,7 +59,8 @@ def method_args(spec):
     for opt in options:
         key, _, value = opt.partition("=")
         if key not in OPTIONS or not value:
-            sys.exit(f"heldout_table: unknown option '{opt}' in '{spec}' (strain=PCT, tether=CM, scontact=CM, push=CM)")
+            sys.exit(f"heldout_table: unknown option '{opt}' in '{spec}' "
+                     "(strain=PCT, tether=CM, scontact=CM, push=CM, recipe=worn)")
         extra += [OPTIONS[key], value]
     kind, _, arg = method.partition(":")
     if kind in ("model", "int8", "fp16"):

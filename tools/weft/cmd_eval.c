@@ -36,6 +36,9 @@
 #if WEFT_HAVE_RENDER
 #include "weft/wear.h"
 #endif
+#if WEFT_RENDER_HAVE_SAMPLE
+#include "weft_sample.h"
+#endif
 #include <dirent.h>
 #include <math.h>
 #include <stdio.h>
@@ -68,6 +71,7 @@ typedef struct eval_opts {
     const char *write_pos;              /* folder: write each rollout as <sequence>.npy [frames + 2, N, 3] */
     bool pins_all;                      /* the sequence's pins for every method, not only XPBD */
     double time_limit_ms;               /* 0: none; else stop a rollout once stepping took this long */
+    bool recipe_worn;                   /* worn garments get the worn-garment recipe (--recipe worn) */
 } eval_opts;
 
 typedef struct eval_acc {
@@ -125,9 +129,10 @@ static const char *ms_percentile(eval_acc *a, double p, char *out, size_t cap)
     return out;
 }
 
-/* A worn garment (meta.json scenario "garment"): its off-body distance, 25 cm for skirts and
- * dresses (the description names the garment), else 10 cm. False for other scenarios. */
-static bool worn_garment(const char *dir, float *off_distance)
+/* A worn garment (meta.json scenario "garment"): its kind (skirt or dress when the description
+ * names one, else a T-shirt) and off-body distance, 25 cm for skirts and dresses, else 10 cm.
+ * False for other scenarios. */
+static bool worn_garment(const char *dir, float *off_distance, weft_cloth_kind *kind)
 {
     char path[1200];
     snprintf(path, sizeof path, "%s/meta.json", dir);
@@ -143,9 +148,10 @@ static bool worn_garment(const char *dir, float *off_distance)
     const cJSON *scenario = cJSON_GetObjectItemCaseSensitive(meta, "scenario");
     const cJSON *desc = cJSON_GetObjectItemCaseSensitive(meta, "description");
     const bool worn = cJSON_IsString(scenario) && strcmp(scenario->valuestring, "garment") == 0;
-    const bool long_garment =
-        cJSON_IsString(desc) && (strstr(desc->valuestring, "skirt") || strstr(desc->valuestring, "dress"));
-    *off_distance = long_garment ? 0.25f : 0.10f;
+    const bool skirt = cJSON_IsString(desc) && strstr(desc->valuestring, "skirt");
+    const bool dress = cJSON_IsString(desc) && strstr(desc->valuestring, "dress");
+    *off_distance = skirt || dress ? 0.25f : 0.10f;
+    *kind = skirt ? WEFT_CLOTH_SKIRT : dress ? WEFT_CLOTH_DRESS : WEFT_CLOTH_TSHIRT;
     cJSON_Delete(meta);
     return worn;
 }
@@ -543,8 +549,16 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
     d.strain.contact = o->strain_contact;
     d.collision.push = o->push;
     d.collision.push_depth = o->push_depth;
+#if WEFT_RENDER_HAVE_SAMPLE
+    float worn_off = 0.10f;
+    weft_cloth_kind worn_kind = WEFT_CLOTH_TSHIRT;
+    if (o->recipe_worn && s.cpos && worn_garment(dir, &worn_off, &worn_kind)) {
+        weft_sample_worn_recipe(&d, worn_kind, o->method); /* as the render sample and bench mocap wear it */
+    }
+#endif
+    const float tether = d.tethers.distance;
     uint8_t *sim_pinned = up && s.pinned ? calloc(SV, 1) : NULL;
-    if (o->tether > 0.0f && s.cpos) {
+    if (tether > 0.0f && s.cpos) {
         radii = malloc((size_t)SV * sizeof(float));
         if (sim_pinned) {
             sim_pins_at(s.pinned + (size_t)1 * s.V, s.V, near_scored, near_sim, SV, sim_pinned);
@@ -552,7 +566,7 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
         for (uint32_t i = 0; radii && i < SV; ++i) {
             const bool pinned_at_start =
                 up ? sim_pinned && sim_pinned[i] : s.pinned && s.pinned[(size_t)1 * s.V + i] != 0.0f;
-            radii[i] = pinned_at_start ? 0.0f : o->tether;
+            radii[i] = pinned_at_start ? 0.0f : tether;
         }
         d.tethers.distances = radii;
     }
@@ -593,7 +607,8 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
     float off_distance = 0.10f;
     weft_wear *wear = NULL;
     float *skinned = NULL;
-    if (!up && s.cpos && worn_garment(dir, &off_distance)) {
+    weft_cloth_kind kind = WEFT_CLOTH_TSHIRT;
+    if (!up && s.cpos && worn_garment(dir, &off_distance, &kind)) {
         skinned = malloc(nv * sizeof(float));
         if (!skinned || weft_wear_create(s.cfaces, s.Fc, s.Vc, s.V, &wear) != WEFT_OK ||
             weft_garment_skinned_positions(g, skinned) != WEFT_OK) {
@@ -827,7 +842,7 @@ static int cmp_str(const void *a, const void *b) { return strcmp(*(char *const *
 enum {
     OPT_SEQ = 1, OPT_MODEL, OPT_METHOD, OPT_PRECISION, OPT_CCD, OPT_CCD_ITERATIONS, OPT_SPLIT, OPT_FRAMES, OPT_JSON,
     OPT_CROP_CM, OPT_CROP, OPT_MAX_COLLIDER_TOKENS, OPT_TOKEN_CAP, OPT_TETHER_CM, OPT_STRAIN_LIMIT, OPT_STRAIN_CONTACT_CM,
-    OPT_SIM_MESH, OPT_TIME_LIMIT, OPT_PUSH_CM, OPT_PUSH_DEPTH_CM, OPT_WRITE_POS, OPT_PINS,
+    OPT_SIM_MESH, OPT_TIME_LIMIT, OPT_PUSH_CM, OPT_PUSH_DEPTH_CM, OPT_WRITE_POS, OPT_PINS, OPT_RECIPE,
 };
 
 static const cli_option k_options[] = {
@@ -881,6 +896,11 @@ static const cli_option k_options[] = {
      "the sequence's pins (gripper grasps) for the XPBD methods only (default,\n"
      "the documented protocol) or for every method (set after a learned or LBS\n"
      "step)"},
+    {"recipe", "none|worn", OPT_RECIPE,
+     "worn: each worn garment (scenario garment) as a game wears it, the\n"
+     "worn-garment recipe of docs/WEAR.md for its kind and the method (max\n"
+     "distance, push, floor, the model's strain limit and sampled tokens);\n"
+     "replaces the options it sets (default none)"},
     {"write-pos", "DIR", OPT_WRITE_POS,
      "write each rollout to DIR/<sequence>.npy, [frames + 2, N, 3] float32:\n"
      "the two reference frames it starts from, then every step (on the scored\n"
@@ -903,7 +923,7 @@ static const cli_command k_command = {
                 "          [--max-collider-tokens N] [--token-cap nearest|sample] [--tether-cm X]\n"
                 "          [--strain-limit PCT]\n"
                 "          [--strain-contact-cm X] [--sim-mesh DIR] [--time-limit S] [--push-cm X]\n"
-                "          [--push-depth-cm X] [--write-pos DIR] [--pins xpbd|all]",
+                "          [--push-depth-cm X] [--write-pos DIR] [--pins xpbd|all] [--recipe none|worn]",
     .about = "Scores a method's rollout against simgen sequences (MVE, collisions, timing).",
     .options = k_options,
     .notes = notes,
@@ -931,8 +951,13 @@ int weft_cmd_eval(int argc, char **argv)
     cli_parser parser;
     cli_start(&parser, &k_command, argc, argv);
     const char *v;
+    char recipe_set[32] = ""; /* the first option given that --recipe worn also sets */
     for (int id; (id = cli_next(&parser, &v)) != CLI_END;) {
         const char *a = cli_name(&k_command, id);
+        if (!recipe_set[0] && (id == OPT_TETHER_CM || id == OPT_STRAIN_LIMIT || id == OPT_PUSH_CM ||
+                            id == OPT_PUSH_DEPTH_CM || id == OPT_MAX_COLLIDER_TOKENS || id == OPT_TOKEN_CAP)) {
+            snprintf(recipe_set, sizeof recipe_set, "%s", a);
+        }
         switch (id) {
         case CLI_STOP:
             return parser.exit;
@@ -1002,6 +1027,13 @@ int weft_cmd_eval(int argc, char **argv)
             o.time_limit_ms = sec * 1e3;
             break;
         }
+        case OPT_RECIPE:
+            if (strcmp(v, "worn") != 0 && strcmp(v, "none") != 0) {
+                fprintf(stderr, "weft eval: --recipe takes none or worn\n");
+                return 2;
+            }
+            o.recipe_worn = strcmp(v, "worn") == 0;
+            break;
         case OPT_PINS:
             if (strcmp(v, "all") != 0 && strcmp(v, "xpbd") != 0) {
                 fprintf(stderr, "weft eval: --pins takes xpbd or all\n");
@@ -1081,6 +1113,16 @@ int weft_cmd_eval(int argc, char **argv)
     if (!o.seq || (o.method == WEFT_METHOD_MODEL && !o.model_path)) {
         return cli_fail(&k_command, "--seq is required, and --model for method 'model'");
     }
+    if (o.recipe_worn && recipe_set[0]) {
+        fprintf(stderr, "weft eval: --recipe worn sets %s itself; pass one or the other\n", recipe_set);
+        return 2;
+    }
+#if !WEFT_RENDER_HAVE_SAMPLE
+    if (o.recipe_worn) {
+        fprintf(stderr, "weft eval: --recipe worn needs the samples' build (WEFT_BUILD_SAMPLES)\n");
+        return 2;
+    }
+#endif
     weft_context_def cd = weft_default_context_def();
     weft_context *ctx = NULL;
     weft_result r = weft_context_create(&cd, &ctx);
