@@ -174,11 +174,18 @@ def find_packs(roots):
 
 def load_sequences(roots, split=None, min_frames=8, skin_roots=()):
     """Sequences (folders and packs) below roots; with skin_roots, S tracks from <root>/<name>.npy
-    are attached to sequences that do not carry one."""
+    are attached to sequences that do not carry one. A name found twice (a sequence generated
+    beside a pack that already holds it) is loaded once: folders first, then packs, in root order."""
     seqs = []
+    seen = {}
     named = manifest_splits(roots)
     packs = find_packs(roots)
     for d in find_sequences(roots) + packs:
+        name = os.path.basename(d)[:-len(".wpk.npz")] if d.endswith(".wpk.npz") else os.path.basename(d)
+        if name in seen:
+            print(f"skipping {d}: {name} is already loaded from {seen[name]}")
+            continue
+        seen[name] = d
         try:
             if d.endswith(".wpk.npz"):
                 from pack import PackedSequence  # noqa: E402 (pack imports this module)

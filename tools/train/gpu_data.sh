@@ -15,6 +15,16 @@
 #                                          under data/skin; then `SET=long tools/train/gpu_runs.sh
 #                                          launch` trains on data/refsim
 #   tools/train/gpu_data.sh count          finished and accepted sequences so far
+#   tools/train/gpu_data.sh window-pack    here: the prepared set a GPU window carries instead of
+#                                          generating (gpu_window.sh PACK): the S tracks of the
+#                                          mocap train clips' first windows (MOCAP, default
+#                                          data/mocap_train) and of the procedural garments (PROC,
+#                                          default data/garments) into SKIN (data/skin_window),
+#                                          then PACK (data/window_pack): val/ (the mocap val
+#                                          windows' first VAL_FRAMES = 122 frames, what the
+#                                          validation scores) and train/part0, part1, ... (mocap and
+#                                          procedural spread evenly, each part with val/ within CARRY_MB,
+#                                          default 62); a window carries val/ and one part
 #
 # ONLY=drop|gripper|garment generates one scenario (simgen --only); DATA=DIR writes elsewhere than
 # data/refsim; NO_SKIN=1 makes `prepare` skip the S tracks (priors other than the skinned one).
@@ -72,5 +82,32 @@ case "${1:-}" in
     count)
         echo "finished $(find "$D" -name meta.json | wc -l)," \
              "accepted $(grep -l '"accepted":[[:space:]]*true' "$D"/*/meta.json 2>/dev/null | wc -l)" ;;
-    *) echo "usage: $0 bundle [DIR] | gen | prepare | count" >&2; exit 2 ;;
+    window-pack)
+        set -o pipefail
+        M=${MOCAP:-data/mocap_train}; P=${PROC:-data/garments}; K=${PACK:-data/window_pack}
+        S=${SKIN:-data/skin_window}; WL=${WEFT:-$PWD/build/bin/weft}
+        for r in "$M" "$P"; do
+            [ -f "$r/manifest.json" ] || { echo "window-pack: no $r/manifest.json; make $M with" \
+                "'weft simgen --out $M --mocap train --shard I/2 --limit 32' (I = 0, 1) and $P with" \
+                "'weft simgen --out $P --all --only garment --tier 1k' (docs/DATASET.md)" >&2; exit 1; }
+        done
+        [ -x "$WL" ] || { echo "window-pack: no $WL (build first, or WEFT=PATH)" >&2; exit 1; }
+        rm -rf "$K" "$S" && mkdir -p "$S" || exit 1
+        for r in "$M" "$P"; do
+            for s in train val; do  # a split the manifest does not name has no sequences to skin
+                grep -q "\"split\":[[:space:]]*\"$s\"" "$r/manifest.json" || continue
+                "$WL" eval --seq "$r" --split $s --method lbs --ccd off --write-pos "$S" > /dev/null || exit 1
+            done
+        done
+        PY=${PYTHON:-/usr/bin/python3}
+        # validation scores the first EVAL_FRAMES (120) frames of each val window: only those travel
+        "$PY" tools/train/pack.py --data "$M" --split val --skin "$S" --out "$K/val" --max-mb 1000 \
+            --max-frames "${VAL_FRAMES:-122}" | tail -1 || exit 1
+        vmb=$(du -sm "$K/val" | cut -f1)
+        part_mb=$(( ${CARRY_MB:-62} - vmb ))
+        [ "$part_mb" -ge 8 ] || { echo "window-pack: val/ is $vmb MB, leaving $part_mb MB a part" >&2; exit 1; }
+        "$PY" tools/train/pack.py --data "$M" "$P" --split train --interleave --skin "$S" --out "$K/train" \
+            --max-mb "$part_mb" | tail -1 || exit 1
+        du -sm "$K"/val "$K"/train/part* ;;
+    *) echo "usage: $0 bundle [DIR] | gen | prepare | count | window-pack" >&2; exit 2 ;;
 esac

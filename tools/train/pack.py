@@ -6,6 +6,9 @@
 
 With --append, sequences already packed under --out (in any part) are left as they are and the new
 ones go into new parts after the last, so parts already carried to a training machine stay valid.
+--split S packs one split only; --max-frames N keeps each sequence's first N frames; --interleave
+spreads each --data root's sequences evenly over the packing order, so every part mixes them (e.g.
+real-motion windows and procedural garments) in proportion.
 
 One `NAME.wpk.npz` per accepted sequence, grouped into folders `part0/`, `part1/`, ... of at most
 --max-mb each (so each part fits one transfer). The coding is lossy in a controlled way:
@@ -88,24 +91,30 @@ def crop_collider(pos, cpos, cfaces, margin):
     return np.ascontiguousarray(cpos[:, used]), remap[cfaces[tris]].astype(np.int32), len(tris)
 
 
-def pack_sequence(seq, cloth_step, collider_step, margin):
-    pos = np.asarray(seq.pos, dtype=np.float32)
+def pack_sequence(seq, cloth_step, collider_step, margin, max_frames=0):
+    """One sequence as the arrays of its .wpk.npz; with max_frames, only its first max_frames frames
+    (cloth, S track, pins and collider alike)."""
+    n = min(seq.frames, max_frames) if max_frames > 0 else seq.frames
+    pos = np.asarray(seq.pos[:n], dtype=np.float32)
     meta = dict(seq.meta)
     meta["split"] = seq.split
     meta["pack"] = {"format": FORMAT, "cloth_step_m": cloth_step, "collider_step_m": collider_step,
                     "crop_margin_m": margin}
+    if n < seq.frames:
+        meta["pack"]["frames_kept"] = [int(n), int(seq.frames)]
     out = {"rest_pos": seq.rest.astype(np.float32), "faces": seq.faces.astype(np.int32)}
     for k, v in encode_track(pos, cloth_step).items():
         out["cloth_" + k] = v
     if seq.skin is not None:
-        for k, v in encode_track(np.asarray(seq.skin, dtype=np.float32), cloth_step).items():
+        for k, v in encode_track(np.asarray(seq.skin[:n], dtype=np.float32), cloth_step).items():
             out["skin_" + k] = v
-    if seq.pinned is not None and np.any(seq.pinned):
-        bits = np.packbits(np.asarray(seq.pinned) != 0, axis=None)
+    pinned = None if seq.pinned is None else np.asarray(seq.pinned[:n])
+    if pinned is not None and np.any(pinned):
+        bits = np.packbits(pinned != 0, axis=None)
         out["pinned_bits"] = np.frombuffer(zlib.compress(bits.tobytes(), 9), np.uint8)
-        out["pinned_shape"] = np.array(seq.pinned.shape, np.int64)
+        out["pinned_shape"] = np.array(pinned.shape, np.int64)
     if seq.cpos is not None:
-        kept_pos, out["collider_faces"], kept = crop_collider(pos, np.asarray(seq.cpos, dtype=np.float32),
+        kept_pos, out["collider_faces"], kept = crop_collider(pos, np.asarray(seq.cpos[:n], dtype=np.float32),
                                                              seq.cfaces, margin)
         meta["pack"]["collider_kept"] = [int(kept), int(len(seq.cfaces))]
         for k, v in encode_track(kept_pos, collider_step).items():
@@ -162,9 +171,23 @@ def main():
                     help="with --skin, leave out sequences that have no S track yet instead of failing")
     ap.add_argument("--append", action="store_true",
                     help="keep what is packed under --out; pack only new sequences, into new parts")
+    ap.add_argument("--split", default=None, help="pack only this split's sequences (train, val, test)")
+    ap.add_argument("--max-frames", type=int, default=0,
+                    help="keep each sequence's first N frames only (e.g. validation windows scored on their start)")
+    ap.add_argument("--interleave", action="store_true",
+                    help="spread each --data root's sequences evenly over the packing order, so every part "
+                         "holds the roots in proportion; default: root after root")
     a = ap.parse_args()
-    seqs = weft_data.load_sequences(a.data, skin_roots=[a.skin] if a.skin else ())
-    seqs = [s for s in seqs if s.meta.get("accepted", True)]
+    skin = [a.skin] if a.skin else ()
+    by_root = [[s for s in weft_data.load_sequences([r], a.split, skin_roots=skin)
+                if s.meta.get("accepted", True)] for r in a.data]
+    if a.interleave:  # each root's sequences spread evenly over the order (a smaller root less densely)
+        order = sorted(((i + 0.5) / len(rs), r, i) for r, rs in enumerate(by_root) for i in range(len(rs)))
+        seqs = [by_root[r][i] for _, r, i in order]
+    else:
+        seqs = [s for rs in by_root for s in rs]
+    names = set()
+    seqs = [s for s in seqs if not (s.name in names or names.add(s.name))]  # first root wins
     missing = [s.name for s in seqs if a.skin and s.skin is None]
     if missing and a.skip_unskinned:   # e.g. finished by a running simgen after the S track was written
         print(f"--skip-unskinned: {len(missing)} sequence(s) without an S track left out: {', '.join(missing[:5])}")
@@ -185,7 +208,7 @@ def main():
     elif glob.glob(os.path.join(a.out, "part*", "*.wpk.npz")):
         sys.exit(f"pack: {a.out} already holds packed sequences: pass --append, or another --out")
     for i, s in enumerate(seqs):
-        arrays = pack_sequence(s, a.cloth_step, a.collider_step, a.crop_margin)
+        arrays = pack_sequence(s, a.cloth_step, a.collider_step, a.crop_margin, a.max_frames)
         folder = os.path.join(a.out, f"part{part}")
         os.makedirs(folder, exist_ok=True)
         path = os.path.join(folder, s.name + ".wpk.npz")
@@ -203,12 +226,13 @@ def main():
         msg = f"[{i + 1}/{len(seqs)}] {s.name} {s.split} {size / 1e6:.2f} MB"
         if a.check:
             p = PackedSequence(path)
-            e = np.abs(p.pos - np.asarray(s.pos)).max()
+            e = np.abs(p.pos - np.asarray(s.pos[:p.frames])).max()
             msg += f" cloth err {e * 1e6:.1f} um"
             if p.skin is not None:
-                msg += f", skin err {np.abs(p.skin - np.asarray(s.skin)).max() * 1e6:.1f} um"
-            if (p.pinned is None) != (s.pinned is None or not np.any(s.pinned)) or (
-                    p.pinned is not None and not np.array_equal(p.pinned != 0, np.asarray(s.pinned) != 0)):
+                msg += f", skin err {np.abs(p.skin - np.asarray(s.skin[:p.frames])).max() * 1e6:.1f} um"
+            sp = None if s.pinned is None else np.asarray(s.pinned[:p.frames])
+            if (p.pinned is None) != (sp is None or not np.any(sp)) or (
+                    p.pinned is not None and not np.array_equal(p.pinned != 0, sp != 0)):
                 sys.exit(f"pack: {s.name}: pin mask does not round-trip")
             if p.cpos is not None:
                 msg += f", collider {p.cfaces.shape[0]}/{s.cfaces.shape[0]} tris"
