@@ -831,11 +831,9 @@ int weft_bench_stability(int argc, char **argv)
             o.fnopt_model = v;
             break;
         case OPT_CCD:
-            if (strcmp(v, "on") != 0 && strcmp(v, "off") != 0) {
-                fprintf(stderr, "weft bench stability: --ccd takes on or off\n");
+            if (!cli_either("weft bench stability", a, v, "on", "off", &o.no_ccd)) {
                 return 2;
             }
-            o.no_ccd = strcmp(v, "off") == 0;
             break;
         case OPT_AXES:
             if (!axes_valid(v)) {

@@ -1028,18 +1028,14 @@ int weft_cmd_eval(int argc, char **argv)
             break;
         }
         case OPT_RECIPE:
-            if (strcmp(v, "worn") != 0 && strcmp(v, "none") != 0) {
-                fprintf(stderr, "weft eval: --recipe takes none or worn\n");
+            if (!cli_either(k_tool, a, v, "none", "worn", &o.recipe_worn)) {
                 return 2;
             }
-            o.recipe_worn = strcmp(v, "worn") == 0;
             break;
         case OPT_PINS:
-            if (strcmp(v, "all") != 0 && strcmp(v, "xpbd") != 0) {
-                fprintf(stderr, "weft eval: --pins takes xpbd or all\n");
+            if (!cli_either(k_tool, a, v, "xpbd", "all", &o.pins_all)) {
                 return 2;
             }
-            o.pins_all = strcmp(v, "all") == 0;
             break;
         case OPT_WRITE_POS:
             o.write_pos = v;
@@ -1072,31 +1068,31 @@ int weft_cmd_eval(int argc, char **argv)
             }
             break;
         }
-        case OPT_CROP:
-            if (strcmp(v, "box") != 0 && strcmp(v, "cells") != 0) {
-                fprintf(stderr, "weft eval: --crop takes box or cells\n");
+        case OPT_CROP: {
+            bool cells = false;
+            if (!cli_either(k_tool, a, v, "box", "cells", &cells)) {
                 return 2;
             }
-            o.crop = strcmp(v, "cells") == 0 ? WEFT_COLLIDER_CROP_CELLS : WEFT_COLLIDER_CROP_BOX;
+            o.crop = cells ? WEFT_COLLIDER_CROP_CELLS : WEFT_COLLIDER_CROP_BOX;
             break;
+        }
         case OPT_MAX_COLLIDER_TOKENS:
             if (!cli_u32(k_tool, a, v, 0, UINT32_MAX, &o.max_collider_tokens)) {
                 return 2;
             }
             break;
-        case OPT_TOKEN_CAP:
-            if (strcmp(v, "nearest") != 0 && strcmp(v, "sample") != 0) {
-                fprintf(stderr, "weft eval: --token-cap takes nearest or sample\n");
+        case OPT_TOKEN_CAP: {
+            bool sample = false;
+            if (!cli_either(k_tool, a, v, "nearest", "sample", &sample)) {
                 return 2;
             }
-            o.collider_cap = strcmp(v, "sample") == 0 ? WEFT_COLLIDER_CAP_SAMPLE : WEFT_COLLIDER_CAP_NEAREST;
+            o.collider_cap = sample ? WEFT_COLLIDER_CAP_SAMPLE : WEFT_COLLIDER_CAP_NEAREST;
             break;
+        }
         case OPT_CCD:
-            if (strcmp(v, "on") != 0 && strcmp(v, "off") != 0) {
-                fprintf(stderr, "weft eval: --ccd takes on or off\n");
+            if (!cli_either(k_tool, a, v, "off", "on", &o.ccd)) {
                 return 2;
             }
-            o.ccd = strcmp(v, "on") == 0;
             break;
         case OPT_CCD_ITERATIONS:
             if (!cli_u32(k_tool, a, v, 1, 64, &o.ccd_iterations)) {

@@ -117,6 +117,16 @@ bool cli_double(const char *tool, const char *option, const char *value, double 
     return true;
 }
 
+bool cli_either(const char *tool, const char *option, const char *value, const char *no, const char *yes, bool *out)
+{
+    if (!value || (strcmp(value, no) != 0 && strcmp(value, yes) != 0)) {
+        fprintf(stderr, "%s: %s takes %s or %s\n", tool, option, no, yes);
+        return false;
+    }
+    *out = strcmp(value, yes) == 0;
+    return true;
+}
+
 bool cli_u32_list(const char *tool, const char *option, const char *value, uint32_t lo, uint32_t hi, uint32_t *out,
                   size_t cap, size_t *count)
 {

@@ -89,6 +89,10 @@ bool cli_u64(const char *tool, const char *option, const char *value, uint64_t l
 bool cli_float(const char *tool, const char *option, const char *value, float lo, float hi, float *out);
 bool cli_double(const char *tool, const char *option, const char *value, double lo, double hi, double *out);
 
+/* One of two words: *out false for `no`, true for `yes`; anything else is reported ("<tool>: <option>
+ * takes <no> or <yes>") and leaves *out untouched. */
+bool cli_either(const char *tool, const char *option, const char *value, const char *no, const char *yes, bool *out);
+
 /* "5,10,20": one to cap comma-separated whole numbers, each in [lo, hi] (no empty items). Writes
  * out[0 .. *count) only on success. */
 bool cli_u32_list(const char *tool, const char *option, const char *value, uint32_t lo, uint32_t hi, uint32_t *out,
