@@ -1,5 +1,6 @@
 /* Procedural geometry and kinematics for the drop and gripper scenarios. */
 #include "weft/ccd.h"
+#include "weft/clip_place.h"
 #include "weft/wear.h"
 #include "scene.h"
 #include "bvh.h"
@@ -629,53 +630,11 @@ static weft_result build_gripper(xscene *sc, const weft_sim_sequence_def *def, x
     return WEFT_OK;
 }
 
-/* Unit quaternions (w, x, y, z) for the clip's heading (the body module's own are static to
- * motion.c). */
-static void quat_from_aa(const float *aa, double q[4])
-{
-    const double a = sqrt((double)aa[0] * aa[0] + (double)aa[1] * aa[1] + (double)aa[2] * aa[2]);
-    const double s = a > 1e-12 ? sin(0.5 * a) / a : 0.5;
-    q[0] = cos(0.5 * a);
-    for (int k = 0; k < 3; ++k) {
-        q[k + 1] = s * aa[k];
-    }
-}
-
-static void quat_to_aa(const double q[4], float *aa)
-{
-    const double w = q[0] < 0 ? -q[0] : q[0], sgn = q[0] < 0 ? -1.0 : 1.0;
-    const double v = sqrt(q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
-    const double a = 2.0 * atan2(v, w);
-    const double f = v > 1e-12 ? a / v : 2.0;
-    for (int k = 0; k < 3; ++k) {
-        aa[k] = (float)(sgn * f * q[k + 1]);
-    }
-}
-
-static void quat_mul(const double a[4], const double b[4], double o[4])
-{
-    o[0] = a[0] * b[0] - a[1] * b[1] - a[2] * b[2] - a[3] * b[3];
-    o[1] = a[0] * b[1] + a[1] * b[0] + a[2] * b[3] - a[3] * b[2];
-    o[2] = a[0] * b[2] - a[1] * b[3] + a[2] * b[0] + a[3] * b[1];
-    o[3] = a[0] * b[3] + a[1] * b[2] - a[2] * b[1] + a[3] * b[0];
-}
-
 /* The clip's pose turned by -clip_yaw about the vertical through clip_from, moved to clip_to. */
 static void clip_normalise(const xscene *sc, weft_pose *pose)
 {
-    const double c = cos(-sc->clip_yaw), s = sin(-sc->clip_yaw);
-    const double turn[4] = {cos(-0.5 * sc->clip_yaw), 0.0, sin(-0.5 * sc->clip_yaw), 0.0};
-    double q[4], o[4];
-    quat_from_aa(pose->rotations, q);
-    quat_mul(turn, q, o);
-    quat_to_aa(o, pose->rotations);
-    const float *p0 = weft_body_rest_joints(sc->body); /* the pelvis at rest */
-    const double P[3] = {p0[0] + pose->translation[0] - sc->clip_from[0], p0[1] + pose->translation[1],
-                         p0[2] + pose->translation[2] - sc->clip_from[2]};
-    const double R[3] = {c * P[0] + s * P[2], P[1], -s * P[0] + c * P[2]};
-    pose->translation[0] = (float)(R[0] + sc->clip_to[0] - p0[0]);
-    pose->translation[1] = (float)(R[1] - p0[1]);
-    pose->translation[2] = (float)(R[2] + sc->clip_to[2] - p0[2]);
+    const double from[2] = {sc->clip_from[0], sc->clip_from[2]}, to[2] = {sc->clip_to[0], sc->clip_to[2]};
+    weft_pose_place(sc->body, pose, -sc->clip_yaw, from, to);
 }
 
 static void clip_pose_at(const xscene *sc, double t, weft_pose *pose)
@@ -924,12 +883,7 @@ static weft_result load_clip(weft_context *ctx, xscene *sc, const weft_sim_seque
     if ((res = weft_clip_sample(sc->clip, sc->clip_start_s, &first)) != WEFT_OK) {
         return res;
     }
-    /* heading: the root's forward axis (+Z at rest) projected on the floor */
-    double q[4], f[3];
-    quat_from_aa(first.rotations, q);
-    f[0] = 2.0 * (q[1] * q[3] + q[0] * q[2]);
-    f[2] = 1.0 - 2.0 * (q[1] * q[1] + q[2] * q[2]);
-    sc->clip_yaw = atan2(f[0], f[2]);
+    sc->clip_yaw = weft_pose_heading(&first); /* the root's forward axis (+Z at rest) on the floor */
     const float *p0 = weft_body_rest_joints(sc->body);
     sc->clip_from[0] = p0[0] + first.translation[0];
     sc->clip_from[2] = p0[2] + first.translation[2];

@@ -25,17 +25,20 @@ const char weft_bench_mocap_help[] = "garments on the mocap library's clips: gar
 
 #if WEFT_RENDER_HAVE_SAMPLE && WEFT_RENDER_HAVE_ASSETS
 #include "bvh.h"
+#include "weft/clip_place.h"
 #include "weft/wear.h"
 #include "weft_sample.h"
 
 #define MC_MAX_CLIPS 128
 #define MC_MAX_METHODS 8
 #define MC_SETTLE 30 /* default settle frames */
+#define MC_CHAIN_BLEND 30 /* frames blending one clip of a --chain into the next */
 
 typedef struct mc_options {
     const char *split, *clips, *garments, *methods, *model, *md, *block, *resolution, *csv;
     const char *fnopt_model;    /* the cape's FNOpt weights (NULL: the render sample's default) */
     uint32_t frames, settle, tokens;
+    uint32_t chain;   /* --chain N: the clips back to back as one motion of N frames (0: one row per clip) */
     uint32_t retime;  /* timing runs again for a cell whose worst frame passes retime_over x its median */
     float retime_over;
     bool ccd;
@@ -183,6 +186,36 @@ static uint32_t cell_frames(const mc_options *o, const weft_clip *clip)
 {
     const uint32_t clip_frames = (uint32_t)floor((double)clip->frame_count / (double)clip->fps * 60.0);
     return o->frames && o->frames < clip_frames ? o->frames : clip_frames;
+}
+
+/* --chain: the clips back to back as one motion of `frames` frames (weft_clip_chain: each placed
+ * where the one before ended and blended into over MC_CHAIN_BLEND frames, as a game crossfades one
+ * animation into the next). */
+static int make_chain(weft_context *ctx, const weft_body *body, char names[][64], uint32_t n, uint32_t frames,
+                      weft_clip **out)
+{
+    *out = NULL;
+    weft_clip *clips[MC_MAX_CLIPS] = {NULL};
+    int rc = 0;
+    for (uint32_t c = 0; rc == 0 && c < n; ++c) {
+        char spec[128], path[1024];
+        snprintf(spec, sizeof spec, "mocap:%.63s", names[c]);
+        weft_bvh_def bdef = weft_default_bvh_def();
+        bdef.rest_joints = weft_body_rest_joints(body);
+        if (weft_sample_motion_path(spec, path, sizeof path) != WEFT_OK ||
+            weft_bvh_load_file(ctx, path, &bdef, &clips[c]) != WEFT_OK) {
+            fprintf(stderr, "weft bench mocap: clip %s: %s\n", names[c], weft_last_error());
+            rc = 1;
+        }
+    }
+    if (rc == 0 && weft_clip_chain(ctx, body, (const weft_clip *const *)clips, n, frames, MC_CHAIN_BLEND, out) != WEFT_OK) {
+        fprintf(stderr, "weft bench mocap: --chain: %s\n", weft_last_error());
+        rc = 1;
+    }
+    for (uint32_t c = 0; c < n; ++c) {
+        weft_clip_destroy(clips[c]);
+    }
+    return rc;
 }
 
 /* Frame k's pose (the settle frames blend from the bind pose into the clip's first pose) and
@@ -424,7 +457,7 @@ typedef struct mc_total {
 enum {
     OPT_SPLIT = 1, OPT_CLIPS, OPT_GARMENTS, OPT_METHODS, OPT_FRAMES, OPT_SETTLE, OPT_RESOLUTION, OPT_MODEL, OPT_CCD,
     OPT_BODY_PARTS, OPT_TETHER_CM, OPT_PUSH_CM, OPT_PUSH_DEPTH_CM, OPT_STRAIN_LIMIT, OPT_FNOPT_MODEL, OPT_COLLIDER_TOKENS, OPT_MD, OPT_BLOCK, OPT_CSV,
-    OPT_RETIME, OPT_RETIME_OVER,
+    OPT_RETIME, OPT_RETIME_OVER, OPT_CHAIN,
 };
 
 static const cli_option k_options[] = {
@@ -442,6 +475,10 @@ static const cli_option k_options[] = {
     {"frames", "N", OPT_FRAMES,
      "frames after the settle, 0..100000 (default 300; 0: every frame of each\n"
      "clip)"},
+    {"chain", "N", OPT_CHAIN,
+     "the clips back to back as one motion of N frames, 1..100000 (each placed\n"
+     "where the one before ended and blended into over 30 frames, the clips\n"
+     "repeating in order): one row per garment and method; --frames is then N"},
     {"settle", "N", OPT_SETTLE,
      "settle frames blending from the bind pose into the clip's first pose,\n"
      "1..1000 (default 30)"},
@@ -501,7 +538,7 @@ static void notes(FILE *out)
 static const cli_command k_command = {
     .tool = "weft bench mocap",
     .synopsis = "weft bench mocap [--split test|train|all] [--clips A,B,...] [--garments tshirt,dress,skirt,cape]\n"
-                "                 [--methods lbs,model,xpbd-fast:S,xpbd:S,fnopt] [--frames N]\n"
+                "                 [--methods lbs,model,xpbd-fast:S,xpbd:S,fnopt] [--frames N] [--chain N]\n"
                 "                 [--resolution 1k|4k] [--model FILE] [--fnopt-model FILE] [--ccd on|off]\n"
                 "                 [--body-parts auto|on|off]\n"
                 "                 [--tether-cm X] [--push-cm X] [--push-depth-cm X] [--strain-limit PCT]\n"
@@ -566,6 +603,11 @@ int weft_bench_mocap(int argc, char **argv)
             break;
         case OPT_FRAMES:
             if (!cli_u32(k_command.tool, a, v, 0, 100000, &o.frames)) {
+                return 2;
+            }
+            break;
+        case OPT_CHAIN:
+            if (!cli_u32(k_command.tool, a, v, 1, 100000, &o.chain)) {
                 return 2;
             }
             break;
@@ -677,7 +719,11 @@ int weft_bench_mocap(int argc, char **argv)
     char *table = NULL;
     size_t len = 0, cap = 0;
     char line[4096];
-    char settle_arg[32] = "", tether_arg[32] = "";
+    char settle_arg[32] = "", tether_arg[32] = "", chain_arg[32] = "";
+    if (o.chain) { /* the chain's rows run its whole length */
+        o.frames = o.chain;
+        snprintf(chain_arg, sizeof chain_arg, " --chain %u", o.chain);
+    }
     if (o.tether_cm >= 0.0f) {
         snprintf(tether_arg, sizeof tether_arg, " --tether-cm %g", (double)o.tether_cm);
     }
@@ -689,13 +735,14 @@ int weft_bench_mocap(int argc, char **argv)
         snprintf(retime_arg, sizeof retime_arg, " --retime %u --retime-over %g", o.retime, (double)o.retime_over);
     }
     snprintf(line, sizeof line,
-             "`weft bench mocap --split %s%s%s --frames %u%s --resolution %s --methods %s --garments %s --ccd %s --body-parts "
+             "`weft bench mocap --split %s%s%s --frames %u%s%s --resolution %s --methods %s --garments %s --ccd %s --body-parts "
              "%s%s --push-cm %g --push-depth-cm %g --strain-limit %g --collider-tokens %u%s` "
              "(%s)\n\n"
              "| clip | garment | method | lost | worst off_body %% | inside_body mean / max %% | inside_clear max %% | "
              "body_self_overlap mean / max %% | ms p50 / p99 / max | max / p50 |\n"
              "|---|---|---|---|---:|---:|---:|---:|---:|---:|\n",
-             o.split, o.clips ? " --clips " : "", o.clips ? o.clips : "", o.frames, settle_arg, o.resolution, o.methods,
+             o.split, o.clips ? " --clips " : "", o.clips ? o.clips : "", o.frames, chain_arg, settle_arg, o.resolution,
+             o.methods,
              o.garments, o.ccd ? "on" : "off", o.parts < 0 ? "auto" : o.parts ? "on" : "off", tether_arg,
              (double)o.push_cm, (double)o.push_depth_cm, (double)o.strain_pct, o.tokens, retime_arg,
              weft_config_string());
@@ -709,14 +756,22 @@ int weft_bench_mocap(int argc, char **argv)
                        "clip,garment,method,lost,worst_off_body_pct,inside_body_mean_pct,inside_body_max_pct,"
                        "body_self_overlap_mean_pct,body_self_overlap_max_pct,ms_p50,ms_p99,ms_max,inside_clear_max_pct\n");
     int rc = table && csv ? 0 : 1;
-    for (uint32_t c = 0; rc == 0 && c < nclips; ++c) {
+    /* --chain: one motion of every clip back to back, one row per garment and method */
+    weft_clip *chain = NULL;
+    char chain_name[64];
+    snprintf(chain_name, sizeof chain_name, "chain of %u clips", nclips);
+    if (rc == 0 && o.chain && make_chain(ctx, body, clip_names, nclips, o.chain, &chain) != 0) {
+        rc = 1;
+    }
+    for (uint32_t c = 0; rc == 0 && c < (o.chain ? 1u : nclips); ++c) {
+        const char *row_name = o.chain ? chain_name : clip_names[c];
         char spec[128], path[1024];
         snprintf(spec, sizeof spec, "mocap:%.63s", clip_names[c]);
         weft_bvh_def bdef = weft_default_bvh_def();
         bdef.rest_joints = weft_body_rest_joints(body);
-        weft_clip *clip = NULL;
-        if (weft_sample_motion_path(spec, path, sizeof path) != WEFT_OK ||
-            weft_bvh_load_file(ctx, path, &bdef, &clip) != WEFT_OK) {
+        weft_clip *clip = chain;
+        if (!chain && (weft_sample_motion_path(spec, path, sizeof path) != WEFT_OK ||
+                       weft_bvh_load_file(ctx, path, &bdef, &clip) != WEFT_OK)) {
             fprintf(stderr, "weft bench mocap: clip %s: %s\n", clip_names[c], weft_last_error());
             rc = 1;
             break;
@@ -746,7 +801,7 @@ int weft_bench_mocap(int argc, char **argv)
                     rc = cape ? run_cape_cell(&o, ctx, body, clip, &methods[k], &re)
                               : run_cell(&o, ctx, body, model, clip, kinds[gk], &methods[k], &re);
                     if (rc == 0 && (re.failed || memcmp(&re.wear, &cell.wear, sizeof re.wear) != 0)) {
-                        fprintf(stderr, "weft bench mocap: %s %s %s: timing it again changed the cloth\n", clip_names[c],
+                        fprintf(stderr, "weft bench mocap: %s %s %s: timing it again changed the cloth\n", row_name,
                                 kind_names[gk], methods[k].label);
                         rc = 1;
                     }
@@ -761,7 +816,7 @@ int weft_bench_mocap(int argc, char **argv)
                 t->cells++;
                 if (cell.failed) {
                     t->failed++;
-                    snprintf(line, sizeof line, "| %.63s | %s | %s | failed: %.159s | | | | | | |\n", clip_names[c],
+                    snprintf(line, sizeof line, "| %.63s | %s | %s | failed: %.159s | | | | | | |\n", row_name,
                              kind_names[gk], methods[k].label, cell.why);
                 } else {
                     const weft_wear_summary *w = &cell.wear;
@@ -783,13 +838,13 @@ int weft_bench_mocap(int argc, char **argv)
                     snprintf(line, sizeof line,
                              "| %.63s | %s | %.31s | %s | %.1f | %.1f / %.1f | %.1f | %.1f / %.1f | %.2f / %.2f / %.2f | "
                              "%.1f%s |\n",
-                             clip_names[c], kind_names[gk], methods[k].label, w->frames_off ? "**lost**" : "no",
+                             row_name, kind_names[gk], methods[k].label, w->frames_off ? "**lost**" : "no",
                              100.0 * w->off_body_max, 100.0 * w->inside_mean, 100.0 * w->inside_max,
                              100.0 * w->inside_clear_max, 100.0 * w->overlap_mean, 100.0 * w->overlap_max, cell.p50, cell.p99, cell.max, ratio,
                              first);
                     char row[512];
                     snprintf(row, sizeof row, "%.63s,%s,%.31s,%d,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f\n",
-                             clip_names[c], kind_names[gk], methods[k].label, w->frames_off > 0,
+                             row_name, kind_names[gk], methods[k].label, w->frames_off > 0,
                              100.0 * w->off_body_max, 100.0 * w->inside_mean, 100.0 * w->inside_max,
                              100.0 * w->overlap_mean, 100.0 * w->overlap_max, cell.p50, cell.p99, cell.max,
                              100.0 * w->inside_clear_max);
@@ -805,8 +860,11 @@ int weft_bench_mocap(int argc, char **argv)
                 rc = table ? 0 : 1;
             }
         }
-        weft_clip_destroy(clip);
+        if (clip != chain) {
+            weft_clip_destroy(clip);
+        }
     }
+    weft_clip_destroy(chain);
     if (rc == 0) {
         table = bench_append(table, &len, &cap,
                              "\n| method | cells | garments lost | failed | inside_body mean of means / worst frame % | "
