@@ -188,6 +188,21 @@ static uint32_t cell_frames(const mc_options *o, const weft_clip *clip)
     return o->frames && o->frames < clip_frames ? o->frames : clip_frames;
 }
 
+/* A library clip by name, retargeted onto the body; non-zero (reported) on failure. */
+static int load_clip(weft_context *ctx, const weft_body *body, const char *name, weft_clip **out)
+{
+    char spec[128], path[1024];
+    snprintf(spec, sizeof spec, "mocap:%.63s", name);
+    weft_bvh_def bdef = weft_default_bvh_def();
+    bdef.rest_joints = weft_body_rest_joints(body);
+    if (weft_sample_motion_path(spec, path, sizeof path) != WEFT_OK ||
+        weft_bvh_load_file(ctx, path, &bdef, out) != WEFT_OK) {
+        fprintf(stderr, "weft bench mocap: clip %s: %s\n", name, weft_last_error());
+        return 1;
+    }
+    return 0;
+}
+
 /* --chain: the clips back to back as one motion of `frames` frames (weft_clip_chain: each placed
  * where the one before ended and blended into over MC_CHAIN_BLEND frames, as a game crossfades one
  * animation into the next). */
@@ -198,15 +213,7 @@ static int make_chain(weft_context *ctx, const weft_body *body, char names[][64]
     weft_clip *clips[MC_MAX_CLIPS] = {NULL};
     int rc = 0;
     for (uint32_t c = 0; rc == 0 && c < n; ++c) {
-        char spec[128], path[1024];
-        snprintf(spec, sizeof spec, "mocap:%.63s", names[c]);
-        weft_bvh_def bdef = weft_default_bvh_def();
-        bdef.rest_joints = weft_body_rest_joints(body);
-        if (weft_sample_motion_path(spec, path, sizeof path) != WEFT_OK ||
-            weft_bvh_load_file(ctx, path, &bdef, &clips[c]) != WEFT_OK) {
-            fprintf(stderr, "weft bench mocap: clip %s: %s\n", names[c], weft_last_error());
-            rc = 1;
-        }
+        rc = load_clip(ctx, body, names[c], &clips[c]);
     }
     if (rc == 0 && weft_clip_chain(ctx, body, (const weft_clip *const *)clips, n, frames, MC_CHAIN_BLEND, out) != WEFT_OK) {
         fprintf(stderr, "weft bench mocap: --chain: %s\n", weft_last_error());
@@ -758,24 +765,15 @@ int weft_bench_mocap(int argc, char **argv)
     int rc = table && csv ? 0 : 1;
     /* --chain: one motion of every clip back to back, one row per garment and method */
     weft_clip *chain = NULL;
-    char chain_name[64];
-    snprintf(chain_name, sizeof chain_name, "chain of %u clips", nclips);
     if (rc == 0 && o.chain && make_chain(ctx, body, clip_names, nclips, o.chain, &chain) != 0) {
         rc = 1;
     }
     for (uint32_t c = 0; rc == 0 && c < (o.chain ? 1u : nclips); ++c) {
-        const char *row_name = o.chain ? chain_name : clip_names[c];
-        char spec[128], path[1024];
-        snprintf(spec, sizeof spec, "mocap:%.63s", clip_names[c]);
-        weft_bvh_def bdef = weft_default_bvh_def();
-        bdef.rest_joints = weft_body_rest_joints(body);
         weft_clip *clip = chain;
-        if (!chain && (weft_sample_motion_path(spec, path, sizeof path) != WEFT_OK ||
-                       weft_bvh_load_file(ctx, path, &bdef, &clip) != WEFT_OK)) {
-            fprintf(stderr, "weft bench mocap: clip %s: %s\n", clip_names[c], weft_last_error());
-            rc = 1;
+        if (!chain && (rc = load_clip(ctx, body, clip_names[c], &clip)) != 0) {
             break;
         }
+        const char *row_name = chain ? chain->name : clip_names[c]; /* "chain of N clips" */
         for (uint32_t gk = 0; rc == 0 && gk < 4; ++gk) {
             if (!in_list(o.garments, kind_names[gk])) {
                 continue;

@@ -549,11 +549,16 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
     d.strain.contact = o->strain_contact;
     d.collision.push = o->push;
     d.collision.push_depth = o->push_depth;
+    /* a worn garment (read once: its kind for the recipe, its off-body distance for the wear measures) */
+    float off_distance = 0.10f;
+    weft_cloth_kind kind = WEFT_CLOTH_TSHIRT;
+    const bool worn = s.cpos && worn_garment(dir, &off_distance, &kind);
+#if !WEFT_HAVE_RENDER
+    (void)worn; /* the recipe and the wear measures come with the samples' build */
+#endif
 #if WEFT_RENDER_HAVE_SAMPLE
-    float worn_off = 0.10f;
-    weft_cloth_kind worn_kind = WEFT_CLOTH_TSHIRT;
-    if (o->recipe_worn && s.cpos && worn_garment(dir, &worn_off, &worn_kind)) {
-        weft_sample_worn_recipe(&d, worn_kind, o->method); /* as the render sample and bench mocap wear it */
+    if (o->recipe_worn && worn) {
+        weft_sample_worn_recipe(&d, kind, o->method); /* as the render sample and bench mocap wear it */
     }
 #endif
     const float tether = d.tethers.distance;
@@ -604,11 +609,9 @@ static int eval_sequence(weft_context *ctx, const weft_model *model, const eval_
     }
 #if WEFT_HAVE_RENDER
     /* wear measures for a worn garment, against the garment the skin carries */
-    float off_distance = 0.10f;
     weft_wear *wear = NULL;
     float *skinned = NULL;
-    weft_cloth_kind kind = WEFT_CLOTH_TSHIRT;
-    if (!up && s.cpos && worn_garment(dir, &off_distance, &kind)) {
+    if (!up && worn) {
         skinned = malloc(nv * sizeof(float));
         if (!skinned || weft_wear_create(s.cfaces, s.Fc, s.Vc, s.V, &wear) != WEFT_OK ||
             weft_garment_skinned_positions(g, skinned) != WEFT_OK) {
