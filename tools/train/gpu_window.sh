@@ -16,7 +16,8 @@
 #   2. training continues from the committed resumable checkpoint (RESUME, default
 #      tools/train/resume/garment.pt: weights, and optimiser state and step when a window wrote
 #      it) on the GPU (CPU when there is none), validating first and every EVAL_EVERY steps,
-#      keeping the best weights, until MARGIN_S seconds before the window's end;
+#      keeping the best weights, until MARGIN_S seconds before the window's end (train.py also
+#      keeps back its longest step and validation so far, so the last ones end inside it);
 #   3. $OUT (or DEST) gets ckpt.pt (the next resumable checkpoint: commit it as RESUME), best.pt
 #      (export.py input), log.csv, train.err and window.md (one row for docs/TRAINING.md's table:
 #      date, device, minutes, steps, validation MVE before -> after).

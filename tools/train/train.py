@@ -402,8 +402,22 @@ def main():
     best_path = os.path.join(a.out, "best.pt")
     if a.keep_best and os.path.exists(best_path):   # resumed: the best so far stays the bar
         best_val = torch.load(best_path, map_location="cpu").get("val_mve_cm", best_val)
-    if rank == 0 and a.eval_first and val:
+    # A run stopped by the clock still ends with a step and, with validation on, a final
+    # validation: the longest of each seen so far is kept back, so the run ends by its limit.
+    step_s = eval_s = 0.0
+
+    def timed_eval():
+        nonlocal eval_s
+        t = time.time()
         v = evaluate(net, val, mc, device, a.eval_frames, a.pins)
+        eval_s = max(eval_s, time.time() - t)
+        return v
+
+    def reserve_s():
+        return step_s + (eval_s if val and (a.eval_every > 0 or a.budget_minutes > 0) else 0.0)
+
+    if rank == 0 and a.eval_first and val:
+        v = timed_eval()
         print(f"start val MVE {v:.4f} cm at step {step}", file=sys.stderr, flush=True)
         if log:
             log.writerow([step, "", "", "", "", "", "", f"{elapsed_before:.1f}", f"{v:.4f}", ""])
@@ -412,8 +426,11 @@ def main():
             save_ckpt(best_path, {"model": net.state_dict(), "config": cfg, "step": step, "elapsed": elapsed_before,
                                   "val_mve_cm": v})
     while step < a.steps:
+        t_step = time.time()
         if a.budget_minutes > 0:
             progress = (elapsed_before + time.time() - t_start) / (60.0 * a.budget_minutes)
+            stop = (elapsed_before + time.time() - t_start + reserve_s()) >= 60.0 * a.budget_minutes
+            progress = 1.0 if stop else progress
             if ddp:  # every rank follows rank 0's clock, so all stop at the same step
                 pt = torch.tensor([progress], dtype=torch.float64)
                 dist.broadcast(pt, 0)
@@ -475,12 +492,13 @@ def main():
         torch.nn.utils.clip_grad_norm_(net.parameters(), 1.0)
         opt.step()
         step += 1
+        step_s = max(step_s, time.time() - t_step)
         mse_cm = math.sqrt(float(mse) / len(preds)) * out_scale * 100.0
         run_avg = mse_cm if run_avg is None else 0.98 * run_avg + 0.02 * mse_cm
         elapsed = elapsed_before + time.time() - t_start
         val_mve = ""
         if rank == 0 and a.eval_every > 0 and (step % a.eval_every == 0 or step == a.steps) and val:
-            v = evaluate(net, val, mc, device, a.eval_frames, a.pins)
+            v = timed_eval()
             val_mve = f"{v:.4f}"
             if a.keep_best and v < best_val:
                 best_val = v
@@ -498,7 +516,7 @@ def main():
         if rank == 0 and a.snapshot_every > 0 and step % a.snapshot_every == 0:
             save_ckpt(os.path.join(a.out, f"snap_{step:06d}.pt"), {"model": net.state_dict(), "config": cfg,
                                                                   "step": step, "elapsed": elapsed})
-        out_of_time = a.max_minutes > 0 and (time.time() - t_start) > 60 * a.max_minutes
+        out_of_time = a.max_minutes > 0 and (time.time() - t_start) + reserve_s() > 60 * a.max_minutes
         if rank == 0 and (step % a.ckpt_every == 0 or step == a.steps or out_of_time):
             save_ckpt(ckpt_path, {"model": net.state_dict(), "opt": opt.state_dict(), "step": step,
                                   "config": cfg, "elapsed": elapsed, "py_rng": random.getstate(),
