@@ -799,7 +799,8 @@ int weft_bench_mocap(int argc, char **argv)
     size_t csv_len = 0, csv_cap = 0;
     csv = bench_append(csv, &csv_len, &csv_cap,
                        "clip,garment,method,lost,worst_off_body_pct,inside_body_mean_pct,inside_body_max_pct,"
-                       "body_self_overlap_mean_pct,body_self_overlap_max_pct,ms_p50,ms_p99,ms_max,inside_clear_max_pct\n");
+                       "body_self_overlap_mean_pct,body_self_overlap_max_pct,ms_p50,ms_p99,ms_max,inside_clear_max_pct,"
+                       "inside_clear_mean_pct\n");
     int rc = table && csv ? 0 : 1;
     /* --chain: one motion of every clip back to back, one row per garment and method */
     weft_clip *chain = NULL;
@@ -878,11 +879,11 @@ int weft_bench_mocap(int argc, char **argv)
                              100.0 * w->inside_clear_max, 100.0 * w->overlap_mean, 100.0 * w->overlap_max, cell.p50, cell.p99, cell.max, ratio,
                              first);
                     char row[512];
-                    snprintf(row, sizeof row, "%.63s,%s,%.31s,%d,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f\n",
+                    snprintf(row, sizeof row, "%.63s,%s,%.31s,%d,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f,%.4f\n",
                              row_name, kind_names[gk], methods[k].label, w->frames_off > 0,
                              100.0 * w->off_body_max, 100.0 * w->inside_mean, 100.0 * w->inside_max,
                              100.0 * w->overlap_mean, 100.0 * w->overlap_max, cell.p50, cell.p99, cell.max,
-                             100.0 * w->inside_clear_max);
+                             100.0 * w->inside_clear_max, 100.0 * w->inside_clear_mean);
                     csv = bench_append(csv, &csv_len, &csv_cap, row);
                     if (!csv) {
                         rc = 1;
