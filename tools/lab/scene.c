@@ -633,8 +633,7 @@ static weft_result build_gripper(xscene *sc, const weft_sim_sequence_def *def, x
 /* The clip's pose turned by -clip_yaw about the vertical through clip_from, moved to clip_to. */
 static void clip_normalise(const xscene *sc, weft_pose *pose)
 {
-    const double from[2] = {sc->clip_from[0], sc->clip_from[2]}, to[2] = {sc->clip_to[0], sc->clip_to[2]};
-    weft_pose_place(sc->body, pose, -sc->clip_yaw, from, to);
+    weft_pose_place(sc->body, pose, -sc->clip_yaw, sc->clip_from, sc->clip_to);
 }
 
 static void clip_pose_at(const xscene *sc, double t, weft_pose *pose)
@@ -884,11 +883,8 @@ static weft_result load_clip(weft_context *ctx, xscene *sc, const weft_sim_seque
         return res;
     }
     sc->clip_yaw = weft_pose_heading(&first); /* the root's forward axis (+Z at rest) on the floor */
-    const float *p0 = weft_body_rest_joints(sc->body);
-    sc->clip_from[0] = p0[0] + first.translation[0];
-    sc->clip_from[2] = p0[2] + first.translation[2];
-    sc->clip_to[0] = p0[0] + sc->bind_pose.translation[0];
-    sc->clip_to[2] = p0[2] + sc->bind_pose.translation[2];
+    weft_pose_pelvis_xz(sc->body, &first, sc->clip_from);
+    weft_pose_pelvis_xz(sc->body, &sc->bind_pose, sc->clip_to);
     clip_pose_at(sc, 0.0, &sc->start_pose);
     const uint32_t nt = weft_body_triangle_count(sc->body);
     sc->parts = malloc(nt ? nt : 1);

@@ -63,8 +63,9 @@ typedef struct xscene {
     double clip_start_s, clip_speed;
     /* The clip's window starts where the bind pose stands, facing as it does: every pose is
      * turned by -clip_yaw about the vertical through the start's pelvis, which moves over the
-     * bind pose's pelvis (clip_from: the start's pelvis, clip_to: the bind pose's). */
-    double clip_yaw, clip_from[3], clip_to[3];
+     * bind pose's pelvis (clip_from: the start's pelvis, clip_to: the bind pose's; floor points
+     * x, z, weft_pose_pelvis_xz). */
+    double clip_yaw, clip_from[2], clip_to[2];
     uint8_t *parts;              /* collider triangle parts (clip and character scenes), else NULL */
     const weft_sim_character *character; /* the host's character (def.character), else NULL */
     weft_pose bind_pose, start_pose;
