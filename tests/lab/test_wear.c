@@ -125,6 +125,52 @@ static void test_bad_input(void)
     test_mesh_free(&a);
 }
 
+/* weft_wear_measure_memo: the same figures as weft_wear_measure for frames measured, read back
+ * from the memo and measured again after the body moved (the checksum misses); box b moved clear
+ * of box a buries nothing, and moved back reads its four buried corners from the memo. A memo of
+ * another body size or a frame past its end is refused. */
+static void test_memo(void)
+{
+    test_mesh a = test_box(k_a_lo, k_a_hi), b = test_box(k_b_lo, k_b_hi), body = test_mesh_join(&a, &b);
+    const float pts[3][3] = {{0.8f, 0.5f, 0.5f}, {1.3f, 0.9f, 0.9f}, {0.61f, 0.31f, 0.69f}};
+    float *moved = malloc((size_t)body.nv * 3 * sizeof(float));
+    memcpy(moved, body.pos, (size_t)body.nv * 3 * sizeof(float));
+    for (uint32_t v = a.nv; v < body.nv; ++v) {
+        moved[3 * (size_t)v] += 1.0f; /* box b clear of box a */
+    }
+    weft_wear *w = NULL;
+    weft_wear_memo *memo = NULL;
+    CHECK_RESULT(weft_wear_create(body.tris, body.nt, body.nv, 3, &w), WEFT_OK);
+    CHECK_RESULT(weft_wear_memo_create(body.nv, 2, &memo), WEFT_OK);
+    weft_wear_frame plain, first, again, other, back;
+    CHECK_RESULT(weft_wear_measure(w, body.pos, pts[0], pts[0], 0.1f, &plain), WEFT_OK);
+    CHECK_RESULT(weft_wear_measure_memo(w, memo, 1, body.pos, pts[0], pts[0], 0.1f, &first), WEFT_OK);
+    CHECK_RESULT(weft_wear_measure_memo(w, memo, 1, body.pos, pts[0], pts[0], 0.1f, &again), WEFT_OK);
+    CHECK_RESULT(weft_wear_measure_memo(w, memo, 1, moved, pts[0], pts[0], 0.1f, &other), WEFT_OK);
+    CHECK_RESULT(weft_wear_measure_memo(w, memo, 0, body.pos, pts[0], pts[0], 0.1f, &back), WEFT_OK);
+    CHECK(memcmp(&plain, &first, sizeof plain) == 0 && memcmp(&plain, &again, sizeof plain) == 0 &&
+          memcmp(&plain, &back, sizeof plain) == 0);
+    CHECK_NEAR(plain.body_self_overlap, 4.0 / 16.0, 1e-12);
+    CHECK_NEAR(other.body_self_overlap, 0.0, 0.0);
+    CHECK(plain.inside_clear < plain.inside_body); /* the point by a buried corner */
+    CHECK_NEAR(other.inside_clear, other.inside_body, 0.0);
+    weft_wear_memo *small = NULL;
+    CHECK_RESULT(weft_wear_memo_create(body.nv - 1, 2, &small), WEFT_OK);
+    CHECK_RESULT(weft_wear_measure_memo(w, small, 0, body.pos, pts[0], pts[0], 0.1f, &other),
+                 WEFT_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(weft_wear_measure_memo(w, memo, 2, body.pos, pts[0], pts[0], 0.1f, &other),
+                 WEFT_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(weft_wear_memo_create(0, 2, &small), WEFT_ERROR_INVALID_ARGUMENT);
+    CHECK_RESULT(weft_wear_memo_create(body.nv, 0, &small), WEFT_ERROR_INVALID_ARGUMENT);
+    weft_wear_memo_destroy(small);
+    weft_wear_memo_destroy(memo);
+    weft_wear_destroy(w);
+    free(moved);
+    test_mesh_free(&a);
+    test_mesh_free(&b);
+    test_mesh_free(&body);
+}
+
 static void test_percentile(void)
 {
     double v[5] = {5, 1, 4, 2, 3};
@@ -135,4 +181,4 @@ static void test_percentile(void)
 }
 
 TEST_MAIN(TEST_CASE(test_inside_counts_the_union_once), TEST_CASE(test_near_overlap_reach), TEST_CASE(test_bad_input),
-          TEST_CASE(test_percentile))
+          TEST_CASE(test_memo), TEST_CASE(test_percentile))

@@ -6,7 +6,7 @@
 #include <stdlib.h>
 #include <string.h>
 
-#define WEAR_GRID 64
+#define WEAR_GRID 128
 #define WEAR_CLEAR_M 0.05f    /* inside_clear: no buried body vertex within this distance */
 #define WEAR_HASH 4096u       /* buckets of the buried vertices' hash grid (cells of WEAR_CLEAR_M) */
 
@@ -67,6 +67,59 @@ void weft_wear_destroy(weft_wear *w)
         free(w->buried);
         free(w);
     }
+}
+
+struct weft_wear_memo {
+    uint32_t nbv, frames, words;  /* words: 64-bit words of one frame's bits */
+    uint64_t *sum;                /* frames: checksum of the body positions measured (0: none yet) */
+    uint32_t *count;              /* frames: buried vertices */
+    uint64_t *bits;               /* frames * words: the buried vertices */
+};
+
+weft_result weft_wear_memo_create(uint32_t body_vertex_count, uint32_t frames, weft_wear_memo **out)
+{
+    if (body_vertex_count == 0 || frames == 0 || !out) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_wear_memo_create: a body vertex count and frames are required");
+    }
+    weft_wear_memo *m = calloc(1, sizeof *m);
+    if (!m) {
+        return WEFT_ERROR_OUT_OF_MEMORY;
+    }
+    m->nbv = body_vertex_count;
+    m->frames = frames;
+    m->words = (body_vertex_count + 63) / 64;
+    m->sum = calloc(frames, sizeof(uint64_t));
+    m->count = calloc(frames, sizeof(uint32_t));
+    m->bits = calloc((size_t)frames * m->words, sizeof(uint64_t));
+    if (!m->sum || !m->count || !m->bits) {
+        weft_wear_memo_destroy(m);
+        return WEFT_ERROR_OUT_OF_MEMORY;
+    }
+    *out = m;
+    return WEFT_OK;
+}
+
+void weft_wear_memo_destroy(weft_wear_memo *m)
+{
+    if (m) {
+        free(m->sum);
+        free(m->count);
+        free(m->bits);
+        free(m);
+    }
+}
+
+/* A 64-bit checksum of the positions' bits (never 0, the memo's "none yet"). */
+static uint64_t body_sum(const float *body, uint32_t nbv)
+{
+    uint64_t h = 0x9e3779b97f4a7c15ull;
+    for (size_t i = 0; i < (size_t)nbv * 3; ++i) {
+        uint32_t b;
+        memcpy(&b, body + i, sizeof b);
+        h = (h ^ b) * 0x100000001b3ull;
+        h ^= h >> 29;
+    }
+    return h ? h : 1;
 }
 
 static void cell_range(const weft_wear *w, float lo0, float hi0, float lo1, float hi1, int r[4])
@@ -259,9 +312,22 @@ static bool near_buried(const weft_wear *w, const float *body, const float *p)
 }
 
 /* Marks the body vertices another part of the body reaches within `reach` along the vertex normal
- * (w->normals, of this body) and hashes them; returns how many. */
-static uint32_t mark_buried(weft_wear *w, const float *body, float reach)
+ * (w->normals, of this body) and hashes them; returns how many. With a memo, the marks of frame
+ * `frame` come from it when it holds this body there, else they are stored in it. */
+static uint32_t mark_buried(weft_wear *w, const float *body, float reach, weft_wear_memo *memo, uint32_t frame)
 {
+    uint64_t sum = 0, *bits = NULL;
+    if (memo) {
+        sum = body_sum(body, w->nbv);
+        bits = memo->bits + (size_t)frame * memo->words;
+        if (memo->sum[frame] == sum) {
+            for (uint32_t v = 0; v < w->nbv; ++v) {
+                w->buried[v] = (uint8_t)(bits[v / 64] >> (v % 64) & 1u);
+            }
+            hash_buried(w, body);
+            return memo->count[frame];
+        }
+    }
     uint32_t buried = 0;
     for (uint32_t v = 0; v < w->nbv; ++v) {
         const float *n = w->normals + 3 * (size_t)v, *p = body + 3 * (size_t)v;
@@ -270,6 +336,14 @@ static uint32_t mark_buried(weft_wear *w, const float *body, float reach)
         const float q[3] = {p[0] + s * n[0], p[1] + s * n[1], p[2] + s * n[2]};
         w->buried[v] = winding(w, body, q) > 0;
         buried += w->buried[v];
+    }
+    if (memo) {
+        memset(bits, 0, memo->words * sizeof(uint64_t));
+        for (uint32_t v = 0; v < w->nbv; ++v) {
+            bits[v / 64] |= (uint64_t)w->buried[v] << (v % 64);
+        }
+        memo->sum[frame] = sum;
+        memo->count[frame] = buried;
     }
     hash_buried(w, body);
     return buried;
@@ -282,7 +356,7 @@ weft_result weft_wear_near_overlap(weft_wear *w, const float *body, float reach,
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
                           "weft_wear_near_overlap: all arrays are required and reach in [0, 0.1] m");
     }
-    (void)mark_buried(w, body, reach); /* the normals are weft_wear_measure's, of this body */
+    (void)mark_buried(w, body, reach, NULL, 0); /* the normals are weft_wear_measure's, of this body */
     for (uint32_t i = 0; i < count; ++i) {
         out[i] = near_buried(w, body, points + 3 * (size_t)i);
     }
@@ -292,8 +366,19 @@ weft_result weft_wear_near_overlap(weft_wear *w, const float *body, float reach,
 weft_result weft_wear_measure(weft_wear *w, const float *body, const float *garment, const float *skinned,
                               float off_distance, weft_wear_frame *out)
 {
+    return weft_wear_measure_memo(w, NULL, 0, body, garment, skinned, off_distance, out);
+}
+
+weft_result weft_wear_measure_memo(weft_wear *w, weft_wear_memo *memo, uint32_t frame, const float *body,
+                                   const float *garment, const float *skinned, float off_distance, weft_wear_frame *out)
+{
     if (!w || !body || !garment || !skinned || !out) {
         return weft__fail(WEFT_ERROR_INVALID_ARGUMENT, "weft_wear_measure: every array is required");
+    }
+    if (memo && (memo->nbv != w->nbv || frame >= memo->frames)) {
+        return weft__fail(WEFT_ERROR_INVALID_ARGUMENT,
+                          "weft_wear_measure_memo: frame %u of a memo of %u frames of %u body vertices (this body: %u)",
+                          frame, memo->frames, memo->nbv, w->nbv);
     }
     weft_result r = bin(w, body);
     if (r != WEFT_OK) {
@@ -312,7 +397,7 @@ weft_result weft_wear_measure(weft_wear *w, const float *body, const float *garm
             }
         }
     }
-    const uint32_t buried = mark_buried(w, body, 0.002f);
+    const uint32_t buried = mark_buried(w, body, 0.002f, memo, frame);
     const float d2 = off_distance * off_distance;
     for (uint32_t i = 0; i < w->ngv; ++i) {
         const float *x = garment + 3 * (size_t)i, *s = skinned + 3 * (size_t)i;

@@ -290,9 +290,10 @@ static int cell_merge_rerun(mc_cell *cell, const mc_cell *re)
     return cell_times(cell);
 }
 
-/* One (clip, garment, method) run. Returns non-zero only for setup failures. */
+/* One (clip, garment, method) run; memo: the clip's body self-overlap per frame, shared by its
+ * cells. Returns non-zero only for setup failures. */
 static int run_cell(const mc_options *o, weft_context *ctx, const weft_body *body, weft_model *model,
-                    const weft_clip *clip, weft_cloth_kind kind, const mc_method *m, mc_cell *cell)
+                    const weft_clip *clip, weft_wear_memo *memo, weft_cloth_kind kind, const mc_method *m, mc_cell *cell)
 {
     memset(cell, 0, sizeof *cell);
     weft_cloth_def cdef = weft_default_cloth_def(kind);
@@ -390,7 +391,8 @@ static int run_cell(const mc_options *o, weft_context *ctx, const weft_body *bod
         cell->ccd_released += st.ccd_released > 0;
         weft_wear_frame wf;
         if (weft_body_skin_points(body, &pose, cloth->positions, cloth->weights, cloth->vertex_count, skinned) != WEFT_OK ||
-            weft_wear_measure(wear, bverts, weft_garment_positions(g), skinned, off_distance, &wf) != WEFT_OK) {
+            weft_wear_measure_memo(wear, memo, k - settle, bverts, weft_garment_positions(g), skinned, off_distance,
+                                   &wf) != WEFT_OK) {
             rc = 1;
             break;
         }
@@ -431,7 +433,7 @@ static double cape_torn(const float *x, uint32_t across, uint32_t down, float un
  * stepped by FNOpt or fast XPBD. Its off_body is cape_torn's share (over 1 % in a frame: lost);
  * inside_body as for the garments. */
 static int run_cape_cell(const mc_options *o, weft_context *ctx, const weft_body *body, const weft_clip *clip,
-                         const mc_method *m, mc_cell *cell)
+                         weft_wear_memo *memo, const mc_method *m, mc_cell *cell)
 {
     memset(cell, 0, sizeof *cell);
     weft_sample_cape_def cd = weft_sample_default_cape_def();
@@ -480,7 +482,7 @@ static int run_cape_cell(const mc_options *o, weft_context *ctx, const weft_body
         weft_wear_frame wf;
         const float *x = weft_sample_cape_positions(cape);
         /* inside_body and the body's overlap; off_body is the cape's own (cape_torn) */
-        if (weft_wear_measure(wear, bverts, x, x, 1.0f, &wf) != WEFT_OK) {
+        if (weft_wear_measure_memo(wear, memo, k - o->settle, bverts, x, x, 1.0f, &wf) != WEFT_OK) {
             rc = 1;
             break;
         }
@@ -813,6 +815,13 @@ int weft_bench_mocap(int argc, char **argv)
             break;
         }
         const char *row_name = chain ? chain->name : clip_names[c]; /* "chain of N clips" */
+        /* the body's self-overlap, measured once per frame for all the clip's cells */
+        weft_wear_memo *memo = NULL;
+        if (weft_wear_memo_create(weft_body_vertex_count(body), cell_frames(&o, clip) ? cell_frames(&o, clip) : 1,
+                                  &memo) != WEFT_OK) {
+            fprintf(stderr, "weft bench mocap: %s\n", weft_last_error());
+            rc = 1;
+        }
         for (uint32_t gk = 0; rc == 0 && gk < 4; ++gk) {
             if (!in_list(o.garments, kind_names[gk])) {
                 continue;
@@ -826,8 +835,8 @@ int weft_bench_mocap(int argc, char **argv)
                     continue;
                 }
                 mc_cell cell;
-                rc = cape ? run_cape_cell(&o, ctx, body, clip, &methods[k], &cell)
-                          : run_cell(&o, ctx, body, model, clip, kinds[gk], &methods[k], &cell);
+                rc = cape ? run_cape_cell(&o, ctx, body, clip, memo, &methods[k], &cell)
+                          : run_cell(&o, ctx, body, model, clip, memo, kinds[gk], &methods[k], &cell);
                 /* A worst frame past the bound is timed again: on a shared machine one frame can
                  * lose its core's cache or clock to another job; the cloth must come out the same. */
                 const double first_ratio = rc == 0 && !cell.failed && cell.p50 > 0.0 ? cell.max / cell.p50 : 0.0;
@@ -835,8 +844,8 @@ int weft_bench_mocap(int argc, char **argv)
                                          cell.max > (double)o.retime_over * cell.p50;
                      ++again) {
                     mc_cell re;
-                    rc = cape ? run_cape_cell(&o, ctx, body, clip, &methods[k], &re)
-                              : run_cell(&o, ctx, body, model, clip, kinds[gk], &methods[k], &re);
+                    rc = cape ? run_cape_cell(&o, ctx, body, clip, memo, &methods[k], &re)
+                              : run_cell(&o, ctx, body, model, clip, memo, kinds[gk], &methods[k], &re);
                     if (rc == 0 && cell_merge_rerun(&cell, &re) != 0) {
                         fprintf(stderr, "weft bench mocap: %s %s %s: timing it again changed the cloth\n", row_name,
                                 kind_names[gk], methods[k].label);
@@ -896,6 +905,7 @@ int weft_bench_mocap(int argc, char **argv)
                 rc = table ? 0 : 1;
             }
         }
+        weft_wear_memo_destroy(memo);
         if (clip != chain) {
             weft_clip_destroy(clip);
         }

@@ -75,6 +75,21 @@ void weft_wear_destroy(weft_wear *w);
 weft_result weft_wear_measure(weft_wear *w, const float *body, const float *garment, const float *skinned,
                               float off_distance, weft_wear_frame *out);
 
+/* A memo of the body's self-overlap (the buried vertices body_self_overlap and inside_clear read)
+ * per frame of one motion, for measuring several garments or methods on the same body frames: the
+ * body is measured once per frame instead of once per garment. It holds one bit per body vertex and
+ * frame. */
+typedef struct weft_wear_memo weft_wear_memo;
+/* Fails with WEFT_ERROR_INVALID_ARGUMENT on zero counts. */
+weft_result weft_wear_memo_create(uint32_t body_vertex_count, uint32_t frames, weft_wear_memo **out);
+void weft_wear_memo_destroy(weft_wear_memo *m);
+/* weft_wear_measure, with the body's buried vertices of frame `frame` (< the memo's frames) read
+ * from the memo when it holds that frame of this very body (a 64-bit checksum of the positions'
+ * bits; else they are measured and stored there): the same figures as weft_wear_measure. A memo
+ * of another body vertex count or a frame past its end fails with WEFT_ERROR_INVALID_ARGUMENT. */
+weft_result weft_wear_measure_memo(weft_wear *w, weft_wear_memo *memo, uint32_t frame, const float *body,
+                                   const float *garment, const float *skinned, float off_distance, weft_wear_frame *out);
+
 /* After weft_wear_measure on this body: for each point, 1 when within 5 cm of a body vertex that
  * another part of the body reaches within `reach` metres (the vertex moved `reach` out along its
  * normal is inside the body: parts that overlap or nearly touch), else 0. Changes nothing the
