@@ -34,8 +34,7 @@ sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import heldout_table  # noqa: E402
 
 
-def mean(rows, key):
-    return heldout_table.mean(rows, key)
+mean = heldout_table.mean  # frame-weighted, as the held-out tables
 
 
 def measure_set(weft, data, model, frames):

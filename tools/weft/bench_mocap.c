@@ -817,8 +817,8 @@ int weft_bench_mocap(int argc, char **argv)
         const char *row_name = chain ? chain->name : clip_names[c]; /* "chain of N clips" */
         /* the body's self-overlap, measured once per frame for all the clip's cells */
         weft_wear_memo *memo = NULL;
-        if (weft_wear_memo_create(weft_body_vertex_count(body), cell_frames(&o, clip) ? cell_frames(&o, clip) : 1,
-                                  &memo) != WEFT_OK) {
+        const uint32_t memo_frames = cell_frames(&o, clip);
+        if (weft_wear_memo_create(weft_body_vertex_count(body), memo_frames ? memo_frames : 1, &memo) != WEFT_OK) {
             fprintf(stderr, "weft bench mocap: %s\n", weft_last_error());
             rc = 1;
         }
